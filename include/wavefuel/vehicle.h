@@ -1,0 +1,61 @@
+/* Vehicle classes: one YAML file per class in vehicles/ holding its energy model parameters, duty, fuel,
+ * mass and default length. Classes are found by name along a search path or given as a file path. */
+#ifndef WAVEFUEL_VEHICLE_H
+#define WAVEFUEL_VEHICLE_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "wavefuel/energy.h"
+#include "wavefuel/err.h"
+
+typedef enum { WF_DUTY_LIGHT = 0, WF_DUTY_HEAVY = 1 } WfDuty;
+typedef enum { WF_FUEL_GASOLINE = 0, WF_FUEL_DIESEL = 1 } WfFuelType;
+
+typedef struct WfVehicleClass {
+    char                 name[64];       /* file stem: "midsize_suv" */
+    char                 label[96];      /* human name: "Midsize SUV" */
+    char                 path[1024];     /* file it was loaded from */
+    WfDuty               duty;
+    WfFuelType           fuel;
+    double               mass_kg;
+    double               length_m;       /* default vehicle length */
+    double               fuel_density_g_per_l; /* converts g to L for L/100 km and mpg */
+    double               kw_per_gps;     /* equivalent power per unit fuel rate, kW/(g/s) */
+    const WfEnergyModel *model;          /* borrowed: a registry entry */
+    void                *params;         /* owned: model->param_size bytes */
+} WfVehicleClass;
+
+/* Fuel densities used when a class file does not set fuel_density_g_per_l: the CIRCLES release's
+ * 2839 g per US gallon of gasoline and 3217 g per US gallon of diesel (3.785411784 L per gallon). */
+#define WF_GASOLINE_G_PER_GAL 2839.0
+#define WF_DIESEL_G_PER_GAL   3217.0
+#define WF_L_PER_US_GAL       3.785411784
+#define WF_M_PER_MILE         1609.344
+
+/* Load a class file. `name` is the file stem. On failure the message names file, line and key. */
+int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err);
+/* Find a class: if `name_or_path` contains '/' or ends in .yaml it is a path; otherwise it is looked
+ * up as NAME.yaml in $WAVEFUEL_VEHICLES (colon-separated), then in the repository's vehicles/
+ * directory (located from the running binary: bin/../vehicles). Unknown names list the classes found. */
+int wf_vehicle_find(const char *name_or_path, WfVehicleClass *vc, WfError *err);
+void wf_vehicle_free(WfVehicleClass *vc);
+
+/* Every class on the search path (sorted by name, first occurrence wins). *out is owned by the caller:
+ * free each with wf_vehicle_free() and the array with free(). */
+int wf_vehicle_list(WfVehicleClass **out, size_t *n, WfError *err);
+
+/* Evaluate n points of this class's model: fuel g/s and flags (flag may be NULL). */
+static inline void wf_vehicle_fuel(const WfVehicleClass *vc, size_t n, const double *v_mps, const double *a_mps2,
+                                   const double *theta_rad, int project, double *fuel_gps, uint8_t *flag)
+{
+    vc->model->eval(vc->params, n, v_mps, a_mps2, theta_rad, project, fuel_gps, flag);
+}
+
+/* Fuel economy from grams and metres: L/100 km and miles per US gallon (0 distance gives +inf / 0). */
+double wf_l_per_100km(const WfVehicleClass *vc, double fuel_g, double dist_m);
+double wf_mpg(const WfVehicleClass *vc, double fuel_g, double dist_m);
+
+const char *wf_duty_name(WfDuty d);
+const char *wf_fuel_name(WfFuelType f);
+
+#endif

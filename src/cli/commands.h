@@ -1,0 +1,19 @@
+/* The wavefuel subcommands. Each returns the process exit status (0 ok, 2 bad input, 1 other failure)
+ * after printing its own error message; argv[0] is the subcommand name. */
+#ifndef WAVEFUEL_CLI_COMMANDS_H
+#define WAVEFUEL_CLI_COMMANDS_H
+
+#include "wavefuel/err.h"
+
+typedef struct WfCommand {
+    const char *name;
+    const char *summary;
+    int (*main)(int argc, char **argv);
+} WfCommand;
+
+int wf_cmd_energy(int argc, char **argv);
+
+/* Print "wavefuel: <message>" on stderr and return the exit status for the error's code. */
+int wf_cli_fail(const WfError *err);
+
+#endif

@@ -1,0 +1,124 @@
+/* Numeric CSV reader: strict per-field parsing with file:line:field messages, no quoting. */
+#include "wavefuel/csv.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+void wf_csv_free(WfCsv *csv)
+{
+    if (!csv) return;
+    free(csv->data);
+    free(csv->line);
+    memset(csv, 0, sizeof *csv);
+}
+
+static char *trim(char *s)
+{
+    while (*s == ' ' || *s == '\t') s++;
+    size_t n = strlen(s);
+    while (n && (s[n - 1] == ' ' || s[n - 1] == '\t' || s[n - 1] == '\r' || s[n - 1] == '\n')) s[--n] = '\0';
+    return s;
+}
+
+static int grow(WfCsv *c, size_t *cap, WfError *err)
+{
+    size_t ncap = *cap ? 2 * *cap : 1024;
+    double *d = realloc(c->data, ncap * c->n_cols * sizeof *d);
+    if (!d) return wf_err(err, WF_ESYS, "out of memory reading a table");
+    c->data = d;
+    int *l = realloc(c->line, ncap * sizeof *l);
+    if (!l) return wf_err(err, WF_ESYS, "out of memory reading a table");
+    c->line = l;
+    *cap = ncap;
+    return 0;
+}
+
+int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv *out, WfError *err)
+{
+    memset(out, 0, sizeof *out);
+    out->n_cols = n_cols;
+    int is_stdin = strcmp(path, "-") == 0;
+    const char *shown = is_stdin ? "<stdin>" : path;
+    FILE *f = is_stdin ? stdin : fopen(path, "r");
+    if (!f) return wf_err(err, WF_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    char *buf = NULL;
+    size_t bufcap = 0, cap = 0;
+    int lineno = 0, rc = 0, seen_data = 0;
+    ssize_t len;
+    while ((len = getline(&buf, &bufcap, f)) >= 0) {
+        lineno++;
+        if ((size_t)len != strlen(buf)) {
+            rc = wf_err(err, WF_EINPUT, "%s:%d: contains a NUL byte: not a text table", shown, lineno);
+            goto done;
+        }
+        char *s = trim(buf);
+        if (lineno == 1 && (unsigned char)s[0] == 0xEF && (unsigned char)s[1] == 0xBB && (unsigned char)s[2] == 0xBF)
+            s += 3; /* UTF-8 byte-order mark written by spreadsheet programs */
+        if (!*s || *s == '#') continue;
+        if (strchr(s, '"')) {
+            rc = wf_err(err, WF_EINPUT, "%s:%d: quoted fields are not supported: numbers only", shown, lineno);
+            goto done;
+        }
+        /* Header: only before the first data row, recognised by a non-numeric first field. */
+        if (!seen_data && !out->had_header) {
+            char first[256];
+            size_t k = strcspn(s, ",");
+            snprintf(first, sizeof first, "%.*s", (int)(k < 255 ? k : 255), s);
+            double dummy;
+            if (wf_parse_double(trim(first), &dummy) != 0) {
+                out->had_header = 1;
+                size_t col = 0;
+                char *save = NULL, *copy = s;
+                for (char *tok = strtok_r(copy, ",", &save); tok; tok = strtok_r(NULL, ",", &save), col++) {
+                    if (names && col < n_cols && strcmp(trim(tok), names[col]) != 0) {
+                        rc = wf_err(err, WF_EINPUT, "%s:%d: header column %zu is '%s', expected '%s'", shown, lineno,
+                                    col + 1, trim(tok), names[col]);
+                        goto done;
+                    }
+                }
+                if (col != n_cols) {
+                    rc = wf_err(err, WF_EINPUT, "%s:%d: header has %zu columns, expected %zu", shown, lineno, col,
+                                n_cols);
+                    goto done;
+                }
+                continue;
+            }
+        }
+        seen_data = 1;
+        if (out->n_rows == cap && (rc = grow(out, &cap, err))) goto done;
+        double *row = out->data + out->n_rows * n_cols;
+        size_t col = 0;
+        char *p = s;
+        for (;;) {
+            char *comma = strchr(p, ',');
+            if (comma) *comma = '\0';
+            if (col >= n_cols) {
+                rc = wf_err(err, WF_EINPUT, "%s:%d: more than %zu fields", shown, lineno, n_cols);
+                goto done;
+            }
+            char *field = trim(p);
+            if (wf_parse_double(field, &row[col])) {
+                rc = wf_err(err, WF_EINPUT, "%s:%d: field %zu%s%s%s: expected a finite number (got '%s')", shown,
+                            lineno, col + 1, names ? " (" : "", names ? names[col] : "", names ? ")" : "", field);
+                goto done;
+            }
+            col++;
+            if (!comma) break;
+            p = comma + 1;
+        }
+        if (col != n_cols) {
+            rc = wf_err(err, WF_EINPUT, "%s:%d: %zu fields, expected %zu%s%s", shown, lineno, col, n_cols,
+                        names ? " after field " : "", names ? names[col - 1] : "");
+            goto done;
+        }
+        out->line[out->n_rows++] = lineno;
+    }
+    if (ferror(f)) rc = wf_err(err, WF_ESYS, "%s: read error", shown);
+done:
+    free(buf);
+    if (!is_stdin) fclose(f);
+    if (rc) wf_csv_free(out);
+    return rc;
+}

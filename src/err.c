@@ -1,0 +1,82 @@
+/* Error records and strict number parsing shared by every module. */
+#include "wavefuel/err.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static void mark_truncated(WfError *err, int n)
+{
+    if (n >= (int)sizeof err->msg) memcpy(err->msg + sizeof err->msg - 4, "...", 4);
+}
+
+int wf_err(WfError *err, int code, const char *fmt, ...)
+{
+    if (!err) return code;
+    va_list ap;
+    va_start(ap, fmt);
+    int n = vsnprintf(err->msg, sizeof err->msg, fmt, ap);
+    va_end(ap);
+    mark_truncated(err, n);
+    err->code = code;
+    return code;
+}
+
+int wf_err_prefix(WfError *err, const char *fmt, ...)
+{
+    if (!err) return WF_ESYS;
+    char pre[512], old[sizeof err->msg];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(pre, sizeof pre, fmt, ap);
+    va_end(ap);
+    memcpy(old, err->msg, sizeof old);
+    int n = snprintf(err->msg, sizeof err->msg, "%s%s", pre, old);
+    mark_truncated(err, n);
+    return err->code ? err->code : WF_ESYS;
+}
+
+static const char *skip_blank(const char *s)
+{
+    while (*s == ' ' || *s == '\t') s++;
+    return s;
+}
+
+int wf_parse_double(const char *s, double *out)
+{
+    if (!s) return -1;
+    s = skip_blank(s);
+    if (!*s) return -1;
+    char *end = NULL;
+    errno = 0;
+    double v = strtod(s, &end);
+    if (end == s || errno == ERANGE || !isfinite(v)) return -1;
+    end = (char *)skip_blank(end);
+    if (*end != '\0' && *end != '\r' && *end != '\n') return -1;
+    if (*end == '\r' || *end == '\n') {
+        const char *t = end;
+        while (*t == '\r' || *t == '\n') t++;
+        if (*t) return -1;
+    }
+    *out = v;
+    return 0;
+}
+
+int wf_parse_long(const char *s, long min, long max, long *out)
+{
+    if (!s) return -1;
+    s = skip_blank(s);
+    if (!*s) return -1;
+    char *end = NULL;
+    errno = 0;
+    long v = strtol(s, &end, 10);
+    if (end == s || errno == ERANGE) return -1;
+    end = (char *)skip_blank(end);
+    if (*end) return -1;
+    if (v < min || v > max) return -1;
+    *out = v;
+    return 0;
+}

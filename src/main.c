@@ -1,0 +1,40 @@
+/* wavefuel: command-line entry point. Only dispatches to a subcommand; each lives in src/cli/. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli/commands.h"
+#include "wavefuel/version.h"
+
+static const WfCommand commands[] = {
+    {"energy", "evaluate a vehicle class's fuel rate at (v, a, theta) points", wf_cmd_energy},
+};
+enum { N_COMMANDS = sizeof commands / sizeof commands[0] };
+
+static void usage(FILE *out)
+{
+    fprintf(out, "wavefuel %s: parallel simulator of traffic energy\n\nusage: wavefuel COMMAND [options]\n\n",
+            WF_VERSION);
+    for (int i = 0; i < N_COMMANDS; i++) fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
+    fprintf(out, "\n'wavefuel COMMAND --help' describes each command.\n");
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
+        usage(stdout);
+        return 0;
+    }
+    if (!strcmp(argv[1], "--version")) {
+        printf("wavefuel %s (%s)\n", WF_VERSION, WF_GIT_HASH);
+        return 0;
+    }
+    for (int i = 0; i < N_COMMANDS; i++)
+        if (!strcmp(argv[1], commands[i].name)) return commands[i].main(argc - 1, argv + 1);
+    fprintf(stderr, "wavefuel: unknown command '%s'\n", argv[1]);
+    usage(stderr);
+    return 2;
+}

@@ -1,0 +1,258 @@
+/* Vehicle class files (vehicles/NAME.yaml): loading, validation, search path and fuel economy units. */
+#include "wavefuel/vehicle.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <limits.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "wavefuel/config.h"
+
+const char *wf_duty_name(WfDuty d) { return d == WF_DUTY_HEAVY ? "heavy" : "light"; }
+const char *wf_fuel_name(WfFuelType f) { return f == WF_FUEL_DIESEL ? "diesel" : "gasoline"; }
+
+void wf_vehicle_free(WfVehicleClass *vc)
+{
+    if (!vc) return;
+    free(vc->params);
+    vc->params = NULL;
+}
+
+static void stem_of(const char *path, char *out, size_t len)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    snprintf(out, len, "%s", base);
+    char *dot = strrchr(out, '.');
+    if (dot && (strcmp(dot, ".yaml") == 0 || strcmp(dot, ".yml") == 0)) *dot = '\0';
+}
+
+int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
+{
+    memset(vc, 0, sizeof *vc);
+    WfCfg *cfg = NULL;
+    int rc = wf_cfg_load_file(path, &cfg, err);
+    if (rc) return rc;
+    WfCfgNode *root = cfg->root, *energy = NULL, *source = NULL;
+    const char *label = NULL, *model_name = "circles_polynomial";
+    int duty = -1, fuel = -1;
+    static const char *const duties[] = {"light", "heavy", NULL};
+    static const char *const fuels[] = {"gasoline", "diesel", NULL};
+    double density = NAN;
+
+    stem_of(path, vc->name, sizeof vc->name);
+    snprintf(vc->path, sizeof vc->path, "%s", path);
+    if ((rc = wf_cfg_string(root, "name", &label, err))) goto fail;
+    snprintf(vc->label, sizeof vc->label, "%s", label);
+    if ((rc = wf_cfg_enum_opt(root, "duty", duties, &duty, err))) goto fail;
+    if ((rc = wf_cfg_enum_opt(root, "fuel", fuels, &fuel, err))) goto fail;
+    if (duty < 0 || fuel < 0) {
+        rc = wf_err(err, WF_EINPUT, "%s: missing key '%s' (%s)", path, duty < 0 ? "duty" : "fuel",
+                    duty < 0 ? "light or heavy" : "gasoline or diesel");
+        goto fail;
+    }
+    vc->duty = (WfDuty)duty;
+    vc->fuel = (WfFuelType)fuel;
+    if ((rc = wf_cfg_double(root, "mass_kg", 100, 100000, "kg", &vc->mass_kg, err))) goto fail;
+    if ((rc = wf_cfg_double(root, "length_m", 1, 30, "m", &vc->length_m, err))) goto fail;
+    if ((rc = wf_cfg_double(root, "kw_per_gps", 1, 100, "kW/(g/s)", &vc->kw_per_gps, err))) goto fail;
+    if ((rc = wf_cfg_double_opt(root, "fuel_density_g_per_l", 500, 1200, "g/L", &density, err))) goto fail;
+    vc->fuel_density_g_per_l =
+        isnan(density) ? (fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL
+                       : density;
+    /* Provenance is documentation for people: accepted as free text, not interpreted. */
+    if ((rc = wf_cfg_map_opt(root, "source", &source, err))) goto fail;
+    if (source) wf_cfg_mark_used(source);
+    if ((rc = wf_cfg_string_opt(root, "energy_model", &model_name, err))) goto fail;
+    if ((rc = wf_energy_model_find(model_name, &vc->model, err))) {
+        wf_err_prefix(err, "%s: energy_model: ", path);
+        goto fail;
+    }
+    if ((rc = wf_cfg_map_opt(root, "energy", &energy, err))) goto fail;
+    if (!energy) {
+        rc = wf_err(err, WF_EINPUT, "%s: missing map 'energy' with the model parameters", path);
+        goto fail;
+    }
+    vc->params = calloc(1, vc->model->param_size);
+    if (!vc->params) {
+        rc = wf_err(err, WF_ESYS, "out of memory");
+        goto fail;
+    }
+    if ((rc = wf_cfg_params(energy, vc->model->spec, vc->model->n_spec, vc->params, err))) goto fail;
+    char where[1100];
+    snprintf(where, sizeof where, "%s: energy: ", path);
+    if ((rc = wf_param_check_complete(vc->model->spec, vc->model->n_spec, vc->params, where, err))) goto fail;
+    if (vc->model->check && (rc = vc->model->check(vc->params, err))) {
+        wf_err_prefix(err, "%s: ", path);
+        goto fail;
+    }
+    /* The duty declared must match the lower-bound keys given (light: v_c...; heavy: h0, h1). */
+    if (vc->model == &wf_energy_circles) {
+        const WfCirclesParams *cp = vc->params;
+        int heavy_keys = isinf(cp->cut_v);
+        if (heavy_keys != (vc->duty == WF_DUTY_HEAVY)) {
+            rc = wf_err(err, WF_EINPUT, "%s: duty is '%s' but energy gives the %s-duty keys", path,
+                        wf_duty_name(vc->duty), heavy_keys ? "heavy" : "light");
+            goto fail;
+        }
+    }
+    if ((rc = wf_cfg_check_unused(cfg, err))) goto fail;
+    wf_cfg_destroy(&cfg);
+    return 0;
+fail:
+    wf_cfg_destroy(&cfg);
+    wf_vehicle_free(vc);
+    return rc ? rc : WF_EINPUT;
+}
+
+/* The repository's vehicles/ directory, found from /proc/self/exe: BIN_DIR/../vehicles. */
+static int repo_vehicles_dir(char *out, size_t len)
+{
+    char exe[PATH_MAX];
+    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
+    if (n <= 0) return -1;
+    exe[n] = '\0';
+    char *slash = strrchr(exe, '/');
+    if (!slash) return -1;
+    *slash = '\0';
+    slash = strrchr(exe, '/');
+    if (!slash) return -1;
+    *slash = '\0';
+    int w = snprintf(out, len, "%s/vehicles", exe);
+    return (w < 0 || (size_t)w >= len) ? -1 : 0;
+}
+
+/* Calls fn(dir) for each directory of the search path, in order; stops at a non-zero return. */
+static int for_each_dir(int (*fn)(const char *dir, void *ctx), void *ctx)
+{
+    const char *env = getenv("WAVEFUEL_VEHICLES");
+    if (env && *env) {
+        char buf[4096];
+        snprintf(buf, sizeof buf, "%s", env);
+        char *save = NULL;
+        for (char *d = strtok_r(buf, ":", &save); d; d = strtok_r(NULL, ":", &save)) {
+            int rc = fn(d, ctx);
+            if (rc) return rc;
+        }
+    }
+    char dir[PATH_MAX];
+    if (repo_vehicles_dir(dir, sizeof dir) == 0) return fn(dir, ctx);
+    return 0;
+}
+
+typedef struct FindCtx {
+    const char *name;
+    char        found[PATH_MAX + 64];
+} FindCtx;
+
+static int find_in(const char *dir, void *vctx)
+{
+    FindCtx *c = vctx;
+    snprintf(c->found, sizeof c->found, "%s/%s.yaml", dir, c->name);
+    return access(c->found, R_OK) == 0 ? 1 : 0;
+}
+
+int wf_vehicle_find(const char *name, WfVehicleClass *vc, WfError *err)
+{
+    size_t len = strlen(name);
+    if (strchr(name, '/') || (len > 5 && strcmp(name + len - 5, ".yaml") == 0)) return wf_vehicle_load(name, vc, err);
+    FindCtx c = {.name = name};
+    if (for_each_dir(find_in, &c) == 1) return wf_vehicle_load(c.found, vc, err);
+    WfVehicleClass *all = NULL;
+    size_t n = 0;
+    char known[1024] = "";
+    if (wf_vehicle_list(&all, &n, NULL) == 0) {
+        size_t used = 0;
+        for (size_t i = 0; i < n; i++) {
+            int w = snprintf(known + used, sizeof known - used, "%s%s", i ? ", " : "", all[i].name);
+            if (w > 0 && (size_t)w < sizeof known - used) used += (size_t)w;
+            wf_vehicle_free(&all[i]);
+        }
+        free(all);
+    }
+    return wf_err(err, WF_EINPUT,
+                  "vehicle class '%s' not found in $WAVEFUEL_VEHICLES or the repository's vehicles/ (known: %s)", name,
+                  n ? known : "none");
+}
+
+typedef struct ListCtx {
+    WfVehicleClass *v;
+    size_t          n, cap;
+    WfError        *err;
+    int             rc;
+} ListCtx;
+
+static int list_in(const char *dir, void *vctx)
+{
+    ListCtx *c = vctx;
+    DIR *d = opendir(dir);
+    if (!d) return 0; /* a search-path entry that does not exist holds no classes */
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t len = strlen(e->d_name);
+        if (len < 6 || strcmp(e->d_name + len - 5, ".yaml") != 0) continue;
+        char stem[256];
+        stem_of(e->d_name, stem, sizeof stem);
+        int dup = 0;
+        for (size_t i = 0; i < c->n; i++) dup |= strcmp(c->v[i].name, stem) == 0;
+        if (dup) continue;
+        if (c->n == c->cap) {
+            size_t cap = c->cap ? 2 * c->cap : 8;
+            WfVehicleClass *p = realloc(c->v, cap * sizeof *p);
+            if (!p) {
+                closedir(d);
+                c->rc = wf_err(c->err, WF_ESYS, "out of memory");
+                return 1;
+            }
+            c->v = p;
+            c->cap = cap;
+        }
+        char path[PATH_MAX + 300];
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        int rc = wf_vehicle_load(path, &c->v[c->n], c->err);
+        if (rc) {
+            closedir(d);
+            c->rc = rc;
+            return 1;
+        }
+        c->n++;
+    }
+    closedir(d);
+    return 0;
+}
+
+static int by_name(const void *a, const void *b)
+{
+    return strcmp(((const WfVehicleClass *)a)->name, ((const WfVehicleClass *)b)->name);
+}
+
+int wf_vehicle_list(WfVehicleClass **out, size_t *n, WfError *err)
+{
+    ListCtx c = {.err = err};
+    for_each_dir(list_in, &c);
+    if (c.rc) {
+        for (size_t i = 0; i < c.n; i++) wf_vehicle_free(&c.v[i]);
+        free(c.v);
+        return c.rc;
+    }
+    if (c.n) qsort(c.v, c.n, sizeof *c.v, by_name);
+    *out = c.v;
+    *n = c.n;
+    return 0;
+}
+
+double wf_l_per_100km(const WfVehicleClass *vc, double fuel_g, double dist_m)
+{
+    double litres = fuel_g / vc->fuel_density_g_per_l;
+    return dist_m > 0 ? litres / (dist_m / 1e5) : INFINITY;
+}
+
+double wf_mpg(const WfVehicleClass *vc, double fuel_g, double dist_m)
+{
+    double gallons = fuel_g / vc->fuel_density_g_per_l / WF_L_PER_US_GAL;
+    return gallons > 0 ? (dist_m / WF_M_PER_MILE) / gallons : 0.0;
+}

@@ -1,0 +1,53 @@
+/* A minimal test harness: each test binary registers cases, runs them and prints one line per case
+ * ("PASS name" or "FAIL name: reason"); tests/run.sh adds the lines up into "N passed, N failed". */
+#ifndef WF_TEST_H
+#define WF_TEST_H
+
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
+
+static int wf_test_failed_;      /* failures in the current case */
+static int wf_test_fail_total_;  /* failed cases in this binary */
+static const char *wf_test_name_;
+
+#define CHECK(cond, ...)                                                                \
+    do {                                                                                \
+        if (!(cond)) {                                                                  \
+            if (wf_test_failed_++ < 5) {                                                \
+                fprintf(stdout, "  %s:%d: check failed: %s: ", __FILE__, __LINE__, #cond); \
+                fprintf(stdout, __VA_ARGS__);                                           \
+                fputc('\n', stdout);                                                    \
+            }                                                                           \
+        }                                                                               \
+    } while (0)
+
+/* |got - want| <= rtol * max(|want|, tiny) */
+#define CHECK_REL(got, want, rtol)                                                               \
+    do {                                                                                         \
+        double g_ = (got), w_ = (want);                                                          \
+        double s_ = fabs(w_) > 1e-300 ? fabs(w_) : 1e-300;                                       \
+        CHECK(fabs(g_ - w_) <= (rtol) * s_, "got %.17g want %.17g (rel err %.3g, tol %.3g)", g_, w_, \
+              fabs(g_ - w_) / s_, (double)(rtol));                                               \
+    } while (0)
+
+#define CHECK_ABS(got, want, atol)                                                        \
+    do {                                                                                  \
+        double g_ = (got), w_ = (want);                                                   \
+        CHECK(fabs(g_ - w_) <= (atol), "got %.17g want %.17g (abs err %.3g, tol %.3g)", g_, w_, \
+              fabs(g_ - w_), (double)(atol));                                             \
+    } while (0)
+
+#define RUN(fn)                                                                   \
+    do {                                                                          \
+        wf_test_failed_ = 0;                                                      \
+        wf_test_name_ = #fn;                                                      \
+        fn();                                                                     \
+        if (wf_test_failed_) wf_test_fail_total_++;                               \
+        printf("%s %s\n", wf_test_failed_ ? "FAIL" : "PASS", wf_test_name_);      \
+        fflush(stdout);                                                           \
+    } while (0)
+
+#define TEST_EXIT() return wf_test_fail_total_ ? 1 : 0
+
+#endif

@@ -1,0 +1,20 @@
+#!/usr/bin/env bash
+# Installs the Debian packages wavefuel needs to build, test and plot; the single place that lists them.
+# As root: apt-get installs what is missing. Otherwise: prints the exact apt-get line and exits 1.
+set -euo pipefail
+PKGS=(gcc make pkg-config libyaml-dev libhdf5-dev hdf5-tools libsundials-dev librandom123-dev
+      python3-h5py python3-numpy python3-matplotlib)
+missing=()
+for p in "${PKGS[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+[ ${#missing[@]} -eq 0 ] && exit 0
+if [ "$(id -u)" -ne 0 ]; then
+  echo "wavefuel: missing Debian packages. Run as root:" >&2
+  echo "  apt-get update && apt-get install -y ${missing[*]}" >&2
+  exit 1
+fi
+echo "wavefuel: installing ${missing[*]}" >&2
+export DEBIAN_FRONTEND=noninteractive
+apt-get update -qq
+apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
