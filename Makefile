@@ -11,7 +11,7 @@ GIT_HASH := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
 CFLAGS   ?= -O2 -g
 CFLAGS   += -std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
             -ffp-contract=off -fno-fast-math -Iinclude -Isrc $(HDF5_CFLAGS) -MMD -MP \
-            -DWF_GIT_HASH='"$(GIT_HASH)"'
+            -DWF_GIT_HASH='"$(GIT_HASH)"' -DWF_REPO_DIR='"$(CURDIR)"'
 ifeq ($(WERROR),1)
 CFLAGS   += -Werror
 endif

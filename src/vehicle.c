@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "wavefuel/config.h"
@@ -109,21 +110,32 @@ fail:
     return rc ? rc : WF_EINPUT;
 }
 
-/* The repository's vehicles/ directory, found from /proc/self/exe: BIN_DIR/../vehicles. */
+/* The repository's vehicles/ directory: BIN_DIR/../vehicles from /proc/self/exe, else the source tree the
+ * library was built from (WF_REPO_DIR, set by the Makefile), which serves test and benchmark binaries. */
 static int repo_vehicles_dir(char *out, size_t len)
 {
     char exe[PATH_MAX];
+    struct stat st;
     ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    if (n <= 0) return -1;
-    exe[n] = '\0';
-    char *slash = strrchr(exe, '/');
-    if (!slash) return -1;
-    *slash = '\0';
-    slash = strrchr(exe, '/');
-    if (!slash) return -1;
-    *slash = '\0';
-    int w = snprintf(out, len, "%s/vehicles", exe);
+    if (n > 0) {
+        exe[n] = '\0';
+        char *s1 = strrchr(exe, '/');
+        if (s1) {
+            *s1 = '\0';
+            char *s2 = strrchr(exe, '/');
+            if (s2) {
+                *s2 = '\0';
+                int w = snprintf(out, len, "%s/vehicles", exe);
+                if (w > 0 && (size_t)w < len && stat(out, &st) == 0 && S_ISDIR(st.st_mode)) return 0;
+            }
+        }
+    }
+#ifdef WF_REPO_DIR
+    int w = snprintf(out, len, "%s/vehicles", WF_REPO_DIR);
     return (w < 0 || (size_t)w >= len) ? -1 : 0;
+#else
+    return -1;
+#endif
 }
 
 /* Calls fn(dir) for each directory of the search path, in order; stops at a non-zero return. */
