@@ -6,6 +6,8 @@
 #include "wavefuel/version.h"
 
 static const WfCommand commands[] = {
+    {"run", "simulate a scenario and write an HDF5 result", wf_cmd_run},
+    {"info", "print the summary of a result file", wf_cmd_info},
     {"energy", "evaluate a vehicle class's fuel rate at (v, a, theta) points", wf_cmd_energy},
 };
 enum { N_COMMANDS = sizeof commands / sizeof commands[0] };

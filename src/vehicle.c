@@ -19,6 +19,7 @@ const char *wf_fuel_name(WfFuelType f) { return f == WF_FUEL_DIESEL ? "diesel" :
 void wf_vehicle_free(WfVehicleClass *vc)
 {
     if (!vc) return;
+    if (vc->params && vc->model && vc->model->release) vc->model->release(vc->params);
     free(vc->params);
     vc->params = NULL;
 }
@@ -74,7 +75,7 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
         goto fail;
     }
     if ((rc = wf_cfg_map_opt(root, "energy", &energy, err))) goto fail;
-    if (!energy) {
+    if (!energy && vc->model->n_spec > 0) { /* a tabulated model has no numeric parameters */
         rc = wf_err(err, WF_EINPUT, "%s: missing map 'energy' with the model parameters", path);
         goto fail;
     }
@@ -91,6 +92,12 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
         wf_err_prefix(err, "%s: ", path);
         goto fail;
     }
+    /* `table: FILE.h5`: the tabulated model's data (its load hook reads the key), or, beside an explicit
+     * model, the class's tabulated twin that `wavefuel cycle --protocol` compares with (docs/cycles.md). */
+    const char *table = NULL;
+    if (vc->model->load) rc = vc->model->load(vc->params, path, root, err);
+    else rc = wf_cfg_string_opt(root, "table", &table, err);
+    if (rc) goto fail;
     /* The duty declared must match the lower-bound keys given (light: v_c...; heavy: h0, h1). */
     if (vc->model == &wf_energy_circles) {
         const WfCirclesParams *cp = vc->params;

@@ -12,6 +12,8 @@
 /* Feasibility flag of one evaluation. */
 enum { WF_FEASIBLE = 0, WF_INFEASIBLE_ACCEL = 1, WF_NEGATIVE_SPEED = 2 };
 
+struct WfCfgNode; /* a YAML map (wavefuel/config.h), seen only by the optional load() hook */
+
 typedef struct WfEnergyModel {
     const char        *name;       /* as written in vehicle files: energy_model: circles_polynomial */
     size_t             param_size; /* bytes of the parameter struct */
@@ -26,6 +28,21 @@ typedef struct WfEnergyModel {
                  const double *theta_rad, int project, double *fuel_gps, uint8_t *flag);
     /* Largest feasible acceleration at speed v and grade theta, m/s^2. */
     double (*a_max)(const void *params, double v_mps, double theta_rad);
+    /* Optional members (NULL / 0 for the explicit CIRCLES model). Models whose parameters are data files
+     * (the tabulated model) load them here, after the numeric parameters are filled and checked:
+     * class_path is the class file (relative paths resolve against its directory), class_map its top-level
+     * YAML map (the hook reads and marks its own keys, e.g. `table`). On failure the message names the file. */
+    int (*load)(void *params, const char *class_path, struct WfCfgNode *class_map, WfError *err);
+    /* Frees what load() allocated; called by wf_vehicle_free() before params is freed. Accepts a params
+     * block whose load() failed or never ran. */
+    void (*release)(void *params);
+    /* How many of these n evaluations fall outside the model's domain and were clamped to its edge (same
+     * inputs and project as eval). NULL: the model has no bounded domain (never clamps). Pure. */
+    size_t (*n_outside)(const void *params, size_t n, const double *v_mps, const double *a_mps2,
+                        const double *theta_rad, int project);
+    /* project value callers use when the user did not choose: 1 for the tabulated model (as the release's
+     * wrappers), 0 for the explicit one. */
+    int project_default;
 } WfEnergyModel;
 
 /* The registry: NULL-terminated list of every energy model family. */

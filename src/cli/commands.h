@@ -12,6 +12,8 @@ typedef struct WfCommand {
 } WfCommand;
 
 int wf_cmd_energy(int argc, char **argv);
+int wf_cmd_run(int argc, char **argv);
+int wf_cmd_info(int argc, char **argv);
 
 /* Print "wavefuel: <message>" on stderr and return the exit status for the error's code. */
 int wf_cli_fail(const WfError *err);

@@ -3,8 +3,9 @@
 #include <string.h>
 
 #include "wavefuel/energy.h"
+#include "wavefuel/tabulated.h"
 
-const WfEnergyModel *const wf_energy_models[] = {&wf_energy_circles, NULL};
+const WfEnergyModel *const wf_energy_models[] = {&wf_energy_circles, &wf_energy_tabulated, NULL};
 
 int wf_energy_model_find(const char *name, const WfEnergyModel **out, WfError *err)
 {

@@ -1,0 +1,46 @@
+/* The simulation engine: the step loop over a fleet on a ring. Per step (all vehicles in parallel, each
+ * iteration writing only its own index): gaps and grade at the step's start, car-following acceleration plus
+ * noise, bounded; fuel rate from each class's energy model; statistics; integration; overlap repair. The
+ * engine never parses text and never touches files: results go through a WfOutput. */
+#ifndef WAVEFUEL_ENGINE_H
+#define WAVEFUEL_ENGINE_H
+
+#include <signal.h>
+#include <stdint.h>
+#include "wavefuel/err.h"
+#include "wavefuel/fleet.h"
+#include "wavefuel/integrator.h"
+#include "wavefuel/scenario.h"
+#include "wavefuel/stats.h"
+
+typedef struct WfSim WfSim;
+
+/* Output sink (HDF5 in src/h5out.c; tests use their own). Each callback returns 0 or an error code. */
+typedef struct WfOutput {
+    int (*begin)(void *ctx, const WfSim *sim, WfError *err);
+    int (*record)(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err);
+    int (*trajectory)(void *ctx, const WfSim *sim, double t_s, WfError *err); /* x, v, a, fuel rate now */
+    /* completed: 1 when the run reached its end; reason otherwise ("interrupted by SIGINT"...). */
+    int (*end)(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err);
+    void *ctx;
+} WfOutput;
+
+typedef void (*WfProgressFn)(void *ctx, double t_s, double duration_s, long step, long n_steps);
+
+int  wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err);
+void wf_sim_destroy(WfSim **sim);
+
+/* Run to the end. Checks *stop (may be NULL) once per step and, when it is set, finishes the current step,
+ * calls out->end(completed = 0) and returns WF_EINTR. progress (may be NULL) is called about 5 times a
+ * second of wall time from the calling thread. */
+int wf_sim_run(WfSim *sim, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
+               WfError *err);
+
+const WfScenario *wf_sim_scenario(const WfSim *sim);
+const WfFleet    *wf_sim_fleet(const WfSim *sim);
+const WfSummary  *wf_sim_summary(const WfSim *sim); /* valid after wf_sim_run */
+double            wf_sim_wall_s(const WfSim *sim);  /* wall time of the step loop */
+long              wf_sim_steps_done(const WfSim *sim);
+int               wf_sim_threads(const WfSim *sim);
+
+#endif

@@ -1,0 +1,26 @@
+/* The HDF5 result file of a simulation run (layout in docs/output.md): written as PATH.partial while the run
+ * goes, renamed to PATH when it completes; an interrupted run leaves PATH.partial with /meta/completed = 0
+ * and the reason. Every dataset carries `units` and `description` attributes. */
+#ifndef WAVEFUEL_H5OUT_H
+#define WAVEFUEL_H5OUT_H
+
+#include "wavefuel/engine.h"
+#include "wavefuel/err.h"
+
+typedef struct WfH5Out WfH5Out;
+
+/* Create the writer for `path` (refuses to replace an existing result unless force). The returned WfOutput
+ * is filled with callbacks bound to the writer. */
+int  wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, WfError *err);
+/* Free the writer; if the run never reached end(), the partial file is removed (nothing was produced). */
+void wf_h5out_destroy(WfH5Out **w);
+/* Final path written ("x.h5" when completed, "x.h5.partial" otherwise). */
+const char *wf_h5out_path(const WfH5Out *w);
+
+
+
+#include <stdio.h>
+/* `wavefuel info`: print a result file's /meta status and every /summary value with its units. Works on
+ * .partial files too. WF_EINPUT if the file is not a wavefuel result. */
+int wf_h5out_info(const char *path, FILE *out, WfError *err);
+#endif

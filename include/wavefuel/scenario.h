@@ -1,0 +1,81 @@
+/* Scenarios: a YAML file (plus --set overrides) turned into a plain, validated struct. The engine reads
+ * only this struct; it never sees text. Every key, unit, default and range is listed in docs/scenarios.md. */
+#ifndef WAVEFUEL_SCENARIO_H
+#define WAVEFUEL_SCENARIO_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "wavefuel/cf.h"
+#include "wavefuel/err.h"
+#include "wavefuel/road.h"
+#include "wavefuel/vehicle.h"
+
+#define WF_MAX_CLASSES      16
+#define WF_MAX_GROUPS       16
+#define WF_MAX_MODEL_PARAMS 32 /* doubles in one model's parameter struct */
+
+typedef enum { WF_PLACE_RANDOM = 0, WF_PLACE_INTERLEAVED = 1, WF_PLACE_EXPLICIT = 2 } WfPlacement;
+typedef enum { WF_HET_NORMAL = 0, WF_HET_UNIFORM = 1 } WfHetDist;
+typedef enum { WF_INIT_EQUILIBRIUM = 0, WF_INIT_REST = 1 } WfInitState;
+
+typedef struct WfClassShare {
+    WfVehicleClass vc;         /* owned (wf_vehicle_free) */
+    double         fraction;   /* of the fleet; NaN when count is given */
+    long           count;      /* resolved vehicle count */
+    double         length_m;   /* vehicle length for this class (class default unless overridden) */
+    long          *indices;    /* owned; explicit placement only */
+    size_t         n_indices;
+} WfClassShare;
+
+typedef struct WfDriverGroup {
+    char             name[64];
+    const WfCfModel *model;                          /* borrowed registry entry */
+    double           params[WF_MAX_MODEL_PARAMS];    /* the model's parameter struct (all doubles) */
+    double           spread[WF_MAX_MODEL_PARAMS];    /* relative spread of each spec entry; 0 = none */
+    WfHetDist        dist;
+    double           fraction;
+    long             count;
+    double           noise_mps2;         /* std of additive white acceleration noise */
+    double           accel_max_mps2;     /* comfortable acceleration limit */
+    double           decel_max_mps2;     /* emergency deceleration limit (positive number) */
+    int              clip_feasible;      /* 1: also a <= a_max(v, theta) of the vehicle's class */
+    long            *indices;            /* owned; explicit placement only */
+    size_t           n_indices;
+} WfDriverGroup;
+
+typedef struct WfScenario {
+    char    path[1024];
+    char   *text;            /* owned: the scenario file verbatim */
+    char   *overrides;       /* owned: the --set assignments, one per line */
+    char    name[128];
+    WfRoad  road;
+    double  duration_s, dt_s, output_interval_s, warmup_s;
+    char    integrator[32];
+    uint64_t seed;
+    long    n_vehicles;
+    WfPlacement placement;
+    WfClassShare  classes[WF_MAX_CLASSES];
+    size_t        n_classes;
+    WfDriverGroup groups[WF_MAX_GROUPS];
+    size_t        n_groups;
+    WfInitState init_state;
+    long    perturb_vehicle;      /* -1: none */
+    double  perturb_dx_m, perturb_dv_mps;
+    double  jitter_m;             /* uniform random position jitter half-width */
+    /* statistics thresholds */
+    double  v_stop_mps, v_go_mps, hard_brake_mps2, wave_speed_mps;
+    /* output */
+    char    output_path[1024];
+    int     trajectories;
+    double  trajectory_interval_s;
+} WfScenario;
+
+/* Load, apply `n_set` overrides ("key.path=value"), validate. On error nothing is allocated. */
+int wf_scenario_load(const char *path, const char *const *set, size_t n_set, WfScenario **out, WfError *err);
+void wf_scenario_destroy(WfScenario **sc);
+
+/* Number of steps and output records implied by the time section. */
+long wf_scenario_n_steps(const WfScenario *sc);
+long wf_scenario_output_every(const WfScenario *sc); /* steps between output records */
+
+#endif

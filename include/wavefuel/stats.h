@@ -1,0 +1,60 @@
+/* Statistics: the time-resolved record taken at each output instant and the aggregates over the statistics
+ * window (after warm-up). Definitions and units: docs/metrics.md. Every sum runs in a fixed order (blocks of
+ * WF_STATS_BLOCK vehicles, then the blocks in order), so results do not depend on the thread count. */
+#ifndef WAVEFUEL_STATS_H
+#define WAVEFUEL_STATS_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include "wavefuel/fleet.h"
+#include "wavefuel/scenario.h"
+
+#define WF_STATS_BLOCK 4096
+
+/* Columns of one time-series record, in order (names and units in wf_ts_columns). */
+enum {
+    WF_TS_T, WF_TS_MEAN_V, WF_TS_SD_V, WF_TS_MIN_V, WF_TS_MAX_V, WF_TS_FRAC_STOPPED, WF_TS_WAVES,
+    WF_TS_FUEL_RATE, WF_TS_MEAN_GAP, WF_TS_MIN_GAP, WF_TS_OVERLAPS, WF_TS_N_COLS
+};
+typedef struct WfColumn { const char *name, *units, *desc; } WfColumn;
+extern const WfColumn wf_ts_columns[WF_TS_N_COLS];
+
+/* One record: the WF_TS_* values, plus the fuel rate of each class (g/s). */
+typedef struct WfTsRow {
+    double v[WF_TS_N_COLS];
+    double class_fuel_rate_gps[WF_MAX_CLASSES];
+} WfTsRow;
+
+/* Fill a record from the fleet's state at the step's start (speeds, gaps, fuel rates). `scratch` holds at
+ * least ceil(n / WF_STATS_BLOCK) * (2 + n_classes) doubles. Parallel over blocks when called outside a
+ * parallel region. */
+void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t overlaps, double *scratch,
+                     WfTsRow *row);
+size_t wf_stats_scratch_size(size_t n, size_t n_classes);
+
+/* Aggregates over the statistics window. */
+typedef struct WfClassSummary {
+    long    count;
+    double  fuel_g, dist_m, l_per_100km, mpg, infeasible_share, stops_per_vkm;
+} WfClassSummary;
+
+typedef struct WfSummary {
+    double window_s;                  /* length of the statistics window */
+    double fuel_g, dist_m, vkt_km;
+    double l_per_100km, mpg;          /* fleet: volume summed over classes with their own densities */
+    double stops_per_vkm, hard_brakes_per_vkm;
+    double mean_speed_mps;            /* total distance / (vehicles x window) */
+    double sd_speed_time_avg_mps;     /* mean over records in the window of the spatial speed s.d. */
+    double throughput_vph;            /* passages of x = 0 per hour */
+    double infeasible_share;          /* steps with an infeasible acceleration request / vehicle-steps */
+    double time_stopped_share;
+    int64_t overlaps;
+    WfClassSummary cls[WF_MAX_CLASSES];
+} WfSummary;
+
+/* Compute the summary from the accumulators. sd_sum / n_sd is the sum / number of the spatial speed s.d.
+ * of the records inside the window; window_steps the number of steps in the window. */
+void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, long n_sd, long window_steps,
+                      int64_t overlaps, WfSummary *s);
+
+#endif

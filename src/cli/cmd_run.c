@@ -1,0 +1,163 @@
+/* `wavefuel run`: load a scenario, simulate, write the HDF5 result, print a summary table. */
+#include <getopt.h>
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "cli/commands.h"
+#include "wavefuel/engine.h"
+#include "wavefuel/h5out.h"
+#include "wavefuel/scenario.h"
+
+static volatile sig_atomic_t stop_signal = 0;
+static void on_signal(int sig) { stop_signal = sig; }
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: wavefuel run SCENARIO.yaml [-o FILE.h5] [--set key.path=value]... [--threads N] [--force] [-q]\n\n"
+            "Simulates the scenario and writes an HDF5 result (default: output.path of the scenario, else\n"
+            "output/NAME.h5). The file is written as FILE.h5.partial and renamed when the run completes; an\n"
+            "existing result is never replaced unless --force. SIGINT/SIGTERM stop at the end of the current\n"
+            "step and leave FILE.h5.partial with /meta/completed = 0. Keys are documented in docs/scenarios.md.\n"
+            "  -o, --output FILE   result file\n"
+            "  --set k.path=value  override a scenario value (repeatable), e.g. --set fleet.vehicles=44\n"
+            "  --threads N         OpenMP threads (default: OMP_NUM_THREADS or all cores)\n"
+            "  --force             replace an existing result file\n"
+            "  -q, --quiet         no progress bar or summary\n");
+}
+
+typedef struct Progress {
+    double t0;
+    int    tty;
+} Progress;
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void progress(void *ctx, double t, double duration, long step, long n_steps)
+{
+    Progress *p = ctx;
+    double wall = now_s() - p->t0, frac = t / duration;
+    double eta = frac > 0 ? wall * (1.0 - frac) / frac : 0.0;
+    int width = 30, filled = (int)(frac * width);
+    char bar[64];
+    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
+    bar[width] = '\0';
+    fprintf(stderr, "\r[%s] %5.1f%%  t = %.1f / %.1f s  wall %.1f s  ETA %.1f s  %.3g steps/s   ", bar, 100 * frac, t,
+            duration, wall, eta, wall > 0 ? (double)step / wall : 0.0);
+    (void)n_steps;
+    fflush(stderr);
+}
+
+static void print_summary(const WfSim *sim, const char *path)
+{
+    const WfSummary *s = wf_sim_summary(sim);
+    const WfScenario *sc = wf_sim_scenario(sim);
+    const WfFleet *f = wf_sim_fleet(sim);
+    printf("wavefuel run: %s  (%zu vehicles, %.6g s simulated, %s dt = %.6g s, %d threads, wall %.3f s, %.3g "
+           "vehicle-steps/s)\n",
+           sc->name, f->n, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wf_sim_wall_s(sim),
+           wf_sim_wall_s(sim) > 0 ? (double)f->n * (double)wf_sim_steps_done(sim) / wf_sim_wall_s(sim) : 0.0);
+    printf("statistics window: %.6g s after %.6g s warm-up\n\n", s->window_s, sc->warmup_s);
+    printf("%-16s %6s %12s %10s %11s %8s %10s %11s\n", "class", "count", "fuel_g", "dist_km", "L/100km", "mpg",
+           "stops/vkm", "infeasible");
+    for (size_t c = 0; c < sc->n_classes; c++) {
+        const WfClassSummary *cs = &s->cls[c];
+        printf("%-16s %6ld %12.2f %10.3f %11.3f %8.2f %10.3f %10.2f%%\n", sc->classes[c].vc.name, cs->count, cs->fuel_g,
+               cs->dist_m / 1000, cs->l_per_100km, cs->mpg, cs->stops_per_vkm, 100 * cs->infeasible_share);
+    }
+    printf("%-16s %6zu %12.2f %10.3f %11.3f %8.2f %10.3f %10.2f%%\n\n", "fleet", f->n, s->fuel_g, s->vkt_km,
+           s->l_per_100km, s->mpg, s->stops_per_vkm, 100 * s->infeasible_share);
+    printf("mean speed %.3f m/s | time-avg speed s.d. %.3f m/s | throughput %.1f veh/h | hard brakes %.3f /vkm | "
+           "overlaps %lld\n",
+           s->mean_speed_mps, s->sd_speed_time_avg_mps, s->throughput_vph, s->hard_brakes_per_vkm,
+           (long long)s->overlaps);
+    printf("result: %s\n", path);
+}
+
+int wf_cmd_run(int argc, char **argv)
+{
+    static const struct option opts[] = {{"output", required_argument, 0, 'o'}, {"set", required_argument, 0, 's'},
+                                         {"threads", required_argument, 0, 't'}, {"force", no_argument, 0, 'f'},
+                                         {"quiet", no_argument, 0, 'q'},         {"help", no_argument, 0, 'h'},
+                                         {0, 0, 0, 0}};
+    const char *outpath = NULL;
+    const char **sets = calloc((size_t)argc + 1, sizeof *sets);
+    size_t n_set = 0;
+    int force = 0, quiet = 0, o;
+    long threads = 0;
+    WfError err = {0};
+    if (!sets) return 1;
+    optind = 1;
+    while ((o = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
+        switch (o) {
+        case 'o': outpath = optarg; break;
+        case 's': sets[n_set++] = optarg; break;
+        case 't':
+            if (wf_parse_long(optarg, 1, 4096, &threads)) {
+                fprintf(stderr, "wavefuel run: --threads expects an integer in [1, 4096] (got '%s')\n", optarg);
+                free(sets);
+                return 2;
+            }
+            break;
+        case 'f': force = 1; break;
+        case 'q': quiet = 1; break;
+        case 'h': help(stdout); free(sets); return 0;
+        default: help(stderr); free(sets); return 2;
+        }
+    }
+    if (argc - optind != 1) {
+        fprintf(stderr, "wavefuel run: expected one SCENARIO.yaml (see --help)\n");
+        free(sets);
+        return 2;
+    }
+#ifdef _OPENMP
+    if (threads) omp_set_num_threads((int)threads);
+#endif
+    WfScenario *sc = NULL;
+    WfSim *sim = NULL;
+    WfH5Out *h5 = NULL;
+    WfOutput ops;
+    int rc = wf_scenario_load(argv[optind], sets, n_set, &sc, &err);
+    free(sets);
+    if (!rc && outpath) snprintf(sc->output_path, sizeof sc->output_path, "%s", outpath);
+    /* Scenario and fleet errors come before the result file exists: nothing is left behind. */
+    if (!rc) rc = wf_sim_create(sc, &sim, &err);
+    if (!rc) rc = wf_h5out_create(sc->output_path, force, &h5, &ops, &err);
+    if (rc) {
+        wf_sim_destroy(&sim);
+        wf_scenario_destroy(&sc);
+        return wf_cli_fail(&err);
+    }
+    struct sigaction sa;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_signal;
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
+    Progress p = {.t0 = now_s(), .tty = isatty(STDERR_FILENO)};
+    rc = wf_sim_run(sim, &ops, (!quiet && p.tty) ? progress : NULL, &p, &stop_signal, &err);
+    if (!quiet && p.tty) fprintf(stderr, "\n");
+    int status = 0;
+    if (rc) {
+        status = wf_cli_fail(&err);
+        if (wf_h5out_path(h5)[0]) fprintf(stderr, "wavefuel: partial result kept in %s\n", wf_h5out_path(h5));
+    } else if (!quiet) {
+        print_summary(sim, wf_h5out_path(h5));
+    }
+    wf_h5out_destroy(&h5);
+    wf_sim_destroy(&sim);
+    wf_scenario_destroy(&sc);
+    return status;
+}

@@ -1,0 +1,711 @@
+/* Tabulated (semi-principled) energy model of the CIRCLES release: fuel rate g/s on a regular (v, a, theta)
+ * grid, read from the release's CSV, stored as compressed HDF5 with its grid, source and a checksum, and
+ * evaluated as the release's MATLAB wrappers do (trilinear interpolation; flag from the interpolated
+ * Infeasible column; projection onto the bilinear interpolation of each column's largest feasible grid
+ * acceleration). Outside the grid the release returns NaN; wavefuel clamps to the edge and counts. */
+#include "wavefuel/tabulated.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "h5util.h"
+#include "wavefuel/config.h"
+#include "wavefuel/csv.h"
+#include "wavefuel/version.h"
+
+#define TABLE_FORMAT "wavefuel tabulated energy model"
+#define TABLE_FORMAT_VERSION 1
+/* Nodes may sit up to this fraction of a step away from the even spacing: printed decimals such as 3.92
+ * are off by about 1e-16 of a step, far less; a real unevenness is far more. */
+#define EVEN_TOL 1e-6
+
+static const char *const column_names[] = {"Velocity", "Acceleration", "Road Grade", "Fuel Rate", "Infeasible"};
+
+/* ---------------------------------------------------------------------------------------------------------
+ * Grid construction and checks */
+
+static void axis_free(WfTableAxis *ax)
+{
+    free(ax->x);
+    ax->x = NULL;
+}
+
+void wf_table_destroy(WfTable **pt)
+{
+    if (!pt || !*pt) return;
+    WfTable *t = *pt;
+    axis_free(&t->v);
+    axis_free(&t->a);
+    axis_free(&t->theta);
+    free(t->fuel_gps);
+    free(t->infeasible);
+    free(t->a_max_mps2);
+    free(t);
+    *pt = NULL;
+}
+
+/* Takes ownership of nodes[n + 1] (ascending, distinct; the last slot is padding) and checks the spacing.
+ * `what` names the axis for messages. */
+static int axis_init(WfTableAxis *ax, double *nodes, size_t n, const char *file, const char *what, WfError *err)
+{
+    ax->x = nodes;
+    ax->n = n;
+    ax->lo = nodes[0];
+    ax->hi = nodes[n - 1];
+    /* One node: the padding makes x[k + 1] - x[k] = 1, so t = 0 without a division by zero; up = 0 keeps
+     * both "corners" on the single node. */
+    nodes[n] = n > 1 ? nodes[n - 1] + (nodes[n - 1] - nodes[n - 2]) : nodes[0] + 1.0;
+    ax->kmax = n > 1 ? n - 2 : 0;
+    ax->up = n > 1 ? 1 : 0;
+    ax->inv_step = n > 1 ? (double)(n - 1) / (ax->hi - ax->lo) : 0.0;
+    if (n > 2) {
+        double step = (ax->hi - ax->lo) / (double)(n - 1);
+        for (size_t k = 1; k + 1 < n; k++) {
+            double want = ax->lo + (double)k * step;
+            if (fabs(nodes[k] - want) > EVEN_TOL * step)
+                return wf_err(err, WF_EINPUT,
+                              "%s: irregular grid: %s values are not evenly spaced: value %zu of %zu is %.17g, "
+                              "expected %.17g for an even step of %.17g from %.17g to %.17g",
+                              file, what, k + 1, n, nodes[k], want, step, ax->lo, ax->hi);
+        }
+    }
+    return 0;
+}
+
+/* Largest feasible grid acceleration of each (v, theta) column. A column with no feasible node (partial
+ * tables such as the release's 63-row sample) gets the lowest grid acceleration: the closest the table
+ * comes to a feasible value. */
+static void derive_a_max(WfTable *t)
+{
+    size_t na = t->a.n, nt = t->theta.n;
+    for (size_t iv = 0; iv < t->v.n; iv++)
+        for (size_t it = 0; it < nt; it++) {
+            double best = t->a.lo;
+            for (size_t ia = na; ia-- > 0;)
+                if (t->infeasible[(iv * na + ia) * nt + it] == 0.0) {
+                    best = t->a.x[ia];
+                    break;
+                }
+            t->a_max_mps2[iv * nt + it] = best;
+        }
+}
+
+static int cmp_double(const void *pa, const void *pb)
+{
+    double a = *(const double *)pa, b = *(const double *)pb;
+    return (a > b) - (a < b);
+}
+
+/* Distinct values of column `col` of the CSV, ascending, with one padding slot after them. */
+static int distinct(const WfCsv *csv, size_t col, double **out, size_t *n_out, WfError *err)
+{
+    double *x = malloc((csv->n_rows + 1) * sizeof *x);
+    if (!x) return wf_err(err, WF_ESYS, "out of memory reading a table");
+    for (size_t r = 0; r < csv->n_rows; r++) x[r] = csv->data[r * csv->n_cols + col];
+    qsort(x, csv->n_rows, sizeof *x, cmp_double);
+    size_t n = 0;
+    for (size_t r = 0; r < csv->n_rows; r++)
+        if (n == 0 || x[r] != x[n - 1]) x[n++] = x[r];
+    *out = x;
+    *n_out = n;
+    return 0;
+}
+
+/* Index of value x among the axis nodes (present by construction: the nodes are the column's values). */
+static size_t node_index(const WfTableAxis *ax, double x)
+{
+    size_t lo = 0, hi = ax->n - 1;
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (ax->x[mid] < x) lo = mid + 1;
+        else hi = mid;
+    }
+    return lo;
+}
+
+static uint64_t fnv_bytes(uint64_t h, const unsigned char *p, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        h ^= p[i];
+        h *= 0x100000001b3ULL;
+    }
+    return h;
+}
+
+static uint64_t fnv_u64(uint64_t h, uint64_t x)
+{
+    unsigned char b[8];
+    for (int i = 0; i < 8; i++) b[i] = (unsigned char)(x >> (8 * i)); /* little-endian on every host */
+    return fnv_bytes(h, b, 8);
+}
+
+static uint64_t fnv_f64s(uint64_t h, const double *x, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        uint64_t bits;
+        memcpy(&bits, &x[i], sizeof bits);
+        h = fnv_u64(h, bits);
+    }
+    return h;
+}
+
+uint64_t wf_table_checksum(const WfTable *t)
+{
+    uint64_t h = 0xcbf29ce484222325ULL;
+    size_t n = t->v.n * t->a.n * t->theta.n;
+    h = fnv_u64(h, t->v.n);
+    h = fnv_u64(h, t->a.n);
+    h = fnv_u64(h, t->theta.n);
+    h = fnv_f64s(h, t->v.x, t->v.n);
+    h = fnv_f64s(h, t->a.x, t->a.n);
+    h = fnv_f64s(h, t->theta.x, t->theta.n);
+    h = fnv_f64s(h, t->fuel_gps, n);
+    return fnv_f64s(h, t->infeasible, n);
+}
+
+static int file_fnv(const char *path, uint64_t *out, WfError *err)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) return wf_err(err, WF_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    unsigned char buf[1 << 16];
+    uint64_t h = 0xcbf29ce484222325ULL;
+    size_t k;
+    while ((k = fread(buf, 1, sizeof buf, f)) > 0) h = fnv_bytes(h, buf, k);
+    int bad = ferror(f);
+    fclose(f);
+    if (bad) return wf_err(err, WF_ESYS, "%s: read error", path);
+    *out = h;
+    return 0;
+}
+
+/* Allocates the value arrays of a table whose axes are set. */
+static int alloc_values(WfTable *t, WfError *err)
+{
+    size_t n = t->v.n * t->a.n * t->theta.n;
+    t->fuel_gps = malloc(n * sizeof *t->fuel_gps);
+    t->infeasible = malloc(n * sizeof *t->infeasible);
+    t->a_max_mps2 = malloc(t->v.n * t->theta.n * sizeof *t->a_max_mps2);
+    if (!t->fuel_gps || !t->infeasible || !t->a_max_mps2) return wf_err(err, WF_ESYS, "out of memory for a table");
+    return 0;
+}
+
+int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
+{
+    *out = NULL;
+    if (!strcmp(path, "-"))
+        return wf_err(err, WF_EINPUT, "a table must be read from a file (its checksum is recorded), not '-'");
+    WfCsv csv;
+    int rc = wf_csv_read(path, 5, column_names, &csv, err);
+    if (rc) return rc;
+    WfTable *t = calloc(1, sizeof *t);
+    int *row_line = NULL;
+    if (!t) {
+        rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
+        goto fail;
+    }
+    if (!csv.had_header) {
+        rc = wf_err(err, WF_EINPUT, "%s: the first line must be the header 'Velocity,Acceleration,Road Grade,Fuel "
+                                    "Rate,Infeasible' (the release's format)", path);
+        goto fail;
+    }
+    if (csv.n_rows == 0) {
+        rc = wf_err(err, WF_EINPUT, "%s: no data rows", path);
+        goto fail;
+    }
+    for (size_t r = 0; r < csv.n_rows; r++) {
+        double inf = csv.data[r * 5 + 4];
+        if (inf != 0.0 && inf != 1.0) {
+            rc = wf_err(err, WF_EINPUT, "%s:%d: field 5 (Infeasible) must be 0 or 1 (got %.17g)", path, csv.line[r],
+                        inf);
+            goto fail;
+        }
+    }
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (size_t c = 0; c < 3; c++) {
+        double *nodes = NULL;
+        size_t n = 0;
+        if ((rc = distinct(&csv, c, &nodes, &n, err))) goto fail;
+        if ((rc = axis_init(axes[c], nodes, n, path, column_names[c], err))) goto fail;
+    }
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n;
+    /* The product is bounded before it is formed: each axis has at most n_rows values. */
+    double product = (double)nv * (double)na * (double)nt;
+    /* A few missing rows are reported by name below; a product far beyond the row count is not a grid. */
+    if (product > 4.0 * (double)csv.n_rows + 1024.0) {
+        rc = wf_err(err, WF_EINPUT,
+                    "%s: not a regular grid: %zu distinct speeds x %zu accelerations x %zu grades would need "
+                    "%.0f rows, the file has %zu",
+                    path, nv, na, nt, product, csv.n_rows);
+        goto fail;
+    }
+    size_t n = nv * na * nt;
+    if ((rc = alloc_values(t, err))) goto fail;
+    row_line = calloc(n, sizeof *row_line);
+    if (!row_line) {
+        rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
+        goto fail;
+    }
+    for (size_t r = 0; r < csv.n_rows; r++) {
+        const double *row = csv.data + r * 5;
+        size_t idx = (node_index(&t->v, row[0]) * na + node_index(&t->a, row[1])) * nt + node_index(&t->theta, row[2]);
+        if (row_line[idx]) {
+            rc = wf_err(err, WF_EINPUT,
+                        "%s:%d: duplicate row for Velocity=%.17g, Acceleration=%.17g, Road Grade=%.17g (first on line "
+                        "%d)",
+                        path, csv.line[r], row[0], row[1], row[2], row_line[idx]);
+            goto fail;
+        }
+        row_line[idx] = csv.line[r];
+        t->fuel_gps[idx] = row[3];
+        t->infeasible[idx] = row[4];
+    }
+    for (size_t idx = 0; idx < n; idx++)
+        if (!row_line[idx]) {
+            size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
+            rc = wf_err(err, WF_EINPUT,
+                        "%s: incomplete grid: missing row for Velocity=%.17g, Acceleration=%.17g, Road Grade=%.17g "
+                        "(%zu speeds x %zu accelerations x %zu grades need %zu rows, the file has %zu)",
+                        path, t->v.x[iv], t->a.x[ia], t->theta.x[it], nv, na, nt, n, csv.n_rows);
+            goto fail;
+        }
+    derive_a_max(t);
+    snprintf(t->source, sizeof t->source, "%s", path);
+    if ((rc = file_fnv(path, &t->source_fnv1a64, err))) goto fail;
+    t->data_fnv1a64 = wf_table_checksum(t);
+    free(row_line);
+    wf_csv_free(&csv);
+    *out = t;
+    return 0;
+fail:
+    free(row_line);
+    wf_csv_free(&csv);
+    wf_table_destroy(&t);
+    return rc ? rc : WF_EINPUT;
+}
+
+/* ---------------------------------------------------------------------------------------------------------
+ * HDF5 form */
+
+int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *err)
+{
+    WfH5File *f = NULL;
+    int rc = wf_h5_create(path, force, &f, err);
+    if (rc) return rc;
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
+    uint8_t *inf = malloc(n ? n : 1);
+    if (!inf) {
+        wf_h5_abandon(&f, 1);
+        return wf_err(err, WF_ESYS, "out of memory writing %s", path);
+    }
+    for (size_t i = 0; i < n; i++) inf[i] = (uint8_t)(t->infeasible[i] != 0.0);
+    char hex_src[32], hex_data[32], created[128];
+    snprintf(hex_src, sizeof hex_src, "%016llx", (unsigned long long)t->source_fnv1a64);
+    snprintf(hex_data, sizeof hex_data, "%016llx", (unsigned long long)t->data_fnv1a64);
+    snprintf(created, sizeof created, "wavefuel %s (%s)", WF_VERSION, WF_GIT_HASH);
+    hsize_t dv = nv, da = na, dt = nt, dvals[2] = {nv * na, nt}, damax[2] = {nv, nt};
+    hid_t root = f->fid;
+    if ((rc = wf_h5_attr_str(root, "format", TABLE_FORMAT, err)) ||
+        (rc = wf_h5_attr_i64(root, "format_version", TABLE_FORMAT_VERSION, err)) ||
+        (rc = wf_h5_attr_str(root, "source", t->source, err)) ||
+        (rc = wf_h5_attr_str(root, "source_fnv1a64", hex_src, err)) ||
+        (rc = wf_h5_attr_str(root, "data_fnv1a64", hex_data, err)) ||
+        (rc = wf_h5_attr_str(root, "created_by", created, err)) ||
+        (rc = wf_h5_attr_str(root, "layout",
+                             "fuel_gps and infeasible are (n_velocity * n_acceleration, n_grade): reshape to "
+                             "(n_velocity, n_acceleration, n_grade); axes ascending",
+                             err)) ||
+        (rc = wf_h5_write_f64(root, "velocity_mps", 1, &dv, t->v.x, "m/s", "speed nodes, ascending, evenly spaced",
+                              err)) ||
+        (rc = wf_h5_write_f64(root, "acceleration_mps2", 1, &da, t->a.x, "m/s^2",
+                              "acceleration nodes, ascending, evenly spaced", err)) ||
+        (rc = wf_h5_write_f64(root, "grade_rad", 1, &dt, t->theta.x, "rad",
+                              "road grade nodes, ascending, evenly spaced", err)) ||
+        (rc = wf_h5_write_f64(root, "fuel_gps", 2, dvals, t->fuel_gps, "g/s", "fuel rate at each grid node", err)) ||
+        (rc = wf_h5_write_u8(root, "infeasible", 2, dvals, inf, "1",
+                             "1 where the vehicle cannot reach that acceleration at that speed and grade", err)) ||
+        (rc = wf_h5_write_f64(root, "a_max_mps2", 2, damax, t->a_max_mps2, "m/s^2",
+                              "largest feasible grid acceleration per (velocity, grade) column; derived, "
+                              "recomputed on load",
+                              err))) {
+        free(inf);
+        wf_h5_abandon(&f, 1);
+        return rc;
+    }
+    free(inf);
+    return wf_h5_commit(&f, err);
+}
+
+int wf_table_import(const char *csv_path, const char *h5_path, int force, WfError *err)
+{
+    WfTable *t = NULL;
+    int rc = wf_table_read_csv(csv_path, &t, err);
+    if (!rc) rc = wf_table_write_h5(t, h5_path, force, err);
+    wf_table_destroy(&t);
+    return rc;
+}
+
+/* Reading: the HDF5 file was written by wf_table_write_h5; every call is checked, and a file of another
+ * shape is an input error naming the object. */
+static int read_str_attr(hid_t obj, const char *path, const char *name, char *out, size_t len, WfError *err)
+{
+    if (H5Aexists(obj, name) <= 0)
+        return wf_err(err, WF_EINPUT, "%s: missing attribute '%s': not a wavefuel table", path, name);
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
+    hid_t ty = a >= 0 ? H5Aget_type(a) : H5I_INVALID_HID;
+    int rc = 0;
+    if (ty < 0 || H5Tget_class(ty) != H5T_STRING || H5Tis_variable_str(ty) != 0) {
+        rc = wf_err(err, WF_EINPUT, "%s: attribute '%s' is not a fixed-length string", path, name);
+    } else {
+        size_t sz = H5Tget_size(ty);
+        char *buf = malloc(sz + 1);
+        if (!buf) rc = wf_err(err, WF_ESYS, "out of memory");
+        else if (H5Aread(a, ty, buf) < 0) rc = wf_err(err, WF_ESYS, "%s: HDF5: read attribute '%s' failed", path, name);
+        else {
+            buf[sz] = '\0';
+            snprintf(out, len, "%s", buf);
+        }
+        free(buf);
+    }
+    if (ty >= 0) H5Tclose(ty);
+    if (a >= 0) H5Aclose(a);
+    return rc;
+}
+
+/* Reads dataset `name` of rank `rank`; dims[] receives its shape; *out (malloc'd) its values as mem_type. */
+static int read_dataset(hid_t fid, const char *path, const char *name, int rank, hid_t mem_type, size_t elem,
+                        hsize_t *dims, void **out, WfError *err)
+{
+    *out = NULL;
+    if (H5Lexists(fid, name, H5P_DEFAULT) <= 0)
+        return wf_err(err, WF_EINPUT, "%s: missing dataset '%s': not a wavefuel table", path, name);
+    hid_t d = H5Dopen2(fid, name, H5P_DEFAULT);
+    hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
+    int rc = 0;
+    if (sp < 0) {
+        rc = wf_err(err, WF_ESYS, "%s: HDF5: open dataset '%s' failed", path, name);
+    } else if (H5Sget_simple_extent_ndims(sp) != rank) {
+        rc = wf_err(err, WF_EINPUT, "%s: dataset '%s' should have rank %d", path, name, rank);
+    } else {
+        H5Sget_simple_extent_dims(sp, dims, NULL);
+        size_t total = 1;
+        for (int i = 0; i < rank; i++) total *= (size_t)dims[i];
+        /* One spare element: callers of the axes use it as padding. */
+        void *buf = malloc((total + 1) * elem);
+        if (!buf) rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
+        else if (total && H5Dread(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf) < 0) {
+            rc = wf_err(err, WF_ESYS, "%s: HDF5: read dataset '%s' failed (damaged file?)", path, name);
+            free(buf);
+        } else {
+            *out = buf;
+        }
+    }
+    if (sp >= 0) H5Sclose(sp);
+    if (d >= 0) H5Dclose(d);
+    return rc;
+}
+
+int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
+{
+    *out = NULL;
+    if (access(path, R_OK) != 0) return wf_err(err, WF_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    hid_t fid = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (fid < 0)
+        return wf_err(err, WF_EINPUT, "%s: not an HDF5 file (import a CSV table first: wavefuel table import)", path);
+    WfTable *t = calloc(1, sizeof *t);
+    uint8_t *inf = NULL;
+    double *nodes[3] = {NULL, NULL, NULL};
+    int rc = 0;
+    char fmt[128], hex_src[64], hex_data[64];
+    if (!t) {
+        rc = wf_err(err, WF_ESYS, "out of memory");
+        goto done;
+    }
+    if ((rc = read_str_attr(fid, path, "format", fmt, sizeof fmt, err))) goto done;
+    if (strcmp(fmt, TABLE_FORMAT) != 0) {
+        rc = wf_err(err, WF_EINPUT, "%s: format is '%s', expected '%s'", path, fmt, TABLE_FORMAT);
+        goto done;
+    }
+    int64_t version = 0;
+    hid_t va = H5Aexists(fid, "format_version") > 0 ? H5Aopen(fid, "format_version", H5P_DEFAULT) : H5I_INVALID_HID;
+    if (va < 0 || H5Aread(va, H5T_NATIVE_INT64, &version) < 0) version = -1;
+    if (va >= 0) H5Aclose(va);
+    if (version != TABLE_FORMAT_VERSION) {
+        rc = wf_err(err, WF_EINPUT, "%s: format_version %lld, this wavefuel reads version %d", path,
+                    (long long)version, TABLE_FORMAT_VERSION);
+        goto done;
+    }
+    if ((rc = read_str_attr(fid, path, "source", t->source, sizeof t->source, err)) ||
+        (rc = read_str_attr(fid, path, "source_fnv1a64", hex_src, sizeof hex_src, err)) ||
+        (rc = read_str_attr(fid, path, "data_fnv1a64", hex_data, sizeof hex_data, err)))
+        goto done;
+    t->source_fnv1a64 = strtoull(hex_src, NULL, 16);
+    t->data_fnv1a64 = strtoull(hex_data, NULL, 16);
+    static const char *const axis_sets[] = {"velocity_mps", "acceleration_mps2", "grade_rad"};
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (int c = 0; c < 3; c++) {
+        hsize_t dims[1];
+        void *buf;
+        if ((rc = read_dataset(fid, path, axis_sets[c], 1, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err)))
+            goto done;
+        nodes[c] = buf;
+        size_t n = (size_t)dims[0];
+        for (size_t k = 0; k < n; k++)
+            if (!isfinite(nodes[c][k]) || (k && !(nodes[c][k] > nodes[c][k - 1]))) n = 0;
+        if (n == 0) {
+            rc = wf_err(err, WF_EINPUT, "%s: %s must be finite, ascending and non-empty", path, axis_sets[c]);
+            goto done;
+        }
+        nodes[c] = NULL; /* owned by the axis from here, even when the spacing check fails */
+        if ((rc = axis_init(axes[c], buf, n, path, axis_sets[c], err))) goto done;
+    }
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
+    hsize_t dims[2];
+    void *buf;
+    if ((rc = read_dataset(fid, path, "fuel_gps", 2, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err))) goto done;
+    t->fuel_gps = buf;
+    if (dims[0] != nv * na || dims[1] != nt) {
+        rc = wf_err(err, WF_EINPUT, "%s: fuel_gps is %llu x %llu, the grid needs %zu x %zu", path,
+                    (unsigned long long)dims[0], (unsigned long long)dims[1], nv * na, nt);
+        goto done;
+    }
+    if ((rc = read_dataset(fid, path, "infeasible", 2, H5T_NATIVE_UINT8, 1, dims, &buf, err))) goto done;
+    inf = buf;
+    if (dims[0] != nv * na || dims[1] != nt) {
+        rc = wf_err(err, WF_EINPUT, "%s: infeasible has the wrong shape", path);
+        goto done;
+    }
+    t->infeasible = malloc(n * sizeof *t->infeasible);
+    t->a_max_mps2 = malloc(nv * nt * sizeof *t->a_max_mps2);
+    if (!t->infeasible || !t->a_max_mps2) {
+        rc = wf_err(err, WF_ESYS, "out of memory loading %s", path);
+        goto done;
+    }
+    for (size_t i = 0; i < n; i++) {
+        if (inf[i] > 1 || !isfinite(t->fuel_gps[i])) {
+            rc = wf_err(err, WF_EINPUT, "%s: value %zu of fuel_gps / infeasible is not finite / 0 or 1", path, i);
+            goto done;
+        }
+        t->infeasible[i] = inf[i];
+    }
+    uint64_t sum = wf_table_checksum(t);
+    if (sum != t->data_fnv1a64) {
+        rc = wf_err(err, WF_EINPUT, "%s: checksum mismatch (stored %s, computed %016llx): the file was damaged or "
+                                    "edited; import the CSV again",
+                    path, hex_data, (unsigned long long)sum);
+        goto done;
+    }
+    derive_a_max(t);
+done:
+    for (int c = 0; c < 3; c++) free(nodes[c]);
+    free(inf);
+    H5Fclose(fid);
+    if (rc) wf_table_destroy(&t);
+    *out = t;
+    return rc;
+}
+
+/* ---------------------------------------------------------------------------------------------------------
+ * Evaluation. Every coordinate is clamped to the grid before the cell is located, so the kernels never read
+ * outside the arrays whatever the input (NaN included: fmax(NaN, lo) is lo). */
+
+/* Cell k and weight t in [0, 1] of coordinate x: nodes x[k] <= x <= x[k + 1]. The even spacing gives the
+ * cell in O(1); the nodes are printed decimals, so the estimate can be one cell off near a node, which the
+ * two comparisons correct. t is a division (not a multiplication by a stored reciprocal) so that x at a node
+ * gives t exactly 0 or 1 and grid values come back exactly. */
+static inline size_t locate(const WfTableAxis *ax, double x, double *t)
+{
+    double xc = fmin(fmax(x, ax->lo), ax->hi);
+    size_t k = (size_t)((xc - ax->lo) * ax->inv_step);
+    k = k > ax->kmax ? ax->kmax : k;
+    k -= (size_t)(k > 0 && xc < ax->x[k]);
+    k += (size_t)(k < ax->kmax && xc >= ax->x[k + 1]);
+    *t = (xc - ax->x[k]) / (ax->x[k + 1] - ax->x[k]);
+    return k;
+}
+
+/* (1 - t) x0 + t x1: exact at t = 0 and t = 1 (unlike x0 + t (x1 - x0)). */
+static inline double lerp(double x0, double x1, double t) { return (1.0 - t) * x0 + t * x1; }
+
+static inline double trilinear(const double *F, size_t base, size_t sv, size_t sa, size_t st, double tv, double ta,
+                               double tt)
+{
+    double c00 = lerp(F[base], F[base + st], tt);
+    double c01 = lerp(F[base + sa], F[base + sa + st], tt);
+    double c10 = lerp(F[base + sv], F[base + sv + st], tt);
+    double c11 = lerp(F[base + sv + sa], F[base + sv + sa + st], tt);
+    return lerp(lerp(c00, c01, ta), lerp(c10, c11, ta), tv);
+}
+
+static inline int inside(const WfTableAxis *ax, double x) { return x >= ax->lo && x <= ax->hi; }
+
+static inline double amax_at(const WfTable *t, size_t iv, double tv, size_t it, double tt)
+{
+    size_t nt = t->theta.n, b = iv * nt + it, sv = t->v.up * nt, st = t->theta.up;
+    const double *M = t->a_max_mps2;
+    return lerp(lerp(M[b], M[b + st], tt), lerp(M[b + sv], M[b + sv + st], tt), tv);
+}
+
+/* One evaluation; `static inline` so the array loops below are single bodies. want_flag = 0 skips the
+ * Infeasible interpolation. */
+static inline double eval1(const WfTable *t, double v, double a, double th, int project, int want_flag,
+                           uint8_t *flag, int *outside)
+{
+    size_t na = t->a.n, nt = t->theta.n;
+    size_t sv = t->v.up * na * nt, sa = t->a.up * nt, st = t->theta.up;
+    double vv = fmax(v, 0.0), tv, tt, ta;
+    size_t iv = locate(&t->v, vv, &tv), it = locate(&t->theta, th, &tt);
+    if (want_flag) {
+        /* The flag reads the Infeasible column at the original acceleration, before any projection. */
+        size_t ia0 = locate(&t->a, a, &ta);
+        double inf = trilinear(t->infeasible, (iv * na + ia0) * nt + it, sv, sa, st, tv, ta, tt);
+        *flag = (uint8_t)(v < 0.0 ? WF_NEGATIVE_SPEED : (inf != 0.0 ? WF_INFEASIBLE_ACCEL : WF_FEASIBLE));
+    }
+    double au = project ? fmin(a, amax_at(t, iv, tv, it, tt)) : a;
+    size_t ia = locate(&t->a, au, &ta);
+    if (outside) *outside = !(inside(&t->v, vv) && inside(&t->a, au) && inside(&t->theta, th));
+    return trilinear(t->fuel_gps, (iv * na + ia) * nt + it, sv, sa, st, tv, ta, tt);
+}
+
+double wf_table_fuel(const WfTable *t, double v, double a, double th, int project, uint8_t *flag, int *outside)
+{
+    uint8_t fl = 0;
+    double f = eval1(t, v, a, th, project, 1, &fl, outside);
+    if (flag) *flag = fl;
+    return f;
+}
+
+double wf_table_a_max(const WfTable *t, double v, double th)
+{
+    double tv, tt;
+    size_t iv = locate(&t->v, fmax(v, 0.0), &tv), it = locate(&t->theta, th, &tt);
+    return amax_at(t, iv, tv, it, tt);
+}
+
+void wf_table_eval(const WfTable *t, size_t n, const double *restrict v, const double *restrict a,
+                   const double *restrict th, int project, double *restrict fuel, uint8_t *restrict flag)
+{
+    if (flag) {
+        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], project, 1, &flag[i], NULL);
+    } else {
+        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], project, 0, NULL, NULL);
+    }
+}
+
+size_t wf_table_n_outside(const WfTable *t, size_t n, const double *v, const double *a, const double *th,
+                          int project)
+{
+    size_t count = 0;
+    for (size_t i = 0; i < n; i++) {
+        double vv = fmax(v[i], 0.0);
+        double au = project ? fmin(a[i], wf_table_a_max(t, vv, th[i])) : a[i];
+        count += (size_t)!(inside(&t->v, vv) && inside(&t->a, au) && inside(&t->theta, th[i]));
+    }
+    return count;
+}
+
+/* ---------------------------------------------------------------------------------------------------------
+ * The energy-model family */
+
+static void tab_eval(const void *params, size_t n, const double *v, const double *a, const double *th, int project,
+                     double *fuel, uint8_t *flag)
+{
+    wf_table_eval(((const WfTabulatedParams *)params)->table, n, v, a, th, project, fuel, flag);
+}
+
+static double tab_a_max(const void *params, double v, double th)
+{
+    return wf_table_a_max(((const WfTabulatedParams *)params)->table, v, th);
+}
+
+static size_t tab_n_outside(const void *params, size_t n, const double *v, const double *a, const double *th,
+                            int project)
+{
+    return wf_table_n_outside(((const WfTabulatedParams *)params)->table, n, v, a, th, project);
+}
+
+/* `table: PATH` relative to the class file's directory (absolute paths kept). */
+static int resolve_table(const char *class_path, const char *rel, char *out, size_t len, WfError *err)
+{
+    int w;
+    const char *slash = strrchr(class_path, '/');
+    if (rel[0] == '/' || !slash) w = snprintf(out, len, "%s", rel);
+    else w = snprintf(out, len, "%.*s/%s", (int)(slash - class_path), class_path, rel);
+    if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "%s: table path too long: %s", class_path, rel);
+    return 0;
+}
+
+static int load_for_class(WfTabulatedParams *p, const char *class_path, const char *path, WfError *err)
+{
+    size_t len = strlen(path);
+    if (len > 4 && !strcmp(path + len - 4, ".csv"))
+        return wf_err(err, WF_EINPUT,
+                      "%s: table: %s is a CSV table; convert it once with `wavefuel table import %s -o TABLE.h5` and "
+                      "name the .h5 file",
+                      class_path, path, path);
+    int rc = wf_table_load_h5(path, &p->table, err);
+    if (rc) wf_err_prefix(err, "%s: table: ", class_path);
+    return rc;
+}
+
+static int tab_load(void *params, const char *class_path, struct WfCfgNode *class_map, WfError *err)
+{
+    const char *rel = NULL;
+    int rc = wf_cfg_string(class_map, "table", &rel, err);
+    if (rc) return rc;
+    char path[4096];
+    if ((rc = resolve_table(class_path, rel, path, sizeof path, err))) return rc;
+    return load_for_class(params, class_path, path, err);
+}
+
+static void tab_release(void *params)
+{
+    if (params) wf_table_destroy(&((WfTabulatedParams *)params)->table);
+}
+
+const WfEnergyModel wf_energy_tabulated = {
+    .name = "tabulated",
+    .param_size = sizeof(WfTabulatedParams),
+    .spec = NULL,
+    .n_spec = 0,
+    .check = NULL,
+    .eval = tab_eval,
+    .a_max = tab_a_max,
+    .load = tab_load,
+    .release = tab_release,
+    .n_outside = tab_n_outside,
+    .project_default = 1,
+};
+
+int wf_tabulated_class_table(const WfVehicleClass *vc, char *path, size_t len, WfError *err)
+{
+    path[0] = '\0';
+    if (!vc->path[0]) return 0;
+    WfCfg *cfg = NULL;
+    int rc = wf_cfg_load_file(vc->path, &cfg, err);
+    if (rc) return rc;
+    WfCfgNode *node = wf_cfg_child(cfg->root, "table");
+    if (node && (node->kind != WF_CFG_SCALAR || !node->value[0])) {
+        char where[1200];
+        rc = wf_err(err, WF_EINPUT, "%s: table: expected a file path", wf_cfg_where(node, where, sizeof where));
+    } else if (node) {
+        rc = resolve_table(vc->path, node->value, path, len, err);
+    }
+    wf_cfg_destroy(&cfg);
+    return rc;
+}
+
+int wf_tabulated_class(const WfVehicleClass *base, const char *table_path, WfVehicleClass *out, WfError *err)
+{
+    *out = *base;
+    out->model = &wf_energy_tabulated;
+    out->params = calloc(1, sizeof(WfTabulatedParams));
+    if (!out->params) return wf_err(err, WF_ESYS, "out of memory");
+    int rc = load_for_class(out->params, base->path[0] ? base->path : base->name, table_path, err);
+    if (rc) wf_vehicle_free(out);
+    return rc;
+}

@@ -1,0 +1,367 @@
+/* The step loop. Every phase is a loop over vehicles in which iteration i writes only vehicle i's entries
+ * and reads values fixed for the phase (the previous phase's arrays), so the OpenMP loops are race-free and
+ * the results do not depend on the number of threads. Small fleets run serially (OpenMP overhead dominates). */
+#include "wavefuel/engine.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "wavefuel/rng.h"
+
+#define PAR_MIN 4096 /* vehicles below which loops run on one thread */
+#define EBLOCK  512  /* energy evaluation gather block */
+#define IBLOCK  1024 /* integration block */
+
+struct WfSim {
+    const WfScenario   *sc; /* borrowed */
+    WfFleet            *f;
+    const WfIntegrator *ig;
+    long     n_steps, out_every, traj_every, warm_steps, steps_done;
+    int64_t  overlaps;
+    int      nthreads;
+    double  *stat_scratch;
+    double  *ebuf;          /* nthreads x 4 x EBLOCK: v, a, theta, fuel */
+    uint8_t *fbuf;          /* nthreads x EBLOCK flags */
+    double   sd_sum;
+    long     n_sd;
+    double   wall_s;
+    WfSummary summary;
+};
+
+static double wall_now(void)
+{
+#ifdef _OPENMP
+    return omp_get_wtime();
+#else
+    struct timespec ts;
+    timespec_get(&ts, TIME_UTC);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+#endif
+}
+
+static int thread_id(void)
+{
+#ifdef _OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+void wf_sim_destroy(WfSim **ps)
+{
+    if (!ps || !*ps) return;
+    WfSim *s = *ps;
+    wf_fleet_destroy(&s->f);
+    free(s->stat_scratch);
+    free(s->ebuf);
+    free(s->fbuf);
+    free(s);
+    *ps = NULL;
+}
+
+int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
+{
+    *out = NULL;
+    WfSim *s = calloc(1, sizeof *s);
+    if (!s) return wf_err(err, WF_ESYS, "out of memory");
+    s->sc = sc;
+    int rc = wf_integrator_find(sc->integrator, &s->ig, err);
+    if (!rc) rc = wf_fleet_create(sc, &s->f, err);
+    if (rc) {
+        wf_sim_destroy(&s);
+        return rc;
+    }
+    s->n_steps = wf_scenario_n_steps(sc);
+    s->out_every = wf_scenario_output_every(sc);
+    s->traj_every = lround(sc->trajectory_interval_s / sc->dt_s);
+    if (s->traj_every < 1) s->traj_every = 1;
+    s->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
+#ifdef _OPENMP
+    s->nthreads = omp_get_max_threads();
+#else
+    s->nthreads = 1;
+#endif
+    s->stat_scratch = malloc(wf_stats_scratch_size(s->f->n, s->f->n_classes) * sizeof(double));
+    s->ebuf = malloc((size_t)s->nthreads * 4 * EBLOCK * sizeof(double));
+    s->fbuf = malloc((size_t)s->nthreads * EBLOCK);
+    if (!s->stat_scratch || !s->ebuf || !s->fbuf) {
+        wf_sim_destroy(&s);
+        return wf_err(err, WF_ESYS, "out of memory");
+    }
+    *out = s;
+    return 0;
+}
+
+/* Phase 1: gap to the leader, leader speed and grade, all at the step's start. */
+static void phase_inputs(WfSim *s)
+{
+    WfFleet *f = s->f;
+    const WfRoad *road = &s->sc->road;
+    size_t n = f->n;
+    double L = road->length_m;
+    const double *x = f->x_m, *v = f->v_mps, *len = f->length_m;
+    double *gap = f->gap_m, *vl = f->v_lead_mps, *th = f->theta_rad;
+    uint32_t *seg = f->grade_seg;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, L, x, v, len, gap, vl, th, seg, road)
+    for (size_t i = 0; i < n; i++) {
+        /* The leader of the last vehicle is vehicle 0, one lap ahead. */
+        size_t lead = i + 1 < n ? i + 1 : 0;
+        double xl = x[lead] + (i + 1 < n ? 0.0 : L);
+        gap[i] = xl - len[lead] - x[i];
+        vl[i] = v[lead];
+        th[i] = wf_road_grade(road, x[i], &seg[i]);
+    }
+}
+
+/* Phase 2: accelerations, driver group by driver group (no branching on model names in the loop). */
+static void phase_accel(WfSim *s, long step)
+{
+    WfFleet *f = s->f;
+    const WfScenario *sc = s->sc;
+    double dt = sc->dt_s, vlim = sc->road.speed_limit_mps;
+    uint64_t seed = sc->seed;
+    for (size_t g = 0; g < f->n_groups; g++) {
+        const WfDriverGroup *grp = &sc->groups[g];
+        const WfCfModel *m = grp->model;
+        const uint32_t *mem = f->group_member[g];
+        const unsigned char *params = f->group_params[g], *state = f->group_state[g];
+        size_t cnt = f->group_n[g], psz = m->param_size, ssz = m->state_size;
+        double sigma = grp->noise_mps2, amax = grp->accel_max_mps2, dmax = grp->decel_max_mps2;
+        int clip = grp->clip_feasible;
+        const double *gap = f->gap_m, *v = f->v_mps, *vl = f->v_lead_mps, *th = f->theta_rad;
+        const uint16_t *cid = f->class_id;
+        double *a = f->a_mps2;
+#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) \
+    shared(cnt, mem, params, state, psz, ssz, m, sigma, amax, dmax, clip, gap, v, vl, th, cid, a, sc, seed, step, dt, vlim)
+        for (size_t k = 0; k < cnt; k++) {
+            size_t i = mem[k];
+            double ai = m->accel(params + k * psz, ssz ? state + k * ssz : NULL, gap[i], v[i], vl[i]);
+            if (sigma > 0.0) {
+                double z[2];
+                wf_rng_normal2(seed, WF_RNG_NOISE, i, (uint64_t)step, z);
+                ai += sigma * z[0];
+            }
+            ai = ai > amax ? amax : ai;
+            ai = ai < -dmax ? -dmax : ai;
+            if (clip) {
+                const WfVehicleClass *vc = &sc->classes[cid[i]].vc;
+                double am = vc->model->a_max(vc->params, v[i], th[i]);
+                ai = ai > am ? am : ai;
+            }
+            /* Speed limit: never accelerate past it within the step. */
+            double to_limit = (vlim - v[i]) / dt;
+            ai = ai > to_limit && isfinite(vlim) ? (to_limit > -dmax ? to_limit : -dmax) : ai;
+            a[i] = ai;
+        }
+    }
+}
+
+/* Phase 3: fuel rate and feasibility flag of every vehicle, class by class through the array kernel. */
+static void phase_energy(WfSim *s)
+{
+    WfFleet *f = s->f;
+    const WfScenario *sc = s->sc;
+    for (size_t c = 0; c < f->n_classes; c++) {
+        const WfVehicleClass *vc = &sc->classes[c].vc;
+        const uint32_t *mem = f->class_member[c];
+        size_t cnt = f->class_n[c], nblk = (cnt + EBLOCK - 1) / EBLOCK;
+        const double *v = f->v_mps, *a = f->a_mps2, *th = f->theta_rad;
+        double *fr = f->fuel_rate_gps, *ebuf = s->ebuf;
+        uint8_t *flag = f->flag, *fbuf = s->fbuf;
+#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) \
+    shared(nblk, cnt, mem, vc, v, a, th, fr, flag, ebuf, fbuf)
+        for (size_t b = 0; b < nblk; b++) {
+            int t = thread_id();
+            double *bv = ebuf + (size_t)t * 4 * EBLOCK, *ba = bv + EBLOCK, *bt = ba + EBLOCK, *bf = bt + EBLOCK;
+            uint8_t *bfl = fbuf + (size_t)t * EBLOCK;
+            size_t lo = b * EBLOCK, m = cnt - lo < EBLOCK ? cnt - lo : EBLOCK;
+            for (size_t k = 0; k < m; k++) {
+                size_t i = mem[lo + k];
+                bv[k] = v[i], ba[k] = a[i], bt[k] = th[i];
+            }
+            vc->model->eval(vc->params, m, bv, ba, bt, 0, bf, bfl);
+            for (size_t k = 0; k < m; k++) {
+                size_t i = mem[lo + k];
+                fr[i] = bf[k];
+                flag[i] = bfl[k];
+            }
+        }
+    }
+}
+
+/* Phase 4: statistics over the step (left-point rule: rates at the step's start held for dt), integration,
+ * then the statistics that need the new state (distance, passages, stops). */
+static void phase_advance(WfSim *s, int in_window)
+{
+    WfFleet *f = s->f;
+    const WfScenario *sc = s->sc;
+    size_t n = f->n, nblk = (n + IBLOCK - 1) / IBLOCK;
+    double dt = sc->dt_s, L = sc->road.length_m, v_stop = sc->v_stop_mps, v_go = sc->v_go_mps;
+    double hb = -sc->hard_brake_mps2;
+    const WfIntegrator *ig = s->ig;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) \
+    shared(f, nblk, n, dt, L, v_stop, v_go, hb, ig, in_window)
+    for (size_t b = 0; b < nblk; b++) {
+        size_t lo = b * IBLOCK, m = n - lo < IBLOCK ? n - lo : IBLOCK;
+        double xold[IBLOCK];
+        for (size_t k = 0; k < m; k++) {
+            size_t i = lo + k;
+            double vi = f->v_mps[i], ai = f->a_mps2[i];
+            xold[k] = f->x_m[i];
+            uint8_t mode = f->mode[i];
+            int braking = ai < hb;
+            if (in_window) {
+                f->fuel_g[i] += f->fuel_rate_gps[i] * dt;
+                f->time_stopped_s[i] += vi < v_stop ? dt : 0.0;
+                f->sum_v[i] += vi;
+                f->sum_v2[i] += vi * vi;
+                f->sum_a[i] += ai;
+                f->sum_a2[i] += ai * ai;
+                f->infeasible_steps[i] += f->flag[i] == 1;
+                f->hard_brakes[i] += braking && !(mode & WF_MODE_BRAKING);
+            }
+            f->mode[i] = (uint8_t)((mode & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0));
+        }
+        ig->step(m, dt, f->x_m + lo, f->v_mps + lo, f->a_mps2 + lo);
+        for (size_t k = 0; k < m; k++) {
+            size_t i = lo + k;
+            double vi = f->v_mps[i];
+            uint8_t mode = f->mode[i];
+            if ((mode & WF_MODE_MOVING) && vi < v_stop) {
+                mode &= (uint8_t)~WF_MODE_MOVING;
+                if (in_window) f->stops[i]++;
+            } else if (!(mode & WF_MODE_MOVING) && vi > v_go) {
+                mode |= WF_MODE_MOVING;
+            }
+            f->mode[i] = mode;
+            if (in_window) {
+                f->dist_m[i] += f->x_m[i] - xold[k];
+                f->laps[i] += (int64_t)(floor(f->x_m[i] / L) - floor(xold[k] / L));
+            }
+        }
+    }
+}
+
+/* Phase 5: no gap may be negative. A vehicle that would overlap its leader (noise, or a model that brakes
+ * too late) is put at gap 0 behind it and stopped; each such event is counted. Rare, so it is found in
+ * parallel and repaired serially, going backwards so a repaired leader is seen by its follower. */
+static void phase_overlaps(WfSim *s)
+{
+    WfFleet *f = s->f;
+    size_t n = f->n;
+    double L = s->sc->road.length_m;
+    const double *x = f->x_m, *len = f->length_m;
+    long bad = 0;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, x, len, L) reduction(+ : bad)
+    for (size_t i = 0; i < n; i++) {
+        size_t lead = i + 1 < n ? i + 1 : 0;
+        double xl = x[lead] + (i + 1 < n ? 0.0 : L);
+        bad += xl - len[lead] - x[i] < 0.0;
+    }
+    if (!bad || n < 2) return;
+    for (int pass = 0; pass < 3; pass++) {
+        long fixed = 0;
+        for (size_t j = n; j-- > 0;) {
+            size_t lead = j + 1 < n ? j + 1 : 0;
+            double xl = f->x_m[lead] + (j + 1 < n ? 0.0 : L);
+            if (xl - f->length_m[lead] - f->x_m[j] < 0.0) {
+                f->x_m[j] = xl - f->length_m[lead];
+                f->v_mps[j] = 0.0;
+                fixed++;
+            }
+        }
+        s->overlaps += fixed;
+        if (!fixed) break;
+    }
+}
+
+/* Controllers with memory advance once per step, with the inputs of that step (called after the step's
+ * accelerations are computed from the old state, before integration changes the speeds). */
+static void phase_controller_state(WfSim *s)
+{
+    WfFleet *f = s->f;
+    for (size_t g = 0; g < f->n_groups; g++) {
+        const WfCfModel *m = s->sc->groups[g].model;
+        if (!m->state_size || !m->update_state) continue;
+        size_t cnt = f->group_n[g], psz = m->param_size, ssz = m->state_size;
+        const uint32_t *mem = f->group_member[g];
+        const unsigned char *params = f->group_params[g];
+        unsigned char *state = f->group_state[g];
+        const double *gap = f->gap_m, *vl = f->v_lead_mps, *v = f->v_mps;
+        double dt = s->sc->dt_s;
+#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) shared(cnt, mem, params, state, psz, ssz, m, gap, vl, v, dt)
+        for (size_t k = 0; k < cnt; k++) {
+            size_t i = mem[k];
+            m->update_state(params + k * psz, state + k * ssz, gap[i], v[i], vl[i], dt);
+        }
+    }
+}
+
+int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
+               WfError *err)
+{
+    const WfScenario *sc = s->sc;
+    int rc = out && out->begin ? out->begin(out->ctx, s, err) : 0;
+    if (rc) return rc;
+    double t0 = wall_now(), last_progress = t0;
+    const char *reason = NULL;
+    WfTsRow row;
+    long step;
+    for (step = 0; step <= s->n_steps; step++) {
+        double t = (double)step * sc->dt_s;
+        phase_inputs(s);
+        phase_accel(s, step);
+        phase_energy(s);
+        if (step % s->out_every == 0) {
+            wf_stats_record(s->f, sc, t, s->overlaps, s->stat_scratch, &row);
+            if (step >= s->warm_steps) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
+            if (out && out->record && (rc = out->record(out->ctx, s, &row, err))) break;
+        }
+        if (sc->trajectories && step % s->traj_every == 0 && out && out->trajectory &&
+            (rc = out->trajectory(out->ctx, s, t, err)))
+            break;
+        if (step == s->n_steps) break;
+        phase_controller_state(s);
+        phase_advance(s, step >= s->warm_steps);
+        phase_overlaps(s);
+        s->steps_done = step + 1;
+        if (stop && *stop) {
+            reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+            break;
+        }
+        if (progress && (step & 63) == 0) {
+            double now = wall_now();
+            if (now - last_progress >= 0.2) {
+                progress(pctx, t + sc->dt_s, sc->duration_s, step + 1, s->n_steps);
+                last_progress = now;
+            }
+        }
+    }
+    s->wall_s = wall_now() - t0;
+    long window = s->steps_done - s->warm_steps;
+    wf_stats_summary(s->f, sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->summary);
+    if (rc) {
+        if (out && out->end) {
+            WfError e2 = {0};
+            out->end(out->ctx, s, 0, err->msg, &e2);
+        }
+        return rc;
+    }
+    int completed = reason == NULL;
+    if (out && out->end && (rc = out->end(out->ctx, s, completed, reason ? reason : "", err))) return rc;
+    if (!completed) return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
+                                  (double)s->steps_done * sc->dt_s);
+    return 0;
+}
+
+const WfScenario *wf_sim_scenario(const WfSim *s) { return s->sc; }
+const WfFleet *wf_sim_fleet(const WfSim *s) { return s->f; }
+const WfSummary *wf_sim_summary(const WfSim *s) { return &s->summary; }
+double wf_sim_wall_s(const WfSim *s) { return s->wall_s; }
+long wf_sim_steps_done(const WfSim *s) { return s->steps_done; }
+int wf_sim_threads(const WfSim *s) { return s->nthreads; }

@@ -1,0 +1,264 @@
+/* Fleet construction: placement of classes and driver groups around the ring, per-vehicle parameter draws
+ * (counter-based, so independent of threads), and the initial state (heterogeneous equilibrium or rest). */
+#include "wavefuel/fleet.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wavefuel/rng.h"
+
+void wf_fleet_destroy(WfFleet **pf)
+{
+    if (!pf || !*pf) return;
+    WfFleet *f = *pf;
+    void *arrays[] = {f->x_m, f->v_mps, f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps,
+                      f->flag, f->grade_seg, f->length_m, f->class_id, f->group_id, f->slot, f->dist_m, f->fuel_g,
+                      f->time_stopped_s, f->sum_v, f->sum_v2, f->sum_a, f->sum_a2, f->stops, f->hard_brakes,
+                      f->infeasible_steps, f->laps, f->mode};
+    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
+    for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
+        free(f->group_member[g]);
+        free(f->group_params[g]);
+        free(f->group_state[g]);
+    }
+    for (size_t c = 0; c < WF_MAX_CLASSES; c++) free(f->class_member[c]);
+    free(f);
+    *pf = NULL;
+}
+
+double wf_fleet_equilibrium_gap(const WfCfModel *m, const void *params, double v, double s_max)
+{
+    if (m->accel(params, NULL, s_max, v, v) < 0.0) return s_max;
+    double lo = 0.0, hi = s_max;
+    if (m->accel(params, NULL, lo, v, v) >= 0.0) return 0.0;
+    for (int it = 0; it < 200; it++) {
+        double mid = 0.5 * (lo + hi);
+        if (mid <= lo || mid >= hi) break;
+        if (m->accel(params, NULL, mid, v, v) < 0.0) lo = mid;
+        else hi = mid;
+    }
+    return 0.5 * (lo + hi);
+}
+
+/* Category of each vehicle from counts. Interleaved: vehicle i goes to the category furthest behind its
+ * proportional share (i+1) count_c / n, which spreads every category evenly. Random: that sequence shuffled
+ * (Fisher-Yates) with counter-based draws. Explicit: from the index lists. */
+static void place(size_t n, size_t m, const long *count, long *const *indices, WfPlacement how, uint64_t seed,
+                  uint32_t stream, uint16_t *cat)
+{
+    if (how == WF_PLACE_EXPLICIT) {
+        for (size_t c = 0; c < m; c++)
+            for (long k = 0; k < count[c]; k++) cat[indices[c][k]] = (uint16_t)c;
+        return;
+    }
+    long assigned[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES] = {0};
+    for (size_t i = 0; i < n; i++) {
+        size_t best = m;
+        double best_deficit = -INFINITY;
+        for (size_t c = 0; c < m; c++) {
+            if (assigned[c] >= count[c]) continue;
+            double deficit = (double)(i + 1) * (double)count[c] / (double)n - (double)assigned[c];
+            if (deficit > best_deficit) best_deficit = deficit, best = c;
+        }
+        cat[i] = (uint16_t)best;
+        assigned[best]++;
+    }
+    if (how == WF_PLACE_RANDOM) {
+        for (size_t i = n; i-- > 1;) {
+            double u[2];
+            wf_rng_uniform2(seed, stream, i, 0, u);
+            size_t j = (size_t)(u[0] * (double)(i + 1));
+            if (j > i) j = i;
+            uint16_t t = cat[i];
+            cat[i] = cat[j];
+            cat[j] = t;
+        }
+    }
+}
+
+/* One vehicle's parameters: base values times (1 + spread * z), z a standard normal truncated to |z| <= 2 or
+ * a uniform on [-1, 1]; values outside the spec's range or rejected by check() are redrawn (deterministic:
+ * attempt number is part of the counter). */
+static int draw_params(const WfScenario *sc, const WfDriverGroup *g, size_t vehicle, double *out, WfError *err)
+{
+    const WfCfModel *m = g->model;
+    int any = 0;
+    for (size_t k = 0; k < m->n_spec; k++) any |= g->spread[k] > 0.0;
+    memcpy(out, g->params, m->param_size);
+    if (!any) return 0;
+    for (uint64_t attempt = 0; attempt < 1000; attempt++) {
+        int ok = 1;
+        memcpy(out, g->params, m->param_size);
+        for (size_t k = 0; k < m->n_spec && ok; k++) {
+            if (g->spread[k] <= 0.0) continue;
+            double r[2], z;
+            if (g->dist == WF_HET_NORMAL) {
+                wf_rng_normal2(sc->seed, WF_RNG_HETERO, vehicle, attempt * 64 + k, r);
+                z = r[0];
+                if (fabs(z) > 2.0) {
+                    ok = 0;
+                    break;
+                }
+            } else {
+                wf_rng_uniform2(sc->seed, WF_RNG_HETERO, vehicle, attempt * 64 + k, r);
+                z = 2.0 * r[0] - 1.0;
+            }
+            double *p = wf_param_ptr(out, &m->spec[k]);
+            *p *= 1.0 + g->spread[k] * z;
+            if (!(*p >= m->spec[k].min && *p <= m->spec[k].max)) ok = 0;
+        }
+        if (ok && m->check && m->check(out, NULL) != 0) ok = 0;
+        if (ok) return 0;
+    }
+    return wf_err(err, WF_EINPUT,
+                  "%s: driver group '%s': 1000 draws of the heterogeneous parameters for vehicle %zu were all out of "
+                  "range or rejected by the model: reduce heterogeneity.spread",
+                  sc->path, g->name, vehicle);
+}
+
+#define ALLOC(ptr, count)                                                     \
+    do {                                                                      \
+        (ptr) = calloc((count) ? (count) : 1, sizeof *(ptr));                 \
+        if (!(ptr)) {                                                         \
+            rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);   \
+            goto fail;                                                        \
+        }                                                                     \
+    } while (0)
+
+/* Common speed v of a heterogeneous equilibrium: sum_i (s_e,i(v) + len_i) = L, bisection in v. */
+static double equilibrium_speed(const WfScenario *sc, const WfFleet *f, double v_hi)
+{
+    double L = sc->road.length_m;
+    double lo = 0.0, hi = v_hi;
+    for (int it = 0; it < 100; it++) {
+        double mid = 0.5 * (lo + hi), total = 0.0;
+        for (size_t i = 0; i < f->n && total <= L; i++)
+            total += f->length_m[i] +
+                     wf_fleet_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), mid, L);
+        if (total > L) hi = mid;
+        else lo = mid;
+    }
+    return lo;
+}
+
+int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
+{
+    *out = NULL;
+    size_t n = (size_t)sc->n_vehicles;
+    int rc = 0;
+    WfFleet *f = calloc(1, sizeof *f);
+    if (!f) return wf_err(err, WF_ESYS, "out of memory");
+    f->n = n;
+    f->n_groups = sc->n_groups;
+    f->n_classes = sc->n_classes;
+    ALLOC(f->x_m, n); ALLOC(f->v_mps, n); ALLOC(f->a_mps2, n); ALLOC(f->gap_m, n); ALLOC(f->v_lead_mps, n);
+    ALLOC(f->theta_rad, n); ALLOC(f->fuel_rate_gps, n); ALLOC(f->flag, n); ALLOC(f->grade_seg, n);
+    ALLOC(f->length_m, n); ALLOC(f->class_id, n); ALLOC(f->group_id, n); ALLOC(f->slot, n);
+    ALLOC(f->dist_m, n); ALLOC(f->fuel_g, n); ALLOC(f->time_stopped_s, n); ALLOC(f->sum_v, n); ALLOC(f->sum_v2, n);
+    ALLOC(f->sum_a, n); ALLOC(f->sum_a2, n); ALLOC(f->stops, n); ALLOC(f->hard_brakes, n);
+    ALLOC(f->infeasible_steps, n); ALLOC(f->laps, n); ALLOC(f->mode, n);
+
+    long counts[WF_MAX_GROUPS];
+    long *idx[WF_MAX_GROUPS];
+    for (size_t c = 0; c < sc->n_classes; c++) counts[c] = sc->classes[c].count, idx[c] = sc->classes[c].indices;
+    place(n, sc->n_classes, counts, idx, sc->placement, sc->seed, WF_RNG_PLACEMENT, f->class_id);
+    for (size_t g = 0; g < sc->n_groups; g++) counts[g] = sc->groups[g].count, idx[g] = sc->groups[g].indices;
+    place(n, sc->n_groups, counts, idx, sc->placement, sc->seed, WF_RNG_PLACEMENT + 0x100, f->group_id);
+
+    for (size_t c = 0; c < sc->n_classes; c++) ALLOC(f->class_member[c], (size_t)sc->classes[c].count);
+    for (size_t g = 0; g < sc->n_groups; g++) {
+        const WfCfModel *m = sc->groups[g].model;
+        ALLOC(f->group_member[g], (size_t)sc->groups[g].count);
+        f->group_params[g] = calloc((size_t)sc->groups[g].count + 1, m->param_size);
+        f->group_state[g] = m->state_size ? calloc((size_t)sc->groups[g].count + 1, m->state_size) : NULL;
+        if (!f->group_params[g] || (m->state_size && !f->group_state[g])) {
+            rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);
+            goto fail;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        size_t c = f->class_id[i], g = f->group_id[i];
+        f->class_member[c][f->class_n[c]++] = (uint32_t)i;
+        f->slot[i] = (uint32_t)f->group_n[g];
+        f->group_member[g][f->group_n[g]++] = (uint32_t)i;
+        f->length_m[i] = sc->classes[c].length_m;
+        double *p = (double *)(f->group_params[g] + (size_t)f->slot[i] * sc->groups[g].model->param_size);
+        if ((rc = draw_params(sc, &sc->groups[g], i, p, err))) goto fail;
+    }
+
+    /* Initial state. */
+    double L = sc->road.length_m, total_len = 0.0, jam = 0.0;
+    for (size_t i = 0; i < n; i++) {
+        total_len += f->length_m[i];
+        jam += wf_fleet_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), 0.0, L);
+    }
+    if (total_len + jam > L) {
+        rc = wf_err(err, WF_EINPUT,
+                    "%s: %zu vehicles need %.6g m at their standstill gaps (lengths %.6g m + gaps %.6g m) but the ring "
+                    "is %.6g m long",
+                    sc->path, n, total_len + jam, total_len, jam, L);
+        goto fail;
+    }
+    double v0 = 0.0;
+    double *gap = f->gap_m; /* scratch until the first step */
+    if (sc->init_state == WF_INIT_EQUILIBRIUM) {
+        double v_hi = isfinite(sc->road.speed_limit_mps) ? sc->road.speed_limit_mps : 100.0;
+        v0 = equilibrium_speed(sc, f, v_hi);
+        double used = 0.0;
+        for (size_t i = 0; i < n; i++) {
+            gap[i] = wf_fleet_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), v0, L);
+            used += gap[i] + f->length_m[i];
+        }
+        /* Spare length (speed limit reached, or bisection residue) is shared equally. */
+        for (size_t i = 0; i < n; i++) gap[i] += (L - used) / (double)n;
+    } else {
+        for (size_t i = 0; i < n; i++) gap[i] = (L - total_len) / (double)n;
+    }
+    f->v_init_mps = v0;
+    /* x_0 = length_0 so vehicle 0's rear bumper sits at 0; x_{i+1} = x_i + gap_i + length_{i+1}. */
+    f->x_m[0] = f->length_m[0];
+    for (size_t i = 0; i + 1 < n; i++) f->x_m[i + 1] = f->x_m[i] + gap[i] + f->length_m[i + 1];
+    for (size_t i = 0; i < n; i++) f->v_mps[i] = v0;
+    for (size_t i = 0; sc->jitter_m > 0 && i < n; i++) {
+        double u[2];
+        wf_rng_uniform2(sc->seed, WF_RNG_JITTER, i, 0, u);
+        f->x_m[i] += sc->jitter_m * (2.0 * u[0] - 1.0);
+    }
+    if (sc->perturb_vehicle >= 0) {
+        f->x_m[sc->perturb_vehicle] += sc->perturb_dx_m;
+        f->v_mps[sc->perturb_vehicle] += sc->perturb_dv_mps;
+        if (f->v_mps[sc->perturb_vehicle] < 0.0) {
+            rc = wf_err(err, WF_EINPUT, "%s: initial.perturbation.dv_mps makes vehicle %ld's speed negative (%.6g m/s)",
+                        sc->path, sc->perturb_vehicle, f->v_mps[sc->perturb_vehicle]);
+            goto fail;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        size_t lead = i + 1 < n ? i + 1 : 0;
+        double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
+        double g = xl - f->length_m[lead] - f->x_m[i];
+        if (!(g >= 0.0)) {
+            rc = wf_err(err, WF_EINPUT,
+                        "%s: the initial perturbation or jitter makes vehicle %zu overlap its leader (gap %.6g m)",
+                        sc->path, i, g);
+            goto fail;
+        }
+    }
+    for (size_t i = 0; i < n; i++) {
+        f->mode[i] = f->v_mps[i] > sc->v_go_mps ? WF_MODE_MOVING : 0;
+        size_t g = f->group_id[i];
+        const WfCfModel *m = sc->groups[g].model;
+        if (m->state_size && m->init_state) {
+            size_t lead = i + 1 < n ? i + 1 : 0;
+            double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
+            m->init_state(wf_fleet_params(f, sc, i), f->group_state[g] + (size_t)f->slot[i] * m->state_size,
+                          xl - f->length_m[lead] - f->x_m[i], f->v_mps[i], f->v_mps[lead]);
+        }
+    }
+    *out = f;
+    return 0;
+fail:
+    wf_fleet_destroy(&f);
+    return rc;
+}
