@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
-# `make run`: evaluates the six classes at a few cruise points (until the simulator's default scenario exists).
+# `make run`: simulates the default scenario (scenarios/ring_mixed_fleet.yaml) into a new, time-stamped result
+# file, so repeated runs never overwrite an earlier result, and says where it is.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-for c in compact_sedan midsize_sedan midsize_suv midsize_pickup class4_pnd class8_tractor; do
-  echo "== $c: fuel at 10, 20, 30 m/s on a flat road =="
-  printf 'v,a,theta\n10,0,0\n20,0,0\n30,0,0\n' | ./bin/wavefuel energy --class "$c"
-done
+mkdir -p output
+out="output/ring_mixed_fleet_$(date -u +%Y%m%dT%H%M%SZ).h5"
+./bin/wavefuel run scenarios/ring_mixed_fleet.yaml -o "$out"
+echo
+echo "Result written to $out"
+echo "  summary:   ./bin/wavefuel info $out"
+echo "  a figure:  ./bin/wavefuel run scenarios/sugiyama.yaml -o output/sugiyama.h5 && /usr/bin/python3 tools/plot_timespace.py output/sugiyama.h5"

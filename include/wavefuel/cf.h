@@ -35,8 +35,9 @@ extern const WfCfModel *const wf_cf_models[];
 int wf_cf_model_find(const char *name, const WfCfModel **out, WfError *err);
 
 /* Equilibrium speed for a uniform flow at bumper-to-bumper gap s: the v in [0, v_hi] with
- * accel(s, v, v) = 0, found by bisection to machine precision (accel is decreasing in v for every shipped
- * model). Returns 0 when even v = 0 decelerates, v_hi when accel stays positive. */
+ * accel(s, v, v) = 0, found by bisection to machine precision. Every shipped model changes sign once in v at
+ * fixed gap (IDM and OVM decrease in v; Gipps's check() enforces a single crossing). Returns 0 when even
+ * v = 0 decelerates, v_hi when accel stays positive. */
 double wf_cf_equilibrium_speed(const WfCfModel *m, const void *params, double gap_m, double v_hi_mps);
 
 extern const WfCfModel wf_cf_idm;
