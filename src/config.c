@@ -404,6 +404,14 @@ static WfCfgNode *lookup(WfCfgNode *map, const char *key)
 static int missing(WfCfgNode *map, const char *key, const char *what, WfError *err)
 {
     char where[600], path[512];
+    /* A required key that is absent next to an unread key a typo away: report the typo, which is the cause. */
+    size_t len = strlen(key);
+    for (size_t i = 0; i < map->n_child; i++) {
+        WfCfgNode *c = map->child[i];
+        if (!c->used && c->key && wf_edit_distance(c->key, key) <= (len < 4 ? 1 : len / 3 + 1))
+            return wf_err(err, WF_EINPUT, "%s: unknown key '%s' (did you mean '%s'?)", wf_cfg_where(c, where, sizeof where),
+                          wf_cfg_path(c, path, sizeof path), key);
+    }
     const char *p = map->parent ? wf_cfg_path(map, path, sizeof path) : "the top level";
     return wf_err(err, WF_EINPUT, "%s: missing key '%s' in %s (%s)", wf_cfg_where(map, where, sizeof where), key, p,
                   what);
