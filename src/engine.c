@@ -26,6 +26,7 @@ struct WfSim {
     double  *stat_scratch;
     double  *ebuf;          /* nthreads x 4 x EBLOCK: v, a, theta, fuel */
     uint8_t *fbuf;          /* nthreads x EBLOCK flags */
+    double  *noise;         /* standard normal draw of each vehicle for the current step; NULL without noise */
     double   sd_sum;
     long     n_sd;
     double   wall_s;
@@ -60,6 +61,7 @@ void wf_sim_destroy(WfSim **ps)
     free(s->stat_scratch);
     free(s->ebuf);
     free(s->fbuf);
+    free(s->noise);
     free(s);
     *ps = NULL;
 }
@@ -89,7 +91,10 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     s->stat_scratch = malloc(wf_stats_scratch_size(s->f->n, s->f->n_classes) * sizeof(double));
     s->ebuf = malloc((size_t)s->nthreads * 4 * EBLOCK * sizeof(double));
     s->fbuf = malloc((size_t)s->nthreads * EBLOCK);
-    if (!s->stat_scratch || !s->ebuf || !s->fbuf) {
+    int noisy = 0;
+    for (size_t g = 0; g < sc->n_groups; g++) noisy |= sc->groups[g].noise_mps2 > 0.0;
+    if (noisy) s->noise = malloc((s->f->n + 1) * sizeof(double));
+    if (!s->stat_scratch || !s->ebuf || !s->fbuf || (noisy && !s->noise)) {
         wf_sim_destroy(&s);
         return wf_err(err, WF_ESYS, "out of memory");
     }
@@ -97,34 +102,36 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     return 0;
 }
 
-/* Phase 1: gap to the leader, leader speed and grade, all at the step's start. */
-static void phase_inputs(WfSim *s)
+/* Phase 1: acceleration noise. One Philox draw gives two normals (Box-Muller): vehicles 2p and 2p+1 share the
+ * draw keyed by (seed, pair p, step), which halves the cost of the transcendental functions. */
+static void phase_noise(WfSim *s, long step)
 {
-    WfFleet *f = s->f;
-    const WfRoad *road = &s->sc->road;
-    size_t n = f->n;
-    double L = road->length_m;
-    const double *x = f->x_m, *v = f->v_mps, *len = f->length_m;
-    double *gap = f->gap_m, *vl = f->v_lead_mps, *th = f->theta_rad;
-    uint32_t *seg = f->grade_seg;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, L, x, v, len, gap, vl, th, seg, road)
-    for (size_t i = 0; i < n; i++) {
-        /* The leader of the last vehicle is vehicle 0, one lap ahead. */
-        size_t lead = i + 1 < n ? i + 1 : 0;
-        double xl = x[lead] + (i + 1 < n ? 0.0 : L);
-        gap[i] = xl - len[lead] - x[i];
-        vl[i] = v[lead];
-        th[i] = wf_road_grade(road, x[i], &seg[i]);
+    if (!s->noise) return;
+    size_t n = s->f->n, pairs = (n + 1) / 2;
+    double *z = s->noise;
+    uint64_t seed = s->sc->seed;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, pairs, z, seed, step)
+    for (size_t p = 0; p < pairs; p++) {
+        double r[2];
+        wf_rng_normal2(seed, WF_RNG_NOISE, p, (uint64_t)step, r);
+        z[2 * p] = r[0];
+        if (2 * p + 1 < n) z[2 * p + 1] = r[1];
     }
 }
 
-/* Phase 2: accelerations, driver group by driver group (no branching on model names in the loop). */
-static void phase_accel(WfSim *s, long step)
+/* Phase 2: inputs at the step's start (gap to the leader, leader speed, grade) and the acceleration, driver
+ * group by driver group (no branching on model names in the loop). */
+static void phase_accel(WfSim *s)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
-    double dt = sc->dt_s, vlim = sc->road.speed_limit_mps;
-    uint64_t seed = sc->seed;
+    const WfRoad *road = &sc->road;
+    size_t n = f->n;
+    double dt = sc->dt_s, vlim = sc->road.speed_limit_mps, L = road->length_m;
+    const double *z = s->noise, *x = f->x_m, *len = f->length_m, *v = f->v_mps;
+    double *gap = f->gap_m, *vl = f->v_lead_mps, *th = f->theta_rad, *a = f->a_mps2;
+    uint32_t *seg = f->grade_seg;
+    const uint16_t *cid = f->class_id;
     for (size_t g = 0; g < f->n_groups; g++) {
         const WfDriverGroup *grp = &sc->groups[g];
         const WfCfModel *m = grp->model;
@@ -133,28 +140,28 @@ static void phase_accel(WfSim *s, long step)
         size_t cnt = f->group_n[g], psz = m->param_size, ssz = m->state_size;
         double sigma = grp->noise_mps2, amax = grp->accel_max_mps2, dmax = grp->decel_max_mps2;
         int clip = grp->clip_feasible;
-        const double *gap = f->gap_m, *v = f->v_mps, *vl = f->v_lead_mps, *th = f->theta_rad;
-        const uint16_t *cid = f->class_id;
-        double *a = f->a_mps2;
 #pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) \
-    shared(cnt, mem, params, state, psz, ssz, m, sigma, amax, dmax, clip, gap, v, vl, th, cid, a, sc, seed, step, dt, vlim)
+    shared(n, L, road, x, len, v, gap, vl, th, seg, cnt, mem, params, state, psz, ssz, m, sigma, amax, dmax, clip, \
+           cid, a, sc, z, dt, vlim)
         for (size_t k = 0; k < cnt; k++) {
             size_t i = mem[k];
-            double ai = m->accel(params + k * psz, ssz ? state + k * ssz : NULL, gap[i], v[i], vl[i]);
-            if (sigma > 0.0) {
-                double z[2];
-                wf_rng_normal2(seed, WF_RNG_NOISE, i, (uint64_t)step, z);
-                ai += sigma * z[0];
-            }
+            /* The leader of the last vehicle is vehicle 0, one lap ahead. */
+            size_t lead = i + 1 < n ? i + 1 : 0;
+            double xl = x[lead] + (i + 1 < n ? 0.0 : L);
+            double gi = xl - len[lead] - x[i], vi = v[i], vli = v[lead];
+            double thi = wf_road_grade(road, x[i], &seg[i]);
+            gap[i] = gi, vl[i] = vli, th[i] = thi;
+            double ai = m->accel(params + k * psz, ssz ? state + k * ssz : NULL, gi, vi, vli);
+            if (sigma > 0.0) ai += sigma * z[i];
             ai = ai > amax ? amax : ai;
             ai = ai < -dmax ? -dmax : ai;
             if (clip) {
                 const WfVehicleClass *vc = &sc->classes[cid[i]].vc;
-                double am = vc->model->a_max(vc->params, v[i], th[i]);
+                double am = vc->model->a_max(vc->params, vi, thi);
                 ai = ai > am ? am : ai;
             }
             /* Speed limit: never accelerate past it within the step. */
-            double to_limit = (vlim - v[i]) / dt;
+            double to_limit = (vlim - vi) / dt;
             ai = ai > to_limit && isfinite(vlim) ? (to_limit > -dmax ? to_limit : -dmax) : ai;
             a[i] = ai;
         }
@@ -173,7 +180,9 @@ static void phase_energy(WfSim *s)
         const double *v = f->v_mps, *a = f->a_mps2, *th = f->theta_rad;
         double *fr = f->fuel_rate_gps, *ebuf = s->ebuf;
         uint8_t *flag = f->flag, *fbuf = s->fbuf;
-#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) \
+        /* The gather buffers exist for s->nthreads threads: never run this loop on more. */
+        int nth = s->nthreads;
+#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) num_threads(nth) default(none) \
     shared(nblk, cnt, mem, vc, v, a, th, fr, flag, ebuf, fbuf)
         for (size_t b = 0; b < nblk; b++) {
             int t = thread_id();
@@ -250,7 +259,7 @@ static void phase_advance(WfSim *s, int in_window)
 /* Phase 5: no gap may be negative. A vehicle that would overlap its leader (noise, or a model that brakes
  * too late) is put at gap 0 behind it and stopped; each such event is counted. Rare, so it is found in
  * parallel and repaired serially, going backwards so a repaired leader is seen by its follower. */
-static void phase_overlaps(WfSim *s)
+static void phase_overlaps(WfSim *s, int in_window)
 {
     WfFleet *f = s->f;
     size_t n = f->n;
@@ -270,7 +279,13 @@ static void phase_overlaps(WfSim *s)
             size_t lead = j + 1 < n ? j + 1 : 0;
             double xl = f->x_m[lead] + (j + 1 < n ? 0.0 : L);
             if (xl - f->length_m[lead] - f->x_m[j] < 0.0) {
-                f->x_m[j] = xl - f->length_m[lead];
+                double x_new = xl - f->length_m[lead];
+                /* The step's distance and lap count were taken before the repair: correct them. */
+                if (in_window) {
+                    f->dist_m[j] += x_new - f->x_m[j];
+                    f->laps[j] += (int64_t)(floor(x_new / L) - floor(f->x_m[j] / L));
+                }
+                f->x_m[j] = x_new;
                 f->v_mps[j] = 0.0;
                 fixed++;
             }
@@ -314,8 +329,8 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
     long step;
     for (step = 0; step <= s->n_steps; step++) {
         double t = (double)step * sc->dt_s;
-        phase_inputs(s);
-        phase_accel(s, step);
+        phase_noise(s, step);
+        phase_accel(s);
         phase_energy(s);
         if (step % s->out_every == 0) {
             wf_stats_record(s->f, sc, t, s->overlaps, s->stat_scratch, &row);
@@ -328,7 +343,7 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
         if (step == s->n_steps) break;
         phase_controller_state(s);
         phase_advance(s, step >= s->warm_steps);
-        phase_overlaps(s);
+        phase_overlaps(s, step >= s->warm_steps);
         s->steps_done = step + 1;
         if (stop && *stop) {
             reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "wavefuel/equilibrium.h"
 #include "wavefuel/rng.h"
 
 void wf_fleet_destroy(WfFleet **pf)
@@ -25,20 +26,6 @@ void wf_fleet_destroy(WfFleet **pf)
     for (size_t c = 0; c < WF_MAX_CLASSES; c++) free(f->class_member[c]);
     free(f);
     *pf = NULL;
-}
-
-double wf_fleet_equilibrium_gap(const WfCfModel *m, const void *params, double v, double s_max)
-{
-    if (m->accel(params, NULL, s_max, v, v) < 0.0) return s_max;
-    double lo = 0.0, hi = s_max;
-    if (m->accel(params, NULL, lo, v, v) >= 0.0) return 0.0;
-    for (int it = 0; it < 200; it++) {
-        double mid = 0.5 * (lo + hi);
-        if (mid <= lo || mid >= hi) break;
-        if (m->accel(params, NULL, mid, v, v) < 0.0) lo = mid;
-        else hi = mid;
-    }
-    return 0.5 * (lo + hi);
 }
 
 /* Category of each vehicle from counts. Interleaved: vehicle i goes to the category furthest behind its
@@ -75,6 +62,96 @@ static void place(size_t n, size_t m, const long *count, long *const *indices, W
             cat[j] = t;
         }
     }
+}
+
+#define UNPLACED UINT16_MAX
+
+/* place() over the vehicles still UNPLACED in cat (in ring order), for `m` categories numbered from `first`
+ * upwards in the result. With every vehicle unplaced this is place() itself, so scenarios without per-group
+ * placement or classes keep their layout. `scratch` holds n slots (vehicle list) and n categories. */
+static void place_rest(size_t n, size_t m, const long *count, WfPlacement how, uint64_t seed, uint32_t stream,
+                       const uint16_t *id_of, uint16_t *cat, uint32_t *free_list, uint16_t *sub)
+{
+    size_t nf = 0;
+    for (size_t i = 0; i < n; i++)
+        if (cat[i] == UNPLACED) free_list[nf++] = (uint32_t)i;
+    place(nf, m, count, NULL, how, seed, stream, sub);
+    for (size_t k = 0; k < nf; k++) cat[free_list[k]] = id_of[sub[k]];
+}
+
+/* Driver groups with their own placement, in list order, each among the vehicles no earlier one claimed:
+ * explicit takes its indices; interleaved takes k vehicles evenly spaced in ring order among the m free ones,
+ * the j-th at free position floor(j m / k) (one group alone: vehicle floor(j n / k)); random takes k of them
+ * uniformly by seed (partial Fisher-Yates, counter-based draws keyed by the group). */
+static void place_own_groups(const WfScenario *sc, size_t n, uint16_t *gid, uint32_t *free_list)
+{
+    for (size_t g = 0; g < sc->n_groups; g++) {
+        const WfDriverGroup *grp = &sc->groups[g];
+        if (grp->placement < 0) continue;
+        if (grp->placement == WF_PLACE_EXPLICIT) {
+            for (size_t k = 0; k < grp->n_indices; k++) gid[grp->indices[k]] = (uint16_t)g;
+            continue;
+        }
+        size_t m = 0, k = (size_t)grp->count;
+        for (size_t i = 0; i < n; i++)
+            if (gid[i] == UNPLACED) free_list[m++] = (uint32_t)i;
+        if (grp->placement == WF_PLACE_INTERLEAVED) {
+            for (size_t j = 0; j < k; j++) gid[free_list[j * m / k]] = (uint16_t)g;
+            continue;
+        }
+        for (size_t j = 0; j < k; j++) {
+            double u[2];
+            wf_rng_uniform2(sc->seed, WF_RNG_PLACEMENT + 0x200 + (uint32_t)g, j, 0, u);
+            size_t r = j + (size_t)(u[0] * (double)(m - j));
+            if (r >= m) r = m - 1;
+            uint32_t t = free_list[j];
+            free_list[j] = free_list[r];
+            free_list[r] = t;
+            gid[free_list[j]] = (uint16_t)g;
+        }
+    }
+}
+
+/* Groups first (their own placements, then the rest by fleet.placement), then classes: vehicles of groups that
+ * name a class get it, and the classes' remaining counts are placed by fleet.placement over the others. */
+static int place_all(const WfScenario *sc, WfFleet *f, WfError *err)
+{
+    size_t n = f->n;
+    long counts[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
+    long *idx[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
+    uint16_t id_of[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
+    if (sc->placement == WF_PLACE_EXPLICIT) {
+        /* The loader rejects per-group placement and classes here: every vehicle is listed. */
+        for (size_t c = 0; c < sc->n_classes; c++) counts[c] = sc->classes[c].count, idx[c] = sc->classes[c].indices;
+        place(n, sc->n_classes, counts, idx, sc->placement, sc->seed, WF_RNG_PLACEMENT, f->class_id);
+        for (size_t g = 0; g < sc->n_groups; g++) counts[g] = sc->groups[g].count, idx[g] = sc->groups[g].indices;
+        place(n, sc->n_groups, counts, idx, sc->placement, sc->seed, WF_RNG_PLACEMENT + 0x100, f->group_id);
+        return 0;
+    }
+    uint32_t *free_list = malloc((n + 1) * sizeof *free_list);
+    uint16_t *sub = malloc((n + 1) * sizeof *sub);
+    if (!free_list || !sub) {
+        free(free_list);
+        free(sub);
+        return wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);
+    }
+    for (size_t i = 0; i < n; i++) f->group_id[i] = UNPLACED, f->class_id[i] = UNPLACED;
+    place_own_groups(sc, n, f->group_id, free_list);
+    size_t m = 0;
+    for (size_t g = 0; g < sc->n_groups; g++)
+        if (sc->groups[g].placement < 0) counts[m] = sc->groups[g].count, id_of[m++] = (uint16_t)g;
+    place_rest(n, m, counts, sc->placement, sc->seed, WF_RNG_PLACEMENT + 0x100, id_of, f->group_id, free_list, sub);
+
+    for (size_t c = 0; c < sc->n_classes; c++) counts[c] = sc->classes[c].count, id_of[c] = (uint16_t)c;
+    for (size_t i = 0; i < n; i++) {
+        int c = sc->groups[f->group_id[i]].class_index;
+        if (c >= 0) f->class_id[i] = (uint16_t)c, counts[c]--; /* the loader checked counts[c] stays >= 0 */
+    }
+    place_rest(n, sc->n_classes, counts, sc->placement, sc->seed, WF_RNG_PLACEMENT, id_of, f->class_id, free_list,
+               sub);
+    free(free_list);
+    free(sub);
+    return 0;
 }
 
 /* One vehicle's parameters: base values times (1 + spread * z), z a standard normal truncated to |z| <= 2 or
@@ -126,22 +203,6 @@ static int draw_params(const WfScenario *sc, const WfDriverGroup *g, size_t vehi
         }                                                                     \
     } while (0)
 
-/* Common speed v of a heterogeneous equilibrium: sum_i (s_e,i(v) + len_i) = L, bisection in v. */
-static double equilibrium_speed(const WfScenario *sc, const WfFleet *f, double v_hi)
-{
-    double L = sc->road.length_m;
-    double lo = 0.0, hi = v_hi;
-    for (int it = 0; it < 100; it++) {
-        double mid = 0.5 * (lo + hi), total = 0.0;
-        for (size_t i = 0; i < f->n && total <= L; i++)
-            total += f->length_m[i] +
-                     wf_fleet_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), mid, L);
-        if (total > L) hi = mid;
-        else lo = mid;
-    }
-    return lo;
-}
-
 int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
 {
     *out = NULL;
@@ -159,12 +220,7 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     ALLOC(f->sum_a, n); ALLOC(f->sum_a2, n); ALLOC(f->stops, n); ALLOC(f->hard_brakes, n);
     ALLOC(f->infeasible_steps, n); ALLOC(f->laps, n); ALLOC(f->mode, n);
 
-    long counts[WF_MAX_GROUPS];
-    long *idx[WF_MAX_GROUPS];
-    for (size_t c = 0; c < sc->n_classes; c++) counts[c] = sc->classes[c].count, idx[c] = sc->classes[c].indices;
-    place(n, sc->n_classes, counts, idx, sc->placement, sc->seed, WF_RNG_PLACEMENT, f->class_id);
-    for (size_t g = 0; g < sc->n_groups; g++) counts[g] = sc->groups[g].count, idx[g] = sc->groups[g].indices;
-    place(n, sc->n_groups, counts, idx, sc->placement, sc->seed, WF_RNG_PLACEMENT + 0x100, f->group_id);
+    if ((rc = place_all(sc, f, err))) goto fail;
 
     for (size_t c = 0; c < sc->n_classes; c++) ALLOC(f->class_member[c], (size_t)sc->classes[c].count);
     for (size_t g = 0; g < sc->n_groups; g++) {
@@ -191,7 +247,7 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     double L = sc->road.length_m, total_len = 0.0, jam = 0.0;
     for (size_t i = 0; i < n; i++) {
         total_len += f->length_m[i];
-        jam += wf_fleet_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), 0.0, L);
+        jam += wf_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), 0.0, L);
     }
     if (total_len + jam > L) {
         rc = wf_err(err, WF_EINPUT,
@@ -204,12 +260,13 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     double *gap = f->gap_m; /* scratch until the first step */
     if (sc->init_state == WF_INIT_EQUILIBRIUM) {
         double v_hi = isfinite(sc->road.speed_limit_mps) ? sc->road.speed_limit_mps : 100.0;
-        v0 = equilibrium_speed(sc, f, v_hi);
-        double used = 0.0;
-        for (size_t i = 0; i < n; i++) {
-            gap[i] = wf_fleet_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), v0, L);
-            used += gap[i] + f->length_m[i];
+        v0 = wf_equilibrium_ring(sc, f, v_hi, gap);
+        if (isnan(v0)) {
+            rc = wf_err(err, WF_ESYS, "out of memory");
+            goto fail;
         }
+        double used = 0.0;
+        for (size_t i = 0; i < n; i++) used += gap[i] + f->length_m[i];
         /* Spare length (speed limit reached, or bisection residue) is shared equally. */
         for (size_t i = 0; i < n; i++) gap[i] += (L - used) / (double)n;
     } else {

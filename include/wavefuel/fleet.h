@@ -55,8 +55,4 @@ static inline const void *wf_fleet_params(const WfFleet *f, const WfScenario *sc
     return f->group_params[g] + (size_t)f->slot[i] * sc->groups[g].model->param_size;
 }
 
-/* Equilibrium bumper-to-bumper gap of a model at speed v: the s with accel(s, v, v) = 0, bisection on
- * [0, s_max]; returns s_max when accel(s_max, v, v) < 0 (no equilibrium within s_max). */
-double wf_fleet_equilibrium_gap(const WfCfModel *m, const void *params, double v_mps, double s_max_m);
-
 #endif
