@@ -9,17 +9,19 @@ HDF5_LIBS   := $(shell pkg-config --libs hdf5-serial 2>/dev/null)
 GIT_HASH := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
 
 CFLAGS   ?= -O2 -g
-CFLAGS   += -std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
+# `override`: the project's flags stay when CFLAGS/LDFLAGS come from the command line (sanitize, fuzz, tsan).
+override CFLAGS += -std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
             -ffp-contract=off -fno-fast-math -Iinclude -Isrc $(HDF5_CFLAGS) -MMD -MP \
             -DWF_GIT_HASH='"$(GIT_HASH)"' -DWF_REPO_DIR='"$(CURDIR)"'
 ifeq ($(WERROR),1)
-CFLAGS   += -Werror
+override CFLAGS += -Werror
 endif
 ifeq ($(OPENMP),1)
-CFLAGS   += -fopenmp
-LDFLAGS  += -fopenmp
+override CFLAGS += -fopenmp
+override LDFLAGS += -fopenmp
 endif
 LDLIBS   += $(HDF5_LIBS) -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -lsundials_nvecopenmp \
+            -lsundials_sunlinsolspgmr -lsundials_sunnonlinsolfixedpoint -lsundials_sunnonlinsolnewton \
             -lsundials_generic -lyaml -lm
 
 LIB_SRC  := $(sort $(wildcard src/*.c src/*/*.c))
@@ -31,10 +33,17 @@ LIB_OBJ  := $(LIB_SRC:%.c=$(BUILD)/%.o)
 CLI_OBJ  := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 BENCH_BIN:= $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
+PLUGIN_SO:= $(patsubst examples/plugins/%.c,$(BUILD)/plugins/%.so,$(sort $(wildcard examples/plugins/*.c)))
+# Fuzz targets (fuzz/README.md): *_replay feed saved inputs to a target and are built with $(CC) as part of
+# `tests`; *_fuzzer are the libFuzzer binaries, built with clang in build-fuzz/ by fuzz/run.sh.
+FUZZ_TARGETS := scenario vehicle csv
+FUZZ_SECONDS ?= 60
+REPLAY_BIN   := $(FUZZ_TARGETS:%=$(BUILD)/fuzz/%_replay)
+FUZZER_BIN   := $(FUZZ_TARGETS:%=$(BUILD)/fuzz/%_fuzzer)
 LIBA     := lib/libwavefuel.a
 BIN      := bin/wavefuel
 
-.PHONY: all run test check sanitize deps clean bench tests
+.PHONY: all run test check sanitize deps clean bench tests fuzz fuzz-smoke fuzzers tsan valgrind
 all: $(BIN) $(LIBA)
 
 deps:
@@ -59,7 +68,20 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(LIBA)
 $(BUILD)/bench/%: $(BUILD)/bench/%.o $(LIBA)
 	$(CC) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
-tests: $(BIN) $(TEST_BIN)
+$(BUILD)/fuzz/%_replay: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay_main.o $(LIBA)
+	$(CC) $(LDFLAGS) $(filter %.o,$^) $(LIBA) $(LDLIBS) -o $@
+
+$(BUILD)/fuzz/%_fuzzer: $(BUILD)/fuzz/fuzz_%.o $(LIBA)
+	$(CC) $(LDFLAGS) -fsanitize=fuzzer $< $(LIBA) $(LDLIBS) -o $@
+
+# Example controller plugins (docs/controllers.md): shared libraries for `model: plugin`, tested by make test.
+$(BUILD)/plugins/%.so: examples/plugins/%.c include/wavefuel/cf_plugin.h
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -fPIC -shared $< -o $@
+
+tests: $(BIN) $(TEST_BIN) $(REPLAY_BIN) $(PLUGIN_SO)
+fuzzers: $(FUZZER_BIN)
+.SECONDARY: $(FUZZ_TARGETS:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 bench: $(BIN) $(BENCH_BIN)
 
 # The README's two commands.
@@ -79,7 +101,25 @@ sanitize: deps
 	    LDFLAGS="-fsanitize=address,undefined" BIN=build-san/bin/wavefuel LIBA=build-san/lib/libwavefuel.a tests
 	@BUILD=build-san WAVEFUEL_BIN=build-san/bin/wavefuel ASAN_OPTIONS=detect_leaks=1 ./tests/run.sh
 
+# libFuzzer (clang, address + undefined) on every fuzz target for FUZZ_SECONDS each; fuzz-smoke: 10 s each.
+# New crashes are saved into fuzz/crashes/TARGET/, where the test suite replays them. See fuzz/README.md.
+fuzz:
+	@FUZZ_SECONDS=$(FUZZ_SECONDS) ./fuzz/run.sh
+
+fuzz-smoke:
+	@FUZZ_SECONDS=10 ./fuzz/run.sh
+
+# ThreadSanitizer over the OpenMP code: clang + LLVM's libomp with its Archer tool (docs/reliability.md).
+tsan:
+	@./tools/tsan-tests.sh
+
+# valgrind --leak-check=full on every test binary and one full run (docs/reliability.md).
+valgrind:
+	@$(MAKE) --no-print-directory tests
+	@./tools/valgrind-tests.sh
+
 clean:
-	rm -rf $(BUILD) build-san bin lib
+	rm -rf $(BUILD) build-san build-fuzz build-tsan bin lib
 
 -include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d)
+-include $(FUZZ_TARGETS:%=$(BUILD)/fuzz/fuzz_%.d) $(BUILD)/fuzz/replay_main.d

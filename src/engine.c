@@ -27,6 +27,10 @@ struct WfSim {
     double  *ebuf;          /* nthreads x 4 x EBLOCK: v, a, theta, fuel */
     uint8_t *fbuf;          /* nthreads x EBLOCK flags */
     double  *noise;         /* standard normal draw of each vehicle for the current step; NULL without noise */
+    WfOde   *ode;           /* SUNDIALS integrator, or NULL for a fixed-step scheme */
+    double  *xold, *vold, *fuel_step, *vplus; /* ODE path only */
+    int      repaired;      /* the last step repaired an overlap */
+    int      stateful;      /* some driver model keeps per-vehicle memory */
     double   sd_sum;
     long     n_sd;
     double   wall_s;
@@ -53,6 +57,8 @@ static int thread_id(void)
 #endif
 }
 
+static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel);
+
 void wf_sim_destroy(WfSim **ps)
 {
     if (!ps || !*ps) return;
@@ -62,6 +68,11 @@ void wf_sim_destroy(WfSim **ps)
     free(s->ebuf);
     free(s->fbuf);
     free(s->noise);
+    wf_ode_destroy(&s->ode);
+    free(s->xold);
+    free(s->vold);
+    free(s->fuel_step);
+    free(s->vplus);
     free(s);
     *ps = NULL;
 }
@@ -72,7 +83,7 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     WfSim *s = calloc(1, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     s->sc = sc;
-    int rc = wf_integrator_find(sc->integrator, &s->ig, err);
+    int rc = sc->adaptive ? 0 : wf_integrator_find(sc->integrator, &s->ig, err);
     if (!rc) rc = wf_fleet_create(sc, &s->f, err);
     if (rc) {
         wf_sim_destroy(&s);
@@ -98,6 +109,22 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
         wf_sim_destroy(&s);
         return wf_err(err, WF_ESYS, "out of memory");
     }
+    for (size_t g = 0; g < sc->n_groups; g++) s->stateful |= sc->groups[g].model->state_size > 0;
+    if (sc->adaptive) {
+        size_t n = s->f->n;
+        WfOdeConfig cfg = sc->solver;
+        cfg.fixed_step_s = sc->dt_s / cfg.rk4_substeps;
+        s->xold = malloc(n * sizeof(double));
+        s->vold = malloc(n * sizeof(double));
+        s->fuel_step = malloc(n * sizeof(double));
+        s->vplus = malloc(n * sizeof(double));
+        if (!s->xold || !s->vold || !s->fuel_step || !s->vplus) rc = wf_err(err, WF_ESYS, "out of memory");
+        if (!rc) rc = wf_ode_create(&cfg, n, sc->road.length_m, ode_rhs, s, 0.0, s->f->x_m, s->f->v_mps, &s->ode, err);
+        if (rc) {
+            wf_sim_destroy(&s);
+            return rc;
+        }
+    }
     *out = s;
     return 0;
 }
@@ -121,14 +148,14 @@ static void phase_noise(WfSim *s, long step)
 
 /* Phase 2: inputs at the step's start (gap to the leader, leader speed, grade) and the acceleration, driver
  * group by driver group (no branching on model names in the loop). */
-static void phase_accel(WfSim *s)
+static void phase_accel(WfSim *s, const double *x, const double *v)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     const WfRoad *road = &sc->road;
     size_t n = f->n;
     double dt = sc->dt_s, vlim = sc->road.speed_limit_mps, L = road->length_m;
-    const double *z = s->noise, *x = f->x_m, *len = f->length_m, *v = f->v_mps;
+    const double *z = s->noise, *len = f->length_m;
     double *gap = f->gap_m, *vl = f->v_lead_mps, *th = f->theta_rad, *a = f->a_mps2;
     uint32_t *seg = f->grade_seg;
     const uint16_t *cid = f->class_id;
@@ -169,7 +196,7 @@ static void phase_accel(WfSim *s)
 }
 
 /* Phase 3: fuel rate and feasibility flag of every vehicle, class by class through the array kernel. */
-static void phase_energy(WfSim *s)
+static void phase_energy(WfSim *s, const double *v, const double *a)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
@@ -177,7 +204,7 @@ static void phase_energy(WfSim *s)
         const WfVehicleClass *vc = &sc->classes[c].vc;
         const uint32_t *mem = f->class_member[c];
         size_t cnt = f->class_n[c], nblk = (cnt + EBLOCK - 1) / EBLOCK;
-        const double *v = f->v_mps, *a = f->a_mps2, *th = f->theta_rad;
+        const double *th = f->theta_rad;
         double *fr = f->fuel_rate_gps, *ebuf = s->ebuf;
         uint8_t *flag = f->flag, *fbuf = s->fbuf;
         /* The gather buffers exist for s->nthreads threads: never run this loop on more. */
@@ -203,63 +230,125 @@ static void phase_energy(WfSim *s)
     }
 }
 
-/* Phase 4: statistics over the step (left-point rule: rates at the step's start held for dt), integration,
- * then the statistics that need the new state (distance, passages, stops). */
+/* Phase 4: statistics over the step (left-point rule: values at the step's start held for dt), integration,
+ * then the statistics that need the new state (distance, passages, stops). With a SUNDIALS integrator the fuel
+ * of the step is its exact integral (quadrature) instead of the left-point rule. */
+static inline void stats_before(WfFleet *f, const WfScenario *sc, size_t i, int in_window, int left_point_fuel)
+{
+    double dt = sc->dt_s, vi = f->v_mps[i], ai = f->a_mps2[i];
+    uint8_t mode = f->mode[i];
+    int braking = ai < -sc->hard_brake_mps2;
+    if (in_window) {
+        if (left_point_fuel) f->fuel_g[i] += f->fuel_rate_gps[i] * dt;
+        f->time_stopped_s[i] += vi < sc->v_stop_mps ? dt : 0.0;
+        f->sum_v[i] += vi;
+        f->sum_v2[i] += vi * vi;
+        f->sum_a[i] += ai;
+        f->sum_a2[i] += ai * ai;
+        f->infeasible_steps[i] += f->flag[i] == 1;
+        f->hard_brakes[i] += braking && !(mode & WF_MODE_BRAKING);
+    }
+    f->mode[i] = (uint8_t)((mode & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0));
+}
+
+static inline void stats_after(WfFleet *f, const WfScenario *sc, size_t i, double xold, int in_window)
+{
+    double vi = f->v_mps[i], L = sc->road.length_m;
+    uint8_t mode = f->mode[i];
+    if ((mode & WF_MODE_MOVING) && vi < sc->v_stop_mps) {
+        mode &= (uint8_t)~WF_MODE_MOVING;
+        if (in_window) f->stops[i]++;
+    } else if (!(mode & WF_MODE_MOVING) && vi > sc->v_go_mps) {
+        mode |= WF_MODE_MOVING;
+    }
+    f->mode[i] = mode;
+    if (in_window) {
+        f->dist_m[i] += f->x_m[i] - xold;
+        f->laps[i] += (int64_t)(floor(f->x_m[i] / L) - floor(xold / L));
+    }
+}
+
 static void phase_advance(WfSim *s, int in_window)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     size_t n = f->n, nblk = (n + IBLOCK - 1) / IBLOCK;
-    double dt = sc->dt_s, L = sc->road.length_m, v_stop = sc->v_stop_mps, v_go = sc->v_go_mps;
-    double hb = -sc->hard_brake_mps2;
+    double dt = sc->dt_s;
     const WfIntegrator *ig = s->ig;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) \
-    shared(f, nblk, n, dt, L, v_stop, v_go, hb, ig, in_window)
+    /* Blocks keep the old positions in cache between the integration and the statistics that need them. */
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(f, sc, nblk, n, dt, ig, in_window)
     for (size_t b = 0; b < nblk; b++) {
         size_t lo = b * IBLOCK, m = n - lo < IBLOCK ? n - lo : IBLOCK;
         double xold[IBLOCK];
         for (size_t k = 0; k < m; k++) {
-            size_t i = lo + k;
-            double vi = f->v_mps[i], ai = f->a_mps2[i];
-            xold[k] = f->x_m[i];
-            uint8_t mode = f->mode[i];
-            int braking = ai < hb;
-            if (in_window) {
-                f->fuel_g[i] += f->fuel_rate_gps[i] * dt;
-                f->time_stopped_s[i] += vi < v_stop ? dt : 0.0;
-                f->sum_v[i] += vi;
-                f->sum_v2[i] += vi * vi;
-                f->sum_a[i] += ai;
-                f->sum_a2[i] += ai * ai;
-                f->infeasible_steps[i] += f->flag[i] == 1;
-                f->hard_brakes[i] += braking && !(mode & WF_MODE_BRAKING);
-            }
-            f->mode[i] = (uint8_t)((mode & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0));
+            xold[k] = f->x_m[lo + k];
+            stats_before(f, sc, lo + k, in_window, 1);
         }
         ig->step(m, dt, f->x_m + lo, f->v_mps + lo, f->a_mps2 + lo);
-        for (size_t k = 0; k < m; k++) {
-            size_t i = lo + k;
-            double vi = f->v_mps[i];
-            uint8_t mode = f->mode[i];
-            if ((mode & WF_MODE_MOVING) && vi < v_stop) {
-                mode &= (uint8_t)~WF_MODE_MOVING;
-                if (in_window) f->stops[i]++;
-            } else if (!(mode & WF_MODE_MOVING) && vi > v_go) {
-                mode |= WF_MODE_MOVING;
-            }
-            f->mode[i] = mode;
-            if (in_window) {
-                f->dist_m[i] += f->x_m[i] - xold[k];
-                f->laps[i] += (int64_t)(floor(f->x_m[i] / L) - floor(xold[k] / L));
-            }
-        }
+        for (size_t k = 0; k < m; k++) stats_after(f, sc, lo + k, xold[k], in_window);
     }
+}
+
+/* The right-hand side for the SUNDIALS integrators: the same car-following phase as the fixed-step schemes,
+ * evaluated at (x, v). Speeds never go negative: dx/dt = max(v, 0), and a vehicle at rest that is told to
+ * brake stays at rest (dv/dt = 0); the fuel rate uses the acceleration actually applied. Noise and controller
+ * memory are held for the current time step (piecewise constant), so the function is pure in (t, x, v). */
+static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel)
+{
+    (void)t;
+    WfSim *s = ctx;
+    WfFleet *f = s->f;
+    size_t n = f->n;
+    phase_accel(s, x, v);
+    const double *a = f->a_mps2;
+    int bad = 0;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, x, v, a, xdot, vdot) \
+    reduction(| : bad)
+    for (size_t i = 0; i < n; i++) {
+        double vi = v[i] > 0.0 ? v[i] : 0.0;
+        xdot[i] = vi;
+        vdot[i] = (v[i] <= 0.0 && a[i] < 0.0) ? 0.0 : a[i];
+        bad |= !isfinite(vdot[i]) || !isfinite(x[i]);
+    }
+    if (bad) return -1; /* a non-finite state is not recoverable by a smaller step */
+    if (fuel) {
+        /* energy at the clamped speed and applied acceleration: s->vplus / vdot */
+        double *vp = s->vplus;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, v, vp)
+        for (size_t i = 0; i < n; i++) vp[i] = v[i] > 0.0 ? v[i] : 0.0;
+        phase_energy(s, vp, vdot);
+        memcpy(fuel, f->fuel_rate_gps, n * sizeof *fuel);
+    }
+    return 0;
+}
+
+/* Phase 4 with a SUNDIALS integrator: the solver advances the whole state over the step. */
+static int phase_advance_ode(WfSim *s, double t_next, int in_window, WfError *err)
+{
+    WfFleet *f = s->f;
+    const WfScenario *sc = s->sc;
+    size_t n = f->n;
+    double *xold = s->xold, *vold = s->vold, *fs = s->fuel_step;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(f, sc, n, xold, vold, in_window)
+    for (size_t i = 0; i < n; i++) {
+        xold[i] = f->x_m[i];
+        vold[i] = f->v_mps[i];
+        stats_before(f, sc, i, in_window, 0);
+    }
+    int rc = wf_ode_advance(s->ode, t_next, f->x_m, f->v_mps, fs, err);
+    if (rc) return rc;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(f, sc, n, xold, fs, in_window)
+    for (size_t i = 0; i < n; i++) {
+        if (in_window) f->fuel_g[i] += fs[i];
+        stats_after(f, sc, i, xold[i], in_window);
+    }
+    return 0;
 }
 
 /* Phase 5: no gap may be negative. A vehicle that would overlap its leader (noise, or a model that brakes
  * too late) is put at gap 0 behind it and stopped; each such event is counted. Rare, so it is found in
  * parallel and repaired serially, going backwards so a repaired leader is seen by its follower. */
-static void phase_overlaps(WfSim *s, int in_window)
+static long phase_overlaps(WfSim *s, int in_window)
 {
     WfFleet *f = s->f;
     size_t n = f->n;
@@ -272,7 +361,8 @@ static void phase_overlaps(WfSim *s, int in_window)
         double xl = x[lead] + (i + 1 < n ? 0.0 : L);
         bad += xl - len[lead] - x[i] < 0.0;
     }
-    if (!bad || n < 2) return;
+    if (!bad || n < 2) return 0;
+    long total = 0;
     for (int pass = 0; pass < 3; pass++) {
         long fixed = 0;
         for (size_t j = n; j-- > 0;) {
@@ -291,8 +381,10 @@ static void phase_overlaps(WfSim *s, int in_window)
             }
         }
         s->overlaps += fixed;
+        total += fixed;
         if (!fixed) break;
     }
+    return total;
 }
 
 /* Controllers with memory advance once per step, with the inputs of that step (called after the step's
@@ -330,8 +422,8 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
     for (step = 0; step <= s->n_steps; step++) {
         double t = (double)step * sc->dt_s;
         phase_noise(s, step);
-        phase_accel(s);
-        phase_energy(s);
+        phase_accel(s, s->f->x_m, s->f->v_mps);
+        phase_energy(s, s->f->v_mps, s->f->a_mps2);
         if (step % s->out_every == 0) {
             wf_stats_record(s->f, sc, t, s->overlaps, s->stat_scratch, &row);
             if (step >= s->warm_steps) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
@@ -341,9 +433,24 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
             (rc = out->trajectory(out->ctx, s, t, err)))
             break;
         if (step == s->n_steps) break;
-        phase_controller_state(s);
-        phase_advance(s, step >= s->warm_steps);
-        phase_overlaps(s, step >= s->warm_steps);
+        int in_window = step >= s->warm_steps;
+        if (s->ode) {
+            /* The right-hand side jumps where the noise or the controller memory changes, and the state jumps
+             * at an overlap repair: restart the solver there rather than integrate across the discontinuity. */
+            if (step > 0 && (s->noise || s->stateful || s->repaired) &&
+                (rc = wf_ode_reinit(s->ode, t, s->f->x_m, s->f->v_mps, err)))
+                break;
+            if ((rc = phase_advance_ode(s, t + sc->dt_s, in_window, err))) break;
+            if (s->stateful) {
+                /* Memory advances with the inputs of the step's start, as in the fixed-step path. */
+                phase_accel(s, s->xold, s->vold);
+                phase_controller_state(s);
+            }
+        } else {
+            phase_controller_state(s);
+            phase_advance(s, in_window);
+        }
+        s->repaired = phase_overlaps(s, in_window) > 0;
         s->steps_done = step + 1;
         if (stop && *stop) {
             reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
@@ -380,3 +487,10 @@ const WfSummary *wf_sim_summary(const WfSim *s) { return &s->summary; }
 double wf_sim_wall_s(const WfSim *s) { return s->wall_s; }
 long wf_sim_steps_done(const WfSim *s) { return s->steps_done; }
 int wf_sim_threads(const WfSim *s) { return s->nthreads; }
+
+int wf_sim_ode_stats(const WfSim *s, WfOdeStats *st)
+{
+    if (!s->ode) return 0;
+    wf_ode_stats(s->ode, st);
+    return 1;
+}

@@ -326,6 +326,36 @@ static int write_summary(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
+/* Solver statistics of a SUNDIALS run (absent for the fixed-step schemes). */
+static int write_solver(hid_t fid, const WfSim *sim, WfError *err)
+{
+    WfOdeStats st;
+    if (!wf_sim_ode_stats(sim, &st)) return 0;
+    const WfOdeConfig *c = &wf_sim_scenario(sim)->solver;
+    hid_t g = wf_h5_group(fid, "solver", err);
+    if (g < 0) return WF_ESYS;
+    const char *method = c->kind == WF_ODE_CVODE ? (c->bdf ? "bdf" : "adams") : c->kind == WF_ODE_ARKODE ? c->erk_table
+                                                                                                          : "classic RK4";
+    int rc = wf_h5_scalar_str(g, "integrator", wf_ode_kind_name(c->kind), "SUNDIALS package used", err) ||
+             wf_h5_scalar_str(g, "method", method, "method or Butcher table", err) ||
+             wf_h5_scalar_f64(g, "rtol", c->rtol, "1", "relative tolerance", err) ||
+             wf_h5_scalar_f64(g, "atol_x", c->atol_x_m, "m", "absolute tolerance of positions", err) ||
+             wf_h5_scalar_f64(g, "atol_v", c->atol_v_mps, "m/s", "absolute tolerance of speeds", err) ||
+             wf_h5_scalar_i64(g, "fuel_error_control", c->fuel_errcon, "1", "fuel integrals in error control", err) ||
+             wf_h5_scalar_i64(g, "steps", st.steps, "1", "internal solver steps", err) ||
+             wf_h5_scalar_i64(g, "rhs_evals", st.rhs_evals, "1", "right-hand-side evaluations (with quadratures)",
+                              err) ||
+             wf_h5_scalar_i64(g, "err_test_fails", st.err_test_fails, "1", "local error test failures", err) ||
+             wf_h5_scalar_i64(g, "nonlin_iters", st.nonlin_iters, "1", "nonlinear solver iterations (CVODES)", err) ||
+             wf_h5_scalar_i64(g, "nonlin_conv_fails", st.nonlin_conv_fails, "1",
+                              "nonlinear convergence failures (CVODES)", err) ||
+             wf_h5_scalar_i64(g, "reinits", st.reinits, "1",
+                              "restarts at discontinuities (noise changes, controller memory, overlap repairs)", err) ||
+             wf_h5_scalar_f64(g, "last_step", st.last_step_s, "s", "last internal step size", err);
+    H5Gclose(g);
+    return rc ? WF_ESYS : 0;
+}
+
 static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err)
 {
     WfH5Out *w = ctx;
@@ -338,6 +368,7 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     for (size_t i = 0; i < 5; i++) wf_h5_series_close(tr[i]);
     if (!rc) rc = write_vehicles(fid, sim, err);
     if (!rc) rc = write_summary(fid, sim, err);
+    if (!rc) rc = write_solver(fid, sim, err);
     if (!rc) rc = write_meta(fid, sim, completed, reason, w->started, err);
     /* Open groups would keep the file open past H5Fclose (weak close degree): close them first. */
     if (w->g_ts >= 0) H5Gclose(w->g_ts);

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "wavefuel/cf_plugin.h"
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/integrator.h"
@@ -26,7 +27,10 @@ void wf_scenario_destroy(WfScenario **psc)
         wf_vehicle_free(&sc->classes[i].vc);
         free(sc->classes[i].indices);
     }
-    for (size_t i = 0; i < sc->n_groups; i++) free(sc->groups[i].indices);
+    for (size_t i = 0; i < sc->n_groups; i++) {
+        free(sc->groups[i].indices);
+        wf_cf_plugin_close(&sc->groups[i].plugin);
+    }
     wf_road_free(&sc->road);
     free(sc->text);
     free(sc->overrides);
@@ -230,6 +234,108 @@ static int load_classes(WfScenario *sc, WfCfgNode *fleet, WfError *err)
     return 0;
 }
 
+/* A path as written in the scenario: absolute, or relative to the scenario file's directory. Returns -1 when it
+ * does not fit in buf. */
+static int relative_to_scenario(const WfScenario *sc, const char *name, char *buf, size_t len)
+{
+    const char *slash = strrchr(sc->path, '/');
+    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
+                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
+    return n < 0 || (size_t)n >= len ? -1 : 0;
+}
+
+_Static_assert(WF_CF_PLUGIN_MAX_PARAMS <= WF_MAX_MODEL_PARAMS, "a plugin's parameters must fit a driver group");
+
+/* A driver group's model: a registry name, or `plugin` with `path` naming a shared library. */
+static int load_group_model(WfScenario *sc, WfCfgNode *e, WfDriverGroup *g, WfError *err)
+{
+    const char *model = NULL;
+    char w[1024];
+    if (wf_cfg_string(e, "model", &model, err)) return WF_EINPUT;
+    WfCfgNode *pn = wf_cfg_child(e, "path");
+    if (strcmp(model, "plugin") == 0) {
+        const char *lib = NULL;
+        char path[2048];
+        if (wf_cfg_string(e, "path", &lib, err)) return WF_EINPUT;
+        if (relative_to_scenario(sc, lib, path, sizeof path))
+            return wf_err(err, WF_EINPUT, "%s: plugin path too long", where_of(pn, w, sizeof w));
+        if (wf_cf_plugin_load(path, &g->plugin, err)) {
+            wf_err_prefix(err, "%s: ", where_of(pn, w, sizeof w));
+            return WF_EINPUT;
+        }
+        g->model = wf_cf_plugin_model(g->plugin);
+        return 0;
+    }
+    if (pn)
+        return wf_err(err, WF_EINPUT, "%s: 'path' names a controller library and needs model: plugin (model is '%s')",
+                      where_of(pn, w, sizeof w), model);
+    if (wf_cf_model_find(model, &g->model, err)) {
+        char msg[sizeof err->msg];
+        memcpy(msg, err->msg, sizeof msg);
+        return wf_err(err, WF_EINPUT, "%s: %s, or 'plugin' with 'path: LIBRARY.so'",
+                      where_of(wf_cfg_child(e, "model"), w, sizeof w), msg);
+    }
+    return 0;
+}
+
+/* A group's own placement and class (automated vehicles placed apart from the fleet's rule). */
+static int load_group_placement(WfScenario *sc, WfCfgNode *e, WfDriverGroup *g, WfError *err)
+{
+    static const char *const places[] = {"random", "interleaved", "explicit", NULL};
+    char w[1024];
+    const char *cls = NULL;
+    g->placement = -1;
+    g->class_index = -1;
+    if (sc->placement == WF_PLACE_EXPLICIT && (wf_cfg_child(e, "placement") || wf_cfg_child(e, "class")))
+        return wf_err(err, WF_EINPUT,
+                      "%s: fleet.placement is explicit: the group's vehicles and their classes are the 'indices' "
+                      "lists; drop this group's 'placement' and 'class'",
+                      where_of(e, w, sizeof w));
+    if (wf_cfg_child(e, "placement")) {
+        int p = 0;
+        if (wf_cfg_enum_opt(e, "placement", places, &p, err)) return WF_EINPUT;
+        g->placement = p;
+    }
+    if (wf_cfg_string_opt(e, "class", &cls, err)) return WF_EINPUT;
+    if (cls) {
+        char known[512] = "";
+        size_t used = 0;
+        for (size_t c = 0; c < sc->n_classes && g->class_index < 0; c++) {
+            if (strcmp(sc->classes[c].vc.name, cls) == 0) g->class_index = (int)c;
+            int n = snprintf(known + used, sizeof known - used, "%s%s", c ? ", " : "", sc->classes[c].vc.name);
+            if (n > 0 && (size_t)n < sizeof known - used) used += (size_t)n;
+        }
+        if (g->class_index < 0)
+            return wf_err(err, WF_EINPUT, "%s: class '%s' is not in fleet.classes (%s)",
+                          where_of(wf_cfg_child(e, "class"), w, sizeof w), cls, known);
+    }
+    return 0;
+}
+
+/* After the counts are known: groups that name a class fit in it, and groups placed explicitly on their own
+ * (fleet.placement not explicit) claim distinct vehicles. */
+static int check_group_claims(const WfScenario *sc, const char *where, WfError *err)
+{
+    for (size_t c = 0; c < sc->n_classes; c++) {
+        long need = 0;
+        for (size_t g = 0; g < sc->n_groups; g++) need += sc->groups[g].class_index == (int)c ? sc->groups[g].count : 0;
+        if (need > sc->classes[c].count)
+            return wf_err(err, WF_EINPUT, "%s: driver groups with class %s have %ld vehicles but the class has %ld",
+                          where, sc->classes[c].vc.name, need, sc->classes[c].count);
+    }
+    if (sc->placement == WF_PLACE_EXPLICIT) return 0; /* check_partition covers it */
+    unsigned char *seen = calloc((size_t)sc->n_vehicles, 1);
+    if (!seen) return wf_err(err, WF_ESYS, "out of memory");
+    int rc = 0;
+    for (size_t g = 0; !rc && g < sc->n_groups; g++)
+        for (size_t k = 0; !rc && sc->groups[g].placement == WF_PLACE_EXPLICIT && k < sc->groups[g].n_indices; k++)
+            if (seen[sc->groups[g].indices[k]]++)
+                rc = wf_err(err, WF_EINPUT, "%s: vehicle %ld is listed twice in driver groups' indices", where,
+                            sc->groups[g].indices[k]);
+    free(seen);
+    return rc;
+}
+
 static int load_groups(WfScenario *sc, WfCfgNode *fleet, WfError *err)
 {
     WfCfgNode *seq = NULL;
@@ -252,17 +358,13 @@ static int load_groups(WfScenario *sc, WfCfgNode *fleet, WfError *err)
             return wf_err(err, WF_EINPUT, "%s: expected a map {model: idm, ...}", where_of(e, w, sizeof w));
         WfDriverGroup *g = &sc->groups[i];
         sc->n_groups = i + 1;
-        const char *name = NULL, *model = NULL;
+        const char *name = NULL;
         snprintf(g->name, sizeof g->name, "group%zu", i);
         if (wf_cfg_string_opt(e, "name", &name, err)) return WF_EINPUT;
         if (name) snprintf(g->name, sizeof g->name, "%s", name);
-        if (wf_cfg_string(e, "model", &model, err)) return WF_EINPUT;
-        if (wf_cf_model_find(model, &g->model, err)) {
-            wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(e, "model"), w, sizeof w));
-            return WF_EINPUT;
-        }
+        if (load_group_model(sc, e, g, err) || load_group_placement(sc, e, g, err)) return WF_EINPUT;
         if (g->model->param_size > sizeof g->params)
-            return wf_err(err, WF_ESYS, "model %s has too many parameters", model);
+            return wf_err(err, WF_ESYS, "model %s has too many parameters", g->model->name);
         if (wf_cfg_map_opt(e, "params", &params, err)) return WF_EINPUT;
         if (wf_cfg_params(params, g->model->spec, g->model->n_spec, g->params, err)) return WF_EINPUT;
         char wh[1100];
@@ -296,13 +398,17 @@ static int load_groups(WfScenario *sc, WfCfgNode *fleet, WfError *err)
         if (wf_cfg_double_opt(e, "fraction", 0, 1, "(share of vehicles)", &frac[i], err)) return WF_EINPUT;
         if (wf_cfg_long_opt(e, "count", 0, sc->n_vehicles, &count[i], err)) return WF_EINPUT;
         if (read_indices(e, sc->n_vehicles, &g->indices, &g->n_indices, err)) return WF_EINPUT;
-        if (sc->placement == WF_PLACE_EXPLICIT) {
+        if (g->placement == WF_PLACE_EXPLICIT && (!isnan(frac[i]) || count[i] >= 0))
+            return wf_err(err, WF_EINPUT, "%s: placement is explicit: the group's size is its 'indices' list; drop "
+                          "'fraction' and 'count'", where_of(e, w, sizeof w));
+        if (sc->placement == WF_PLACE_EXPLICIT || g->placement == WF_PLACE_EXPLICIT) {
             if (!g->indices)
                 return wf_err(err, WF_EINPUT, "%s: placement is explicit: list this group's vehicles in 'indices'",
                               where_of(e, w, sizeof w));
             count[i] = (long)g->n_indices;
         } else if (g->indices) {
-            return wf_err(err, WF_EINPUT, "%s: 'indices' needs fleet.placement: explicit", where_of(e, w, sizeof w));
+            return wf_err(err, WF_EINPUT, "%s: 'indices' needs placement: explicit (fleet.placement or the group's own)",
+                          where_of(e, w, sizeof w));
         } else if (isnan(frac[i]) == (count[i] < 0)) {
             return wf_err(err, WF_EINPUT, "%s: give exactly one of 'fraction' or 'count'", where_of(e, w, sizeof w));
         }
@@ -312,7 +418,7 @@ static int load_groups(WfScenario *sc, WfCfgNode *fleet, WfError *err)
                        err))
         return WF_EINPUT;
     for (size_t i = 0; i < seq->n_child; i++) sc->groups[i].fraction = frac[i], sc->groups[i].count = count[i];
-    return 0;
+    return check_group_claims(sc, where_of(seq, w, sizeof w), err);
 }
 
 /* Explicit placement: every vehicle index must be claimed exactly once among classes, and among groups. */
@@ -337,6 +443,56 @@ static int check_partition(const WfScenario *sc, WfError *err)
                         !seen[2 * i] ? "class (fleet.classes[].indices)" : "driver group (fleet.drivers[].indices)");
     free(seen);
     return rc;
+}
+
+/* `solver`: settings of the SUNDIALS integrators (docs/scenarios.md). Present only with one of them. */
+static int load_solver(WfScenario *sc, WfCfgNode *root, const char *integ, WfError *err)
+{
+    WfCfgNode *sv = NULL;
+    char w[1024];
+    WfOdeConfig *c = &sc->solver;
+    memset(c, 0, sizeof *c);
+    c->kind = !strcmp(integ, "cvode") ? WF_ODE_CVODE : !strcmp(integ, "arkode") ? WF_ODE_ARKODE : WF_ODE_RK4;
+    c->rtol = 1e-6;
+    c->atol_x_m = 1e-6;
+    c->atol_v_mps = 1e-6;
+    c->atol_fuel_g = 1e-6;
+    c->max_steps = 100000;
+    c->rk4_substeps = 1;
+    snprintf(c->erk_table, sizeof c->erk_table, "ARKODE_DORMAND_PRINCE_7_4_5");
+    if (wf_cfg_map_opt(root, "solver", &sv, err)) return WF_EINPUT;
+    if (!sv) return 0;
+    if (!sc->adaptive)
+        return wf_err(err, WF_EINPUT, "%s: 'solver' configures cvode, arkode and rk4; time.integrator is '%s'",
+                      where_of(sv, w, sizeof w), integ);
+    static const char *const nvecs[] = {"serial", "openmp", NULL};
+    const char *method = NULL;
+    int nv = 0;
+    if (wf_cfg_double_opt(sv, "rtol", 1e-14, 1e-1, "1", &c->rtol, err) ||
+        wf_cfg_double_opt(sv, "atol_x_m", 1e-14, 10, "m", &c->atol_x_m, err) ||
+        wf_cfg_double_opt(sv, "atol_v_mps", 1e-14, 10, "m/s", &c->atol_v_mps, err) ||
+        wf_cfg_double_opt(sv, "atol_fuel_g", 1e-14, 10, "g", &c->atol_fuel_g, err) ||
+        wf_cfg_double_opt(sv, "max_step_s", 0, 1e6, "s", &c->max_step_s, err) ||
+        wf_cfg_long_opt(sv, "max_steps", 1, 1000000000L, &c->max_steps, err) ||
+        wf_cfg_bool_opt(sv, "fuel_error_control", &c->fuel_errcon, err) ||
+        wf_cfg_enum_opt(sv, "nvector", nvecs, &nv, err) || wf_cfg_string_opt(sv, "method", &method, err))
+        return WF_EINPUT;
+    long sub = 1;
+    if (wf_cfg_long_opt(sv, "rk4_substeps", 1, 1000000, &sub, err)) return WF_EINPUT;
+    c->rk4_substeps = (int)sub;
+    c->nvector_openmp = nv;
+    if (method && c->kind == WF_ODE_CVODE) {
+        if (strcmp(method, "adams") && strcmp(method, "bdf"))
+            return wf_err(err, WF_EINPUT, "%s: solver.method for cvode is 'adams' or 'bdf' (got '%s')",
+                          where_of(wf_cfg_child(sv, "method"), w, sizeof w), method);
+        c->bdf = !strcmp(method, "bdf");
+    } else if (method && c->kind == WF_ODE_ARKODE) {
+        snprintf(c->erk_table, sizeof c->erk_table, "%s", method);
+    } else if (method) {
+        return wf_err(err, WF_EINPUT, "%s: rk4 has no method to choose (it is the classic RK4 tableau)",
+                      where_of(wf_cfg_child(sv, "method"), w, sizeof w));
+    }
+    return 0;
 }
 
 static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
@@ -379,11 +535,16 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
     const char *integ = "ballistic";
     if (wf_cfg_string_opt(time, "integrator", &integ, err)) return WF_EINPUT;
     const WfIntegrator *ig;
-    if (wf_integrator_find(integ, &ig, err)) {
-        wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(time, "integrator"), w, sizeof w));
-        return WF_EINPUT;
+    sc->adaptive = !strcmp(integ, "cvode") || !strcmp(integ, "arkode") || !strcmp(integ, "rk4");
+    if (!sc->adaptive && wf_integrator_find(integ, &ig, NULL)) {
+        char known[256] = "";
+        for (size_t i = 0; wf_integrators[i]; i++)
+            snprintf(known + strlen(known), sizeof known - strlen(known), "%s, ", wf_integrators[i]->name);
+        return wf_err(err, WF_EINPUT, "%s: unknown integrator '%s' (known: %scvode, arkode, rk4)",
+                      where_of(wf_cfg_child(time, "integrator"), w, sizeof w), integ, known);
     }
     snprintf(sc->integrator, sizeof sc->integrator, "%s", integ);
+    if (load_solver(sc, root, integ, err)) return WF_EINPUT;
     /* The step must divide the output interval and the duration: records then fall on steps exactly. */
     double ratio = sc->output_interval_s / sc->dt_s, nsteps = sc->duration_s / sc->dt_s;
     if (sc->dt_s > sc->output_interval_s || fabs(ratio - round(ratio)) > 1e-9 * ratio)

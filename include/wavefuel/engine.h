@@ -10,6 +10,7 @@
 #include "wavefuel/err.h"
 #include "wavefuel/fleet.h"
 #include "wavefuel/integrator.h"
+#include "wavefuel/ode.h"
 #include "wavefuel/scenario.h"
 #include "wavefuel/stats.h"
 
@@ -42,5 +43,7 @@ const WfSummary  *wf_sim_summary(const WfSim *sim); /* valid after wf_sim_run */
 double            wf_sim_wall_s(const WfSim *sim);  /* wall time of the step loop */
 long              wf_sim_steps_done(const WfSim *sim);
 int               wf_sim_threads(const WfSim *sim);
+/* Solver statistics of a SUNDIALS run: returns 1 and fills *st, or 0 for a fixed-step integrator. */
+int               wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st);
 
 #endif

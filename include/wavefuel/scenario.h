@@ -7,6 +7,7 @@
 #include <stdint.h>
 #include "wavefuel/cf.h"
 #include "wavefuel/err.h"
+#include "wavefuel/ode.h"
 #include "wavefuel/road.h"
 #include "wavefuel/vehicle.h"
 
@@ -41,6 +42,12 @@ typedef struct WfDriverGroup {
     int              clip_feasible;      /* 1: also a <= a_max(v, theta) of the vehicle's class */
     long            *indices;            /* owned; explicit placement only */
     size_t           n_indices;
+    /* Placement of this group alone (automated vehicles): -1 = with the other groups by fleet.placement;
+     * otherwise a WfPlacement, applied before the groups placed by fleet.placement (src/fleet.c). */
+    int              placement;
+    int              class_index;        /* -1: any; else index into classes[]: all its vehicles are that class */
+    struct WfCfPluginLib *plugin;        /* owned: the library of a `model: plugin` group (model points into
+                                            it); NULL for built-in models */
 } WfDriverGroup;
 
 typedef struct WfScenario {
@@ -51,6 +58,8 @@ typedef struct WfScenario {
     WfRoad  road;
     double  duration_s, dt_s, output_interval_s, warmup_s;
     char    integrator[32];
+    int     adaptive;             /* 1: a SUNDIALS integrator (cvode, arkode, rk4) configured by `solver` */
+    WfOdeConfig solver;
     uint64_t seed;
     long    n_vehicles;
     WfPlacement placement;

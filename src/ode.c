@@ -1,0 +1,299 @@
+/* Every SUNDIALS call of wavefuel: CVODES (Adams with fixed-point iteration, or BDF with Newton and
+ * matrix-free GMRES; fuel as quadrature variables) and ARKODE ERKStep (adaptive explicit Runge-Kutta with a
+ * named Butcher table, or classic RK4 at a fixed step; fuel appended to the state since ERKStep has no
+ * quadratures). Error weights: speeds relative to themselves; positions relative to the spacing to the leader
+ * (x_{i+1} - x_i, one lap added for the last vehicle), not to the unwrapped position, which grows without bound
+ * and would make a relative tolerance meaningless; fuel relative to the accumulated fuel. */
+#include "wavefuel/ode.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include <arkode/arkode_butcher_erk.h>
+#include <arkode/arkode_erkstep.h>
+#include <cvodes/cvodes.h>
+#include <nvector/nvector_openmp.h>
+#include <nvector/nvector_serial.h>
+#include <sundials/sundials_context.h>
+#include <sunlinsol/sunlinsol_spgmr.h>
+#include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
+
+struct WfOde {
+    WfOdeConfig        cfg;
+    size_t             n, ny;
+    double             L;
+    SUNContext         sunctx;
+    void              *mem;
+    N_Vector           y, q;
+    SUNLinearSolver    ls;
+    SUNNonlinearSolver nls;
+    ARKodeButcherTable table;
+    WfOdeRhs           rhs;
+    void              *ctx;
+    double            *fuel_prev, *scratch;
+    WfOdeStats         done; /* counters of solver instances before the last re-initialisation */
+};
+
+const char *wf_ode_kind_name(WfOdeKind k)
+{
+    return k == WF_ODE_CVODE ? "cvode" : k == WF_ODE_ARKODE ? "arkode" : "rk4";
+}
+
+/* One helper names the failing call (SUNDIALS return codes are negative on failure). */
+static int check(int flag, const char *call, WfError *err)
+{
+    if (flag >= 0) return 0;
+    return wf_err(err, WF_ESYS, "SUNDIALS: %s failed with code %d", call, flag);
+}
+
+static N_Vector new_vector(const WfOde *o, size_t len)
+{
+    if (o->cfg.nvector_openmp) {
+        int threads = 1;
+#ifdef _OPENMP
+        extern int omp_get_max_threads(void);
+        threads = omp_get_max_threads();
+#endif
+        return N_VNew_OpenMP((sunindextype)len, threads, o->sunctx);
+    }
+    return N_VNew_Serial((sunindextype)len, o->sunctx);
+}
+
+static double *data(N_Vector v) { return N_VGetArrayPointer(v); }
+
+static int f_state(realtype t, N_Vector y, N_Vector ydot, void *user)
+{
+    WfOde *o = user;
+    double *yy = data(y), *yd = data(ydot);
+    size_t n = o->n;
+    /* ARKODE carries the fuel integrals in the state; CVODES computes them as quadratures. */
+    return o->rhs(o->ctx, t, yy, yy + n, yd, yd + n, o->cfg.kind == WF_ODE_CVODE ? NULL : yd + 2 * n);
+}
+
+static int f_quad(realtype t, N_Vector y, N_Vector qdot, void *user)
+{
+    WfOde *o = user;
+    double *yy = data(y);
+    size_t n = o->n;
+    return o->rhs(o->ctx, t, yy, yy + n, o->scratch, o->scratch + n, data(qdot));
+}
+
+static int ewt_fn(N_Vector y, N_Vector ewt, void *user)
+{
+    WfOde *o = user;
+    const double *yy = data(y);
+    double *w = data(ewt), rtol = o->cfg.rtol, L = o->L;
+    size_t n = o->n;
+    for (size_t i = 0; i < n; i++) {
+        double spacing = (i + 1 < n ? yy[i + 1] : yy[0] + L) - yy[i];
+        w[i] = 1.0 / (rtol * fabs(spacing) + o->cfg.atol_x_m);
+        w[n + i] = 1.0 / (rtol * fabs(yy[n + i]) + o->cfg.atol_v_mps);
+    }
+    /* Fuel outside error control: a weight so small that it never decides a step (weights must be > 0). */
+    for (size_t i = 2 * n; i < o->ny; i++)
+        w[i] = o->cfg.fuel_errcon ? 1.0 / (rtol * fabs(yy[i]) + o->cfg.atol_fuel_g) : 1e-200;
+    return 0;
+}
+
+static void add_counters(WfOde *o)
+{
+    WfOdeStats s;
+    wf_ode_stats(o, &s);
+    o->done = s;
+}
+
+/* Classic fourth-order Runge-Kutta as a Butcher table for ERKStep (coefficients, not a solver). */
+static ARKodeButcherTable classic_rk4(void)
+{
+    realtype c[4] = {0.0, 0.5, 0.5, 1.0};
+    realtype A[16] = {0, 0, 0, 0, 0.5, 0, 0, 0, 0, 0.5, 0, 0, 0, 0, 1.0, 0};
+    realtype b[4] = {1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0};
+    return ARKodeButcherTable_Create(4, 4, 0, c, A, b, NULL);
+}
+
+static int setup_solver(WfOde *o, double t0, WfError *err)
+{
+    const WfOdeConfig *c = &o->cfg;
+    int rc;
+    if (c->kind == WF_ODE_CVODE) {
+        o->mem = CVodeCreate(c->bdf ? CV_BDF : CV_ADAMS, o->sunctx);
+        if (!o->mem) return wf_err(err, WF_ESYS, "SUNDIALS: CVodeCreate failed");
+        if ((rc = check(CVodeInit(o->mem, f_state, t0, o->y), "CVodeInit", err))) return rc;
+        if ((rc = check(CVodeSetUserData(o->mem, o), "CVodeSetUserData", err))) return rc;
+        if ((rc = check(CVodeWFtolerances(o->mem, ewt_fn), "CVodeWFtolerances", err))) return rc;
+        if ((rc = check(CVodeSetMaxNumSteps(o->mem, c->max_steps), "CVodeSetMaxNumSteps", err))) return rc;
+        if (c->max_step_s > 0 && (rc = check(CVodeSetMaxStep(o->mem, c->max_step_s), "CVodeSetMaxStep", err)))
+            return rc;
+        if (c->bdf) {
+            o->ls = SUNLinSol_SPGMR(o->y, SUN_PREC_NONE, 0, o->sunctx);
+            if (!o->ls) return wf_err(err, WF_ESYS, "SUNDIALS: SUNLinSol_SPGMR failed");
+            if ((rc = check(CVodeSetLinearSolver(o->mem, o->ls, NULL), "CVodeSetLinearSolver", err))) return rc;
+        } else {
+            o->nls = SUNNonlinSol_FixedPoint(o->y, 0, o->sunctx);
+            if (!o->nls) return wf_err(err, WF_ESYS, "SUNDIALS: SUNNonlinSol_FixedPoint failed");
+            if ((rc = check(CVodeSetNonlinearSolver(o->mem, o->nls), "CVodeSetNonlinearSolver", err))) return rc;
+        }
+        if ((rc = check(CVodeQuadInit(o->mem, f_quad, o->q), "CVodeQuadInit", err))) return rc;
+        if ((rc = check(CVodeQuadSStolerances(o->mem, c->rtol, c->atol_fuel_g), "CVodeQuadSStolerances", err)))
+            return rc;
+        return check(CVodeSetQuadErrCon(o->mem, c->fuel_errcon), "CVodeSetQuadErrCon", err);
+    }
+    o->mem = ERKStepCreate(f_state, t0, o->y, o->sunctx);
+    if (!o->mem) return wf_err(err, WF_ESYS, "SUNDIALS: ERKStepCreate failed");
+    if ((rc = check(ERKStepSetUserData(o->mem, o), "ERKStepSetUserData", err))) return rc;
+    if ((rc = check(ERKStepWFtolerances(o->mem, ewt_fn), "ERKStepWFtolerances", err))) return rc;
+    if ((rc = check(ERKStepSetMaxNumSteps(o->mem, c->max_steps), "ERKStepSetMaxNumSteps", err))) return rc;
+    if (c->kind == WF_ODE_RK4) {
+        o->table = classic_rk4();
+    } else {
+        o->table = ARKodeButcherTable_LoadERKByName(c->erk_table);
+        if (!o->table)
+            return wf_err(err, WF_EINPUT,
+                          "solver.method: unknown ARKODE explicit table '%s' (e.g. ARKODE_DORMAND_PRINCE_7_4_5, "
+                          "ARKODE_BOGACKI_SHAMPINE_4_2_3, ARKODE_CASH_KARP_6_4_5, ARKODE_VERNER_8_5_6)",
+                          c->erk_table);
+    }
+    if (!o->table) return wf_err(err, WF_ESYS, "SUNDIALS: ARKodeButcherTable_Create failed");
+    if ((rc = check(ERKStepSetTable(o->mem, o->table), "ERKStepSetTable", err))) return rc;
+    if (c->kind == WF_ODE_RK4 && (rc = check(ERKStepSetFixedStep(o->mem, c->fixed_step_s), "ERKStepSetFixedStep", err)))
+        return rc;
+    if (c->kind != WF_ODE_RK4 && c->max_step_s > 0 &&
+        (rc = check(ERKStepSetMaxStep(o->mem, c->max_step_s), "ERKStepSetMaxStep", err)))
+        return rc;
+    return 0;
+}
+
+void wf_ode_destroy(WfOde **po)
+{
+    if (!po || !*po) return;
+    WfOde *o = *po;
+    if (o->mem) {
+        if (o->cfg.kind == WF_ODE_CVODE) CVodeFree(&o->mem);
+        else ERKStepFree(&o->mem);
+    }
+    if (o->table) ARKodeButcherTable_Free(o->table);
+    if (o->ls) SUNLinSolFree(o->ls);
+    if (o->nls) SUNNonlinSolFree(o->nls);
+    if (o->q) N_VDestroy(o->q);
+    if (o->y) N_VDestroy(o->y);
+    if (o->sunctx) SUNContext_Free(&o->sunctx);
+    free(o->fuel_prev);
+    free(o->scratch);
+    free(o);
+    *po = NULL;
+}
+
+int wf_ode_create(const WfOdeConfig *cfg, size_t n, double L, WfOdeRhs rhs, void *ctx, double t0, const double *x0,
+                  const double *v0, WfOde **out, WfError *err)
+{
+    *out = NULL;
+    WfOde *o = calloc(1, sizeof *o);
+    if (!o) return wf_err(err, WF_ESYS, "out of memory");
+    o->cfg = *cfg;
+    o->n = n;
+    o->L = L;
+    o->rhs = rhs;
+    o->ctx = ctx;
+    o->ny = cfg->kind == WF_ODE_CVODE ? 2 * n : 3 * n;
+    int rc = check(SUNContext_Create(NULL, &o->sunctx), "SUNContext_Create", err);
+    if (!rc) {
+        o->y = new_vector(o, o->ny);
+        o->fuel_prev = calloc(n + 1, sizeof *o->fuel_prev);
+        o->scratch = calloc(2 * n + 1, sizeof *o->scratch);
+        if (cfg->kind == WF_ODE_CVODE) o->q = new_vector(o, n);
+        if (!o->y || !o->fuel_prev || !o->scratch || (cfg->kind == WF_ODE_CVODE && !o->q))
+            rc = wf_err(err, WF_ESYS, "out of memory for the solver state (%zu vehicles)", n);
+    }
+    if (!rc) {
+        double *y = data(o->y);
+        memcpy(y, x0, n * sizeof *y);
+        memcpy(y + n, v0, n * sizeof *y);
+        for (size_t i = 2 * n; i < o->ny; i++) y[i] = 0.0;
+        if (o->q) N_VConst(0.0, o->q);
+        rc = setup_solver(o, t0, err);
+    }
+    if (rc) {
+        wf_ode_destroy(&o);
+        return rc;
+    }
+    *out = o;
+    return 0;
+}
+
+int wf_ode_advance(WfOde *o, double t_out, double *x, double *v, double *fuel_step, WfError *err)
+{
+    realtype tret = 0;
+    int rc;
+    size_t n = o->n;
+    const double *fuel_now;
+    if (o->cfg.kind == WF_ODE_CVODE) {
+        /* Stop exactly at t_out: the right-hand side changes there (noise, controller memory). */
+        if ((rc = check(CVodeSetStopTime(o->mem, t_out), "CVodeSetStopTime", err))) return rc;
+        int flag = CVode(o->mem, t_out, o->y, &tret, CV_NORMAL);
+        if (flag < 0)
+            return wf_err(err, WF_ESYS, "SUNDIALS: CVode failed at t = %.9g s with code %d (%s)", (double)tret, flag,
+                          CVodeGetReturnFlagName(flag));
+        if ((rc = check(CVodeGetQuad(o->mem, &tret, o->q), "CVodeGetQuad", err))) return rc;
+        fuel_now = data(o->q);
+    } else {
+        if ((rc = check(ERKStepSetStopTime(o->mem, t_out), "ERKStepSetStopTime", err))) return rc;
+        int flag = ERKStepEvolve(o->mem, t_out, o->y, &tret, ARK_NORMAL);
+        if (flag < 0)
+            return wf_err(err, WF_ESYS, "SUNDIALS: ERKStepEvolve failed at t = %.9g s with code %d (%s)",
+                          (double)tret, flag, ERKStepGetReturnFlagName(flag));
+        fuel_now = data(o->y) + 2 * n;
+    }
+    const double *y = data(o->y);
+    memcpy(x, y, n * sizeof *x);
+    memcpy(v, y + n, n * sizeof *v);
+    for (size_t i = 0; i < n; i++) {
+        fuel_step[i] = fuel_now[i] - o->fuel_prev[i];
+        o->fuel_prev[i] = fuel_now[i];
+    }
+    return 0;
+}
+
+int wf_ode_reinit(WfOde *o, double t, const double *x, const double *v, WfError *err)
+{
+    size_t n = o->n;
+    double *y = data(o->y);
+    memcpy(y, x, n * sizeof *y);
+    memcpy(y + n, v, n * sizeof *y);
+    add_counters(o);
+    o->done.reinits++;
+    if (o->cfg.kind == WF_ODE_CVODE) {
+        int rc = check(CVodeReInit(o->mem, t, o->y), "CVodeReInit", err);
+        return rc ? rc : check(CVodeQuadReInit(o->mem, o->q), "CVodeQuadReInit", err);
+    }
+    return check(ERKStepReInit(o->mem, f_state, t, o->y), "ERKStepReInit", err);
+}
+
+/* Counters since the last re-initialisation, added to those of earlier solver instances. */
+void wf_ode_stats(const WfOde *o, WfOdeStats *st)
+{
+    long steps = 0, nfe = 0, nfq = 0, etf = 0, nni = 0, ncf = 0;
+    realtype h = 0;
+    if (o->cfg.kind == WF_ODE_CVODE) {
+        CVodeGetNumSteps(o->mem, &steps);
+        CVodeGetNumRhsEvals(o->mem, &nfe);
+        CVodeGetQuadNumRhsEvals(o->mem, &nfq);
+        CVodeGetNumErrTestFails(o->mem, &etf);
+        CVodeGetNumNonlinSolvIters(o->mem, &nni);
+        CVodeGetNumNonlinSolvConvFails(o->mem, &ncf);
+        CVodeGetLastStep(o->mem, &h);
+    } else {
+        ERKStepGetNumSteps(o->mem, &steps);
+        ERKStepGetNumRhsEvals(o->mem, &nfe);
+        ERKStepGetNumErrTestFails(o->mem, &etf);
+        ERKStepGetLastStep(o->mem, &h);
+    }
+    st->steps = o->done.steps + steps;
+    st->rhs_evals = o->done.rhs_evals + nfe + nfq;
+    st->err_test_fails = o->done.err_test_fails + etf;
+    st->nonlin_iters = o->done.nonlin_iters + nni;
+    st->nonlin_conv_fails = o->done.nonlin_conv_fails + ncf;
+    st->reinits = o->done.reinits;
+    st->last_step_s = h;
+}
