@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <strings.h>
+#include <sys/stat.h>
 #include <yaml.h>
 
 static WfCfgNode *node_new(WfCfgKind kind, const char *file, int line)
@@ -95,6 +96,15 @@ static int next_event(Builder *b, yaml_event_t *ev)
     return 0;
 }
 
+/* A double-quoted YAML scalar may hold "\0": strdup() would silently cut the text there ("230\0junk" read
+ * as 230), so such keys and values are rejected. `what` names the key (or "a list item"). */
+static int scalar_has_nul(Builder *b, const yaml_event_t *ev, const char *what)
+{
+    if (ev->type != YAML_SCALAR_EVENT || !memchr(ev->data.scalar.value, '\0', ev->data.scalar.length)) return 0;
+    return wf_err(b->err, WF_EINPUT, "%s:%d: %s: contains a NUL character (\\0): not allowed in a key or value",
+                  b->file, (int)ev->start_mark.line + 1, what);
+}
+
 static int parse_children(Builder *b, WfCfgNode *n, int depth)
 {
     for (;;) {
@@ -111,6 +121,10 @@ static int parse_children(Builder *b, WfCfgNode *n, int depth)
                 yaml_event_delete(&ev);
                 return wf_err(b->err, WF_EINPUT, "%s:%d: map keys must be plain words", b->file, key_line);
             }
+            if (scalar_has_nul(b, &ev, "a key")) {
+                yaml_event_delete(&ev);
+                return WF_EINPUT;
+            }
             key = strdup((const char *)ev.data.scalar.value);
             yaml_event_delete(&ev);
             if (!key) return wf_err(b->err, WF_ESYS, "out of memory");
@@ -123,6 +137,11 @@ static int parse_children(Builder *b, WfCfgNode *n, int depth)
                 free(key);
                 return WF_EINPUT;
             }
+        }
+        if (scalar_has_nul(b, &ev, key ? key : "a list item")) {
+            yaml_event_delete(&ev);
+            free(key);
+            return WF_EINPUT;
         }
         WfCfgNode *c = NULL;
         int rc = parse_node(b, &ev, &c, depth + 1);
@@ -250,6 +269,13 @@ int wf_cfg_load_file(const char *path, WfCfg **out, WfError *err)
     *out = NULL;
     FILE *f = fopen(path, "rb");
     if (!f) return wf_err(err, WF_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    /* fopen() succeeds on a directory and the first read fails with EISDIR: name the user's mistake (exit 2)
+     * instead of reporting a read error (exit 1). */
+    struct stat st;
+    if (fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode)) {
+        fclose(f);
+        return wf_err(err, WF_EINPUT, "%s: is a directory, not a file", path);
+    }
     char *buf = NULL;
     size_t len = 0, cap = 0;
     for (;;) {
@@ -337,8 +363,11 @@ int wf_cfg_set(WfCfg *cfg, const char *assignment, WfError *err)
     const char *value = eq + 1;
 
     WfCfgNode *cur = cfg->root;
-    char *save = NULL;
-    for (char *tok = strtok_r(path, ".", &save); tok; tok = strtok_r(NULL, ".", &save)) {
+    /* Split at every '.' by hand: strtok_r would skip empty components and accept "fleet..vehicles=3". */
+    for (char *tok = path, *next = NULL; tok; tok = next) {
+        char *dot = strchr(tok, '.');
+        next = dot ? dot + 1 : NULL;
+        if (dot) *dot = '\0';
         char *br = strchr(tok, '[');
         long idx = -1;
         if (br) {
@@ -353,7 +382,7 @@ int wf_cfg_set(WfCfg *cfg, const char *assignment, WfError *err)
         if (!*tok) return wf_err(err, WF_EINPUT, "--set %s: empty key", assignment);
         if (cur->kind != WF_CFG_MAP)
             return wf_err(err, WF_EINPUT, "--set %s: '%s' is inside a value that is not a map", assignment, tok);
-        int last = (save == NULL || *save == '\0') && idx < 0;
+        int last = next == NULL && idx < 0;
         WfCfgNode *c = wf_cfg_child(cur, tok);
         if (!c) {
             if (idx >= 0)

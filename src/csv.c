@@ -2,9 +2,15 @@
 #include "wavefuel/csv.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+
+/* Longest line accepted. Numeric rows are short; the bound keeps a binary file or a device without newlines
+ * (/dev/zero) from being read into memory as one endless line. */
+enum { MAX_LINE = 1 << 20 };
 
 void wf_csv_free(WfCsv *csv)
 {
@@ -20,6 +26,38 @@ static char *trim(char *s)
     size_t n = strlen(s);
     while (n && (s[n - 1] == ' ' || s[n - 1] == '\t' || s[n - 1] == '\r' || s[n - 1] == '\n')) s[--n] = '\0';
     return s;
+}
+
+/* Reads one line (with its '\n', if any) into *buf, NUL-terminated. Returns its length, 0 at end of file,
+ * -1 when the line exceeds MAX_LINE bytes and -2 when out of memory. Embedded NUL bytes are kept (the caller
+ * rejects them). */
+static long read_line(FILE *f, char **buf, size_t *cap)
+{
+    size_t len = 0;
+    int ch;
+    while ((ch = getc_unlocked(f)) != EOF) {
+        if (len + 2 > *cap) {
+            if (*cap >= MAX_LINE + 2) return -1;
+            size_t ncap = *cap ? 2 * *cap : 256;
+            if (ncap > MAX_LINE + 2) ncap = MAX_LINE + 2;
+            char *p = realloc(*buf, ncap);
+            if (!p) return -2;
+            *buf = p;
+            *cap = ncap;
+        }
+        (*buf)[len++] = (char)ch;
+        if (ch == '\n') break;
+    }
+    if (len) (*buf)[len] = '\0';
+    return (long)len;
+}
+
+/* A field as shown in a message: at most 40 characters, "..." when cut. */
+static const char *shown_field(const char *field, char *out, size_t len)
+{
+    int w = snprintf(out, len, "%.40s", field);
+    if (w >= 0 && strlen(field) > 40) snprintf(out + w, len - (size_t)w, "...");
+    return out;
 }
 
 static int grow(WfCsv *c, size_t *cap, WfError *err)
@@ -43,11 +81,22 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
     const char *shown = is_stdin ? "<stdin>" : path;
     FILE *f = is_stdin ? stdin : fopen(path, "r");
     if (!f) return wf_err(err, WF_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    /* fopen() succeeds on a directory and only the read fails (EISDIR): that is the user's mistake (exit 2). */
+    struct stat st;
+    if (fstat(fileno(f), &st) == 0 && S_ISDIR(st.st_mode)) {
+        if (!is_stdin) fclose(f);
+        return wf_err(err, WF_EINPUT, "%s: is a directory, not a table", shown);
+    }
     char *buf = NULL;
     size_t bufcap = 0, cap = 0;
     int lineno = 0, rc = 0, seen_data = 0;
-    ssize_t len;
-    while ((len = getline(&buf, &bufcap, f)) >= 0) {
+    long len;
+    char fs[64];
+    while ((len = read_line(f, &buf, &bufcap)) > 0) {
+        if (lineno == INT_MAX) {
+            rc = wf_err(err, WF_EINPUT, "%s: more than %d lines", shown, INT_MAX);
+            goto done;
+        }
         lineno++;
         if ((size_t)len != strlen(buf)) {
             rc = wf_err(err, WF_EINPUT, "%s:%d: contains a NUL byte: not a text table", shown, lineno);
@@ -57,6 +106,11 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
         if (lineno == 1 && (unsigned char)s[0] == 0xEF && (unsigned char)s[1] == 0xBB && (unsigned char)s[2] == 0xBF)
             s += 3; /* UTF-8 byte-order mark written by spreadsheet programs */
         if (!*s || *s == '#') continue;
+        if (strchr(s, '\r')) {
+            rc = wf_err(err, WF_EINPUT, "%s:%d: carriage return inside a line: lines must end in LF or CRLF", shown,
+                        lineno);
+            goto done;
+        }
         if (strchr(s, '"')) {
             rc = wf_err(err, WF_EINPUT, "%s:%d: quoted fields are not supported: numbers only", shown, lineno);
             goto done;
@@ -70,11 +124,14 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
             if (wf_parse_double(trim(first), &dummy) != 0) {
                 out->had_header = 1;
                 size_t col = 0;
-                char *save = NULL, *copy = s;
-                for (char *tok = strtok_r(copy, ",", &save); tok; tok = strtok_r(NULL, ",", &save), col++) {
+                /* Split at every comma by hand (strtok_r would skip empty names and accept "v,,a,theta"). */
+                for (char *tok = s, *next = NULL; tok; tok = next, col++) {
+                    char *comma = strchr(tok, ',');
+                    next = comma ? comma + 1 : NULL;
+                    if (comma) *comma = '\0';
                     if (names && col < n_cols && strcmp(trim(tok), names[col]) != 0) {
                         rc = wf_err(err, WF_EINPUT, "%s:%d: header column %zu is '%s', expected '%s'", shown, lineno,
-                                    col + 1, trim(tok), names[col]);
+                                    col + 1, shown_field(trim(tok), fs, sizeof fs), names[col]);
                         goto done;
                     }
                 }
@@ -95,13 +152,14 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
             char *comma = strchr(p, ',');
             if (comma) *comma = '\0';
             if (col >= n_cols) {
-                rc = wf_err(err, WF_EINPUT, "%s:%d: more than %zu fields", shown, lineno, n_cols);
+                rc = wf_err(err, WF_EINPUT, "%s:%d: field %zu: more than %zu fields", shown, lineno, col + 1, n_cols);
                 goto done;
             }
             char *field = trim(p);
             if (wf_parse_double(field, &row[col])) {
                 rc = wf_err(err, WF_EINPUT, "%s:%d: field %zu%s%s%s: expected a finite number (got '%s')", shown,
-                            lineno, col + 1, names ? " (" : "", names ? names[col] : "", names ? ")" : "", field);
+                            lineno, col + 1, names ? " (" : "", names ? names[col] : "", names ? ")" : "",
+                            shown_field(field, fs, sizeof fs));
                 goto done;
             }
             col++;
@@ -115,7 +173,10 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
         }
         out->line[out->n_rows++] = lineno;
     }
-    if (ferror(f)) rc = wf_err(err, WF_ESYS, "%s: read error", shown);
+    if (len == -1) rc = wf_err(err, WF_EINPUT, "%s:%d: line longer than %d bytes: not a numeric table", shown,
+                               lineno + 1, (int)MAX_LINE);
+    else if (len == -2) rc = wf_err(err, WF_ESYS, "out of memory reading %s", shown);
+    else if (ferror(f)) rc = wf_err(err, WF_ESYS, "%s: read error: %s", shown, strerror(errno));
 done:
     free(buf);
     if (!is_stdin) fclose(f);

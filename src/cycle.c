@@ -204,7 +204,8 @@ int wf_cycle_resolve(const char *arg, const char *data_dir, char *out, size_t le
                       "(DIR/cycles/%s.csv), or give the CSV's path",
                       arg, arg);
     w = snprintf(out, len, "%s/cycles/%s.csv", data_dir, arg);
-    if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "cycle path too long: %s/cycles/%s.csv", data_dir, arg);
+    if (w < 0 || (size_t)w >= len)
+        return wf_err(err, WF_EINPUT, "cycle path too long: %s/cycles/%s.csv", data_dir, arg);
     if (access(out, R_OK) == 0) return 0;
     /* Unknown name: list what the directory holds. */
     char known[1024] = "", cdir[PATH_MAX + 16];

@@ -33,6 +33,23 @@ static void stem_of(const char *path, char *out, size_t len)
     if (dot && (strcmp(dot, ".yaml") == 0 || strcmp(dot, ".yml") == 0)) *dot = '\0';
 }
 
+/* Keys of `energy` that the model's table does not know. Checked right after the parameters are read, before
+ * the completeness check: a misspelled key (c33 for c3) is then reported as itself, with a suggestion,
+ * rather than as the missing key it was meant to be. */
+static int unknown_energy_key(const WfCfgNode *energy, const WfEnergyModel *m, WfError *err)
+{
+    for (size_t i = 0; energy && i < energy->n_child; i++) {
+        const WfCfgNode *c = energy->child[i];
+        if (c->used) continue;
+        char where[600];
+        const char *best = wf_param_suggest(m->spec, m->n_spec, c->key);
+        return wf_err(err, WF_EINPUT, "%s: unknown key '%s' in energy for model %s%s%s%s",
+                      wf_cfg_where(c, where, sizeof where), c->key, m->name, best ? " (did you mean '" : "",
+                      best ? best : "", best ? "'?)" : "");
+    }
+    return 0;
+}
+
 int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
 {
     memset(vc, 0, sizeof *vc);
@@ -53,8 +70,10 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
     if ((rc = wf_cfg_enum_opt(root, "duty", duties, &duty, err))) goto fail;
     if ((rc = wf_cfg_enum_opt(root, "fuel", fuels, &fuel, err))) goto fail;
     if (duty < 0 || fuel < 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: missing key '%s' (%s)", path, duty < 0 ? "duty" : "fuel",
-                    duty < 0 ? "light or heavy" : "gasoline or diesel");
+        /* Absent: the required-key getter reports it with file:line, or names the misspelt key beside it. */
+        const char *absent = NULL;
+        rc = wf_cfg_string(root, duty < 0 ? "duty" : "fuel", &absent, err);
+        if (!rc) rc = wf_err(err, WF_EINPUT, "%s: missing key '%s'", path, duty < 0 ? "duty" : "fuel");
         goto fail;
     }
     vc->duty = (WfDuty)duty;
@@ -71,7 +90,8 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
     if (source) wf_cfg_mark_used(source);
     if ((rc = wf_cfg_string_opt(root, "energy_model", &model_name, err))) goto fail;
     if ((rc = wf_energy_model_find(model_name, &vc->model, err))) {
-        wf_err_prefix(err, "%s: energy_model: ", path);
+        char model_at[1040];
+        wf_err_prefix(err, "%s: energy_model: ", wf_cfg_where(wf_cfg_child(root, "energy_model"), model_at, sizeof model_at));
         goto fail;
     }
     if ((rc = wf_cfg_map_opt(root, "energy", &energy, err))) goto fail;
@@ -85,11 +105,15 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
         goto fail;
     }
     if ((rc = wf_cfg_params(energy, vc->model->spec, vc->model->n_spec, vc->params, err))) goto fail;
-    char where[1100];
-    snprintf(where, sizeof where, "%s: energy: ", path);
+    if ((rc = unknown_energy_key(energy, vc->model, err))) goto fail;
+    /* Whole-map errors (a required key absent, inconsistent keys) point at the line of `energy:`. */
+    char where[1100], energy_at[1040];
+    if (energy) wf_cfg_where(energy, energy_at, sizeof energy_at);
+    else snprintf(energy_at, sizeof energy_at, "%s", path);
+    snprintf(where, sizeof where, "%s: energy: ", energy_at);
     if ((rc = wf_param_check_complete(vc->model->spec, vc->model->n_spec, vc->params, where, err))) goto fail;
     if (vc->model->check && (rc = vc->model->check(vc->params, err))) {
-        wf_err_prefix(err, "%s: ", path);
+        wf_err_prefix(err, "%s: ", energy_at);
         goto fail;
     }
     /* `table: FILE.h5`: the tabulated model's data (its load hook reads the key), or, beside an explicit
@@ -103,8 +127,10 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
         const WfCirclesParams *cp = vc->params;
         int heavy_keys = isinf(cp->cut_v);
         if (heavy_keys != (vc->duty == WF_DUTY_HEAVY)) {
-            rc = wf_err(err, WF_EINPUT, "%s: duty is '%s' but energy gives the %s-duty keys", path,
-                        wf_duty_name(vc->duty), heavy_keys ? "heavy" : "light");
+            char duty_at[1040];
+            rc = wf_err(err, WF_EINPUT, "%s: duty is '%s' but energy gives the %s-duty keys",
+                        wf_cfg_where(wf_cfg_child(root, "duty"), duty_at, sizeof duty_at), wf_duty_name(vc->duty),
+                        heavy_keys ? "heavy" : "light");
             goto fail;
         }
     }

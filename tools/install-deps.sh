@@ -1,9 +1,22 @@
 #!/usr/bin/env bash
 # Installs the Debian packages wavefuel needs to build, test and plot; the single place that lists them.
 # As root: apt-get installs what is missing. Otherwise: prints the exact apt-get line and exits 1.
+# Usage: tools/install-deps.sh [SET...]. No argument: the build/test/plot set. Optional sets, needed only by
+# their make targets (so `make test` never requires them):
+#   fuzz      clang + compiler-rt (libFuzzer, sanitizers) + LLVM libomp (Archer)  make fuzz, fuzz-smoke, tsan
+#   valgrind  valgrind                                                           make valgrind
 set -euo pipefail
-PKGS=(gcc make pkg-config libyaml-dev libhdf5-dev hdf5-tools libsundials-dev librandom123-dev
-      python3-h5py python3-numpy python3-matplotlib)
+PKGS=()
+[ $# -eq 0 ] && set -- base
+for set_name in "$@"; do
+  case "$set_name" in
+    base) PKGS+=(gcc make pkg-config libyaml-dev libhdf5-dev hdf5-tools libsundials-dev librandom123-dev
+                 python3-h5py python3-numpy python3-matplotlib) ;;
+    fuzz) PKGS+=(clang libclang-rt-14-dev libomp-14-dev) ;;
+    valgrind) PKGS+=(valgrind) ;;
+    *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind)" >&2; exit 2 ;;
+  esac
+done
 missing=()
 for p in "${PKGS[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")

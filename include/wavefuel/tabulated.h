@@ -11,21 +11,25 @@
 #include "wavefuel/err.h"
 #include "wavefuel/vehicle.h"
 
-/* One grid axis: n evenly spaced nodes in ascending order (checked at import to 1e-6 of a step). */
+/* One grid axis: n nodes in ascending order, evenly spaced or not (a rectilinear grid, as MATLAB's interp3
+ * and SciPy's RegularGridInterpolator accept). A bucket index finds a coordinate's cell in O(1). */
 typedef struct WfTableAxis {
-    size_t  n;        /* number of nodes, >= 1 */
-    double  lo, hi;   /* first and last node */
-    double  inv_step; /* (n - 1) / (hi - lo); 0 when n == 1 */
-    size_t  kmax;     /* last cell index: n - 2, or 0 when n == 1 */
-    size_t  up;       /* index offset of a cell's upper node: 1, or 0 when n == 1 (one node, no cell) */
-    double *x;        /* owned; n + 1 values: the nodes, then one padding value so x[k + 1] always exists */
+    size_t    n;          /* number of nodes, >= 1 */
+    double    lo, hi;     /* first and last node */
+    size_t    kmax;       /* last cell index: n - 2, or 0 when n == 1 */
+    size_t    up;         /* index offset of a cell's upper node: 1, or 0 when n == 1 (one node, no cell) */
+    double   *x;          /* owned; n + 1 values: the nodes, then one padding value so x[k + 1] always exists */
+    double   *inv_w;      /* owned; n values: 1 / (x[k + 1] - x[k]) */
+    size_t    n_bucket;   /* buckets of equal width over [lo, hi], none narrower than the narrowest cell */
+    double    bucket_scale; /* n_bucket / (hi - lo); 0 when n == 1 */
+    uint32_t *bucket;     /* owned; n_bucket entries: a cell index at or below every coordinate of the bucket */
 } WfTableAxis;
 
 /* A loaded table. Node (iv, ia, it) is at index (iv * a.n + ia) * theta.n + it of fuel_gps and infeasible. */
 typedef struct WfTable {
     WfTableAxis v, a, theta;  /* m/s, m/s^2, rad */
     double     *fuel_gps;     /* owned; v.n * a.n * theta.n fuel rates, g/s */
-    double     *infeasible;   /* owned; same layout, 0 or 1 (double, so it interpolates like the fuel) */
+    uint8_t    *infeasible;   /* owned; same layout, 0 or 1 */
     double     *a_max_mps2;   /* owned; v.n * theta.n: largest feasible grid acceleration of each (v, theta)
                                * column; a column with no feasible node gets the lowest grid acceleration */
     char        source[1024]; /* CSV the table was imported from, as given to the import */
@@ -35,10 +39,17 @@ typedef struct WfTable {
 
 /* Parse a table in the release's CSV format: header required and exact, rows in any order, every value
  * finite, Infeasible 0 or 1, and the rows must form a complete regular grid: each (v, a, theta) of the
- * product of the distinct values exactly once, each axis evenly spaced. Errors (WF_EINPUT) name the file
- * and, where one exists, the line: "missing row", "duplicate row", "not evenly spaced", header, NaN.
+ * product of the distinct values of each column exactly once (axes may be unevenly spaced). Errors
+ * (WF_EINPUT) name the file and, where one exists, the line: "not a regular grid: no row for ...",
+ * "duplicate row", the header, a non-number.
  * *out is owned by the caller (wf_table_destroy). */
 int wf_table_read_csv(const char *path, WfTable **out, WfError *err);
+/* Build a table from its grid (nv speeds, na accelerations, nt grades, each finite and strictly ascending)
+ * and values laid out [iv][ia][it] (fuel finite, g/s; infeasible 0 or 1); everything is copied. `source`
+ * labels where the values came from (source_fnv1a64 = 0: no file). For programs that sample a model. */
+int wf_table_from_grid(size_t nv, const double *v_mps, size_t na, const double *a_mps2, size_t nt,
+                       const double *theta_rad, const double *fuel_gps, const uint8_t *infeasible, const char *source,
+                       WfTable **out, WfError *err);
 /* Write the table as compressed HDF5 through the .partial protocol (refuses to overwrite unless force). */
 int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *err);
 /* Load a table written by wf_table_write_h5; a format, shape or checksum mismatch is an error (WF_EINPUT). */
@@ -46,7 +57,8 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err);
 /* CSV -> HDF5 in one call (what `wavefuel table import` runs). */
 int wf_table_import(const char *csv_path, const char *h5_path, int force, WfError *err);
 void wf_table_destroy(WfTable **t);
-/* FNV-1a 64 over the axis sizes, nodes, fuel rates and infeasible flags (IEEE bits, little-endian order). */
+/* FNV-1a 64 over the axis sizes and nodes, the fuel rates (IEEE bits, little-endian order) and the infeasible
+ * bytes. */
 uint64_t wf_table_checksum(const WfTable *t);
 
 /* Scalar evaluation, the release's wrapper semantics (see docs/cycles.md): flag 2 if v < 0, else 1 if the

@@ -6,7 +6,13 @@
 
 #include "wavefuel/cf.h"
 
-const WfCfModel *const wf_cf_models[] = {&wf_cf_idm, &wf_cf_ovm, &wf_cf_gipps, NULL};
+/* Automated-vehicle controllers (src/cf/follower_stopper.c, pi_saturation.c, acc.c; docs/controllers.md). */
+extern const WfCfModel wf_cf_follower_stopper;
+extern const WfCfModel wf_cf_pi_saturation;
+extern const WfCfModel wf_cf_acc;
+
+const WfCfModel *const wf_cf_models[] = {&wf_cf_idm,           &wf_cf_ovm,           &wf_cf_gipps,
+                                         &wf_cf_follower_stopper, &wf_cf_pi_saturation, &wf_cf_acc, NULL};
 
 int wf_cf_model_find(const char *name, const WfCfModel **out, WfError *err)
 {

@@ -12,6 +12,8 @@ typedef struct WfCommand {
 } WfCommand;
 
 int wf_cmd_energy(int argc, char **argv);
+int wf_cmd_cycle(int argc, char **argv);
+int wf_cmd_table(int argc, char **argv);
 int wf_cmd_run(int argc, char **argv);
 int wf_cmd_info(int argc, char **argv);
 

@@ -19,9 +19,8 @@
 
 #define TABLE_FORMAT "wavefuel tabulated energy model"
 #define TABLE_FORMAT_VERSION 1
-/* Nodes may sit up to this fraction of a step away from the even spacing: printed decimals such as 3.92
- * are off by about 1e-16 of a step, far less; a real unevenness is far more. */
-#define EVEN_TOL 1e-6
+/* Bucket index size cap per axis (entries of 4 bytes): a table axis has at most a few thousand nodes. */
+#define MAX_BUCKETS 65536
 
 static const char *const column_names[] = {"Velocity", "Acceleration", "Road Grade", "Fuel Rate", "Infeasible"};
 
@@ -31,7 +30,11 @@ static const char *const column_names[] = {"Velocity", "Acceleration", "Road Gra
 static void axis_free(WfTableAxis *ax)
 {
     free(ax->x);
+    free(ax->inv_w);
+    free(ax->bucket);
     ax->x = NULL;
+    ax->inv_w = NULL;
+    ax->bucket = NULL;
 }
 
 void wf_table_destroy(WfTable **pt)
@@ -48,8 +51,8 @@ void wf_table_destroy(WfTable **pt)
     *pt = NULL;
 }
 
-/* Takes ownership of nodes[n + 1] (ascending, distinct; the last slot is padding) and checks the spacing.
- * `what` names the axis for messages. */
+/* Takes ownership of nodes[n + 1] (n >= 1 finite values, strictly ascending; the last slot is padding) and
+ * builds the bucket index. `what` names the axis for messages. */
 static int axis_init(WfTableAxis *ax, double *nodes, size_t n, const char *file, const char *what, WfError *err)
 {
     ax->x = nodes;
@@ -61,17 +64,31 @@ static int axis_init(WfTableAxis *ax, double *nodes, size_t n, const char *file,
     nodes[n] = n > 1 ? nodes[n - 1] + (nodes[n - 1] - nodes[n - 2]) : nodes[0] + 1.0;
     ax->kmax = n > 1 ? n - 2 : 0;
     ax->up = n > 1 ? 1 : 0;
-    ax->inv_step = n > 1 ? (double)(n - 1) / (ax->hi - ax->lo) : 0.0;
-    if (n > 2) {
-        double step = (ax->hi - ax->lo) / (double)(n - 1);
-        for (size_t k = 1; k + 1 < n; k++) {
-            double want = ax->lo + (double)k * step;
-            if (fabs(nodes[k] - want) > EVEN_TOL * step)
-                return wf_err(err, WF_EINPUT,
-                              "%s: irregular grid: %s values are not evenly spaced: value %zu of %zu is %.17g, "
-                              "expected %.17g for an even step of %.17g from %.17g to %.17g",
-                              file, what, k + 1, n, nodes[k], want, step, ax->lo, ax->hi);
-        }
+    /* Buckets no wider than the narrowest cell hold at most two cells, so locate() steps at most twice. */
+    double min_w = INFINITY;
+    for (size_t k = 0; k + 1 < n; k++) min_w = fmin(min_w, nodes[k + 1] - nodes[k]);
+    double want = n > 1 ? ceil((ax->hi - ax->lo) / min_w) : 1.0;
+    if (n > (size_t)UINT32_MAX)
+        return wf_err(err, WF_EINPUT, "%s: %s has %zu values: too many for a table axis", file, what, n);
+    ax->n_bucket = want > MAX_BUCKETS ? MAX_BUCKETS : (size_t)want;
+    if (ax->n_bucket < 1) ax->n_bucket = 1;
+    ax->bucket_scale = n > 1 ? (double)ax->n_bucket / (ax->hi - ax->lo) : 0.0;
+    ax->bucket = malloc(ax->n_bucket * sizeof *ax->bucket);
+    ax->inv_w = malloc(n * sizeof *ax->inv_w);
+    if (!ax->bucket || !ax->inv_w) return wf_err(err, WF_ESYS, "out of memory for the %s axis of %s", what, file);
+    for (size_t k = 0; k < n; k++) ax->inv_w[k] = 1.0 / (nodes[k + 1] - nodes[k]);
+    /* Spacings so small that their reciprocals overflow would turn the weights into NaN (0 x inf). */
+    for (size_t k = 0; k < n; k++)
+        if (!isfinite(ax->inv_w[k]) || !isfinite(ax->bucket_scale))
+            return wf_err(err, WF_EINPUT, "%s: %s values %.17g and %.17g are too close together for a table axis",
+                          file, what, nodes[k], nodes[k + 1]);
+    size_t k = 0;
+    for (size_t b = 0; b < ax->n_bucket; b++) {
+        double edge = ax->lo + (double)b * (ax->hi - ax->lo) / (double)ax->n_bucket;
+        while (k < ax->kmax && nodes[k + 1] <= edge) k++;
+        /* One cell lower than the edge's own: a coordinate that rounds into this bucket may lie a hair
+         * below its edge. */
+        ax->bucket[b] = (uint32_t)(k > 0 ? k - 1 : 0);
     }
     return 0;
 }
@@ -86,7 +103,7 @@ static void derive_a_max(WfTable *t)
         for (size_t it = 0; it < nt; it++) {
             double best = t->a.lo;
             for (size_t ia = na; ia-- > 0;)
-                if (t->infeasible[(iv * na + ia) * nt + it] == 0.0) {
+                if (t->infeasible[(iv * na + ia) * nt + it] == 0) {
                     best = t->a.x[ia];
                     break;
                 }
@@ -164,7 +181,7 @@ uint64_t wf_table_checksum(const WfTable *t)
     h = fnv_f64s(h, t->a.x, t->a.n);
     h = fnv_f64s(h, t->theta.x, t->theta.n);
     h = fnv_f64s(h, t->fuel_gps, n);
-    return fnv_f64s(h, t->infeasible, n);
+    return fnv_bytes(h, t->infeasible, n);
 }
 
 static int file_fnv(const char *path, uint64_t *out, WfError *err)
@@ -187,7 +204,7 @@ static int alloc_values(WfTable *t, WfError *err)
 {
     size_t n = t->v.n * t->a.n * t->theta.n;
     t->fuel_gps = malloc(n * sizeof *t->fuel_gps);
-    t->infeasible = malloc(n * sizeof *t->infeasible);
+    t->infeasible = malloc(n ? n : 1);
     t->a_max_mps2 = malloc(t->v.n * t->theta.n * sizeof *t->a_max_mps2);
     if (!t->fuel_gps || !t->infeasible || !t->a_max_mps2) return wf_err(err, WF_ESYS, "out of memory for a table");
     return 0;
@@ -261,14 +278,15 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
         }
         row_line[idx] = csv.line[r];
         t->fuel_gps[idx] = row[3];
-        t->infeasible[idx] = row[4];
+        t->infeasible[idx] = (uint8_t)row[4];
     }
     for (size_t idx = 0; idx < n; idx++)
         if (!row_line[idx]) {
             size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
             rc = wf_err(err, WF_EINPUT,
-                        "%s: incomplete grid: missing row for Velocity=%.17g, Acceleration=%.17g, Road Grade=%.17g "
-                        "(%zu speeds x %zu accelerations x %zu grades need %zu rows, the file has %zu)",
+                        "%s: not a regular grid: no row for Velocity=%.17g, Acceleration=%.17g, Road Grade=%.17g "
+                        "(the distinct values make %zu speeds x %zu accelerations x %zu grades = %zu points, the "
+                        "file has %zu rows: rows are missing, or the points do not lie on one grid)",
                         path, t->v.x[iv], t->a.x[ia], t->theta.x[it], nv, na, nt, n, csv.n_rows);
             goto fail;
         }
@@ -287,6 +305,58 @@ fail:
     return rc ? rc : WF_EINPUT;
 }
 
+int wf_table_from_grid(size_t nv, const double *v, size_t na, const double *a, size_t nt, const double *theta,
+                       const double *fuel, const uint8_t *infeasible, const char *source, WfTable **out, WfError *err)
+{
+    *out = NULL;
+    const size_t sizes[3] = {nv, na, nt};
+    const double *const in[3] = {v, a, theta};
+    static const char *const what[3] = {"velocity", "acceleration", "grade"};
+    WfTable *t = calloc(1, sizeof *t);
+    if (!t) return wf_err(err, WF_ESYS, "out of memory");
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    int rc = 0;
+    for (int c = 0; c < 3 && !rc; c++) {
+        size_t n = sizes[c];
+        if (n == 0) {
+            rc = wf_err(err, WF_EINPUT, "%s: the %s axis is empty", source, what[c]);
+            break;
+        }
+        for (size_t k = 0; k < n && !rc; k++)
+            if (!isfinite(in[c][k]) || (k && !(in[c][k] > in[c][k - 1])))
+                rc = wf_err(err, WF_EINPUT, "%s: %s node %zu (%.17g) is not finite or not above the one before", source,
+                            what[c], k, in[c][k]);
+        if (rc) break;
+        double *nodes = malloc((n + 1) * sizeof *nodes);
+        if (!nodes) {
+            rc = wf_err(err, WF_ESYS, "out of memory");
+            break;
+        }
+        memcpy(nodes, in[c], n * sizeof *nodes);
+        rc = axis_init(axes[c], nodes, n, source, what[c], err);
+    }
+    if (!rc) rc = alloc_values(t, err);
+    size_t n = nv * na * nt;
+    for (size_t i = 0; i < n && !rc; i++) {
+        if (!isfinite(fuel[i]) || infeasible[i] > 1)
+            rc = wf_err(err, WF_EINPUT, "%s: value %zu: fuel must be finite and infeasible 0 or 1", source, i);
+        else {
+            t->fuel_gps[i] = fuel[i];
+            t->infeasible[i] = infeasible[i];
+        }
+    }
+    if (rc) {
+        wf_table_destroy(&t);
+        return rc;
+    }
+    derive_a_max(t);
+    snprintf(t->source, sizeof t->source, "%s", source);
+    t->source_fnv1a64 = 0;
+    t->data_fnv1a64 = wf_table_checksum(t);
+    *out = t;
+    return 0;
+}
+
 /* ---------------------------------------------------------------------------------------------------------
  * HDF5 form */
 
@@ -295,13 +365,7 @@ int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *er
     WfH5File *f = NULL;
     int rc = wf_h5_create(path, force, &f, err);
     if (rc) return rc;
-    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
-    uint8_t *inf = malloc(n ? n : 1);
-    if (!inf) {
-        wf_h5_abandon(&f, 1);
-        return wf_err(err, WF_ESYS, "out of memory writing %s", path);
-    }
-    for (size_t i = 0; i < n; i++) inf[i] = (uint8_t)(t->infeasible[i] != 0.0);
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n;
     char hex_src[32], hex_data[32], created[128];
     snprintf(hex_src, sizeof hex_src, "%016llx", (unsigned long long)t->source_fnv1a64);
     snprintf(hex_data, sizeof hex_data, "%016llx", (unsigned long long)t->data_fnv1a64);
@@ -318,24 +382,22 @@ int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *er
                              "fuel_gps and infeasible are (n_velocity * n_acceleration, n_grade): reshape to "
                              "(n_velocity, n_acceleration, n_grade); axes ascending",
                              err)) ||
-        (rc = wf_h5_write_f64(root, "velocity_mps", 1, &dv, t->v.x, "m/s", "speed nodes, ascending, evenly spaced",
+        (rc = wf_h5_write_f64(root, "velocity_mps", 1, &dv, t->v.x, "m/s", "speed nodes, ascending",
                               err)) ||
         (rc = wf_h5_write_f64(root, "acceleration_mps2", 1, &da, t->a.x, "m/s^2",
-                              "acceleration nodes, ascending, evenly spaced", err)) ||
+                              "acceleration nodes, ascending", err)) ||
         (rc = wf_h5_write_f64(root, "grade_rad", 1, &dt, t->theta.x, "rad",
-                              "road grade nodes, ascending, evenly spaced", err)) ||
+                              "road grade nodes, ascending", err)) ||
         (rc = wf_h5_write_f64(root, "fuel_gps", 2, dvals, t->fuel_gps, "g/s", "fuel rate at each grid node", err)) ||
-        (rc = wf_h5_write_u8(root, "infeasible", 2, dvals, inf, "1",
+        (rc = wf_h5_write_u8(root, "infeasible", 2, dvals, t->infeasible, "1",
                              "1 where the vehicle cannot reach that acceleration at that speed and grade", err)) ||
         (rc = wf_h5_write_f64(root, "a_max_mps2", 2, damax, t->a_max_mps2, "m/s^2",
                               "largest feasible grid acceleration per (velocity, grade) column; derived, "
                               "recomputed on load",
                               err))) {
-        free(inf);
         wf_h5_abandon(&f, 1);
         return rc;
     }
-    free(inf);
     return wf_h5_commit(&f, err);
 }
 
@@ -417,7 +479,6 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
     if (fid < 0)
         return wf_err(err, WF_EINPUT, "%s: not an HDF5 file (import a CSV table first: wavefuel table import)", path);
     WfTable *t = calloc(1, sizeof *t);
-    uint8_t *inf = NULL;
     double *nodes[3] = {NULL, NULL, NULL};
     int rc = 0;
     char fmt[128], hex_src[64], hex_data[64];
@@ -460,7 +521,7 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
             rc = wf_err(err, WF_EINPUT, "%s: %s must be finite, ascending and non-empty", path, axis_sets[c]);
             goto done;
         }
-        nodes[c] = NULL; /* owned by the axis from here, even when the spacing check fails */
+        nodes[c] = NULL; /* owned by the axis from here, even when axis_init fails */
         if ((rc = axis_init(axes[c], buf, n, path, axis_sets[c], err))) goto done;
     }
     size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
@@ -474,23 +535,21 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
         goto done;
     }
     if ((rc = read_dataset(fid, path, "infeasible", 2, H5T_NATIVE_UINT8, 1, dims, &buf, err))) goto done;
-    inf = buf;
+    t->infeasible = buf;
     if (dims[0] != nv * na || dims[1] != nt) {
         rc = wf_err(err, WF_EINPUT, "%s: infeasible has the wrong shape", path);
         goto done;
     }
-    t->infeasible = malloc(n * sizeof *t->infeasible);
     t->a_max_mps2 = malloc(nv * nt * sizeof *t->a_max_mps2);
-    if (!t->infeasible || !t->a_max_mps2) {
+    if (!t->a_max_mps2) {
         rc = wf_err(err, WF_ESYS, "out of memory loading %s", path);
         goto done;
     }
     for (size_t i = 0; i < n; i++) {
-        if (inf[i] > 1 || !isfinite(t->fuel_gps[i])) {
+        if (t->infeasible[i] > 1 || !isfinite(t->fuel_gps[i])) {
             rc = wf_err(err, WF_EINPUT, "%s: value %zu of fuel_gps / infeasible is not finite / 0 or 1", path, i);
             goto done;
         }
-        t->infeasible[i] = inf[i];
     }
     uint64_t sum = wf_table_checksum(t);
     if (sum != t->data_fnv1a64) {
@@ -502,7 +561,6 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
     derive_a_max(t);
 done:
     for (int c = 0; c < 3; c++) free(nodes[c]);
-    free(inf);
     H5Fclose(fid);
     if (rc) wf_table_destroy(&t);
     *out = t;
@@ -511,28 +569,37 @@ done:
 
 /* ---------------------------------------------------------------------------------------------------------
  * Evaluation. Every coordinate is clamped to the grid before the cell is located, so the kernels never read
- * outside the arrays whatever the input (NaN included: fmax(NaN, lo) is lo). */
+ * outside the arrays whatever the input (NaN included: it reads the first node). The helpers are forced
+ * inline: as calls, with the project and flag switches left as run-time branches, the array loop is several
+ * times slower. Comparisons replace fmin/fmax, which GCC emits as library calls under strict IEEE rules. */
+#if defined(__GNUC__)
+#define TAB_INLINE __attribute__((always_inline)) inline
+#else
+#define TAB_INLINE inline
+#endif
 
-/* Cell k and weight t in [0, 1] of coordinate x: nodes x[k] <= x <= x[k + 1]. The even spacing gives the
- * cell in O(1); the nodes are printed decimals, so the estimate can be one cell off near a node, which the
- * two comparisons correct. t is a division (not a multiplication by a stored reciprocal) so that x at a node
- * gives t exactly 0 or 1 and grid values come back exactly. */
-static inline size_t locate(const WfTableAxis *ax, double x, double *t)
+/* Cell k and weight t in [0, 1] of coordinate x: nodes x[k] <= x <= x[k + 1]. The bucket gives a cell at most
+ * two below the right one (buckets are no wider than the narrowest cell, and hold one cell less for
+ * rounding), so two branch-free steps finish; the loop only runs when the bucket count was capped. At a node
+ * t is exactly 0 (or 1 at the last node), so grid values come back exactly. */
+static TAB_INLINE size_t locate(const WfTableAxis *ax, double x, double *t)
 {
-    double xc = fmin(fmax(x, ax->lo), ax->hi);
-    size_t k = (size_t)((xc - ax->lo) * ax->inv_step);
-    k = k > ax->kmax ? ax->kmax : k;
-    k -= (size_t)(k > 0 && xc < ax->x[k]);
-    k += (size_t)(k < ax->kmax && xc >= ax->x[k + 1]);
-    *t = (xc - ax->x[k]) / (ax->x[k + 1] - ax->x[k]);
+    double xc = !(x >= ax->lo) ? ax->lo : (x > ax->hi ? ax->hi : x);
+    size_t b = (size_t)(long)((xc - ax->lo) * ax->bucket_scale);
+    size_t k = ax->bucket[b < ax->n_bucket ? b : ax->n_bucket - 1];
+    k += (size_t)((k < ax->kmax) & (xc >= ax->x[k + 1]));
+    k += (size_t)((k < ax->kmax) & (xc >= ax->x[k + 1]));
+    while (k < ax->kmax && xc >= ax->x[k + 1]) k++;
+    double w = (xc - ax->x[k]) * ax->inv_w[k];
+    *t = xc >= ax->x[k + 1] ? 1.0 : w;
     return k;
 }
 
 /* (1 - t) x0 + t x1: exact at t = 0 and t = 1 (unlike x0 + t (x1 - x0)). */
-static inline double lerp(double x0, double x1, double t) { return (1.0 - t) * x0 + t * x1; }
+static TAB_INLINE double lerp(double x0, double x1, double t) { return (1.0 - t) * x0 + t * x1; }
 
-static inline double trilinear(const double *F, size_t base, size_t sv, size_t sa, size_t st, double tv, double ta,
-                               double tt)
+static TAB_INLINE double trilinear(const double *F, size_t base, size_t sv, size_t sa, size_t st, double tv,
+                                   double ta, double tt)
 {
     double c00 = lerp(F[base], F[base + st], tt);
     double c01 = lerp(F[base + sa], F[base + sa + st], tt);
@@ -541,32 +608,50 @@ static inline double trilinear(const double *F, size_t base, size_t sv, size_t s
     return lerp(lerp(c00, c01, ta), lerp(c10, c11, ta), tv);
 }
 
-static inline int inside(const WfTableAxis *ax, double x) { return x >= ax->lo && x <= ax->hi; }
+/* The same interpolation over the 0/1 Infeasible bytes (1 byte per node keeps them in cache). */
+static TAB_INLINE double trilinear_u8(const uint8_t *I, size_t base, size_t sv, size_t sa, size_t st,
+                                      double tv, double ta, double tt)
+{
+    double c00 = lerp(I[base], I[base + st], tt);
+    double c01 = lerp(I[base + sa], I[base + sa + st], tt);
+    double c10 = lerp(I[base + sv], I[base + sv + st], tt);
+    double c11 = lerp(I[base + sv + sa], I[base + sv + sa + st], tt);
+    return lerp(lerp(c00, c01, ta), lerp(c10, c11, ta), tv);
+}
 
-static inline double amax_at(const WfTable *t, size_t iv, double tv, size_t it, double tt)
+static TAB_INLINE int inside(const WfTableAxis *ax, double x) { return x >= ax->lo && x <= ax->hi; }
+
+static TAB_INLINE double amax_at(const WfTable *t, size_t iv, double tv, size_t it, double tt)
 {
     size_t nt = t->theta.n, b = iv * nt + it, sv = t->v.up * nt, st = t->theta.up;
     const double *M = t->a_max_mps2;
     return lerp(lerp(M[b], M[b + st], tt), lerp(M[b + sv], M[b + sv + st], tt), tv);
 }
 
-/* One evaluation; `static inline` so the array loops below are single bodies. want_flag = 0 skips the
- * Infeasible interpolation. */
-static inline double eval1(const WfTable *t, double v, double a, double th, int project, int want_flag,
-                           uint8_t *flag, int *outside)
+/* One evaluation, inlined into each loop below with project / want_flag as constants there. want_flag = 0
+ * skips the Infeasible interpolation. */
+static TAB_INLINE double eval1(const WfTable *t, double v, double a, double th, int project, int want_flag,
+                               uint8_t *flag, int *outside)
 {
     size_t na = t->a.n, nt = t->theta.n;
     size_t sv = t->v.up * na * nt, sa = t->a.up * nt, st = t->theta.up;
-    double vv = fmax(v, 0.0), tv, tt, ta;
+    double vv = v > 0.0 ? v : 0.0, tv, tt, ta; /* NaN reads as 0, like fmax */
     size_t iv = locate(&t->v, vv, &tv), it = locate(&t->theta, th, &tt);
+    /* The flag reads the Infeasible column at the original acceleration, before any projection; the fuel
+     * reads the same cell unless the projection moves a (NaN a reads as a_max, like fmin). */
+    size_t ia = locate(&t->a, a, &ta);
     if (want_flag) {
-        /* The flag reads the Infeasible column at the original acceleration, before any projection. */
-        size_t ia0 = locate(&t->a, a, &ta);
-        double inf = trilinear(t->infeasible, (iv * na + ia0) * nt + it, sv, sa, st, tv, ta, tt);
+        double inf = trilinear_u8(t->infeasible, (iv * na + ia) * nt + it, sv, sa, st, tv, ta, tt);
         *flag = (uint8_t)(v < 0.0 ? WF_NEGATIVE_SPEED : (inf != 0.0 ? WF_INFEASIBLE_ACCEL : WF_FEASIBLE));
     }
-    double au = project ? fmin(a, amax_at(t, iv, tv, it, tt)) : a;
-    size_t ia = locate(&t->a, au, &ta);
+    double au = a;
+    if (project) {
+        double am = amax_at(t, iv, tv, it, tt);
+        if (!(a <= am)) {
+            au = am;
+            ia = locate(&t->a, au, &ta);
+        }
+    }
     if (outside) *outside = !(inside(&t->v, vv) && inside(&t->a, au) && inside(&t->theta, th));
     return trilinear(t->fuel_gps, (iv * na + ia) * nt + it, sv, sa, st, tv, ta, tt);
 }
@@ -582,18 +667,22 @@ double wf_table_fuel(const WfTable *t, double v, double a, double th, int projec
 double wf_table_a_max(const WfTable *t, double v, double th)
 {
     double tv, tt;
-    size_t iv = locate(&t->v, fmax(v, 0.0), &tv), it = locate(&t->theta, th, &tt);
+    size_t iv = locate(&t->v, v > 0.0 ? v : 0.0, &tv), it = locate(&t->theta, th, &tt);
     return amax_at(t, iv, tv, it, tt);
 }
 
 void wf_table_eval(const WfTable *t, size_t n, const double *restrict v, const double *restrict a,
                    const double *restrict th, int project, double *restrict fuel, uint8_t *restrict flag)
 {
-    if (flag) {
-        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], project, 1, &flag[i], NULL);
-    } else {
-        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], project, 0, NULL, NULL);
-    }
+    /* Four loops so that each inlined body has its switches as constants. */
+    if (flag && project)
+        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], 1, 1, &flag[i], NULL);
+    else if (flag)
+        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], 0, 1, &flag[i], NULL);
+    else if (project)
+        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], 1, 0, NULL, NULL);
+    else
+        for (size_t i = 0; i < n; i++) fuel[i] = eval1(t, v[i], a[i], th[i], 0, 0, NULL, NULL);
 }
 
 size_t wf_table_n_outside(const WfTable *t, size_t n, const double *v, const double *a, const double *th,
@@ -601,8 +690,9 @@ size_t wf_table_n_outside(const WfTable *t, size_t n, const double *v, const dou
 {
     size_t count = 0;
     for (size_t i = 0; i < n; i++) {
-        double vv = fmax(v[i], 0.0);
-        double au = project ? fmin(a[i], wf_table_a_max(t, vv, th[i])) : a[i];
+        double vv = v[i] > 0.0 ? v[i] : 0.0;
+        double am = project ? wf_table_a_max(t, vv, th[i]) : 0.0;
+        double au = !project ? a[i] : (a[i] < am ? a[i] : am);
         count += (size_t)!(inside(&t->v, vv) && inside(&t->a, au) && inside(&t->theta, th[i]));
     }
     return count;
