@@ -430,8 +430,9 @@ static WfCfgNode *lookup(WfCfgNode *map, const char *key)
     return c;
 }
 
-static int missing(WfCfgNode *map, const char *key, const char *what, WfError *err)
+int wf_cfg_missing(WfCfgNode *map, const char *key, const char *what, WfError *err)
 {
+    note_asked(map, key);
     char where[600], path[512];
     /* A required key that is absent next to an unread key a typo away: report the typo, which is the cause. */
     size_t len = strlen(key);
@@ -472,7 +473,7 @@ int wf_cfg_double(WfCfgNode *map, const char *key, double min, double max, const
     if (!c) {
         char what[160];
         snprintf(what, sizeof what, "a number in [%.10g, %.10g] %s", min, max, unit);
-        return missing(map, key, what, err);
+        return wf_cfg_missing(map, key, what, err);
     }
     return wf_cfg_node_double(c, min, max, unit, out, err);
 }
@@ -502,7 +503,7 @@ int wf_cfg_string(WfCfgNode *map, const char *key, const char **out, WfError *er
 {
     if (!wf_cfg_child(map, key)) {
         note_asked(map, key);
-        return missing(map, key, "a text value", err);
+        return wf_cfg_missing(map, key, "a text value", err);
     }
     return wf_cfg_string_opt(map, key, out, err);
 }

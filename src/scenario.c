@@ -517,7 +517,7 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
     sc->seed = (uint64_t)seed;
 
     if (wf_cfg_map_opt(root, "road", &road, err)) return WF_EINPUT;
-    if (!road) return wf_err(err, WF_EINPUT, "%s: missing section 'road'", sc->path);
+    if (!road) return wf_cfg_missing(root, "road", "a section", err);
     if (wf_cfg_enum_opt(road, "type", road_types, &rtype, err)) return WF_EINPUT;
     if (wf_cfg_double(road, "length_m", 1, 1e10, "m", &sc->road.length_m, err)) return WF_EINPUT;
     sc->road.speed_limit_mps = INFINITY;
@@ -525,7 +525,7 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
     if (load_grade(sc, road, err)) return WF_EINPUT;
 
     if (wf_cfg_map_opt(root, "time", &time, err)) return WF_EINPUT;
-    if (!time) return wf_err(err, WF_EINPUT, "%s: missing section 'time'", sc->path);
+    if (!time) return wf_cfg_missing(root, "time", "a section", err);
     if (wf_cfg_double(time, "duration_s", 1e-6, 1e9, "s", &sc->duration_s, err)) return WF_EINPUT;
     sc->dt_s = 0.1;
     if (wf_cfg_double_opt(time, "dt_s", 1e-6, 10, "s", &sc->dt_s, err)) return WF_EINPUT;
@@ -560,7 +560,7 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
                       sc->path, sc->warmup_s, sc->duration_s);
 
     if (wf_cfg_map_opt(root, "fleet", &fleet, err)) return WF_EINPUT;
-    if (!fleet) return wf_err(err, WF_EINPUT, "%s: missing section 'fleet'", sc->path);
+    if (!fleet) return wf_cfg_missing(root, "fleet", "a section", err);
     double nv;
     if (wf_cfg_double(fleet, "vehicles", 1, 1e9, "(count)", &nv, err)) return WF_EINPUT;
     if (nv != floor(nv))

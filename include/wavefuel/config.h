@@ -76,6 +76,9 @@ int wf_cfg_params(WfCfgNode *map, const WfParamSpec *spec, size_t n, void *param
 /* Every key in the tree that no getter read is an error: "file:line: unknown key 'T' in fleet.drivers[0]
  * (did you mean 'T_s'?)"; suggestions come from the keys the readers asked that map for. */
 int wf_cfg_check_unused(const WfCfg *cfg, WfError *err);
+/* The error for a required key that is absent from `map`: names the file and map, and when an unread key a typo
+ * away is present, reports that key as unknown with the suggestion instead (the typo is the real cause). */
+int wf_cfg_missing(WfCfgNode *map, const char *key, const char *what, WfError *err);
 /* Mark a subtree used (for sections that are parsed elsewhere). */
 void wf_cfg_mark_used(WfCfgNode *n);
 

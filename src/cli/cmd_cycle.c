@@ -1,0 +1,428 @@
+/* `wavefuel cycle`: a vehicle class follows a drive cycle (fuel, distance, economy, infeasible time), or the
+ * paper's validation protocol (every class on its duty's cycles and grades, every model available for the
+ * class, a Markdown table and HDF5). */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli/commands.h"
+#include "wavefuel/cycle.h"
+#include "wavefuel/tabulated.h"
+
+enum { MAX_TABLES = 64, MAX_GRADES = 16 };
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: wavefuel cycle --class NAME|FILE.yaml [--grade RAD] [--project|--no-project]\n"
+            "                      [--table CLASS=TABLE.h5] [--cycles DIR] [-o FILE.h5 [--force]] CYCLE\n"
+            "       wavefuel cycle --protocol [--class NAME]... [--table CLASS=TABLE.h5]... [--cycles DIR]\n"
+            "                      [--project|--no-project] [-o FILE.h5 [--force]]\n\n"
+            "One vehicle follows a speed trace CYCLE (CSV time_s,speed_mps, any sample rate): a path, or a name\n"
+            "such as udds resolved as DIR/cycles/NAME.csv, DIR from --cycles, $WAVEFUEL_DATA, or ../shared/data\n"
+            "next to the repository. Acceleration is the forward difference (v[i+1]-v[i])/dt_i (0 at the last\n"
+            "sample); fuel = sum f(v[i], a[i], theta) dt_i; distance = sum v[i] dt_i. Reports fuel (g), distance\n"
+            "(km), L/100 km, mpg and the share of time at infeasible accelerations.\n\n"
+            "Models: the class's own model, plus a tabulated one when the class file names `table:` beside its\n"
+            "polynomial or --table CLASS=TABLE.h5 is given (an imported table: wavefuel table import).\n"
+            "Projection (a <- min(a, a_max)): each model's default (explicit off, tabulated on) unless --project\n"
+            "or --no-project.\n\n"
+            "--protocol runs the paper's tables: light-duty classes on udds, hwfet, us06, wltc3 at grades\n"
+            "-0.03..0.03 rad, heavy-duty classes on hhddt_cruise, hhddt_transient, hhddt_h65 at -0.02..0.02\n"
+            "(0.01 steps; HHDDT high speed has no public file). Default classes: all found. Prints Markdown:\n"
+            "fuel per cycle and grade, and (explicit - tabulated) / tabulated where both models exist, also\n"
+            "over all cycles combined (ALL). -o writes every run and the tables to HDF5 (never overwrites\n"
+            "without --force). See docs/cycles.md.\n");
+}
+
+/* A class and the tabulated twin compared with it (when one is given). */
+typedef struct Entry {
+    WfVehicleClass cls;
+    WfVehicleClass twin;
+    int            has_twin;
+} Entry;
+
+typedef struct TableArg {
+    const char *cls;
+    const char *path;
+    int         used;
+} TableArg;
+
+static void free_entries(Entry *e, size_t n)
+{
+    for (size_t i = 0; i < n; i++) {
+        wf_vehicle_free(&e[i].cls);
+        if (e[i].has_twin) wf_vehicle_free(&e[i].twin);
+    }
+    free(e);
+}
+
+/* Attach the tabulated twin: --table CLASS=FILE first, else the class file's own `table:`. */
+static int attach_twin(Entry *e, const char *given_as, TableArg *tables, size_t n_tables, WfError *err)
+{
+    const char *path = NULL;
+    for (size_t i = 0; i < n_tables; i++)
+        if (!strcmp(tables[i].cls, e->cls.name) || !strcmp(tables[i].cls, given_as)) {
+            path = tables[i].path;
+            tables[i].used = 1;
+        }
+    char from_file[4096];
+    if (e->cls.model == &wf_energy_tabulated) {
+        if (path)
+            return wf_err(err, WF_EINPUT, "--table %s: class '%s' is already tabulated (%s)", given_as, e->cls.name,
+                          e->cls.path);
+        return 0;
+    }
+    if (!path) {
+        int rc = wf_tabulated_class_table(&e->cls, from_file, sizeof from_file, err);
+        if (rc) return rc;
+        if (!from_file[0]) return 0;
+        path = from_file;
+    }
+    int rc = wf_tabulated_class(&e->cls, path, &e->twin, err);
+    if (rc) return rc;
+    e->has_twin = 1;
+    return 0;
+}
+
+static int add_class(Entry **entries, size_t *n, const char *name, TableArg *tables, size_t n_tables, WfError *err)
+{
+    Entry *p = realloc(*entries, (*n + 1) * sizeof *p);
+    if (!p) return wf_err(err, WF_ESYS, "out of memory");
+    *entries = p;
+    Entry *e = &p[*n];
+    memset(e, 0, sizeof *e);
+    int rc = wf_vehicle_find(name, &e->cls, err);
+    if (rc) return rc;
+    for (size_t i = 0; i < *n; i++)
+        if (!strcmp(p[i].cls.name, e->cls.name)) {
+            wf_vehicle_free(&e->cls);
+            return wf_err(err, WF_EINPUT, "class '%s' given twice", name);
+        }
+    (*n)++; /* counted now, so free_entries releases it whatever happens next */
+    return attach_twin(e, name, tables, n_tables, err);
+}
+
+static int resolve_project(int choice, const WfVehicleClass *vc)
+{
+    return choice >= 0 ? choice : vc->model->project_default;
+}
+
+static void join_args(int argc, char **argv, char *out, size_t len)
+{
+    size_t used = 0;
+    out[0] = '\0';
+    for (int i = -1; i < argc; i++) {
+        const char *s = i < 0 ? "wavefuel" : argv[i];
+        int w = snprintf(out + used, len - used, "%s%s", used ? " " : "", s);
+        if (w < 0 || (size_t)w >= len - used) break;
+        used += (size_t)w;
+    }
+}
+
+static const char *density_note(const WfVehicleClass *vc)
+{
+    double def = (vc->fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL;
+    return vc->fuel_density_g_per_l == def ? "the CIRCLES release's value" : "set in the class file";
+}
+
+/* ------------------------------------------------------------------------------------------------------- */
+
+static int run_single(Entry *e, const char *cycle_arg, const char *data_dir, double theta, int project_choice,
+                      const char *out_path, int force, const char *cmdline)
+{
+    WfError err = {0};
+    char path[4096];
+    WfCycle c;
+    if (wf_cycle_resolve(cycle_arg, data_dir, path, sizeof path, &err) || wf_cycle_load(path, &c, &err))
+        return wf_cli_fail(&err);
+    const WfVehicleClass *models[2] = {&e->cls, e->has_twin ? &e->twin : NULL};
+    size_t n_models = e->has_twin ? 2 : 1;
+    WfCycleRun runs[2];
+    memset(runs, 0, sizeof runs);
+    WfCycleOut *out = NULL;
+    int rc = 0;
+    for (size_t m = 0; m < n_models && !rc; m++)
+        rc = wf_cycle_run(&c, models[m], theta, resolve_project(project_choice, models[m]), &runs[m], &err);
+    if (!rc && out_path) rc = wf_cycle_out_create(out_path, force, cmdline, &out, &err);
+    for (size_t m = 0; m < n_models && !rc && out; m++) rc = wf_cycle_out_run(out, models[m], &c, &runs[m], &err);
+    if (!rc && out) rc = wf_cycle_out_commit(&out, &err);
+    if (rc) {
+        wf_cycle_out_abandon(&out);
+        for (size_t m = 0; m < n_models; m++) wf_cycle_run_free(&runs[m]);
+        wf_cycle_free(&c);
+        return wf_cli_fail(&err);
+    }
+    const WfVehicleClass *vc = &e->cls;
+    printf("class     %s (%s): %s duty, %s, %s\n", vc->name, vc->label, wf_duty_name(vc->duty), wf_fuel_name(vc->fuel),
+           vc->path);
+    printf("cycle     %s: %s, %zu samples, %.6g s, %.3f km\n", c.name, c.path, c.n, wf_cycle_duration_s(&c),
+           wf_cycle_distance_m(&c) / 1e3);
+    printf("grade     %.6g rad\n", theta);
+    printf("density   %.1f g/L = %.0f g per US gallon (%s)\n", vc->fuel_density_g_per_l,
+           vc->fuel_density_g_per_l * WF_L_PER_US_GAL, density_note(vc));
+    printf("\n%-20s %-7s %12s %10s %8s %11s %14s\n", "model", "project", "fuel_g", "L/100km", "mpg", "infeasible",
+           "outside_grid");
+    for (size_t m = 0; m < n_models; m++) {
+        const WfCycleRun *r = &runs[m];
+        char outside[32] = "-";
+        if (models[m]->model->n_outside) snprintf(outside, sizeof outside, "%zu of %zu", r->n_outside, r->n);
+        printf("%-20s %-7s %12.3f %10.4f %8.3f %10.2f%% %14s\n", models[m]->model->name, r->project ? "on" : "off",
+               r->fuel_g, r->l_per_100km, r->mpg, r->duration_s > 0 ? 100.0 * r->infeasible_s / r->duration_s : 0.0,
+               outside);
+    }
+    if (out_path) printf("\nwrote %s\n", out_path);
+    for (size_t m = 0; m < n_models; m++) wf_cycle_run_free(&runs[m]);
+    wf_cycle_free(&c);
+    return fflush(stdout) ? 1 : 0;
+}
+
+/* ------------------------------------------------------------------------------------------------------- */
+
+/* Results of one class in the protocol: fuel[model][cycle + ALL][grade], and the clamped evaluations. */
+typedef struct ClassResult {
+    size_t  n_cycles, n_grades, n_models;
+    double  grades[MAX_GRADES];
+    double *fuel;      /* owned */
+    double *rel;       /* owned; NULL with one model */
+    size_t  n_outside, n_evals_tab;
+} ClassResult;
+
+static double *fuel_at(ClassResult *r, size_t m, size_t c, size_t g)
+{
+    return &r->fuel[(m * (r->n_cycles + 1) + c) * r->n_grades + g];
+}
+
+static double fuel_of(const ClassResult *r, size_t m, size_t c, size_t g)
+{
+    return r->fuel[(m * (r->n_cycles + 1) + c) * r->n_grades + g];
+}
+
+static void print_class_markdown(const Entry *e, const ClassResult *r, const char *const *cycles)
+{
+    const WfVehicleClass *models[2] = {&e->cls, e->has_twin ? &e->twin : NULL};
+    printf("## %s (%s, %s duty, %s)\n\n| cycle | model |", e->cls.name, e->cls.label, wf_duty_name(e->cls.duty),
+           wf_fuel_name(e->cls.fuel));
+    for (size_t g = 0; g < r->n_grades; g++) printf(" %+.2f |", r->grades[g] == 0.0 ? 0.0 : r->grades[g]);
+    printf("\n|---|---|");
+    for (size_t g = 0; g < r->n_grades; g++) printf("---:|");
+    printf("\n");
+    for (size_t c = 0; c <= r->n_cycles; c++) {
+        const char *name = c < r->n_cycles ? cycles[c] : "ALL";
+        for (size_t m = 0; m < r->n_models; m++) {
+            printf("| %s | %s |", name, models[m]->model->name);
+            for (size_t g = 0; g < r->n_grades; g++) printf(" %.2f |", fuel_of(r, m, c, g));
+            printf("\n");
+        }
+        if (r->rel) {
+            printf("| %s | rel. diff |", name);
+            for (size_t g = 0; g < r->n_grades; g++)
+                printf(" %+.3f %% |", 100.0 * r->rel[c * r->n_grades + g]);
+            printf("\n");
+        }
+    }
+    if (r->n_evals_tab)
+        printf("\nTabulated evaluations clamped to the table's edge: %zu of %zu.\n", r->n_outside, r->n_evals_tab);
+    printf("\n");
+}
+
+static int run_protocol(Entry *entries, size_t n_entries, const char *data_dir, int project_choice,
+                        const char *out_path, int force, const char *cmdline)
+{
+    WfError err = {0};
+    int rc = 0;
+    /* Every cycle of the duties present is loaded before anything runs or is written: a missing file is
+     * reported before any work. */
+    WfCycle cyc[2][8];
+    size_t n_cyc[2] = {0, 0};
+    const char *const *names[2];
+    memset(cyc, 0, sizeof cyc);
+    names[0] = wf_protocol_cycles(WF_DUTY_LIGHT, &n_cyc[0]);
+    names[1] = wf_protocol_cycles(WF_DUTY_HEAVY, &n_cyc[1]);
+    int need[2] = {0, 0};
+    for (size_t i = 0; i < n_entries; i++) need[entries[i].cls.duty == WF_DUTY_HEAVY] = 1;
+    ClassResult *res = calloc(n_entries ? n_entries : 1, sizeof *res);
+    WfCycleOut *out = NULL;
+    if (!res) {
+        wf_err(&err, WF_ESYS, "out of memory");
+        return wf_cli_fail(&err);
+    }
+    for (int d = 0; d < 2 && !rc; d++) {
+        for (size_t k = 0; k < n_cyc[d] && need[d] && !rc; k++) {
+            char path[4096];
+            rc = wf_cycle_resolve(names[d][k], data_dir, path, sizeof path, &err);
+            if (!rc) rc = wf_cycle_load(path, &cyc[d][k], &err);
+        }
+    }
+    if (!rc && out_path) rc = wf_cycle_out_create(out_path, force, cmdline, &out, &err);
+    for (size_t i = 0; i < n_entries && !rc; i++) {
+        Entry *e = &entries[i];
+        int d = e->cls.duty == WF_DUTY_HEAVY;
+        ClassResult *r = &res[i];
+        const WfVehicleClass *models[2] = {&e->cls, e->has_twin ? &e->twin : NULL};
+        r->n_models = e->has_twin ? 2 : 1;
+        r->n_cycles = n_cyc[d];
+        r->n_grades = wf_protocol_grades(e->cls.duty, r->grades, MAX_GRADES);
+        size_t rows = r->n_cycles + 1;
+        r->fuel = calloc(r->n_models * rows * r->n_grades, sizeof *r->fuel);
+        if (e->has_twin) r->rel = calloc(rows * r->n_grades, sizeof *r->rel);
+        if (!r->fuel || (e->has_twin && !r->rel)) {
+            rc = wf_err(&err, WF_ESYS, "out of memory");
+            break;
+        }
+        for (size_t c = 0; c < r->n_cycles && !rc; c++)
+            for (size_t g = 0; g < r->n_grades && !rc; g++)
+                for (size_t m = 0; m < r->n_models && !rc; m++) {
+                    WfCycleRun run;
+                    rc = wf_cycle_run(&cyc[d][c], models[m], r->grades[g], resolve_project(project_choice, models[m]),
+                                      &run, &err);
+                    if (rc) break;
+                    *fuel_at(r, m, c, g) = run.fuel_g;
+                    *fuel_at(r, m, r->n_cycles, g) += run.fuel_g; /* ALL: cycles added in a fixed order */
+                    if (models[m]->model->n_outside) {
+                        r->n_outside += run.n_outside;
+                        r->n_evals_tab += run.n;
+                    }
+                    if (out) rc = wf_cycle_out_run(out, models[m], &cyc[d][c], &run, &err);
+                    wf_cycle_run_free(&run);
+                }
+        /* Explicit (the class's model, index 0) relative to the table (index 1): total over total for ALL. */
+        for (size_t c = 0; r->rel && c < rows; c++)
+            for (size_t g = 0; g < r->n_grades; g++)
+                r->rel[c * r->n_grades + g] = (fuel_of(r, 0, c, g) - fuel_of(r, 1, c, g)) / fuel_of(r, 1, c, g);
+        if (!rc && out) {
+            const char *mnames[2] = {models[0]->model->name, r->n_models > 1 ? models[1]->model->name : NULL};
+            rc = wf_cycle_out_summary(out, e->cls.name, r->n_cycles, names[d], r->n_grades, r->grades, r->n_models,
+                                      mnames, r->fuel, r->rel, &err);
+        }
+    }
+    if (!rc && out) rc = wf_cycle_out_commit(&out, &err);
+    if (!rc) {
+        /* Everything ran: only now is the report printed, so a failure prints nothing half-done. */
+        printf("# wavefuel cycle --protocol\n\n");
+        printf("Fuel in g per drive cycle (rows) and road grade in rad (columns). rel. diff = (explicit - "
+               "tabulated) / tabulated; ALL = all cycles combined (total fuel over total fuel). Projection: %s. "
+               "Cycles from %s/cycles. HHDDT high speed is not run: no public 1 Hz file exists (docs/cycles.md).\n\n",
+               project_choice < 0 ? "each model's default (explicit off, tabulated on)"
+                                  : (project_choice ? "on for every model" : "off for every model"),
+               data_dir);
+        for (size_t i = 0; i < n_entries; i++)
+            print_class_markdown(&entries[i], &res[i], names[entries[i].cls.duty == WF_DUTY_HEAVY]);
+        if (out_path) printf("Wrote %s.\n", out_path);
+    }
+    wf_cycle_out_abandon(&out);
+    for (size_t i = 0; i < n_entries; i++) {
+        free(res[i].fuel);
+        free(res[i].rel);
+    }
+    free(res);
+    for (int d = 0; d < 2; d++)
+        for (size_t k = 0; k < n_cyc[d]; k++) wf_cycle_free(&cyc[d][k]);
+    if (rc) return wf_cli_fail(&err);
+    return fflush(stdout) ? 1 : 0;
+}
+
+/* ------------------------------------------------------------------------------------------------------- */
+
+int wf_cmd_cycle(int argc, char **argv)
+{
+    static const struct option opts[] = {{"class", required_argument, 0, 'c'},  {"grade", required_argument, 0, 'g'},
+                                         {"project", no_argument, 0, 'p'},      {"no-project", no_argument, 0, 'P'},
+                                         {"output", required_argument, 0, 'o'}, {"force", no_argument, 0, 'f'},
+                                         {"cycles", required_argument, 0, 'd'}, {"protocol", no_argument, 0, 'R'},
+                                         {"table", required_argument, 0, 't'},  {"help", no_argument, 0, 'h'},
+                                         {0, 0, 0, 0}};
+    const char *classes[64], *out_path = NULL, *cycles_dir = NULL, *grade_arg = NULL;
+    size_t n_classes = 0, n_tables = 0;
+    TableArg tables[MAX_TABLES];
+    int project = -1, force = 0, protocol = 0, o;
+    char cmdline[4096];
+    join_args(argc, argv, cmdline, sizeof cmdline);
+    optind = 1;
+    while ((o = getopt_long(argc, argv, "c:g:o:fh", opts, NULL)) != -1) {
+        switch (o) {
+        case 'c':
+            if (n_classes == sizeof classes / sizeof classes[0]) {
+                fprintf(stderr, "wavefuel cycle: too many --class options\n");
+                return 2;
+            }
+            classes[n_classes++] = optarg;
+            break;
+        case 'g': grade_arg = optarg; break;
+        case 'p': project = 1; break;
+        case 'P': project = 0; break;
+        case 'o': out_path = optarg; break;
+        case 'f': force = 1; break;
+        case 'd': cycles_dir = optarg; break;
+        case 'R': protocol = 1; break;
+        case 't': {
+            char *eq = strchr(optarg, '=');
+            if (!eq || eq == optarg || !eq[1] || n_tables == MAX_TABLES) {
+                fprintf(stderr, "wavefuel cycle: --table expects CLASS=TABLE.h5 (got '%s')\n", optarg);
+                return 2;
+            }
+            *eq = '\0';
+            tables[n_tables++] = (TableArg){optarg, eq + 1, 0};
+            break;
+        }
+        case 'h': help(stdout); return 0;
+        default: help(stderr); return 2;
+        }
+    }
+    double theta = 0.0;
+    if (grade_arg) {
+        if (protocol) {
+            fprintf(stderr, "wavefuel cycle: --grade does not apply to --protocol (it runs the paper's grades)\n");
+            return 2;
+        }
+        if (wf_parse_double(grade_arg, &theta) || fabs(theta) > 0.5) {
+            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [-0.5, 0.5] rad (got '%s')\n",
+                    grade_arg);
+            return 2;
+        }
+        if (theta == 0.0) theta = 0.0; /* -0 and 0 are the same grade: one group name in HDF5 */
+    }
+    if (protocol && optind != argc) {
+        fprintf(stderr, "wavefuel cycle: --protocol takes no CYCLE argument (it runs the paper's cycles)\n");
+        return 2;
+    }
+    if (!protocol && (n_classes != 1 || argc - optind != 1)) {
+        fprintf(stderr, "wavefuel cycle: give one --class NAME and one CYCLE (or --protocol); see --help\n");
+        return 2;
+    }
+    WfError err = {0};
+    char data_dir[4096];
+    int found = 0;
+    if (wf_cycle_data_dir(cycles_dir, data_dir, sizeof data_dir, &found, &err)) return wf_cli_fail(&err);
+    Entry *entries = NULL;
+    size_t n_entries = 0;
+    int rc = 0;
+    if (n_classes) {
+        for (size_t i = 0; i < n_classes && !rc; i++)
+            rc = add_class(&entries, &n_entries, classes[i], tables, n_tables, &err);
+    } else {
+        WfVehicleClass *all = NULL;
+        size_t n_all = 0;
+        rc = wf_vehicle_list(&all, &n_all, &err);
+        for (size_t i = 0; i < n_all; i++) {
+            if (!rc) rc = add_class(&entries, &n_entries, all[i].path, tables, n_tables, &err);
+            wf_vehicle_free(&all[i]);
+        }
+        free(all);
+        if (!rc && n_entries == 0) rc = wf_err(&err, WF_EINPUT, "no vehicle classes found");
+    }
+    for (size_t i = 0; i < n_tables && !rc; i++)
+        if (!tables[i].used)
+            rc = wf_err(&err, WF_EINPUT, "--table %s=%s: no class '%s' in this run", tables[i].cls, tables[i].path,
+                        tables[i].cls);
+    if (rc) {
+        free_entries(entries, n_entries);
+        return wf_cli_fail(&err);
+    }
+    int status = protocol ? run_protocol(entries, n_entries, data_dir, project, out_path, force, cmdline)
+                          : run_single(&entries[0], argv[optind], data_dir, theta, project, out_path, force, cmdline);
+    free_entries(entries, n_entries);
+    return status;
+}
