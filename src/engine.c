@@ -30,6 +30,7 @@ struct WfSim {
     WfOde   *ode;           /* SUNDIALS integrator, or NULL for a fixed-step scheme */
     double  *xold, *vold, *fuel_step, *vplus; /* ODE path only */
     int      repaired;      /* the last step repaired an overlap */
+    double   phase_s[WF_N_PHASES]; /* wall time per phase */
     int      stateful;      /* some driver model keeps per-vehicle memory */
     double   sd_sum;
     long     n_sd;
@@ -421,17 +422,24 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
     long step;
     for (step = 0; step <= s->n_steps; step++) {
         double t = (double)step * sc->dt_s;
+        double tp = wall_now(), tq;
+#define LAP(ph) (tq = wall_now(), s->phase_s[ph] += tq - tp, tp = tq)
         phase_noise(s, step);
         phase_accel(s, s->f->x_m, s->f->v_mps);
+        LAP(WF_PHASE_CAR_FOLLOWING);
         phase_energy(s, s->f->v_mps, s->f->a_mps2);
+        LAP(WF_PHASE_ENERGY);
         if (step % s->out_every == 0) {
             wf_stats_record(s->f, sc, t, s->overlaps, s->stat_scratch, &row);
             if (step >= s->warm_steps) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
+            LAP(WF_PHASE_STATISTICS);
             if (out && out->record && (rc = out->record(out->ctx, s, &row, err))) break;
+            LAP(WF_PHASE_OUTPUT);
         }
         if (sc->trajectories && step % s->traj_every == 0 && out && out->trajectory &&
             (rc = out->trajectory(out->ctx, s, t, err)))
             break;
+        LAP(WF_PHASE_OUTPUT);
         if (step == s->n_steps) break;
         int in_window = step >= s->warm_steps;
         if (s->ode) {
@@ -450,7 +458,10 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
             phase_controller_state(s);
             phase_advance(s, in_window);
         }
+        LAP(WF_PHASE_INTEGRATION);
         s->repaired = phase_overlaps(s, in_window) > 0;
+        LAP(WF_PHASE_INTEGRATION);
+#undef LAP
         s->steps_done = step + 1;
         if (stop && *stop) {
             reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
@@ -494,3 +505,7 @@ int wf_sim_ode_stats(const WfSim *s, WfOdeStats *st)
     wf_ode_stats(s->ode, st);
     return 1;
 }
+
+const char *const wf_phase_names[WF_N_PHASES] = {"car_following", "energy", "integration", "statistics", "output"};
+
+const double *wf_sim_phase_times(const WfSim *s) { return s->phase_s; }

@@ -82,6 +82,14 @@ static int write_meta(hid_t fid, const WfSim *sim, int completed, const char *re
              wf_h5_scalar_str(g, "reason", reason, "why the run stopped early (empty when completed)", err) ||
              wf_h5_scalar_f64(g, "wall_time_s", wf_sim_wall_s(sim), "s", "wall time of the step loop", err) ||
              wf_h5_scalar_i64(g, "steps_done", wf_sim_steps_done(sim), "1", "time steps completed", err);
+    if (!rc) {
+        hsize_t np = WF_N_PHASES;
+        if (H5Lexists(g, "phase_time", H5P_DEFAULT) > 0) H5Ldelete(g, "phase_time", H5P_DEFAULT);
+        if (H5Lexists(g, "phase_name", H5P_DEFAULT) > 0) H5Ldelete(g, "phase_name", H5P_DEFAULT);
+        rc = wf_h5_write_f64(g, "phase_time", 1, &np, wf_sim_phase_times(sim), "s",
+                             "wall time per phase of the step loop, in the order of phase_name", err) ||
+             wf_h5_write_strings(g, "phase_name", np, wf_phase_names, "phases of phase_time", err);
+    }
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
 }

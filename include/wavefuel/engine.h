@@ -16,6 +16,13 @@
 
 typedef struct WfSim WfSim;
 
+/* Phases of a step whose wall time is measured (docs/output.md: /meta/phase_time). car_following includes the
+ * noise draws; integration includes the per-vehicle statistics accumulated with it and the overlap check;
+ * statistics is the time-series record; output the writer's callbacks. */
+enum { WF_PHASE_CAR_FOLLOWING, WF_PHASE_ENERGY, WF_PHASE_INTEGRATION, WF_PHASE_STATISTICS, WF_PHASE_OUTPUT,
+       WF_N_PHASES };
+extern const char *const wf_phase_names[WF_N_PHASES];
+
 /* Output sink (HDF5 in src/h5out.c; tests use their own). Each callback returns 0 or an error code. */
 typedef struct WfOutput {
     int (*begin)(void *ctx, const WfSim *sim, WfError *err);
@@ -43,6 +50,8 @@ const WfSummary  *wf_sim_summary(const WfSim *sim); /* valid after wf_sim_run */
 double            wf_sim_wall_s(const WfSim *sim);  /* wall time of the step loop */
 long              wf_sim_steps_done(const WfSim *sim);
 int               wf_sim_threads(const WfSim *sim);
+/* Wall time spent in each phase so far (WF_N_PHASES entries, seconds). */
+const double     *wf_sim_phase_times(const WfSim *sim);
 /* Solver statistics of a SUNDIALS run: returns 1 and fills *st, or 0 for a fixed-step integrator. */
 int               wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st);
 
