@@ -11,7 +11,7 @@ GIT_HASH := $(shell git describe --always --dirty 2>/dev/null || echo unknown)
 CFLAGS   ?= -O2 -g
 # `override`: the project's flags stay when CFLAGS/LDFLAGS come from the command line (sanitize, fuzz, tsan).
 override CFLAGS += -std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
-            -ffp-contract=off -fno-fast-math -Iinclude -Isrc $(HDF5_CFLAGS) -MMD -MP \
+            -ffp-contract=off -fno-fast-math -fno-math-errno -Iinclude -Isrc $(HDF5_CFLAGS) -MMD -MP \
             -DWF_GIT_HASH='"$(GIT_HASH)"' -DWF_REPO_DIR='"$(CURDIR)"'
 ifeq ($(WERROR),1)
 override CFLAGS += -Werror
@@ -22,7 +22,7 @@ override LDFLAGS += -fopenmp
 endif
 LDLIBS   += $(HDF5_LIBS) -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -lsundials_nvecopenmp \
             -lsundials_sunlinsolspgmr -lsundials_sunnonlinsolfixedpoint -lsundials_sunnonlinsolnewton \
-            -lsundials_generic -lyaml -lm
+            -lsundials_generic -lyaml -llapacke -llapack -lgsl -lgslcblas -lm
 
 LIB_SRC  := $(sort $(wildcard src/*.c src/*/*.c))
 LIB_SRC  := $(filter-out src/main.c src/cli/%,$(LIB_SRC))
@@ -49,7 +49,7 @@ all: $(BIN) $(LIBA)
 deps:
 	@./tools/install-deps.sh
 
-$(BUILD)/%.o: %.c
+$(BUILD)/%.o: %.c Makefile
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -c $< -o $@
 

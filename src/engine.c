@@ -15,6 +15,7 @@
 #define PAR_MIN 4096 /* vehicles below which loops run on one thread */
 #define EBLOCK  512  /* energy evaluation gather block */
 #define IBLOCK  1024 /* integration block */
+#define FBLOCK  256  /* fused-step block (even: noise pairs stay whole) */
 
 struct WfSim {
     const WfScenario   *sc; /* borrowed */
@@ -31,6 +32,7 @@ struct WfSim {
     double  *xold, *vold, *fuel_step, *vplus; /* ODE path only */
     int      repaired;      /* the last step repaired an overlap */
     double   phase_s[WF_N_PHASES]; /* wall time per phase */
+    double  *bound_x, *bound_v;    /* fused step: each chunk's first vehicle at the step's start */
     int      stateful;      /* some driver model keeps per-vehicle memory */
     double   sd_sum;
     long     n_sd;
@@ -72,6 +74,8 @@ void wf_sim_destroy(WfSim **ps)
     wf_ode_destroy(&s->ode);
     free(s->xold);
     free(s->vold);
+    free(s->bound_x);
+    free(s->bound_v);
     free(s->fuel_step);
     free(s->vplus);
     free(s);
@@ -106,7 +110,9 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     int noisy = 0;
     for (size_t g = 0; g < sc->n_groups; g++) noisy |= sc->groups[g].noise_mps2 > 0.0;
     if (noisy) s->noise = malloc((s->f->n + 1) * sizeof(double));
-    if (!s->stat_scratch || !s->ebuf || !s->fbuf || (noisy && !s->noise)) {
+    s->bound_x = malloc(((size_t)s->nthreads + 1) * sizeof(double));
+    s->bound_v = malloc(((size_t)s->nthreads + 1) * sizeof(double));
+    if (!s->stat_scratch || !s->ebuf || !s->fbuf || (noisy && !s->noise) || !s->bound_x || !s->bound_v) {
         wf_sim_destroy(&s);
         return wf_err(err, WF_ESYS, "out of memory");
     }
@@ -149,28 +155,44 @@ static void phase_noise(WfSim *s, long step)
 
 /* Phase 2: inputs at the step's start (gap to the leader, leader speed, grade) and the acceleration, driver
  * group by driver group (no branching on model names in the loop). */
+/* One vehicle's applied acceleration: model + noise, clipped to the group's limits, optionally to the class's
+ * feasible a_max, and to the speed limit. Shared by the multi-pass and the fused step so both give the same bits. */
+static inline double accel_one(const WfScenario *sc, const WfDriverGroup *grp, const void *params,
+                               const void *state, const WfVehicleClass *vc, double gi, double vi, double vli,
+                               double thi, double zi)
+{
+    double dmax = grp->decel_max_mps2, vlim = sc->road.speed_limit_mps;
+    double ai = grp->model->accel(params, state, gi, vi, vli);
+    if (grp->noise_mps2 > 0.0) ai += grp->noise_mps2 * zi;
+    ai = ai > grp->accel_max_mps2 ? grp->accel_max_mps2 : ai;
+    ai = ai < -dmax ? -dmax : ai;
+    if (grp->clip_feasible) {
+        double am = vc->model->a_max(vc->params, vi, thi);
+        ai = ai > am ? am : ai;
+    }
+    /* Speed limit: never accelerate past it within the step. */
+    double to_limit = (vlim - vi) / sc->dt_s;
+    return ai > to_limit && isfinite(vlim) ? (to_limit > -dmax ? to_limit : -dmax) : ai;
+}
+
 static void phase_accel(WfSim *s, const double *x, const double *v)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     const WfRoad *road = &sc->road;
     size_t n = f->n;
-    double dt = sc->dt_s, vlim = sc->road.speed_limit_mps, L = road->length_m;
+    double L = road->length_m;
     const double *z = s->noise, *len = f->length_m;
     double *gap = f->gap_m, *vl = f->v_lead_mps, *th = f->theta_rad, *a = f->a_mps2;
     uint32_t *seg = f->grade_seg;
     const uint16_t *cid = f->class_id;
     for (size_t g = 0; g < f->n_groups; g++) {
         const WfDriverGroup *grp = &sc->groups[g];
-        const WfCfModel *m = grp->model;
         const uint32_t *mem = f->group_member[g];
         const unsigned char *params = f->group_params[g], *state = f->group_state[g];
-        size_t cnt = f->group_n[g], psz = m->param_size, ssz = m->state_size;
-        double sigma = grp->noise_mps2, amax = grp->accel_max_mps2, dmax = grp->decel_max_mps2;
-        int clip = grp->clip_feasible;
+        size_t cnt = f->group_n[g], psz = grp->model->param_size, ssz = grp->model->state_size;
 #pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) \
-    shared(n, L, road, x, len, v, gap, vl, th, seg, cnt, mem, params, state, psz, ssz, m, sigma, amax, dmax, clip, \
-           cid, a, sc, z, dt, vlim)
+    shared(n, L, road, x, len, v, gap, vl, th, seg, cnt, mem, params, state, psz, ssz, grp, cid, a, sc, z)
         for (size_t k = 0; k < cnt; k++) {
             size_t i = mem[k];
             /* The leader of the last vehicle is vehicle 0, one lap ahead. */
@@ -179,19 +201,8 @@ static void phase_accel(WfSim *s, const double *x, const double *v)
             double gi = xl - len[lead] - x[i], vi = v[i], vli = v[lead];
             double thi = wf_road_grade(road, x[i], &seg[i]);
             gap[i] = gi, vl[i] = vli, th[i] = thi;
-            double ai = m->accel(params + k * psz, ssz ? state + k * ssz : NULL, gi, vi, vli);
-            if (sigma > 0.0) ai += sigma * z[i];
-            ai = ai > amax ? amax : ai;
-            ai = ai < -dmax ? -dmax : ai;
-            if (clip) {
-                const WfVehicleClass *vc = &sc->classes[cid[i]].vc;
-                double am = vc->model->a_max(vc->params, vi, thi);
-                ai = ai > am ? am : ai;
-            }
-            /* Speed limit: never accelerate past it within the step. */
-            double to_limit = (vlim - vi) / dt;
-            ai = ai > to_limit && isfinite(vlim) ? (to_limit > -dmax ? to_limit : -dmax) : ai;
-            a[i] = ai;
+            a[i] = accel_one(sc, grp, params + k * psz, ssz ? state + k * ssz : NULL, &sc->classes[cid[i]].vc, gi, vi,
+                             vli, thi, z ? z[i] : 0.0);
         }
     }
 }
@@ -234,22 +245,31 @@ static void phase_energy(WfSim *s, const double *v, const double *a)
 /* Phase 4: statistics over the step (left-point rule: values at the step's start held for dt), integration,
  * then the statistics that need the new state (distance, passages, stops). With a SUNDIALS integrator the fuel
  * of the step is its exact integral (quadrature) instead of the left-point rule. */
-static inline void stats_before(WfFleet *f, const WfScenario *sc, size_t i, int in_window, int left_point_fuel)
+static inline void stats_before(WfFleet *f, const WfScenario *sc, size_t i, double ai, double fuel_rate_gps,
+                                uint8_t flag, int in_window, int left_point_fuel)
 {
-    double dt = sc->dt_s, vi = f->v_mps[i], ai = f->a_mps2[i];
+    double dt = sc->dt_s, vi = f->v_mps[i];
     uint8_t mode = f->mode[i];
     int braking = ai < -sc->hard_brake_mps2;
     if (in_window) {
-        if (left_point_fuel) f->fuel_g[i] += f->fuel_rate_gps[i] * dt;
+        if (left_point_fuel) f->fuel_g[i] += fuel_rate_gps * dt;
         f->time_stopped_s[i] += vi < sc->v_stop_mps ? dt : 0.0;
         f->sum_v[i] += vi;
         f->sum_v2[i] += vi * vi;
         f->sum_a[i] += ai;
         f->sum_a2[i] += ai * ai;
-        f->infeasible_steps[i] += f->flag[i] == 1;
+        f->infeasible_steps[i] += flag == 1;
         f->hard_brakes[i] += braking && !(mode & WF_MODE_BRAKING);
     }
     f->mode[i] = (uint8_t)((mode & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0));
+}
+
+/* floor(q) as an integer without the libm call (floor is not inlined on baseline x86-64): truncate, then step
+ * down for negative non-integers. |q| stays far below 2^63 (positions / ring length). */
+static inline int64_t lap_index(double q)
+{
+    int64_t k = (int64_t)q;
+    return k - (q < (double)k);
 }
 
 static inline void stats_after(WfFleet *f, const WfScenario *sc, size_t i, double xold, int in_window)
@@ -265,7 +285,7 @@ static inline void stats_after(WfFleet *f, const WfScenario *sc, size_t i, doubl
     f->mode[i] = mode;
     if (in_window) {
         f->dist_m[i] += f->x_m[i] - xold;
-        f->laps[i] += (int64_t)(floor(f->x_m[i] / L) - floor(xold / L));
+        f->laps[i] += lap_index(f->x_m[i] / L) - lap_index(xold / L);
     }
 }
 
@@ -283,10 +303,113 @@ static void phase_advance(WfSim *s, int in_window)
         double xold[IBLOCK];
         for (size_t k = 0; k < m; k++) {
             xold[k] = f->x_m[lo + k];
-            stats_before(f, sc, lo + k, in_window, 1);
+            stats_before(f, sc, lo + k, f->a_mps2[lo + k], f->fuel_rate_gps[lo + k], f->flag[lo + k], in_window, 1);
         }
         ig->step(m, dt, f->x_m + lo, f->v_mps + lo, f->a_mps2 + lo);
         for (size_t k = 0; k < m; k++) stats_after(f, sc, lo + k, xold[k], in_window);
+    }
+}
+
+/* One block of the fused step (see step_fused). last_in_chunk: the block's last leader is (xs, vs). */
+static void fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double xs, double vs, long step,
+                        int in_window)
+{
+    WfFleet *f = s->f;
+    const WfScenario *sc = s->sc;
+    const WfRoad *road = &sc->road;
+    double a[FBLOCK], th[FBLOCK], fr[FBLOCK], gap[FBLOCK], vl[FBLOCK], z[FBLOCK], xold[FBLOCK];
+    double gv[FBLOCK], ga[FBLOCK], gt[FBLOCK], gf[FBLOCK];
+    uint8_t fl[FBLOCK], gfl[FBLOCK];
+    uint32_t idx[FBLOCK];
+    double *x = f->x_m + lo, *v = f->v_mps + lo;
+    if (s->noise) {
+        /* The block starts at an even index, so its pairs are whole: same draws as phase_noise. */
+        for (size_t k = 0; k < m; k += 2) {
+            double r[2];
+            wf_rng_normal2(sc->seed, WF_RNG_NOISE, (lo + k) / 2, (uint64_t)step, r);
+            z[k] = r[0];
+            if (k + 1 < m) z[k + 1] = r[1];
+        }
+    }
+    for (size_t k = 0; k < m; k++) {
+        size_t i = lo + k;
+        int edge = last_in_chunk && k + 1 == m;
+        double xl = edge ? xs : x[k + 1], vli = edge ? vs : v[k + 1];
+        double len_l = f->length_m[i + 1 < f->n ? i + 1 : 0];
+        size_t g = f->group_id[i];
+        const WfDriverGroup *grp = &sc->groups[g];
+        size_t psz = grp->model->param_size, ssz = grp->model->state_size;
+        const unsigned char *params = f->group_params[g] + (size_t)f->slot[i] * psz;
+        unsigned char *state = ssz ? f->group_state[g] + (size_t)f->slot[i] * ssz : NULL;
+        gap[k] = xl - len_l - x[k];
+        vl[k] = vli;
+        th[k] = wf_road_grade(road, x[k], &f->grade_seg[i]);
+        a[k] = accel_one(sc, grp, params, state, &sc->classes[f->class_id[i]].vc, gap[k], v[k], vli, th[k],
+                         s->noise ? z[k] : 0.0);
+    }
+    if (f->n_classes == 1) {
+        const WfVehicleClass *vc = &sc->classes[0].vc;
+        vc->model->eval(vc->params, m, v, a, th, 0, fr, fl);
+    } else {
+        for (size_t c = 0; c < f->n_classes; c++) {
+            size_t cnt = 0;
+            for (size_t k = 0; k < m; k++)
+                if (f->class_id[lo + k] == c) idx[cnt++] = (uint32_t)k;
+            if (!cnt) continue;
+            for (size_t j = 0; j < cnt; j++) gv[j] = v[idx[j]], ga[j] = a[idx[j]], gt[j] = th[idx[j]];
+            const WfVehicleClass *vc = &sc->classes[c].vc;
+            vc->model->eval(vc->params, cnt, gv, ga, gt, 0, gf, gfl);
+            for (size_t j = 0; j < cnt; j++) fr[idx[j]] = gf[j], fl[idx[j]] = gfl[j];
+        }
+    }
+    if (s->stateful) {
+        for (size_t k = 0; k < m; k++) {
+            size_t i = lo + k, g = f->group_id[i];
+            const WfCfModel *cm = sc->groups[g].model;
+            if (!cm->state_size || !cm->update_state) continue;
+            cm->update_state(f->group_params[g] + (size_t)f->slot[i] * cm->param_size,
+                             f->group_state[g] + (size_t)f->slot[i] * cm->state_size, gap[k], v[k], vl[k], sc->dt_s);
+        }
+    }
+    for (size_t k = 0; k < m; k++) {
+        xold[k] = x[k];
+        stats_before(f, sc, lo + k, a[k], fr[k], fl[k], in_window, 1);
+    }
+    s->ig->step(m, sc->dt_s, x, v, a);
+    for (size_t k = 0; k < m; k++) stats_after(f, sc, lo + k, xold[k], in_window);
+}
+
+/* A whole fixed-step time step in one pass over the vehicles, for steps that record nothing: per block of
+ * FBLOCK vehicles, noise, inputs, accelerations, fuel, controller memory, statistics and integration, with the
+ * block's intermediate values in local arrays instead of fleet-wide ones (far less memory traffic at large N).
+ * Positions and speeds are updated in place. That is race-free and order-free because every vehicle reads only
+ * its leader's values from the step's start: within a thread's chunk, vehicle i's leader i + 1 is updated after i;
+ * the leader of a chunk's last vehicle is the first vehicle of the next chunk (of chunk 0 for the last vehicle,
+ * one lap ahead), whose old position and speed are saved before any update. Same arithmetic as the multi-pass
+ * step (the same inline functions), so a vehicle's result does not depend on which path or thread ran it. */
+static void step_fused(WfSim *s, long step, int in_window)
+{
+    WfFleet *f = s->f;
+    const WfScenario *sc = s->sc;
+    size_t n = f->n, nblk = (n + FBLOCK - 1) / FBLOCK;
+    int nth = n >= PAR_MIN ? s->nthreads : 1;
+    if ((size_t)nth > nblk) nth = (int)nblk;
+    double *bx = s->bound_x, *bv = s->bound_v;
+#pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, nth, bx, bv, step, in_window)
+    {
+        int t = thread_id();
+        size_t b0 = nblk * (size_t)t / (size_t)nth, b1 = nblk * (size_t)(t + 1) / (size_t)nth;
+        size_t lo_t = b0 * FBLOCK, hi_t = b1 * FBLOCK < n ? b1 * FBLOCK : n;
+        bx[t] = f->x_m[lo_t];
+        bv[t] = f->v_mps[lo_t];
+#pragma omp barrier
+        /* Leader of this chunk's last vehicle: the next chunk's first, saved (plus one lap after the last). */
+        int tn = t + 1 < nth ? t + 1 : 0;
+        double xs = bx[tn] + (t + 1 < nth ? 0.0 : sc->road.length_m), vs = bv[tn];
+        for (size_t b = b0; b < b1; b++) {
+            size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
+            fused_block(s, lo, m, lo + m == hi_t, xs, vs, step, in_window);
+        }
     }
 }
 
@@ -334,7 +457,7 @@ static int phase_advance_ode(WfSim *s, double t_next, int in_window, WfError *er
     for (size_t i = 0; i < n; i++) {
         xold[i] = f->x_m[i];
         vold[i] = f->v_mps[i];
-        stats_before(f, sc, i, in_window, 0);
+        stats_before(f, sc, i, f->a_mps2[i], f->fuel_rate_gps[i], f->flag[i], in_window, 0);
     }
     int rc = wf_ode_advance(s->ode, t_next, f->x_m, f->v_mps, fs, err);
     if (rc) return rc;
@@ -374,7 +497,7 @@ static long phase_overlaps(WfSim *s, int in_window)
                 /* The step's distance and lap count were taken before the repair: correct them. */
                 if (in_window) {
                     f->dist_m[j] += x_new - f->x_m[j];
-                    f->laps[j] += (int64_t)(floor(x_new / L) - floor(f->x_m[j] / L));
+                    f->laps[j] += lap_index(x_new / L) - lap_index(f->x_m[j] / L);
                 }
                 f->x_m[j] = x_new;
                 f->v_mps[j] = 0.0;
@@ -424,6 +547,19 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
         double t = (double)step * sc->dt_s;
         double tp = wall_now(), tq;
 #define LAP(ph) (tq = wall_now(), s->phase_s[ph] += tq - tp, tp = tq)
+        int records = step % s->out_every == 0 || (sc->trajectories && step % s->traj_every == 0);
+        if (!s->ode && sc->fused_step && !records && step < s->n_steps) {
+            step_fused(s, step, step >= s->warm_steps);
+            LAP(WF_PHASE_FUSED);
+            s->repaired = phase_overlaps(s, step >= s->warm_steps) > 0;
+            LAP(WF_PHASE_INTEGRATION);
+            s->steps_done = step + 1;
+            if (stop && *stop) {
+                reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+                break;
+            }
+            continue;
+        }
         phase_noise(s, step);
         phase_accel(s, s->f->x_m, s->f->v_mps);
         LAP(WF_PHASE_CAR_FOLLOWING);
@@ -506,6 +642,7 @@ int wf_sim_ode_stats(const WfSim *s, WfOdeStats *st)
     return 1;
 }
 
-const char *const wf_phase_names[WF_N_PHASES] = {"car_following", "energy", "integration", "statistics", "output"};
+const char *const wf_phase_names[WF_N_PHASES] = {"car_following", "energy", "integration", "statistics", "output",
+                                                  "fused_step"};
 
 const double *wf_sim_phase_times(const WfSim *s) { return s->phase_s; }

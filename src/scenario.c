@@ -545,6 +545,8 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
     }
     snprintf(sc->integrator, sizeof sc->integrator, "%s", integ);
     if (load_solver(sc, root, integ, err)) return WF_EINPUT;
+    sc->fused_step = 1;
+    if (wf_cfg_bool_opt(time, "fused_step", &sc->fused_step, err)) return WF_EINPUT;
     /* The step must divide the output interval and the duration: records then fall on steps exactly. */
     double ratio = sc->output_interval_s / sc->dt_s, nsteps = sc->duration_s / sc->dt_s;
     if (sc->dt_s > sc->output_interval_s || fabs(ratio - round(ratio)) > 1e-9 * ratio)

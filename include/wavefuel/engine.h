@@ -18,9 +18,10 @@ typedef struct WfSim WfSim;
 
 /* Phases of a step whose wall time is measured (docs/output.md: /meta/phase_time). car_following includes the
  * noise draws; integration includes the per-vehicle statistics accumulated with it and the overlap check;
- * statistics is the time-series record; output the writer's callbacks. */
+ * statistics is the time-series record; output the writer's callbacks; fused_step the steps that record nothing,
+ * which run car-following, energy and integration in one pass (time.fused_step; set it false to split them). */
 enum { WF_PHASE_CAR_FOLLOWING, WF_PHASE_ENERGY, WF_PHASE_INTEGRATION, WF_PHASE_STATISTICS, WF_PHASE_OUTPUT,
-       WF_N_PHASES };
+       WF_PHASE_FUSED, WF_N_PHASES };
 extern const char *const wf_phase_names[WF_N_PHASES];
 
 /* Output sink (HDF5 in src/h5out.c; tests use their own). Each callback returns 0 or an error code. */

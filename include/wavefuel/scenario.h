@@ -60,6 +60,7 @@ typedef struct WfScenario {
     char    integrator[32];
     int     adaptive;             /* 1: a SUNDIALS integrator (cvode, arkode, rk4) configured by `solver` */
     WfOdeConfig solver;
+    int     fused_step;           /* 1: steps that record nothing run in one fused pass (same results, faster) */
     uint64_t seed;
     long    n_vehicles;
     WfPlacement placement;

@@ -41,7 +41,7 @@ static double ovm_accel(const void *params, const void *state, double gap_m, dou
     /* tanh(2.0) is folded to a constant by the compiler; d0 >= 0.1 m by the spec range. */
     const double t2 = tanh(2.0);
     double V = p->v_max_mps * (tanh(gap_m / p->d0_m - 2.0) + t2) / (1.0 + t2);
-    double s = fmax(gap_m, OVM_GAP_FLOOR_M);
+    double s = gap_m > OVM_GAP_FLOOR_M ? gap_m : OVM_GAP_FLOOR_M; /* not fmax(): a library call, same value */
     return p->alpha_per_s * (V - v_mps) + p->beta_m2_per_s * (v_lead_mps - v_mps) / (s * s);
 }
 
