@@ -71,14 +71,48 @@ void wf_cfg_destroy(WfCfg **cfg)
 }
 
 /* Builds the tree from events. The parser is recursive over nesting depth, which is bounded to keep
- * hostile input from exhausting the stack. */
-enum { MAX_DEPTH = 64 };
+ * hostile input from exhausting the stack; the node count is bounded too (each node costs ~150 bytes, so a
+ * 64 MiB file of "1," would otherwise take gigabytes). Long tables belong in CSV files. */
+enum { MAX_DEPTH = 64, MAX_NODES = 1000000 };
 
 typedef struct Builder {
     yaml_parser_t parser;
     const char   *file;
     WfError      *err;
+    size_t        n_nodes;
 } Builder;
+
+/* Duplicate keys of a finished map, found by sorting (a linear search per key made a map of n keys cost n^2
+ * string compares: minutes for a hostile file). Reports the first key, in file order, that repeats an
+ * earlier one, as the search did. */
+typedef struct KeyRef {
+    const WfCfgNode *node;
+    size_t           order;
+} KeyRef;
+
+static int by_key_then_order(const void *pa, const void *pb)
+{
+    const KeyRef *a = pa, *b = pb;
+    int c = strcmp(a->node->key, b->node->key);
+    return c ? c : (a->order > b->order) - (a->order < b->order);
+}
+
+static int check_duplicate_keys(Builder *b, const WfCfgNode *map)
+{
+    if (map->n_child < 2) return 0;
+    KeyRef *k = malloc(map->n_child * sizeof *k);
+    if (!k) return wf_err(b->err, WF_ESYS, "out of memory");
+    for (size_t i = 0; i < map->n_child; i++) k[i].node = map->child[i], k[i].order = i;
+    qsort(k, map->n_child, sizeof *k, by_key_then_order);
+    const WfCfgNode *dup = NULL;
+    size_t dup_order = (size_t)-1;
+    for (size_t i = 1; i < map->n_child; i++)
+        if (strcmp(k[i].node->key, k[i - 1].node->key) == 0 && k[i].order < dup_order)
+            dup = k[i].node, dup_order = k[i].order;
+    free(k);
+    if (!dup) return 0;
+    return wf_err(b->err, WF_EINPUT, "%s:%d: key '%s' appears twice", b->file, dup->line, dup->key);
+}
 
 static int parse_node(Builder *b, yaml_event_t *ev, WfCfgNode **out, int depth);
 
@@ -112,7 +146,7 @@ static int parse_children(Builder *b, WfCfgNode *n, int depth)
         if (next_event(b, &ev)) return WF_EINPUT;
         if (ev.type == YAML_MAPPING_END_EVENT || ev.type == YAML_SEQUENCE_END_EVENT) {
             yaml_event_delete(&ev);
-            return 0;
+            return n->kind == WF_CFG_MAP ? check_duplicate_keys(b, n) : 0;
         }
         char *key = NULL;
         int key_line = (int)ev.start_mark.line + 1;
@@ -128,11 +162,6 @@ static int parse_children(Builder *b, WfCfgNode *n, int depth)
             key = strdup((const char *)ev.data.scalar.value);
             yaml_event_delete(&ev);
             if (!key) return wf_err(b->err, WF_ESYS, "out of memory");
-            if (wf_cfg_child(n, key)) {
-                int rc = wf_err(b->err, WF_EINPUT, "%s:%d: key '%s' appears twice", b->file, key_line, key);
-                free(key);
-                return rc;
-            }
             if (next_event(b, &ev)) {
                 free(key);
                 return WF_EINPUT;
@@ -165,6 +194,11 @@ static int parse_node(Builder *b, yaml_event_t *ev, WfCfgNode **out, int depth)
     if (depth > MAX_DEPTH) {
         yaml_event_delete(ev);
         return wf_err(b->err, WF_EINPUT, "%s:%d: nesting deeper than %d levels", b->file, line, MAX_DEPTH);
+    }
+    if (++b->n_nodes > MAX_NODES) {
+        yaml_event_delete(ev);
+        return wf_err(b->err, WF_EINPUT, "%s:%d: more than %d values: not a configuration file (long tables "
+                      "belong in CSV files)", b->file, line, MAX_NODES);
     }
     WfCfgNode *n = NULL;
     switch (ev->type) {
