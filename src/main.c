@@ -11,7 +11,6 @@ static const WfCommand commands[] = {
     {"energy", "evaluate a vehicle class's fuel rate at (v, a, theta) points", wf_cmd_energy},
     {"cycle", "drive a vehicle class over a drive cycle, or run the paper's validation protocol", wf_cmd_cycle},
     {"table", "import a tabulated (semi-principled) energy model: CSV -> HDF5", wf_cmd_table},
-    {"fit", "derive an explicit vehicle class model from a tabulated one (model reduction)", wf_cmd_fit},
 };
 enum { N_COMMANDS = sizeof commands / sizeof commands[0] };
 
