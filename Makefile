@@ -19,6 +19,8 @@ endif
 ifeq ($(OPENMP),1)
 override CFLAGS += -fopenmp
 override LDFLAGS += -fopenmp
+else
+override CFLAGS += -Wno-unknown-pragmas
 endif
 LDLIBS   += $(HDF5_LIBS) -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -lsundials_nvecopenmp \
             -lsundials_sunlinsolspgmr -lsundials_sunnonlinsolfixedpoint -lsundials_sunnonlinsolnewton \
