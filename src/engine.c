@@ -33,6 +33,11 @@ struct WfSim {
     int      repaired;      /* the last step repaired an overlap */
     double   phase_s[WF_N_PHASES]; /* wall time per phase */
     double  *bound_x, *bound_v;    /* fused step: each chunk's first vehicle at the step's start */
+    double   checkpoint_every_s;
+    struct {                       /* scalars of the state, packed for wf_sim_state */
+        int64_t steps_done, overlaps, n_sd, repaired;
+        double  sd_sum;
+    } ck;
     int      stateful;      /* some driver model keeps per-vehicle memory */
     double   sd_sum;
     long     n_sd;
@@ -543,7 +548,8 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
     const char *reason = NULL;
     WfTsRow row;
     long step;
-    for (step = 0; step <= s->n_steps; step++) {
+    double last_ckpt = t0;
+    for (step = s->steps_done; step <= s->n_steps; step++) {
         double t = (double)step * sc->dt_s;
         double tp = wall_now(), tq;
 #define LAP(ph) (tq = wall_now(), s->phase_s[ph] += tq - tp, tp = tq)
@@ -557,6 +563,10 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
             if (stop && *stop) {
                 reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
                 break;
+            }
+            if (s->checkpoint_every_s > 0 && out && out->checkpoint && wall_now() - last_ckpt >= s->checkpoint_every_s) {
+                if ((rc = out->checkpoint(out->ctx, s, err))) break;
+                last_ckpt = wall_now();
             }
             continue;
         }
@@ -603,6 +613,10 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
             reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
             break;
         }
+        if (s->checkpoint_every_s > 0 && out && out->checkpoint && wall_now() - last_ckpt >= s->checkpoint_every_s) {
+            if ((rc = out->checkpoint(out->ctx, s, err))) break;
+            last_ckpt = wall_now();
+        }
         if (progress && (step & 63) == 0) {
             double now = wall_now();
             if (now - last_progress >= 0.2) {
@@ -622,6 +636,14 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
         return rc;
     }
     int completed = reason == NULL;
+    /* An interrupted run can always be resumed from where it stopped. */
+    if (!completed && out && out->checkpoint && (rc = out->checkpoint(out->ctx, s, err))) {
+        if (out->end) {
+            WfError e2 = {0};
+            out->end(out->ctx, s, 0, err->msg, &e2);
+        }
+        return rc;
+    }
     if (out && out->end && (rc = out->end(out->ctx, s, completed, reason ? reason : "", err))) return rc;
     if (!completed) return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
                                   (double)s->steps_done * sc->dt_s);
@@ -646,3 +668,61 @@ const char *const wf_phase_names[WF_N_PHASES] = {"car_following", "energy", "int
                                                   "fused_step"};
 
 const double *wf_sim_phase_times(const WfSim *s) { return s->phase_s; }
+
+void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s) { s->checkpoint_every_s = wall_s; }
+
+size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
+{
+    WfFleet *f = s->f;
+    size_t n = f->n, k = 0;
+    s->ck.steps_done = s->steps_done;
+    s->ck.overlaps = s->overlaps;
+    s->ck.n_sd = s->n_sd;
+    s->ck.repaired = s->repaired;
+    s->ck.sd_sum = s->sd_sum;
+#define VAR(nm, ptr, bytes)                                               \
+    do {                                                                  \
+        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (bytes)}; \
+        k++;                                                              \
+    } while (0)
+    VAR("scalars", &s->ck, sizeof s->ck);
+    VAR("x", f->x_m, n * sizeof *f->x_m);
+    VAR("v", f->v_mps, n * sizeof *f->v_mps);
+    VAR("grade_seg", f->grade_seg, n * sizeof *f->grade_seg);
+    VAR("dist", f->dist_m, n * sizeof *f->dist_m);
+    VAR("fuel", f->fuel_g, n * sizeof *f->fuel_g);
+    VAR("time_stopped", f->time_stopped_s, n * sizeof *f->time_stopped_s);
+    VAR("sum_v", f->sum_v, n * sizeof *f->sum_v);
+    VAR("sum_v2", f->sum_v2, n * sizeof *f->sum_v2);
+    VAR("sum_a", f->sum_a, n * sizeof *f->sum_a);
+    VAR("sum_a2", f->sum_a2, n * sizeof *f->sum_a2);
+    VAR("stops", f->stops, n * sizeof *f->stops);
+    VAR("hard_brakes", f->hard_brakes, n * sizeof *f->hard_brakes);
+    VAR("infeasible_steps", f->infeasible_steps, n * sizeof *f->infeasible_steps);
+    VAR("laps", f->laps, n * sizeof *f->laps);
+    VAR("mode", f->mode, n * sizeof *f->mode);
+    static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",
+                                                           "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
+                                                           "ctrl12", "ctrl13", "ctrl14", "ctrl15"};
+    for (size_t g = 0; g < f->n_groups; g++) {
+        size_t ssz = s->sc->groups[g].model->state_size;
+        if (ssz) VAR(state_names[g], f->group_state[g], f->group_n[g] * ssz);
+    }
+#undef VAR
+    return k;
+}
+
+void wf_sim_restored(WfSim *s)
+{
+    s->steps_done = (long)s->ck.steps_done;
+    s->overlaps = s->ck.overlaps;
+    s->n_sd = (long)s->ck.n_sd;
+    s->repaired = (int)s->ck.repaired;
+    s->sd_sum = s->ck.sd_sum;
+    /* A SUNDIALS solver restarts from the restored state (as after a noise change): exact with noise or
+     * controller memory, where the uninterrupted run restarts at every step too; within tolerance otherwise. */
+    if (s->ode) {
+        WfError e = {0};
+        wf_ode_reinit(s->ode, (double)s->steps_done * s->sc->dt_s, s->f->x_m, s->f->v_mps, &e);
+    }
+}

@@ -6,7 +6,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <errno.h>
+#include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 #include "h5util.h"
 #include "wavefuel/version.h"
@@ -24,7 +27,11 @@ struct WfH5Out {
     double    *tbuf;     /* one trajectory frame */
     size_t     n_buf, n_classes;
     char       started[64];
+    int        resume;                  /* reopened .partial of an interrupted run */
+    hsize_t    resume_ts_rows, resume_traj_rows;
 };
+
+static void ckpt_path_of(const char *result, char *out, size_t len) { snprintf(out, len, "%s.ckpt", result); }
 
 static int flush_ts(WfH5Out *w, WfError *err)
 {
@@ -157,9 +164,12 @@ static int write_classes_drivers(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
+static int h5_begin_resume(WfH5Out *w, const WfSim *sim, WfError *err);
+
 static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
 {
     WfH5Out *w = ctx;
+    if (w->resume) return h5_begin_resume(w, sim, err);
     const WfScenario *sc = wf_sim_scenario(sim);
     const WfFleet *f = wf_sim_fleet(sim);
     hid_t fid = w->file->fid;
@@ -388,7 +398,197 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
         return rc;
     }
     snprintf(w->final_path, sizeof w->final_path, "%s", w->file->path);
-    return wf_h5_commit(&w->file, err);
+    char ck[1200];
+    ckpt_path_of(w->file->path, ck, sizeof ck);
+    rc = wf_h5_commit(&w->file, err);
+    if (!rc) unlink(ck); /* the result is complete: its checkpoint is of no further use */
+    return rc;
+}
+
+/* ---- checkpoints (FILE.h5.ckpt) and resumption ---- */
+
+static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
+{
+    WfH5Out *w = ctx;
+    const WfScenario *sc = wf_sim_scenario(sim);
+    int rc = flush_ts(w, err);
+    if (rc) return rc;
+    /* The result file must hold every row the checkpoint counts before the checkpoint exists. */
+    if (H5Fflush(w->file->fid, H5F_SCOPE_GLOBAL) < 0) return wf_err(err, WF_ESYS, "HDF5: flush %s", w->file->partial);
+    char ck[1200], tmp[1210];
+    ckpt_path_of(w->file->path, ck, sizeof ck);
+    snprintf(tmp, sizeof tmp, "%s.tmp", ck);
+    hid_t f = H5Fcreate(tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    if (f < 0) return wf_err(err, WF_ESYS, "%s: cannot create the checkpoint", tmp);
+    WfStateVar vars[64];
+    size_t nv = wf_sim_state((WfSim *)sim, vars, 64);
+    rc = wf_h5_attr_str(f, "scenario_path", sc->path, err) ||
+         wf_h5_attr_i64(f, "ts_rows", (int64_t)w->ts[0].rows, err) ||
+         wf_h5_attr_i64(f, "traj_rows", (int64_t)w->tr_t.rows, err) ||
+         wf_h5_attr_i64(f, "steps_done", wf_sim_steps_done(sim), err) ||
+         wf_h5_scalar_str(f, "scenario_text", sc->text, "scenario file verbatim", err) ||
+         wf_h5_scalar_str(f, "overrides", sc->overrides, "--set assignments, one per line", err);
+    hid_t g = rc ? H5I_INVALID_HID : wf_h5_group(f, "state", err);
+    if (!rc && g < 0) rc = WF_ESYS;
+    for (size_t i = 0; !rc && i < nv && i < 64; i++) {
+        hsize_t dim = vars[i].size;
+        rc = wf_h5_write_u8(g, vars[i].name, 1, &dim, vars[i].data, "1", "raw bytes of an engine state block", err);
+    }
+    if (g >= 0) H5Gclose(g);
+    if (H5Fclose(f) < 0 && !rc) rc = wf_err(err, WF_ESYS, "%s: close failed", tmp);
+    if (!rc && rename(tmp, ck) != 0) rc = wf_err(err, WF_ESYS, "rename %s -> %s: %s", tmp, ck, strerror(errno));
+    if (rc) unlink(tmp);
+    return rc;
+}
+
+static int read_scalar_string(hid_t loc, const char *name, char **out, WfError *err)
+{
+    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), t = H5Tcopy(H5T_C_S1);
+    char *s = NULL;
+    int rc = d < 0 || t < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0 ||
+             H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) < 0 || !s;
+    if (!rc) {
+        *out = strdup(s);
+        if (!*out) rc = 1;
+    }
+    if (s) H5free_memory(s);
+    if (t >= 0) H5Tclose(t);
+    if (d >= 0) H5Dclose(d);
+    return rc ? wf_err(err, WF_EINPUT, "checkpoint: cannot read '%s'", name) : 0;
+}
+
+void wf_checkpoint_info_free(WfCheckpointInfo *ck)
+{
+    free(ck->scenario_text);
+    free(ck->overrides);
+    ck->scenario_text = ck->overrides = NULL;
+}
+
+int wf_h5out_read_checkpoint(const char *result, WfCheckpointInfo *ck, WfError *err)
+{
+    memset(ck, 0, sizeof *ck);
+    char path[1200];
+    ckpt_path_of(result, path, sizeof path);
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    struct stat st;
+    if (stat(result, &st) == 0)
+        return wf_err(err, WF_EINPUT, "%s is complete: nothing to resume", result);
+    if (stat(path, &st) != 0)
+        return wf_err(err, WF_EINPUT, "%s: no checkpoint (runs leave one when interrupted, or with --checkpoint-every)",
+                      path);
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (f < 0) return wf_err(err, WF_EINPUT, "%s: not a readable checkpoint", path);
+    int rc = read_scalar_string(f, "scenario_text", &ck->scenario_text, err);
+    if (!rc) rc = read_scalar_string(f, "overrides", &ck->overrides, err);
+    char sp[1024] = "";
+    if (!rc) {
+        hid_t a = H5Aopen(f, "scenario_path", H5P_DEFAULT), t = a >= 0 ? H5Aget_type(a) : H5I_INVALID_HID;
+        size_t sz = t >= 0 ? H5Tget_size(t) : 0;
+        if (a < 0 || t < 0 || sz >= sizeof sp || H5Aread(a, t, sp) < 0) rc = wf_err(err, WF_EINPUT, "%s: no scenario_path", path);
+        if (t >= 0) H5Tclose(t);
+        if (a >= 0) H5Aclose(a);
+        sp[sz < sizeof sp ? sz : sizeof sp - 1] = '\0';
+    }
+    snprintf(ck->scenario_path, sizeof ck->scenario_path, "%s", sp);
+    H5Fclose(f);
+    if (rc) wf_checkpoint_info_free(ck);
+    return rc;
+}
+
+int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err)
+{
+    *out = NULL;
+    char path[1200];
+    ckpt_path_of(result, path, sizeof path);
+    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
+    if (f < 0) return wf_err(err, WF_EINPUT, "%s: not a readable checkpoint", path);
+    int64_t ts_rows = 0, traj_rows = 0;
+    hid_t a1 = H5Aopen(f, "ts_rows", H5P_DEFAULT), a2 = H5Aopen(f, "traj_rows", H5P_DEFAULT);
+    int rc = a1 < 0 || a2 < 0 || H5Aread(a1, H5T_NATIVE_INT64, &ts_rows) < 0 ||
+             H5Aread(a2, H5T_NATIVE_INT64, &traj_rows) < 0;
+    if (a1 >= 0) H5Aclose(a1);
+    if (a2 >= 0) H5Aclose(a2);
+    if (rc) {
+        H5Fclose(f);
+        return wf_err(err, WF_EINPUT, "%s: damaged checkpoint (row counts)", path);
+    }
+    /* Every state block must exist with exactly the size this scenario gives it. */
+    WfStateVar vars[64];
+    size_t nv = wf_sim_state(sim, vars, 64);
+    for (size_t i = 0; !rc && i < nv && i < 64; i++) {
+        char name[128];
+        snprintf(name, sizeof name, "state/%s", vars[i].name);
+        hid_t d = H5Dopen2(f, name, H5P_DEFAULT), sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
+        hssize_t np = sp >= 0 ? H5Sget_simple_extent_npoints(sp) : -1;
+        if (d < 0 || np != (hssize_t)vars[i].size)
+            rc = wf_err(err, WF_EINPUT, "%s: state block '%s' is missing or has %lld bytes, the scenario needs %zu",
+                        path, vars[i].name, (long long)np, vars[i].size);
+        else if (H5Dread(d, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, vars[i].data) < 0)
+            rc = wf_err(err, WF_ESYS, "%s: cannot read state block '%s'", path, vars[i].name);
+        if (sp >= 0) H5Sclose(sp);
+        if (d >= 0) H5Dclose(d);
+    }
+    H5Fclose(f);
+    if (rc) return rc;
+    wf_sim_restored(sim);
+
+    WfH5Out *w = calloc(1, sizeof *w);
+    WfH5File *hf = calloc(1, sizeof *hf);
+    if (!w || !hf) {
+        free(w);
+        free(hf);
+        return wf_err(err, WF_ESYS, "out of memory");
+    }
+    snprintf(hf->path, sizeof hf->path, "%s", result);
+    snprintf(hf->partial, sizeof hf->partial, "%s.partial", result);
+    hf->fid = H5Fopen(hf->partial, H5F_ACC_RDWR, H5P_DEFAULT);
+    if (hf->fid < 0) {
+        rc = wf_err(err, WF_EINPUT, "%s: cannot reopen the partial result (damaged by a hard kill?)", hf->partial);
+        free(w);
+        free(hf);
+        return rc;
+    }
+    w->file = hf;
+    w->g_ts = w->g_traj = H5I_INVALID_HID;
+    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+    for (size_t i = 0; i < 6; i++) all[i]->dset = H5I_INVALID_HID;
+    for (size_t c = 0; c < WF_TS_N_COLS; c++) w->ts[c].dset = H5I_INVALID_HID;
+    w->resume = 1;
+    w->resume_ts_rows = (hsize_t)ts_rows;
+    w->resume_traj_rows = (hsize_t)traj_rows;
+    *ops = (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
+                      .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
+    *out = w;
+    return 0;
+}
+
+static int h5_begin_resume(WfH5Out *w, const WfSim *sim, WfError *err)
+{
+    const WfScenario *sc = wf_sim_scenario(sim);
+    hid_t fid = w->file->fid;
+    w->n_classes = sc->n_classes;
+    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
+    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
+    /* What the interrupted run wrote at its end is rewritten at the end of this one. */
+    const char *stale[] = {"vehicles", "summary", "solver"};
+    for (int i = 0; i < 3; i++)
+        if (H5Lexists(fid, stale[i], H5P_DEFAULT) > 0 && H5Ldelete(fid, stale[i], H5P_DEFAULT) < 0)
+            return wf_err(err, WF_ESYS, "HDF5: cannot remove /%s from %s", stale[i], w->file->partial);
+    w->g_ts = H5Gopen2(fid, "timeseries", H5P_DEFAULT);
+    if (w->g_ts < 0) return wf_err(err, WF_EINPUT, "%s: no /timeseries", w->file->partial);
+    for (size_t c = 0; c < WF_TS_N_COLS; c++)
+        if (wf_h5_series_open(w->g_ts, wf_ts_columns[c].name, w->resume_ts_rows, &w->ts[c], err)) return WF_EINPUT;
+    if (wf_h5_series_open(w->g_ts, "class_fuel_rate", w->resume_ts_rows, &w->ts_class, err)) return WF_EINPUT;
+    if (sc->trajectories) {
+        w->tbuf = malloc(wf_sim_fleet(sim)->n * sizeof *w->tbuf);
+        w->g_traj = H5Gopen2(fid, "trajectories", H5P_DEFAULT);
+        if (!w->tbuf || w->g_traj < 0) return wf_err(err, WF_EINPUT, "%s: no /trajectories", w->file->partial);
+        const char *names[] = {"t", "x", "v", "a", "fuel_rate"};
+        WfH5Series *tr[] = {&w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+        for (int i = 0; i < 5; i++)
+            if (wf_h5_series_open(w->g_traj, names[i], w->resume_traj_rows, tr[i], err)) return WF_EINPUT;
+    }
+    return 0;
 }
 
 int wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, WfError *err)
@@ -405,7 +605,8 @@ int wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, W
         free(w);
         return rc;
     }
-    *ops = (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory, .end = h5_end, .ctx = w};
+    *ops = (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
+                      .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
     *out = w;
     return 0;
 }
@@ -421,7 +622,8 @@ void wf_h5out_destroy(WfH5Out **pw)
     }
     if (w->g_ts >= 0) H5Gclose(w->g_ts);
     if (w->g_traj >= 0) H5Gclose(w->g_traj);
-    if (w->file) wf_h5_abandon(&w->file, !w->ended);
+    /* A run that never started writing removes its empty file; a resumed one never deletes what it reopened. */
+    if (w->file) wf_h5_abandon(&w->file, !w->ended && !w->resume);
     free(w->buf);
     free(w->tbuf);
     free(w);

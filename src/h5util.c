@@ -267,3 +267,25 @@ void wf_h5_series_close(WfH5Series *s)
     if (s->dset >= 0) H5Dclose(s->dset);
     s->dset = H5I_INVALID_HID;
 }
+
+int wf_h5_series_open(hid_t loc, const char *name, hsize_t keep_rows, WfH5Series *s, WfError *err)
+{
+    memset(s, 0, sizeof *s);
+    snprintf(s->name, sizeof s->name, "%s", name);
+    s->dset = H5Dopen2(loc, name, H5P_DEFAULT);
+    if (s->dset < 0) return h5fail(err, "open dataset", name);
+    hid_t sp = H5Dget_space(s->dset);
+    hsize_t dims[2] = {0, 0};
+    int rank = sp >= 0 ? H5Sget_simple_extent_dims(sp, dims, NULL) : -1;
+    if (sp >= 0) H5Sclose(sp);
+    if (rank < 1 || rank > 2) return h5fail(err, "read the shape of", name);
+    if (dims[0] < keep_rows)
+        return wf_err(err, WF_EINPUT, "dataset '%s' has %llu rows, the checkpoint needs %llu", name,
+                      (unsigned long long)dims[0], (unsigned long long)keep_rows);
+    s->cols = rank == 2 ? dims[1] : 0;
+    s->rows = keep_rows;
+    dims[0] = keep_rows;
+    /* Rows written after the checkpoint are dropped: the resumed run writes them again. */
+    if (H5Dset_extent(s->dset, dims) < 0) return h5fail(err, "truncate dataset", name);
+    return 0;
+}

@@ -58,6 +58,8 @@ typedef struct WfH5Series {
 } WfH5Series;
 int  wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t chunk_rows, int compress,
                          const char *units, const char *desc, WfH5Series *s, WfError *err);
+/* Reopen an extendible dataset of an existing file, keeping its first keep_rows rows. */
+int  wf_h5_series_open(hid_t loc, const char *name, hsize_t keep_rows, WfH5Series *s, WfError *err);
 int  wf_h5_series_append(WfH5Series *s, hsize_t n_rows, const double *rows, WfError *err);
 void wf_h5_series_close(WfH5Series *s);
 

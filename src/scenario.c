@@ -633,12 +633,31 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
     return wf_cfg_check_unused(cfg, err);
 }
 
+static int load_cfg(WfCfg *cfg, const char *path, const char *const *set, size_t n_set, WfScenario **out,
+                    WfError *err);
+
 int wf_scenario_load(const char *path, const char *const *set, size_t n_set, WfScenario **out, WfError *err)
 {
     *out = NULL;
     WfCfg *cfg = NULL;
     int rc = wf_cfg_load_file(path, &cfg, err);
-    if (rc) return rc;
+    return rc ? rc : load_cfg(cfg, path, set, n_set, out, err);
+}
+
+int wf_scenario_load_text(const char *path, const char *text, const char *const *set, size_t n_set,
+                          WfScenario **out, WfError *err)
+{
+    *out = NULL;
+    WfCfg *cfg = NULL;
+    int rc = wf_cfg_load_string(path, text, strlen(text), &cfg, err);
+    return rc ? rc : load_cfg(cfg, path, set, n_set, out, err);
+}
+
+/* Takes ownership of cfg. */
+static int load_cfg(WfCfg *cfg, const char *path, const char *const *set, size_t n_set, WfScenario **out,
+                    WfError *err)
+{
+    int rc = 0;
     WfScenario *sc = calloc(1, sizeof *sc);
     if (!sc) {
         wf_cfg_destroy(&cfg);

@@ -29,6 +29,9 @@ typedef struct WfOutput {
     int (*begin)(void *ctx, const WfSim *sim, WfError *err);
     int (*record)(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err);
     int (*trajectory)(void *ctx, const WfSim *sim, double t_s, WfError *err); /* x, v, a, fuel rate now */
+    /* Save everything needed to resume (called every checkpoint interval of wall time, and when the run is
+     * interrupted); may be NULL. */
+    int (*checkpoint)(void *ctx, const WfSim *sim, WfError *err);
     /* completed: 1 when the run reached its end; reason otherwise ("interrupted by SIGINT"...). */
     int (*end)(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err);
     void *ctx;
@@ -53,6 +56,19 @@ long              wf_sim_steps_done(const WfSim *sim);
 int               wf_sim_threads(const WfSim *sim);
 /* Wall time spent in each phase so far (WF_N_PHASES entries, seconds). */
 const double     *wf_sim_phase_times(const WfSim *sim);
+/* The complete state of a run, as named byte blocks: positions, speeds, accumulators, controller memory, step
+ * counter and the running sums of the statistics (the random numbers are counter-based: the step counter is their
+ * state). wf_sim_state() fills `vars` (at most max) and returns their number; the blocks can be saved, and after
+ * writing saved bytes back into them, wf_sim_restored() makes the run continue from the saved step. */
+typedef struct WfStateVar {
+    const char *name;
+    void       *data;
+    size_t      size; /* bytes */
+} WfStateVar;
+size_t wf_sim_state(WfSim *sim, WfStateVar *vars, size_t max);
+void   wf_sim_restored(WfSim *sim);
+/* Call out->checkpoint every `wall_s` seconds of wall time (0: only when interrupted). */
+void   wf_sim_set_checkpoint_interval(WfSim *sim, double wall_s);
 /* Solver statistics of a SUNDIALS run: returns 1 and fills *st, or 0 for a fixed-step integrator. */
 int               wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st);
 

@@ -20,6 +20,20 @@ const char *wf_h5out_path(const WfH5Out *w);
 
 
 #include <stdio.h>
+
+/* Checkpoints: FILE.h5.ckpt holds the scenario text, the overrides and every state block of the engine; it is
+ * replaced atomically at each checkpoint, written when a run is interrupted, removed when the run completes. */
+typedef struct WfCheckpointInfo {
+    char *scenario_text, *overrides; /* owned */
+    char  scenario_path[1024];
+} WfCheckpointInfo;
+/* Read what is needed to rebuild the scenario of an interrupted run whose result is `result` (FILE.h5). Fails
+ * if FILE.h5 already exists (complete) or there is no checkpoint. */
+int  wf_h5out_read_checkpoint(const char *result, WfCheckpointInfo *ck, WfError *err);
+void wf_checkpoint_info_free(WfCheckpointInfo *ck);
+/* Load the checkpoint's state into `sim` (built from that scenario) and reopen FILE.h5.partial to continue
+ * writing it, dropping rows written after the checkpoint. */
+int  wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err);
 /* `wavefuel info`: print a result file's /meta status and every /summary value with its units. Works on
  * .partial files too. WF_EINPUT if the file is not a wavefuel result. */
 int wf_h5out_info(const char *path, FILE *out, WfError *err);

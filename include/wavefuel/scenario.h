@@ -82,6 +82,10 @@ typedef struct WfScenario {
 
 /* Load, apply `n_set` overrides ("key.path=value"), validate. On error nothing is allocated. */
 int wf_scenario_load(const char *path, const char *const *set, size_t n_set, WfScenario **out, WfError *err);
+/* Same from the scenario's text (a resumed run uses the text saved in its checkpoint); `path` is used in messages
+ * and to resolve relative paths (grade CSV, class files). */
+int wf_scenario_load_text(const char *path, const char *text, const char *const *set, size_t n_set,
+                          WfScenario **out, WfError *err);
 void wf_scenario_destroy(WfScenario **sc);
 
 /* Number of steps and output records implied by the time section. */
