@@ -34,6 +34,7 @@ struct WfSim {
     double   phase_s[WF_N_PHASES]; /* wall time per phase */
     double  *bound_x, *bound_v;    /* fused step: each chunk's first vehicle at the step's start */
     double   checkpoint_every_s;
+    long     fault_vehicle;         /* first vehicle with a non-finite state, or -1 */
     struct {                       /* scalars of the state, packed for wf_sim_state */
         int64_t steps_done, overlaps, n_sd, repaired;
         double  sd_sum;
@@ -104,6 +105,7 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     s->traj_every = lround(sc->trajectory_interval_s / sc->dt_s);
     if (s->traj_every < 1) s->traj_every = 1;
     s->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
+    s->fault_vehicle = -1;
 #ifdef _OPENMP
     s->nthreads = omp_get_max_threads();
 #else
@@ -266,7 +268,10 @@ static inline void stats_before(WfFleet *f, const WfScenario *sc, size_t i, doub
         f->infeasible_steps[i] += flag == 1;
         f->hard_brakes[i] += braking && !(mode & WF_MODE_BRAKING);
     }
-    f->mode[i] = (uint8_t)((mode & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0));
+    /* A non-finite acceleration or fuel rate would be laundered by the integrator (NaN fails v >= 0 and looks
+     * like a stop): flag it so the step ends in a numerical-fault error. */
+    int fault = !isfinite(ai) || !isfinite(fuel_rate_gps);
+    f->mode[i] = (uint8_t)((mode & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0) | (fault ? WF_MODE_FAULT : 0));
 }
 
 /* floor(q) as an integer without the libm call (floor is not inlined on baseline x86-64): truncate, then step
@@ -482,13 +487,25 @@ static long phase_overlaps(WfSim *s, int in_window)
     WfFleet *f = s->f;
     size_t n = f->n;
     double L = s->sc->road.length_m;
-    const double *x = f->x_m, *len = f->length_m;
-    long bad = 0;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, x, len, L) reduction(+ : bad)
+    const double *x = f->x_m, *v = f->v_mps, *len = f->length_m;
+    const uint8_t *mode = f->mode;
+    long bad = 0, nonfinite = 0;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, x, v, len, L, mode) \
+    reduction(+ : bad, nonfinite)
     for (size_t i = 0; i < n; i++) {
         size_t lead = i + 1 < n ? i + 1 : 0;
         double xl = x[lead] + (i + 1 < n ? 0.0 : L);
         bad += xl - len[lead] - x[i] < 0.0;
+        nonfinite += !isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT);
+    }
+    /* A non-finite state, acceleration or fuel rate is a numerical fault: the run stops (see wf_sim_run). */
+    if (nonfinite) {
+        for (size_t i = 0; i < n; i++)
+            if (!isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT)) {
+                s->fault_vehicle = (long)i;
+                break;
+            }
+        return 0;
     }
     if (!bad || n < 2) return 0;
     long total = 0;
@@ -538,6 +555,20 @@ static void phase_controller_state(WfSim *s)
     }
 }
 
+/* The error of a numerical fault: which vehicle, when, its model and the inputs of the step that failed. */
+static int numerical_fault(WfSim *s, long step, WfError *err)
+{
+    const WfFleet *f = s->f;
+    size_t i = (size_t)s->fault_vehicle, n = f->n, lead = i + 1 < n ? i + 1 : 0;
+    const WfDriverGroup *g = &s->sc->groups[f->group_id[i]];
+    return wf_err(err, WF_ESYS,
+                  "numerical fault at t = %.9g s: vehicle %zu (driver group '%s', model %s, class %s): a non-finite "
+                  "acceleration, fuel rate or state (now x = %g m, v = %g m/s; leader vehicle %zu at v = %g m/s); "
+                  "partial results kept",
+                  (double)(step + 1) * s->sc->dt_s, i, g->name, g->model->name, s->sc->classes[f->class_id[i]].vc.name,
+                  f->x_m[i], f->v_mps[i], lead, f->v_mps[lead]);
+}
+
 int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
                WfError *err)
 {
@@ -559,6 +590,10 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
             LAP(WF_PHASE_FUSED);
             s->repaired = phase_overlaps(s, step >= s->warm_steps) > 0;
             LAP(WF_PHASE_INTEGRATION);
+            if (s->fault_vehicle >= 0) {
+                rc = numerical_fault(s, step, err);
+                break;
+            }
             s->steps_done = step + 1;
             if (stop && *stop) {
                 reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
@@ -607,6 +642,11 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
         LAP(WF_PHASE_INTEGRATION);
         s->repaired = phase_overlaps(s, in_window) > 0;
         LAP(WF_PHASE_INTEGRATION);
+        if (s->fault_vehicle >= 0) {
+            rc = numerical_fault(s, step, err);
+            break;
+        }
+
 #undef LAP
         s->steps_done = step + 1;
         if (stop && *stop) {

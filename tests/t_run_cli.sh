@@ -139,3 +139,16 @@ msg=$($BIN run --resume "$tmp/r2.h5" -q 2>&1); rc=$?
 if [ $rc -eq 2 ] && echo "$msg" | grep -q "is complete"; then ok resume_refuses_complete; else ko resume_refuses_complete "rc=$rc $msg"; fi
 msg=$($BIN run --resume "$tmp/nothing.h5" -q 2>&1); rc=$?
 if [ $rc -eq 2 ] && echo "$msg" | grep -q "no checkpoint"; then ok resume_without_checkpoint; else ko resume_without_checkpoint "rc=$rc $msg"; fi
+
+# Numerical faults: a model that returns NaN stops the run with an error naming the vehicle, time and model,
+# exit status 1, and the partial result is kept and readable.
+if cc -std=c11 -O1 -fPIC -shared -Iinclude tests/data/nan_plugin.c -o "$tmp/nan_plugin.so" -lm 2>"$tmp/cc.log"; then
+  printf 'road: {length_m: 1000}\ntime: {duration_s: 60, dt_s: 0.1}\nfleet:\n  vehicles: 10\n  classes: [{class: midsize_sedan, count: 10}]\n  drivers: [{model: plugin, path: nan_plugin.so, count: 10}]\ninitial: {state: rest}\n' > "$tmp/nan.yaml"
+  msg=$($BIN run "$tmp/nan.yaml" -q -o "$tmp/nan.h5" 2>&1); rc=$?
+  if [ $rc -eq 1 ] && echo "$msg" | grep -q "numerical fault at t = .*vehicle [0-9]* (driver group .*model nan_after_5mps" &&
+     [ -f "$tmp/nan.h5.partial" ] && [ ! -e "$tmp/nan.h5" ] &&
+     $PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); assert f['meta/completed'][()]==0; assert 'numerical fault' in f['meta/reason'][()].decode()" "$tmp/nan.h5.partial"
+  then ok numerical_fault_stops_run; else ko numerical_fault_stops_run "rc=$rc $msg"; fi
+else
+  ko numerical_fault_stops_run "cannot build the test plugin: $(cat "$tmp/cc.log")"
+fi

@@ -35,12 +35,12 @@ typedef struct WfFleet {
     double   *dist_m, *fuel_g, *time_stopped_s, *sum_v, *sum_v2, *sum_a, *sum_a2;
     uint32_t *stops, *hard_brakes, *infeasible_steps;
     int64_t  *laps;      /* passages of the reference point x = 0 (mod L) */
-    uint8_t  *mode;      /* bit 0: moving (above v_go since the last stop); bit 1: braking hard */
+    uint8_t  *mode;      /* bit 0: moving (above v_go since the last stop); bit 1: braking hard; bit 2: fault */
     /* initial equilibrium (for the record) */
     double    v_init_mps;
 } WfFleet;
 
-enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2 };
+enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };
 
 /* Allocate and initialise a fleet: class and group placement, parameter draws, initial positions and
  * speeds. Fails (WF_EINPUT) when the vehicles do not fit at their standstill gaps, when a drawn parameter set
