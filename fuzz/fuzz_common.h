@@ -1,0 +1,113 @@
+/* Shared by the fuzz targets. wavefuel's loaders read files by path (relative names resolve against the
+ * file's directory), so each input is written to a scratch file in a private directory created on first
+ * use and removed at exit. Standard input is pointed at /dev/null so an input naming "-" or /dev/stdin
+ * cannot block a fuzzing run. */
+#ifndef WAVEFUEL_FUZZ_COMMON_H
+#define WAVEFUEL_FUZZ_COMMON_H
+
+#include <fcntl.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "wavefuel/err.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+static char fuzz_dir[512];
+static char fuzz_dir_file[8][600];
+static int  fuzz_n_dir_file;
+
+static void fuzz_cleanup(void)
+{
+    for (int i = 0; i < fuzz_n_dir_file; i++) unlink(fuzz_dir_file[i]);
+    if (fuzz_dir[0]) rmdir(fuzz_dir);
+}
+
+/* Path of scratch file `name` (created by fuzz_write). Aborts if the directory cannot be made: a harness that
+ * cannot write its input tests nothing. */
+static inline const char *fuzz_path(const char *name)
+{
+    if (!fuzz_dir[0]) {
+        const char *tmp = getenv("TMPDIR");
+        snprintf(fuzz_dir, sizeof fuzz_dir, "%s/wavefuel-fuzz-XXXXXX", tmp && *tmp ? tmp : "/tmp");
+        if (!mkdtemp(fuzz_dir)) {
+            perror("fuzz: mkdtemp");
+            abort();
+        }
+        if (!freopen("/dev/null", "r", stdin)) abort();
+        /* Vehicle classes come from the repository's vehicles/ only, whatever the caller's environment. */
+        setenv("WAVEFUEL_VEHICLES", "", 1);
+        atexit(fuzz_cleanup);
+    }
+    for (int i = 0; i < fuzz_n_dir_file; i++) {
+        const char *slash = strrchr(fuzz_dir_file[i], '/');
+        if (strcmp(slash + 1, name) == 0) return fuzz_dir_file[i];
+    }
+    if (fuzz_n_dir_file == 8) abort();
+    snprintf(fuzz_dir_file[fuzz_n_dir_file], sizeof fuzz_dir_file[0], "%s/%s", fuzz_dir, name);
+    return fuzz_dir_file[fuzz_n_dir_file++];
+}
+
+/* Writes size bytes to scratch file `name` (replacing it); returns its path. */
+static inline const char *fuzz_write(const char *name, const uint8_t *data, size_t size)
+{
+    const char *path = fuzz_path(name);
+    int fd = open(path, O_WRONLY | O_CREAT | O_TRUNC, 0600);
+    if (fd < 0) {
+        perror("fuzz: open scratch file");
+        abort();
+    }
+    size_t done = 0;
+    while (done < size) {
+        ssize_t w = write(fd, data + done, size - done);
+        if (w <= 0) {
+            perror("fuzz: write scratch file");
+            abort();
+        }
+        done += (size_t)w;
+    }
+    close(fd);
+    return path;
+}
+
+/* With WAVEFUEL_FUZZ_VERBOSE=1 (replay drivers), print each input's outcome: used to check that the seeds
+ * reach the success paths, and to read the message a regression input produces. */
+static inline void fuzz_note(const char *target, int rc, const WfError *err)
+{
+    static int verbose = -1;
+    if (verbose < 0) {
+        const char *v = getenv("WAVEFUEL_FUZZ_VERBOSE");
+        verbose = v && *v == '1';
+    }
+    if (verbose) fprintf(stderr, "%s: %s\n", target, rc ? err->msg : "accepted");
+}
+
+/* The error contract every loader must keep for any input: a failure is WF_EINPUT (exit status 2) with a
+ * non-empty message, or WF_ESYS only for resource exhaustion. Anything else aborts, so the fuzzer keeps the
+ * input that produced it. */
+static inline void fuzz_check_error(const char *target, int rc, const WfError *err)
+{
+    fuzz_note(target, rc, err);
+    int ok = (rc == WF_EINPUT || rc == WF_ESYS) && err->code == rc && err->msg[0] != '\0';
+    if (ok && rc == WF_ESYS && !strstr(err->msg, "out of memory")) ok = 0;
+    if (!ok) {
+        fprintf(stderr, "%s: broken error contract: rc=%d code=%d msg='%s'\n", target, rc, err->code, err->msg);
+        abort();
+    }
+}
+
+/* Aborts with a message when an accepted input violates a documented property of the result. */
+#define FUZZ_REQUIRE(cond, ...)                                                                                 \
+    do {                                                                                                        \
+        if (!(cond)) {                                                                                          \
+            fprintf(stderr, "property violated: %s: ", #cond);                                                  \
+            fprintf(stderr, __VA_ARGS__);                                                                       \
+            fputc('\n', stderr);                                                                                \
+            abort();                                                                                            \
+        }                                                                                                       \
+    } while (0)
+
+#endif
