@@ -28,7 +28,9 @@ static double illinois(double (*g)(double, const void *), const void *ctx, doubl
         }
         if (hi - lo <= 4.0 * 2.220446049250313e-16 * fmax(fabs(lo), fabs(hi))) break;
     }
-    return 0.5 * (lo + hi);
+    /* The side with g < 0, not the midpoint: for a function that jumps at the root (FollowerStopper's equilibrium
+     * gap jumps at v = U) the midpoint may lie on the far side of the jump. */
+    return lo;
 }
 
 typedef struct GapCtx {
