@@ -217,7 +217,7 @@ static int h5_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *e
     double *dst = w->buf + w->n_buf * (WF_TS_N_COLS + w->n_classes);
     memcpy(dst, row->v, WF_TS_N_COLS * sizeof(double));
     memcpy(dst + WF_TS_N_COLS, row->class_fuel_rate_gps, w->n_classes * sizeof(double));
-    if (++w->n_buf == TS_BUF) return flush_ts(w, err);
+    if (++w->n_buf == TS_BUF && flush_ts(w, err)) return wf_err_prefix(err, "%s: ", w->file->partial);
     return 0;
 }
 
@@ -225,12 +225,11 @@ static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
 {
     WfH5Out *w = ctx;
     const WfFleet *f = wf_sim_fleet(sim);
-    return wf_h5_series_append(&w->tr_t, 1, &t, err) || wf_h5_series_append(&w->tr_x, 1, f->x_m, err) ||
-                   wf_h5_series_append(&w->tr_v, 1, f->v_mps, err) ||
-                   wf_h5_series_append(&w->tr_a, 1, f->a_mps2, err) ||
-                   wf_h5_series_append(&w->tr_f, 1, f->fuel_rate_gps, err)
-               ? WF_ESYS
-               : 0;
+    if (wf_h5_series_append(&w->tr_t, 1, &t, err) || wf_h5_series_append(&w->tr_x, 1, f->x_m, err) ||
+        wf_h5_series_append(&w->tr_v, 1, f->v_mps, err) || wf_h5_series_append(&w->tr_a, 1, f->a_mps2, err) ||
+        wf_h5_series_append(&w->tr_f, 1, f->fuel_rate_gps, err))
+        return wf_err_prefix(err, "%s: ", w->file->partial);
+    return 0;
 }
 
 static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
@@ -469,7 +468,7 @@ int wf_h5out_read_checkpoint(const char *result, WfCheckpointInfo *ck, WfError *
     memset(ck, 0, sizeof *ck);
     char path[1200];
     ckpt_path_of(result, path, sizeof path);
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    wf_h5_library_init();
     struct stat st;
     if (stat(result, &st) == 0)
         return wf_err(err, WF_EINPUT, "%s is complete: nothing to resume", result);
@@ -693,7 +692,7 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
 
 int wf_h5out_info(const char *path, FILE *out, WfError *err)
 {
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    wf_h5_library_init();
     if (H5Fis_hdf5(path) <= 0) return wf_err(err, WF_EINPUT, "%s: not a readable HDF5 file", path);
     hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     if (f < 0) return wf_err(err, WF_EINPUT, "%s: cannot open as HDF5", path);

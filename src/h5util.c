@@ -13,8 +13,20 @@ static int h5fail(WfError *err, const char *what, const char *name)
     return wf_err(err, WF_ESYS, "HDF5: %s '%s' failed (disk full, permission or a damaged file?)", what, name);
 }
 
+void wf_h5_library_init(void)
+{
+    static int done;
+    if (done) return;
+    done = 1;
+    /* No HDF5 clean-up at exit: after a failed H5Fclose (disk full), HDF5 1.10's exit handler closes the file
+     * again and crashes; the operating system releases everything anyway. */
+    H5dont_atexit();
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL); /* wavefuel reports errors itself, naming the object */
+}
+
 int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
 {
+    wf_h5_library_init();
     *out = NULL;
     struct stat st;
     WfH5File *f = calloc(1, sizeof *f);
@@ -35,7 +47,6 @@ int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
         return wf_err(err, WF_EINPUT, "%s.partial exists (an interrupted or running job?): remove it or use --force",
                       path);
     }
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
     f->fid = H5Fcreate(f->partial, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (f->fid < 0) {
         int e = errno;

@@ -17,6 +17,10 @@ typedef struct WfH5File {
     char  partial[1040];  /* path + ".partial", where writing happens */
 } WfH5File;
 
+/* Call before any other HDF5 call (every entry point does): disables HDF5's own error printing and its exit
+ * handler. Idempotent. */
+void wf_h5_library_init(void);
+
 /* Create PATH.partial for writing. Fails (WF_EINPUT) if PATH exists and force is 0, or if PATH.partial
  * exists (another run may be writing it) and force is 0. Silences HDF5's own error printing. */
 int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err);

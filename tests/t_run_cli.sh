@@ -152,3 +152,9 @@ if cc -std=c11 -O1 -fPIC -shared -Iinclude tests/data/nan_plugin.c -o "$tmp/nan_
 else
   ko numerical_fault_stops_run "cannot build the test plugin: $(cat "$tmp/cc.log")"
 fi
+
+# Disk full (a file-size limit): a clear error naming the file, exit status 1, no crash, no completed result.
+msg=$( (trap '' XFSZ; ulimit -f 200; $BIN run $S -q -o "$tmp/full.h5" --set fleet.vehicles=500 --set road.length_m=10000 \
+        --set time.duration_s=200 --set output.trajectory_interval_s=0.1) 2>&1); rc=$?
+if [ $rc -eq 1 ] && echo "$msg" | grep -q "full.h5.partial: HDF5: .*failed (disk full" && [ ! -e "$tmp/full.h5" ]
+then ok disk_full_clear_error; else ko disk_full_clear_error "rc=$rc $msg"; fi

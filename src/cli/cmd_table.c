@@ -1,25 +1,32 @@
-/* `wavefuel table`: import a CIRCLES semi-principled table (CSV) into wavefuel's compressed HDF5 form, and
- * describe an imported table. */
+/* `wavefuel table`: import a CIRCLES semi-principled table (CSV) into wavefuel's compressed HDF5 form,
+ * describe an imported table, and sample an explicit class on the release's grid (the input of an end-to-end
+ * check of `wavefuel fit`). */
 #include <getopt.h>
 #include <stdio.h>
 #include <string.h>
 #include <time.h>
 
 #include "cli/commands.h"
+#include "wavefuel/fit.h"
 #include "wavefuel/tabulated.h"
 
 static void help(FILE *out)
 {
     fprintf(out,
             "usage: wavefuel table import IN.csv -o OUT.h5 [--force]\n"
-            "       wavefuel table info TABLE.h5\n\n"
+            "       wavefuel table info TABLE.h5\n"
+            "       wavefuel table sample --class NAME|FILE.yaml -o TABLE.csv|TABLE.h5 [--force]\n\n"
             "import reads a semi-principled model table in the CIRCLES release's format (header\n"
             "Velocity,Acceleration,Road Grade,Fuel Rate,Infeasible; m/s, m/s^2, rad, g/s, 0/1; rows in any\n"
             "order), checks that the rows form a complete regular grid (axes may be unevenly spaced) and writes\n"
             "it as compressed HDF5 with the grid, the source file and checksums. OUT.h5 is never overwritten\n"
             "without --force.\n"
             "A vehicle class then names it: `energy_model: tabulated` and `table: OUT.h5` (see docs/cycles.md).\n"
-            "info loads a table (checksum verified) and prints its grid.\n");
+            "info loads a table (checksum verified) and prints its grid.\n"
+            "sample evaluates a class's model on the release's grid (speed 0..35 m/s by 0.35, acceleration\n"
+            "-4..4 m/s^2 by 0.08, grade -0.03..0.03 rad by 0.003), with projection, as the release's tables are\n"
+            "made, and writes the table as release-format CSV (.csv) or as HDF5 (any other name); `wavefuel fit`\n"
+            "then fits it back (docs/fit.md).\n");
 }
 
 static void describe(const WfTable *t)
@@ -95,6 +102,50 @@ static int cmd_info(int argc, char **argv)
     return 0;
 }
 
+static int cmd_sample(int argc, char **argv)
+{
+    static const struct option opts[] = {{"class", required_argument, 0, 'c'},
+                                         {"output", required_argument, 0, 'o'},
+                                         {"force", no_argument, 0, 'f'},
+                                         {"help", no_argument, 0, 'h'},
+                                         {0, 0, 0, 0}};
+    const char *cls = NULL, *out = NULL;
+    int force = 0, o;
+    optind = 1;
+    while ((o = getopt_long(argc, argv, "c:o:fh", opts, NULL)) != -1) {
+        switch (o) {
+        case 'c': cls = optarg; break;
+        case 'o': out = optarg; break;
+        case 'f': force = 1; break;
+        case 'h': help(stdout); return 0;
+        default: help(stderr); return 2;
+        }
+    }
+    if (argc != optind || !cls || !out) {
+        fprintf(stderr, "wavefuel table sample: --class NAME and -o TABLE.csv|TABLE.h5 are required\n");
+        return 2;
+    }
+    WfError err = {0};
+    WfVehicleClass vc;
+    if (wf_vehicle_find(cls, &vc, &err)) return wf_cli_fail(&err);
+    WfFitGrid g;
+    wf_fit_release_grid(&g);
+    char source[1200];
+    snprintf(source, sizeof source, "wavefuel table sample --class %s (%s), the release's grid", vc.name, vc.path);
+    WfTable *t = NULL;
+    int rc = wf_fit_sample_class(&vc, &g, source, &t, &err);
+    size_t len = strlen(out);
+    if (!rc) rc = len > 4 && !strcmp(out + len - 4, ".csv") ? wf_fit_write_table_csv(t, out, force, &err)
+                                                            : wf_table_write_h5(t, out, force, &err);
+    if (!rc) {
+        describe(t);
+        printf("wrote    %s\n", out);
+    }
+    wf_table_destroy(&t);
+    wf_vehicle_free(&vc);
+    return rc ? wf_cli_fail(&err) : 0;
+}
+
 int wf_cmd_table(int argc, char **argv)
 {
     if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
@@ -103,6 +154,7 @@ int wf_cmd_table(int argc, char **argv)
     }
     if (!strcmp(argv[1], "import")) return cmd_import(argc - 1, argv + 1);
     if (!strcmp(argv[1], "info")) return cmd_info(argc - 1, argv + 1);
-    fprintf(stderr, "wavefuel table: unknown action '%s' (import, info)\n", argv[1]);
+    if (!strcmp(argv[1], "sample")) return cmd_sample(argc - 1, argv + 1);
+    fprintf(stderr, "wavefuel table: unknown action '%s' (import, info, sample)\n", argv[1]);
     return 2;
 }

@@ -14,6 +14,7 @@ typedef struct WfCommand {
 int wf_cmd_energy(int argc, char **argv);
 int wf_cmd_cycle(int argc, char **argv);
 int wf_cmd_table(int argc, char **argv);
+int wf_cmd_fit(int argc, char **argv);
 int wf_cmd_run(int argc, char **argv);
 int wf_cmd_info(int argc, char **argv);
 

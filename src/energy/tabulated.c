@@ -474,7 +474,7 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
 {
     *out = NULL;
     if (access(path, R_OK) != 0) return wf_err(err, WF_EINPUT, "%s: cannot open: %s", path, strerror(errno));
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+    wf_h5_library_init();
     hid_t fid = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     if (fid < 0)
         return wf_err(err, WF_EINPUT, "%s: not an HDF5 file (import a CSV table first: wavefuel table import)", path);

@@ -1,0 +1,222 @@
+/* `wavefuel fit`: derive an explicit CIRCLES class model from a tabulated one (the paper's model reduction,
+ * docs/fit.md), print a report of each step and, with -o, write the vehicle class file. */
+#include <getopt.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cli/commands.h"
+#include "wavefuel/fit.h"
+
+/* kW per g/s when neither --kw-per-gps nor --like gives one: the CIRCLES release's values (its model files'
+ * gs2kW: 42.36 for the gasoline classes, 42.47 for the diesel ones). */
+#define KW_PER_GPS_GASOLINE 42.36
+#define KW_PER_GPS_DIESEL   42.47
+
+static void help(FILE *out)
+{
+    fprintf(out,
+            "usage: wavefuel fit TABLE [--duty light|heavy|auto] [-o vehicles/NAME.yaml [--force]]\n"
+            "                      [--like CLASS] [--name LABEL] [--fuel gasoline|diesel] [--mass-kg M]\n"
+            "                      [--length-m L] [--kw-per-gps K]\n\n"
+            "Fits the CIRCLES explicit (physics-like) model to a tabulated model, as Khoudari et al. do:\n"
+            "fuel cut (v_c, beta, a0..a4), C(v), P(v), Q(v), Z(v) by non-negative least squares, the\n"
+            "feasible-acceleration bound (b1..b6, nonlinear), f_idle; heavy duty (no fuel cut below 35 m/s, or\n"
+            "--duty heavy) fits the lower bound h0 + h1 v instead. TABLE is an imported table (.h5, `wavefuel\n"
+            "table import`) or a CSV in the release's format. Prints each step's parameters, RMS residual and\n"
+            "points used.\n\n"
+            "-o writes the vehicle class file (never over an existing one without --force). A table holds no\n"
+            "mass or length: give --mass-kg and --length-m, or --like CLASS to copy fuel, mass, length, kW per\n"
+            "g/s and fuel density from a class (options given explicitly win). Defaults: fuel gasoline for\n"
+            "light duty and diesel for heavy; kW per g/s 42.36 (gasoline) or 42.47 (diesel), the release's.\n"
+            "Steps, ranges and accuracy: docs/fit.md.\n");
+}
+
+static void print_report(const WfTable *t, const char *table_path, const WfFitResult *r)
+{
+    const WfCirclesParams *p = &r->params;
+    printf("table    %s: %zu speeds [%.15g, %.15g] m/s x %zu accelerations [%.15g, %.15g] m/s^2 x %zu grades "
+           "[%.15g, %.15g] rad\n",
+           table_path, t->v.n, t->v.lo, t->v.hi, t->a.n, t->a.lo, t->a.hi, t->theta.n, t->theta.lo, t->theta.hi);
+    printf("source   %s (checksum %016llx)\n", r->table_source, (unsigned long long)r->table_checksum);
+    if (r->duty == WF_DUTY_LIGHT)
+        printf("duty     light (%s: the fuel rate at a = -3 m/s^2 on flat road reaches 0 at %.6g m/s)\n\n",
+               r->duty_detected ? "detected" : "forced", p->v_c);
+    else
+        printf("duty     heavy (%s%s)\n\n", r->duty_detected ? "detected: " : "forced by --duty",
+               r->duty_detected ? "no fuel cut below 35 m/s" : "");
+    printf("%-16s %-16s %12s %12s %-7s %15s\n", "step", "parameters", "RMS resid.", "max |resid.|", "unit",
+           "points used");
+    for (int k = 0; k < WF_FIT_N_STEPS; k++) {
+        const WfFitStep *s = &r->step[k];
+        if (!s->done) continue;
+        char pts[48];
+        snprintf(pts, sizeof pts, "%zu of %zu", s->n_used, s->n_points);
+        if (isnan(s->rms))
+            printf("%-16s %-16s %12s %12s %-7s %15s\n", s->key, s->params, "-", "-", s->unit,
+                   k == WF_FIT_STEP_CUT_SPEED ? "1 (bisection)" : "1");
+        else
+            printf("%-16s %-16s %12.4g %12.4g %-7s %15s\n", s->key, s->params, s->rms, s->max_abs, s->unit, pts);
+    }
+    printf("\nfitted parameters\n");
+    for (size_t k = 0; k < wf_energy_circles.n_spec; k++) {
+        const WfParamSpec *sp = &wf_energy_circles.spec[k];
+        double x = wf_param_get(p, sp);
+        if (isnan(x)) continue;
+        printf("  %-6s %-14.8g %s\n", sp->key, x, sp->unit);
+    }
+    printf("\nfuel rate, fitted model - table, over the %zu points of steps C, P, Q, Z: RMS %.4g g/s, max %.4g g/s\n",
+           r->fuel_n, r->fuel_rms_gps, r->fuel_max_gps);
+}
+
+/* The command line as one string, for the class file's provenance. */
+static void join_args(int argc, char **argv, char *out, size_t len)
+{
+    size_t used = 0;
+    out[0] = '\0';
+    for (int i = -1; i < argc; i++) {
+        const char *a = i < 0 ? "wavefuel" : argv[i];
+        int w = snprintf(out + used, len - used, "%s%s", used ? " " : "", a);
+        if (w < 0 || (size_t)w >= len - used) break;
+        used += (size_t)w;
+    }
+}
+
+static int parse_num(const char *opt, const char *s, double *out)
+{
+    if (wf_parse_double(s, out) != 0) {
+        fprintf(stderr, "wavefuel fit: %s expects a number (got '%s')\n", opt, s);
+        return 2;
+    }
+    return 0;
+}
+
+int wf_cmd_fit(int argc, char **argv)
+{
+    static const struct option opts[] = {{"duty", required_argument, 0, 'd'},
+                                         {"output", required_argument, 0, 'o'},
+                                         {"force", no_argument, 0, 'f'},
+                                         {"like", required_argument, 0, 'L'},
+                                         {"name", required_argument, 0, 'n'},
+                                         {"fuel", required_argument, 0, 'F'},
+                                         {"mass-kg", required_argument, 0, 'm'},
+                                         {"length-m", required_argument, 0, 'l'},
+                                         {"kw-per-gps", required_argument, 0, 'k'},
+                                         {"help", no_argument, 0, 'h'},
+                                         {0, 0, 0, 0}};
+    const char *out = NULL, *like = NULL, *label = NULL;
+    WfFitDuty duty = WF_FIT_DUTY_AUTO;
+    int force = 0, fuel = -1, o;
+    double mass = NAN, length = NAN, kw = NAN;
+    optind = 1;
+    while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
+        switch (o) {
+        case 'd':
+            if (!strcmp(optarg, "auto")) duty = WF_FIT_DUTY_AUTO;
+            else if (!strcmp(optarg, "light")) duty = WF_FIT_DUTY_LIGHT;
+            else if (!strcmp(optarg, "heavy")) duty = WF_FIT_DUTY_HEAVY;
+            else {
+                fprintf(stderr, "wavefuel fit: --duty must be light, heavy or auto (got '%s')\n", optarg);
+                return 2;
+            }
+            break;
+        case 'o': out = optarg; break;
+        case 'f': force = 1; break;
+        case 'L': like = optarg; break;
+        case 'n': label = optarg; break;
+        case 'F':
+            if (!strcmp(optarg, "gasoline")) fuel = WF_FUEL_GASOLINE;
+            else if (!strcmp(optarg, "diesel")) fuel = WF_FUEL_DIESEL;
+            else {
+                fprintf(stderr, "wavefuel fit: --fuel must be gasoline or diesel (got '%s')\n", optarg);
+                return 2;
+            }
+            break;
+        case 'm':
+            if (parse_num("--mass-kg", optarg, &mass)) return 2;
+            break;
+        case 'l':
+            if (parse_num("--length-m", optarg, &length)) return 2;
+            break;
+        case 'k':
+            if (parse_num("--kw-per-gps", optarg, &kw)) return 2;
+            break;
+        case 'h': help(stdout); return 0;
+        default: help(stderr); return 2;
+        }
+    }
+    if (argc - optind != 1) {
+        fprintf(stderr, "wavefuel fit: one TABLE argument (an imported .h5 table or a release-format CSV)\n");
+        return 2;
+    }
+    const char *table_path = argv[optind];
+    WfError err = {0};
+    WfVehicleClass base;
+    int have_base = 0;
+    memset(&base, 0, sizeof base);
+    if (like) {
+        if (wf_vehicle_find(like, &base, &err)) return wf_cli_fail(&err);
+        have_base = 1;
+    }
+    /* Check the metadata before the fit, so a missing option does not cost a fit. */
+    if (out && !have_base && (isnan(mass) || isnan(length))) {
+        fprintf(stderr, "wavefuel fit: -o needs the vehicle's mass and length, which a table does not hold: give "
+                        "--mass-kg and --length-m, or --like CLASS to copy them from a class\n");
+        return 2;
+    }
+    size_t len = strlen(table_path);
+    WfTable *t = NULL;
+    int rc = len > 4 && !strcmp(table_path + len - 4, ".csv") ? wf_table_read_csv(table_path, &t, &err)
+                                                             : wf_table_load_h5(table_path, &t, &err);
+    WfFitResult r;
+    if (!rc) rc = wf_fit_table(t, duty, &r, &err);
+    if (rc) {
+        wf_table_destroy(&t);
+        if (have_base) wf_vehicle_free(&base);
+        return wf_cli_fail(&err);
+    }
+    print_report(t, table_path, &r);
+    wf_table_destroy(&t);
+    if (out) {
+        WfFitClassInfo info = {0};
+        info.fuel = fuel >= 0 ? (WfFuelType)fuel
+                    : have_base ? base.fuel
+                                : (r.duty == WF_DUTY_HEAVY ? WF_FUEL_DIESEL : WF_FUEL_GASOLINE);
+        info.mass_kg = !isnan(mass) ? mass : base.mass_kg;
+        info.length_m = !isnan(length) ? length : base.length_m;
+        info.kw_per_gps = !isnan(kw) ? kw
+                          : have_base && (fuel < 0 || (WfFuelType)fuel == base.fuel)
+                              ? base.kw_per_gps
+                              : (info.fuel == WF_FUEL_DIESEL ? KW_PER_GPS_DIESEL : KW_PER_GPS_GASOLINE);
+        /* A density copied from --like only when the fuel is the same and the class set its own (the fuel's
+         * default is what the loader gives when none is written). */
+        double default_density =
+            (base.fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL;
+        info.fuel_density_g_per_l = have_base && info.fuel == base.fuel && base.fuel_density_g_per_l != default_density
+                                        ? base.fuel_density_g_per_l
+                                        : NAN;
+        char stem[256], default_label[600], command[4096];
+        const char *base_name = strrchr(out, '/') ? strrchr(out, '/') + 1 : out;
+        snprintf(stem, sizeof stem, "%s", base_name);
+        char *dot = strrchr(stem, '.');
+        if (dot) *dot = '\0';
+        const char *tbase = strrchr(table_path, '/') ? strrchr(table_path, '/') + 1 : table_path;
+        snprintf(default_label, sizeof default_label, "%s (fitted from %s)", stem, tbase);
+        info.label = label ? label : default_label;
+        info.table_path = table_path;
+        join_args(argc, argv, command, sizeof command);
+        info.command = command;
+        rc = wf_fit_write_class(&r, &info, out, force, &err);
+        /* Read the file back as every user of it will, so a class that is written also loads. */
+        WfVehicleClass back;
+        if (!rc) rc = wf_vehicle_load(out, &back, &err);
+        if (!rc) {
+            printf("wrote    %s (class %s: %s duty, %s, %.6g kg, %.6g m, %.6g kW per g/s)\n", out, back.name,
+                   wf_duty_name(back.duty), wf_fuel_name(back.fuel), back.mass_kg, back.length_m, back.kw_per_gps);
+            wf_vehicle_free(&back);
+        }
+    }
+    if (have_base) wf_vehicle_free(&base);
+    return rc ? wf_cli_fail(&err) : 0;
+}
