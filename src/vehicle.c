@@ -201,27 +201,40 @@ static int find_in(const char *dir, void *vctx)
     return access(c->found, R_OK) == 0 ? 1 : 0;
 }
 
+typedef struct NamesCtx {
+    char   known[1024];
+    size_t used;
+} NamesCtx;
+
+static int names_in(const char *dir, void *vctx)
+{
+    NamesCtx *c = vctx;
+    DIR *d = opendir(dir);
+    if (!d) return 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t len = strlen(e->d_name);
+        if (len < 6 || strcmp(e->d_name + len - 5, ".yaml") != 0) continue;
+        int w = snprintf(c->known + c->used, sizeof c->known - c->used, "%s%.*s", c->used ? ", " : "",
+                         (int)(len - 5), e->d_name);
+        if (w > 0 && (size_t)w < sizeof c->known - c->used) c->used += (size_t)w;
+    }
+    closedir(d);
+    return 0;
+}
+
 int wf_vehicle_find(const char *name, WfVehicleClass *vc, WfError *err)
 {
     size_t len = strlen(name);
     if (strchr(name, '/') || (len > 5 && strcmp(name + len - 5, ".yaml") == 0)) return wf_vehicle_load(name, vc, err);
     FindCtx c = {.name = name};
     if (for_each_dir(find_in, &c) == 1) return wf_vehicle_load(c.found, vc, err);
-    WfVehicleClass *all = NULL;
-    size_t n = 0;
-    char known[1024] = "";
-    if (wf_vehicle_list(&all, &n, NULL) == 0) {
-        size_t used = 0;
-        for (size_t i = 0; i < n; i++) {
-            int w = snprintf(known + used, sizeof known - used, "%s%s", i ? ", " : "", all[i].name);
-            if (w > 0 && (size_t)w < sizeof known - used) used += (size_t)w;
-            wf_vehicle_free(&all[i]);
-        }
-        free(all);
-    }
+    /* Names from the file names alone: one broken class file must not hide the others from this message. */
+    NamesCtx nc = {.used = 0};
+    for_each_dir(names_in, &nc);
     return wf_err(err, WF_EINPUT,
                   "vehicle class '%s' not found in $WAVEFUEL_VEHICLES or the repository's vehicles/ (known: %s)", name,
-                  n ? known : "none");
+                  nc.used ? nc.known : "none");
 }
 
 typedef struct ListCtx {
