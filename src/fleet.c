@@ -194,6 +194,11 @@ static int draw_params(const WfScenario *sc, const WfDriverGroup *g, size_t vehi
                   sc->path, g->name, vehicle);
 }
 
+int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, double *out, WfError *err)
+{
+    return draw_params(sc, &sc->groups[group], (size_t)vehicle, out, err);
+}
+
 #define ALLOC(ptr, count)                                                     \
     do {                                                                      \
         (ptr) = calloc((count) ? (count) : 1, sizeof *(ptr));                 \

@@ -9,6 +9,7 @@
 
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/config.h"
+#include "wavefuel/corridor.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/integrator.h"
 
@@ -32,6 +33,7 @@ void wf_scenario_destroy(WfScenario **psc)
         wf_cf_plugin_close(&sc->groups[i].plugin);
     }
     wf_road_free(&sc->road);
+    wf_corridor_spec_destroy(&sc->corridor);
     free(sc->text);
     free(sc->overrides);
     free(sc);
@@ -501,7 +503,7 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
               *out = NULL, *pert = NULL;
     char w[1024];
     const char *s = NULL;
-    static const char *const road_types[] = {"ring", NULL};
+    static const char *const road_types[] = {"ring", "corridor", NULL};
     static const char *const places[] = {"random", "interleaved", "explicit", NULL};
     static const char *const inits[] = {"equilibrium", "rest", NULL};
     int rtype = 0, place = WF_PLACE_RANDOM, init_state = WF_INIT_EQUILIBRIUM;
@@ -522,7 +524,8 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
     if (wf_cfg_double(road, "length_m", 1, 1e10, "m", &sc->road.length_m, err)) return WF_EINPUT;
     sc->road.speed_limit_mps = INFINITY;
     if (wf_cfg_double_opt(road, "speed_limit_mps", 0.1, 100, "m/s", &sc->road.speed_limit_mps, err)) return WF_EINPUT;
-    if (load_grade(sc, road, err)) return WF_EINPUT;
+    /* A corridor's grade profile is not periodic: src/scenario_corridor.c reads it. */
+    if (rtype == 0 && load_grade(sc, road, err)) return WF_EINPUT;
 
     if (wf_cfg_map_opt(root, "time", &time, err)) return WF_EINPUT;
     if (!time) return wf_cfg_missing(root, "time", "a section", err);
@@ -563,8 +566,9 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
 
     if (wf_cfg_map_opt(root, "fleet", &fleet, err)) return WF_EINPUT;
     if (!fleet) return wf_cfg_missing(root, "fleet", "a section", err);
-    double nv;
-    if (wf_cfg_double(fleet, "vehicles", 1, 1e9, "(count)", &nv, err)) return WF_EINPUT;
+    /* Corridors: vehicles come from the inflow; class and group fractions resolve against a nominal count. */
+    double nv = (double)WF_CORRIDOR_SHARE_BASE;
+    if (rtype == 0 && wf_cfg_double(fleet, "vehicles", 1, 1e9, "(count)", &nv, err)) return WF_EINPUT;
     if (nv != floor(nv))
         return wf_err(err, WF_EINPUT, "%s: fleet.vehicles must be a whole number (got %.17g)",
                       where_of(wf_cfg_child(fleet, "vehicles"), w, sizeof w), nv);
@@ -621,6 +625,8 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
             return wf_err(err, WF_EINPUT, "%s: output.trajectory_interval_s must be a whole multiple of time.dt_s",
                           sc->path);
     }
+
+    if (rtype == 1) return wf_corridor_spec_load(sc, root, err) ? WF_EINPUT : wf_cfg_check_unused(cfg, err);
 
     /* The fleet must fit: total length plus each driver group's minimum standstill gap (its equilibrium gap at
      * v = 0 is not model-generic, so the fit check uses the vehicles' lengths; the engine checks gaps >= 0). */

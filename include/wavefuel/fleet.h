@@ -48,6 +48,12 @@ enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };
 int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err);
 void wf_fleet_destroy(WfFleet **f);
 
+/* One vehicle's driver-model parameters, drawn as wf_fleet_create() draws them: the group's values times
+ * (1 + spread z), z counter-based from (seed, vehicle), redrawn when out of range or rejected by the model.
+ * out holds the model's parameter struct (param_size bytes). Used by the corridor, which draws at entry with the
+ * vehicle's serial number. Fails (WF_EINPUT) when 1000 draws are all rejected. */
+int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, double *out, WfError *err);
+
 /* Pointer to vehicle i's parameters / state within its group. */
 static inline const void *wf_fleet_params(const WfFleet *f, const WfScenario *sc, size_t i)
 {

@@ -78,6 +78,8 @@ typedef struct WfScenario {
     char    output_path[1024];
     int     trajectories;
     double  trajectory_interval_s;
+    /* road.type corridor: the corridor-only keys (include/wavefuel/corridor.h); owned. NULL for a ring. */
+    struct WfCorridorSpec *corridor;
 } WfScenario;
 
 /* Load, apply `n_set` overrides ("key.path=value"), validate. On error nothing is allocated. */

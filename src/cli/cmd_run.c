@@ -12,6 +12,7 @@
 #endif
 
 #include "cli/commands.h"
+#include "cli/run_corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
 #include "wavefuel/scenario.h"
@@ -170,6 +171,13 @@ int wf_cmd_run(int argc, char **argv)
         rc = wf_scenario_load(argv[optind], sets, n_set, &sc, &err);
         free(sets);
         if (!rc && outpath) snprintf(sc->output_path, sizeof sc->output_path, "%s", outpath);
+        if (!rc && sc->corridor) {
+            /* Open corridors have their own engine and writer (src/corridor.c, src/h5corridor.c). */
+            int st = ckpt_s > 0 ? (fprintf(stderr, "wavefuel run: corridor runs have no checkpoints yet\n"), 2)
+                                : wf_cli_run_corridor(sc, force, quiet);
+            wf_scenario_destroy(&sc);
+            return st;
+        }
         /* Scenario and fleet errors come before the result file exists: nothing is left behind. */
         if (!rc) rc = wf_sim_create(sc, &sim, &err);
         if (!rc) rc = wf_h5out_create(sc->output_path, force, &h5, &ops, &err);

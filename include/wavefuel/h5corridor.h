@@ -1,0 +1,21 @@
+/* The HDF5 result file of a corridor run (layout in docs/corridors.md): /meta, /classes, /drivers, /road,
+ * /timeseries, /trips, /detectors, /edie, /summary and optional /trajectories. Written as PATH.partial while the
+ * run goes and renamed to PATH when it completes (src/h5util.h); every dataset carries `units` and
+ * `description`. */
+#ifndef WAVEFUEL_H5CORRIDOR_H
+#define WAVEFUEL_H5CORRIDOR_H
+
+#include "wavefuel/corridor.h"
+#include "wavefuel/err.h"
+
+typedef struct WfH5Corridor WfH5Corridor;
+
+/* Create the writer for `path` (refuses to replace an existing result unless force) and fill *ops with
+ * callbacks bound to it. */
+int  wf_h5corridor_create(const char *path, int force, WfH5Corridor **out, WfCorridorOutput *ops, WfError *err);
+/* Free the writer; a file whose run never reached end() is removed (nothing was produced). */
+void wf_h5corridor_destroy(WfH5Corridor **w);
+/* Final path written ("x.h5" when completed, "x.h5.partial" otherwise; empty before end()). */
+const char *wf_h5corridor_path(const WfH5Corridor *w);
+
+#endif

@@ -1,0 +1,997 @@
+/* The corridor engine: an open single-lane road [0, L]. Per step: arrivals join the entrance queue, the queue's
+ * head is inserted at x = 0 when the gap allows (docs/corridors.md: insertion rule), accelerations from the
+ * car-following models with the road features at each vehicle's position, fuel rates from the class energy
+ * models, statistics, integration, overlap repair, Edie/detector accumulation, exits at x = L. Vehicles live in a
+ * circular buffer in road order and never move in memory, so entries and exits touch no other vehicle's data.
+ * Per-vehicle loops write only their own slot (race-free, thread-count independent); every sum that is written
+ * out runs serially in road order. Units: m, s, m/s, m/s^2, g. */
+#include "wavefuel/corridor.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "wavefuel/fleet.h"
+#include "wavefuel/integrator.h"
+#include "wavefuel/rng.h"
+
+#define PAR_MIN  4096 /* vehicles below which loops run on one thread (as the ring engine) */
+#define EBLOCK   256  /* energy evaluation gather block */
+#define TRIP_BUF 1024 /* trips handed to the output per call */
+
+enum { MODE_MOVING = 1, MODE_BRAKING = 2, MODE_FAULT = 4 };
+
+const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
+    {"t", "s", "simulated time of the record"},
+    {"vehicles", "1", "vehicles on the road"},
+    {"mean_speed", "m/s", "mean speed over the vehicles on the road (NaN when empty)"},
+    {"sd_speed", "m/s", "standard deviation of speed across the vehicles on the road (population, 1/N)"},
+    {"min_speed", "m/s", "lowest speed on the road"},
+    {"max_speed", "m/s", "highest speed on the road"},
+    {"frac_stopped", "1", "fraction of the vehicles on the road slower than statistics.v_stop_mps"},
+    {"waves", "1", "stop-and-go waves: maximal runs of consecutive vehicles (road order) slower than "
+                   "statistics.wave_speed_mps"},
+    {"fuel_rate", "g/s", "fuel rate of the vehicles on the road"},
+    {"mean_gap", "m", "mean bumper-to-bumper gap of the vehicles that follow a vehicle"},
+    {"min_gap", "m", "smallest bumper-to-bumper gap of the vehicles that follow a vehicle"},
+    {"overlaps", "1", "overlap repairs so far"},
+    {"arrived", "1", "vehicles that have reached the entrance so far (demand)"},
+    {"entered", "1", "vehicles inserted at x = 0 so far"},
+    {"exited", "1", "vehicles that have left at x = L so far"},
+    {"queued", "1", "vehicles waiting at the entrance"},
+    {"delayed", "1", "entries so far that waited at least one step"},
+};
+
+struct WfCorridor {
+    const WfScenario     *sc; /* borrowed */
+    const WfCorridorSpec *cs; /* borrowed: sc->corridor */
+    const WfIntegrator   *ig;
+    WfCorridorVehicles    veh;
+    size_t   pstride, sstride; /* doubles of parameters, bytes of controller state, per slot */
+    double   L;
+    /* per slot */
+    double   *xold;
+    uint32_t *grade_seg;
+    uint8_t  *mode;
+    double   *t_arr, *t_ent, *v_ent, *trip_fuel, *trip_dist, *trip_stopped;
+    uint32_t *trip_stops, *trip_hard, *trip_infeas;
+    double   *w_fuel, *w_dist, *w_stopped;
+    uint32_t *w_steps, *w_stops, *w_hard, *w_infeas;
+    /* window totals of vehicles that have left (and, after the run, of those still on the road) */
+    double   cls_fuel[WF_MAX_CLASSES], cls_dist[WF_MAX_CLASSES], cls_stops[WF_MAX_CLASSES],
+             cls_infeas[WF_MAX_CLASSES], cls_steps[WF_MAX_CLASSES];
+    double   tot_hard, tot_stopped_s;
+    /* trips */
+    int64_t  cls_entered[WF_MAX_CLASSES], cls_trips[WF_MAX_CLASSES];
+    double   cls_trip_fuel[WF_MAX_CLASSES], cls_trip_time[WF_MAX_CLASSES];
+    int64_t  trips_done;
+    double   sum_trip_time, sum_trip_fuel;
+    WfTrip   trips[TRIP_BUF];
+    size_t   n_trips;
+    /* headway zones: offset (in doubles) of the zone's key in each group's parameters, or -1 */
+    int      hw_off[WF_MAX_GROUPS][WF_CORRIDOR_MAX_ZONES];
+    /* entrance */
+    double  *queue_t;       /* arrival time of each waiting vehicle (FIFO ring) */
+    size_t   q_cap, q_head;
+    double   next_target;   /* cumulative demand at which the next arrival happens */
+    size_t   in_seg;
+    int      have_cand;     /* the queue head's class, group and parameters are drawn */
+    uint16_t cand_class, cand_group;
+    double   cand_len;
+    double   cand_params[WF_MAX_MODEL_PARAMS];
+    int64_t  assigned_group[WF_MAX_GROUPS], assigned_class[WF_MAX_CLASSES], n_free_class;
+    double   free_share[WF_MAX_CLASSES]; /* class shares among vehicles whose group fixes no class */
+    /* virtual leader */
+    int      has_vl;
+    double   vl_x, vl_v, vl_xref, vl_iref;
+    size_t   vl_seg;
+    /* measurement */
+    WfCorridorCounts counts;
+    WfDetectors det;
+    WfEdie   edie;
+    long     det_every, edie_every;
+    /* run */
+    long     n_steps, out_every, traj_every, warm_steps, steps_done;
+    int64_t  w_entries, w_exits;
+    double   sd_sum;
+    long     n_sd;
+    double   wall_s;
+    int      nthreads;
+    long     fault_slot;
+    WfCorridorSummary summary;
+};
+
+static double wall_now(void)
+{
+#ifdef _OPENMP
+    return omp_get_wtime();
+#else
+    struct timespec ts;
+    timespec_get(&ts, TIME_UTC);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+#endif
+}
+
+void wf_corridor_destroy(WfCorridor **pc)
+{
+    if (!pc || !*pc) return;
+    WfCorridor *c = *pc;
+    WfCorridorVehicles *v = &c->veh;
+    void *arrays[] = {v->x_m, v->v_mps, v->a_mps2, v->gap_m, v->v_lead_mps, v->theta_rad, v->fuel_rate_gps, v->flag,
+                      v->length_m, v->serial, v->class_id, v->group_id, v->params, v->state, c->xold, c->grade_seg,
+                      c->mode, c->t_arr, c->t_ent, c->v_ent, c->trip_fuel, c->trip_dist, c->trip_stopped,
+                      c->trip_stops, c->trip_hard, c->trip_infeas, c->w_fuel, c->w_dist, c->w_stopped, c->w_steps,
+                      c->w_stops, c->w_hard, c->w_infeas, c->queue_t, c->det.count, c->det.sum_v_mps,
+                      c->det.sum_inv_v_spm, c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g,
+                      c->edie.grade_mean_rad, c->edie.class_dist_m, c->edie.class_fuel_g};
+    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
+    free(c);
+    *pc = NULL;
+}
+
+/* ------------------------------------------------------------------------------------------ road */
+
+/* Speed limit at x: the road's, lowered by every speed-limit zone containing x. */
+static double limit_at(const WfCorridor *c, double x)
+{
+    double lim = c->sc->road.speed_limit_mps;
+    for (size_t z = 0; z < c->cs->n_zones; z++) {
+        const WfCorridorZone *zn = &c->cs->zones[z];
+        if (zn->type == WF_ZONE_SPEED_LIMIT && x >= zn->from_m && x < zn->to_m && zn->value < lim) lim = zn->value;
+    }
+    return lim;
+}
+
+/* The parameters a vehicle drives with at x: its own, or inside headway zones a copy with the zones' key
+ * multiplied (overlapping zones multiply). buf holds WF_MAX_MODEL_PARAMS doubles. */
+static const double *params_at(const WfCorridor *c, size_t group, const double *own, double x, double *buf)
+{
+    const double *p = own;
+    for (size_t z = 0; z < c->cs->n_zones; z++) {
+        const WfCorridorZone *zn = &c->cs->zones[z];
+        int off = c->hw_off[group][z];
+        if (zn->type != WF_ZONE_HEADWAY || off < 0 || x < zn->from_m || x >= zn->to_m) continue;
+        if (p == own) {
+            memcpy(buf, own, c->sc->groups[group].model->param_size);
+            p = buf;
+        }
+        buf[off] *= zn->value;
+    }
+    return p;
+}
+
+/* Applied acceleration of a vehicle: model + noise, clipped to the group's limits and optionally the class's
+ * a_max (as the ring's accel_one), then to the speed limit at x (never past it within the step) and to the
+ * braking that meets a lower zone limit ahead at the zone's start: once the deceleration needed,
+ * (v^2 - v_zone^2) / (2 d), reaches corridor.zone_decel_mps2, the vehicle brakes at least that hard. */
+static double accel_vehicle(const WfCorridor *c, const WfDriverGroup *grp, const double *params, const void *state,
+                            const WfVehicleClass *vc, double x, double gap, double v, double vl, double th, double z)
+{
+    double dmax = grp->decel_max_mps2, dt = c->sc->dt_s;
+    double a = grp->model->accel(params, state, gap, v, vl);
+    if (grp->noise_mps2 > 0.0) a += grp->noise_mps2 * z;
+    a = a > grp->accel_max_mps2 ? grp->accel_max_mps2 : a;
+    a = a < -dmax ? -dmax : a;
+    if (grp->clip_feasible) {
+        double am = vc->model->a_max(vc->params, v, th);
+        a = a > am ? am : a;
+    }
+    double cap = INFINITY, vlim = limit_at(c, x);
+    if (isfinite(vlim)) cap = (vlim - v) / dt;
+    for (size_t k = 0; k < c->cs->n_zones; k++) {
+        const WfCorridorZone *zn = &c->cs->zones[k];
+        if (zn->type != WF_ZONE_SPEED_LIMIT || zn->from_m <= x || zn->value >= v) continue;
+        /* d > 0 here (from > x), so the division is safe. */
+        double need = (v * v - zn->value * zn->value) / (2.0 * (zn->from_m - x));
+        if (need >= c->cs->zone_decel_mps2 && -need < cap) cap = -need;
+    }
+    if (a > cap) a = cap > -dmax ? cap : -dmax;
+    return a;
+}
+
+/* ------------------------------------------------------------------------------------------ setup */
+
+#define ALLOC(ptr, count)                                                        \
+    do {                                                                         \
+        (ptr) = calloc((size_t)(count) + 1, sizeof *(ptr)); /* +1: never a 0-byte request */ \
+        if (!(ptr)) {                                                            \
+            wf_corridor_destroy(&c);                                             \
+            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", cap); \
+        }                                                                        \
+    } while (0)
+
+int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
+{
+    *out = NULL;
+    if (!sc->corridor) return wf_err(err, WF_EINPUT, "%s: not a corridor scenario (road.type: corridor)", sc->path);
+    const WfCorridorSpec *cs = sc->corridor;
+    WfCorridor *c = calloc(1, sizeof *c);
+    if (!c) return wf_err(err, WF_ESYS, "out of memory");
+    c->sc = sc;
+    c->cs = cs;
+    c->L = sc->road.length_m;
+    c->fault_slot = -1;
+    int rc = wf_integrator_find(sc->integrator, &c->ig, err);
+    if (rc) {
+        free(c);
+        return rc;
+    }
+    /* Capacity: fronts on the road lie in [0, L) and bodies do not overlap, so consecutive fronts are at least
+     * the shortest length apart: n <= floor(L / shortest) + 1. One more slot keeps a margin. */
+    double len_min = INFINITY;
+    for (size_t k = 0; k < sc->n_classes; k++) len_min = fmin(len_min, sc->classes[k].length_m);
+    double capd = floor(c->L / len_min) + 2.0;
+    if (capd > 1e8) {
+        free(c);
+        return wf_err(err, WF_EINPUT, "%s: road.length_m %.6g m holds up to %.3g vehicles: too many", sc->path,
+                      sc->road.length_m, capd);
+    }
+    size_t cap = (size_t)capd;
+    size_t ssz = 0;
+    for (size_t g = 0; g < sc->n_groups; g++)
+        if (sc->groups[g].model->state_size > ssz) ssz = sc->groups[g].model->state_size;
+    c->pstride = WF_MAX_MODEL_PARAMS;
+    c->sstride = (ssz + 15) / 16 * 16;
+    WfCorridorVehicles *v = &c->veh;
+    v->cap = cap;
+    ALLOC(v->x_m, cap); ALLOC(v->v_mps, cap); ALLOC(v->a_mps2, cap); ALLOC(v->gap_m, cap); ALLOC(v->v_lead_mps, cap);
+    ALLOC(v->theta_rad, cap); ALLOC(v->fuel_rate_gps, cap); ALLOC(v->flag, cap); ALLOC(v->length_m, cap);
+    ALLOC(v->serial, cap); ALLOC(v->class_id, cap); ALLOC(v->group_id, cap); ALLOC(v->params, cap * c->pstride);
+    ALLOC(v->state, cap * (c->sstride ? c->sstride : 1));
+    ALLOC(c->xold, cap); ALLOC(c->grade_seg, cap); ALLOC(c->mode, cap); ALLOC(c->t_arr, cap); ALLOC(c->t_ent, cap);
+    ALLOC(c->v_ent, cap); ALLOC(c->trip_fuel, cap); ALLOC(c->trip_dist, cap); ALLOC(c->trip_stopped, cap);
+    ALLOC(c->trip_stops, cap); ALLOC(c->trip_hard, cap); ALLOC(c->trip_infeas, cap); ALLOC(c->w_fuel, cap);
+    ALLOC(c->w_dist, cap); ALLOC(c->w_stopped, cap); ALLOC(c->w_steps, cap); ALLOC(c->w_stops, cap);
+    ALLOC(c->w_hard, cap); ALLOC(c->w_infeas, cap);
+
+    c->n_steps = wf_scenario_n_steps(sc);
+    c->out_every = wf_scenario_output_every(sc);
+    c->traj_every = lround(sc->trajectory_interval_s / sc->dt_s);
+    if (c->traj_every < 1) c->traj_every = 1;
+    c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
+#ifdef _OPENMP
+    c->nthreads = omp_get_max_threads();
+#else
+    c->nthreads = 1;
+#endif
+
+    /* Entrance queue: it never holds more vehicles than arrive in the whole run. Deterministic arrivals: the
+     * cumulative demand, plus one; Poisson: its mean plus 12 standard deviations (the chance of more is below
+     * 1e-30; should it happen the run stops with an error rather than overwrite the queue). */
+    size_t seg = 0;
+    double lam = wf_profile_integral(&cs->inflow_vph, sc->duration_s, &seg) / 3600.0;
+    double qcap = cs->arrivals == WF_ARRIVALS_POISSON ? lam + 12.0 * sqrt(lam) + 32.0 : floor(lam) + 2.0;
+    if (cs->max_arrivals >= 0 && (double)cs->max_arrivals + 1.0 < qcap) qcap = (double)cs->max_arrivals + 1.0;
+    if (qcap > 2e8) {
+        wf_corridor_destroy(&c);
+        return wf_err(err, WF_EINPUT, "%s: corridor.inflow brings %.3g vehicles over the run: too many", sc->path, lam);
+    }
+    c->q_cap = (size_t)qcap;
+    ALLOC(c->queue_t, c->q_cap);
+
+    /* Detectors and Edie grid. Time cells are whole steps; the last cell in x (and in t) may be shorter. */
+    c->det.n_det = cs->n_det;
+    c->det.x_m = cs->det_x_m;
+    c->det.interval_s = cs->det_interval_s;
+    c->det_every = lround(cs->det_interval_s / sc->dt_s);
+    c->det.n_int = cs->n_det ? (size_t)((c->n_steps + c->det_every - 1) / c->det_every) : 0;
+    size_t nd = c->det.n_int * c->det.n_det;
+    ALLOC(c->det.count, nd); ALLOC(c->det.sum_v_mps, nd); ALLOC(c->det.sum_inv_v_spm, nd); ALLOC(c->det.occupied_s, nd);
+    WfEdie *e = &c->edie;
+    e->dx_m = cs->edie_dx_m;
+    e->dt_s = cs->edie_dt_s;
+    c->edie_every = lround(cs->edie_dt_s / sc->dt_s);
+    e->nx = (size_t)ceil(c->L / e->dx_m - 1e-9);
+    e->nt = (size_t)((c->n_steps + c->edie_every - 1) / c->edie_every);
+    if (e->nx < 1) e->nx = 1;
+    if (e->nt < 1) e->nt = 1;
+    ALLOC(e->dist_m, e->nx * e->nt); ALLOC(e->time_s, e->nx * e->nt); ALLOC(e->fuel_g, e->nx * e->nt);
+    ALLOC(e->grade_mean_rad, e->nx); ALLOC(e->class_dist_m, e->nx * sc->n_classes);
+    ALLOC(e->class_fuel_g, e->nx * sc->n_classes);
+    for (size_t i = 0; i < e->nx; i++) {
+        double a = (double)i * e->dx_m, b = i + 1 == e->nx ? c->L : (double)(i + 1) * e->dx_m;
+        e->grade_mean_rad[i] = wf_corridor_grade_mean(cs, a, b);
+    }
+
+    /* Headway zones: where each group's model keeps the zone's key. */
+    for (size_t g = 0; g < sc->n_groups; g++)
+        for (size_t z = 0; z < cs->n_zones; z++) {
+            const WfParamSpec *sp = cs->zones[z].type == WF_ZONE_HEADWAY
+                                        ? wf_param_find(sc->groups[g].model->spec, sc->groups[g].model->n_spec,
+                                                        cs->zones[z].key)
+                                        : NULL;
+            c->hw_off[g][z] = sp ? (int)(sp->offset / sizeof(double)) : -1;
+        }
+    /* Class shares of the vehicles whose group fixes no class, so that the overall mix is the classes' fractions. */
+    double tot = 0.0;
+    for (size_t k = 0; k < sc->n_classes; k++) {
+        double r = sc->classes[k].fraction;
+        for (size_t g = 0; g < sc->n_groups; g++) r -= sc->groups[g].class_index == (int)k ? sc->groups[g].fraction : 0.0;
+        c->free_share[k] = r > 0.0 ? r : 0.0;
+        tot += c->free_share[k];
+    }
+    for (size_t k = 0; k < sc->n_classes; k++) c->free_share[k] = tot > 0.0 ? c->free_share[k] / tot : 0.0;
+
+    /* The first arrival: deterministic at cumulative demand 1, Poisson after an exponential draw. */
+    if (cs->arrivals == WF_ARRIVALS_POISSON) {
+        double u[2];
+        wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ARRIVAL, 0, 0, u);
+        c->next_target = -log(u[0]);
+    } else {
+        c->next_target = 1.0;
+    }
+    c->has_vl = cs->outflow != WF_OUTFLOW_FREE;
+    if (c->has_vl) {
+        c->vl_xref = c->L + cs->leader_offset_m;
+        c->vl_iref = 0.0;
+        c->vl_x = c->vl_xref;
+        c->vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &c->vl_seg);
+    }
+    *out = c;
+    return 0;
+}
+
+/* --------------------------------------------------------------------------------------- entrance */
+
+/* Category with the largest deficit (i+1) share_c - assigned_c (ties to the earlier one): a deterministic
+ * sequence that keeps every category within one vehicle of its share. */
+static size_t by_deficit(size_t m, const double *share, const int64_t *assigned, int64_t i)
+{
+    size_t best = 0;
+    double best_d = -INFINITY;
+    for (size_t k = 0; k < m; k++) {
+        if (!(share[k] > 0.0)) continue;
+        double d = (double)(i + 1) * share[k] - (double)assigned[k];
+        if (d > best_d) best_d = d, best = k;
+    }
+    return best;
+}
+
+/* Category of a uniform draw u in (0, 1) by cumulative shares; rounding leftovers go to the last non-empty one. */
+static size_t by_draw(size_t m, const double *share, double u)
+{
+    double cum = 0.0;
+    size_t last = 0;
+    for (size_t k = 0; k < m; k++) {
+        if (!(share[k] > 0.0)) continue;
+        last = k;
+        cum += share[k];
+        if (u < cum) return k;
+    }
+    return last;
+}
+
+/* Class, group and parameters of the vehicle at the head of the queue (serial = entered so far), keyed by
+ * (seed, serial) so they do not depend on when it gets in. */
+static int draw_candidate(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    uint64_t serial = (uint64_t)c->counts.entered;
+    double gshare[WF_MAX_GROUPS], u[2];
+    for (size_t g = 0; g < sc->n_groups; g++) gshare[g] = sc->groups[g].fraction;
+    wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ENTRY, serial, 0, u);
+    size_t g = c->cs->interleaved ? by_deficit(sc->n_groups, gshare, c->assigned_group, (int64_t)serial)
+                                  : by_draw(sc->n_groups, gshare, u[0]);
+    c->assigned_group[g]++;
+    size_t k;
+    if (sc->groups[g].class_index >= 0) {
+        k = (size_t)sc->groups[g].class_index;
+    } else {
+        k = c->cs->interleaved ? by_deficit(sc->n_classes, c->free_share, c->assigned_class, c->n_free_class)
+                               : by_draw(sc->n_classes, c->free_share, u[1]);
+        c->assigned_class[k]++;
+        c->n_free_class++;
+    }
+    c->cand_group = (uint16_t)g;
+    c->cand_class = (uint16_t)k;
+    c->cand_len = sc->classes[k].length_m;
+    int rc = wf_fleet_draw_params(sc, g, serial, c->cand_params, err);
+    if (rc) return rc;
+    c->have_cand = 1;
+    return 0;
+}
+
+/* Arrivals up to time t join the queue: arrival n happens when the cumulative demand Λ(t) = ∫ q dt / 3600
+ * reaches its target (n + 1 for deterministic headways; a sum of n + 1 unit exponentials for Poisson arrivals,
+ * the time-rescaled Poisson process of rate q(t)). */
+static int arrivals(WfCorridor *c, double t, WfError *err)
+{
+    const WfCorridorSpec *cs = c->cs;
+    double lam = wf_profile_integral(&cs->inflow_vph, t, &c->in_seg) / 3600.0;
+    /* A deterministic target is an integer that the demand reaches up to round-off in t = k dt. */
+    while (lam + 1e-9 * fmax(1.0, lam) >= c->next_target &&
+           (cs->max_arrivals < 0 || c->counts.arrived < cs->max_arrivals)) {
+        if ((size_t)c->counts.queued >= c->q_cap)
+            return wf_err(err, WF_ESYS, "%s: the entrance queue outgrew its %zu places at t = %.6g s", c->sc->path,
+                          c->q_cap, t);
+        size_t slot = (c->q_head + (size_t)c->counts.queued) % c->q_cap;
+        c->queue_t[slot] = t;
+        c->counts.queued++;
+        c->counts.arrived++;
+        if (c->counts.queued > c->counts.max_queue) c->counts.max_queue = c->counts.queued;
+        if (cs->arrivals == WF_ARRIVALS_POISSON) {
+            double u[2];
+            wf_rng_uniform2(c->sc->seed, WF_RNG_CORRIDOR_ARRIVAL, (uint64_t)c->counts.arrived, 0, u);
+            c->next_target += -log(u[0]); /* u in (0, 1): finite and positive */
+        } else {
+            c->next_target += 1.0;
+        }
+    }
+    return 0;
+}
+
+/* Insertion rule (docs/corridors.md): the queue's head enters at x = 0 with the speed v_in = min(entry cap,
+ * limit at 0, leader speed, own free speed) when its gap g to the last vehicle's rear (or to the virtual leader) is
+ * >= 0 and its own model, at (g, v_in, leader speed), does not brake harder than b =
+ * corridor.inflow.insert_decel_mps2: the gap is safe for joining the stream at the stream's speed. The own free
+ * speed is the model's equilibrium speed at the far gap of an empty road (where the leader's speed is taken to be
+ * that too). At most one vehicle enters per step. */
+static int try_insert(WfCorridor *c, double t, long step, WfError *err)
+{
+    if (c->counts.queued == 0) return 0;
+    WfCorridorVehicles *vh = &c->veh;
+    if (vh->n >= vh->cap) return 0; /* cannot happen while gaps stay >= 0 (see wf_corridor_create) */
+    if (!c->have_cand) {
+        int rc = draw_candidate(c, err);
+        if (rc) return rc;
+    }
+    const WfScenario *sc = c->sc;
+    const WfDriverGroup *grp = &sc->groups[c->cand_group];
+    double buf[WF_MAX_MODEL_PARAMS];
+    const double *p = params_at(c, c->cand_group, c->cand_params, 0.0, buf);
+    double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, 0.0));
+    double v_hi = isfinite(vcap) ? vcap : 100.0;
+    double gap, vl;
+    int free_road = 0;
+    if (vh->n > 0) {
+        size_t last = wf_corridor_slot(vh, vh->n - 1);
+        gap = vh->x_m[last] - vh->length_m[last];
+        vl = vh->v_mps[last];
+    } else if (c->has_vl) {
+        gap = c->vl_x;
+        vl = c->vl_v;
+    } else {
+        gap = WF_CORRIDOR_FREE_GAP_M;
+        vl = INFINITY;
+        free_road = 1;
+    }
+    if (!(gap >= 0.0)) return 0;
+    /* Never faster than the vehicle's own free speed (its model's equilibrium speed at the far gap), or a driver
+     * slower than the stream could never join it; on an empty road the far leader drives at that speed. */
+    double vfree = wf_cf_equilibrium_speed(grp->model, p, WF_CORRIDOR_FREE_GAP_M, v_hi);
+    double vin = fmin(fmin(vcap, vl), vfree);
+    if (free_road) vl = vin;
+    if (!(grp->model->accel(p, NULL, gap, vin, vl) >= -c->cs->insert_decel_mps2)) return 0;
+
+    size_t s = wf_corridor_slot(vh, vh->n);
+    vh->n++;
+    vh->x_m[s] = 0.0;
+    vh->v_mps[s] = vin;
+    vh->a_mps2[s] = 0.0;
+    vh->length_m[s] = c->cand_len;
+    vh->serial[s] = (uint64_t)c->counts.entered;
+    vh->class_id[s] = c->cand_class;
+    vh->group_id[s] = c->cand_group;
+    memcpy(vh->params + s * c->pstride, c->cand_params, grp->model->param_size);
+    c->grade_seg[s] = 0;
+    c->mode[s] = vin > sc->v_go_mps ? MODE_MOVING : 0;
+    double ta = c->queue_t[c->q_head];
+    c->q_head = (c->q_head + 1) % c->q_cap;
+    c->counts.queued--;
+    c->counts.entered++;
+    c->counts.queue_delay_s += t - ta;
+    c->counts.delayed += t - ta > 0.5 * sc->dt_s;
+    c->cls_entered[c->cand_class]++;
+    if (step >= c->warm_steps) c->w_entries++;
+    c->t_arr[s] = ta, c->t_ent[s] = t, c->v_ent[s] = vin;
+    c->trip_fuel[s] = c->trip_dist[s] = c->trip_stopped[s] = 0.0;
+    c->trip_stops[s] = c->trip_hard[s] = c->trip_infeas[s] = 0;
+    c->w_fuel[s] = c->w_dist[s] = c->w_stopped[s] = 0.0;
+    c->w_steps[s] = c->w_stops[s] = c->w_hard[s] = c->w_infeas[s] = 0;
+    if (grp->model->state_size && grp->model->init_state)
+        grp->model->init_state(vh->params + s * c->pstride, vh->state + s * c->sstride, gap, vin, vl);
+    c->have_cand = 0;
+    return 0;
+}
+
+/* ------------------------------------------------------------------------------------- step phases */
+
+/* Gap and speed of vehicle k's leader: the vehicle ahead, the virtual leader, or a far leader at its own speed. */
+static inline void leader_of(const WfCorridor *c, size_t k, size_t s, double *gap, double *vl)
+{
+    const WfCorridorVehicles *vh = &c->veh;
+    if (k > 0) {
+        size_t p = wf_corridor_slot(vh, k - 1);
+        *gap = vh->x_m[p] - vh->length_m[p] - vh->x_m[s];
+        *vl = vh->v_mps[p];
+    } else if (c->has_vl) {
+        *gap = c->vl_x - vh->x_m[s];
+        *vl = c->vl_v;
+    } else {
+        *gap = WF_CORRIDOR_FREE_GAP_M;
+        *vl = vh->v_mps[s];
+    }
+}
+
+static void phase_accel(WfCorridor *c, long step)
+{
+    WfCorridorVehicles *vh = &c->veh;
+    size_t n = vh->n;
+    const WfScenario *sc = c->sc;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, n, sc, step)
+    for (size_t k = 0; k < n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        double gap, vl, buf[WF_MAX_MODEL_PARAMS], z = 0.0;
+        leader_of(c, k, s, &gap, &vl);
+        size_t g = vh->group_id[s];
+        const WfDriverGroup *grp = &sc->groups[g];
+        double x = vh->x_m[s], th = wf_corridor_grade(c->cs, x, &c->grade_seg[s]);
+        if (grp->noise_mps2 > 0.0) {
+            double r[2];
+            wf_rng_normal2(sc->seed, WF_RNG_NOISE, vh->serial[s], (uint64_t)step, r);
+            z = r[0];
+        }
+        const double *p = params_at(c, g, vh->params + s * c->pstride, x, buf);
+        const void *st = grp->model->state_size ? vh->state + s * c->sstride : NULL;
+        vh->gap_m[s] = gap, vh->v_lead_mps[s] = vl, vh->theta_rad[s] = th;
+        vh->a_mps2[s] = accel_vehicle(c, grp, p, st, &sc->classes[vh->class_id[s]].vc, x, gap, vh->v_mps[s], vl, th, z);
+    }
+}
+
+/* Fuel rate and flag of every vehicle: blocks of road order, gathered class by class for the array kernels. */
+static void phase_energy(WfCorridor *c)
+{
+    WfCorridorVehicles *vh = &c->veh;
+    size_t n = vh->n, nblk = (n + EBLOCK - 1) / EBLOCK;
+    const WfScenario *sc = c->sc;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(vh, n, nblk, sc)
+    for (size_t b = 0; b < nblk; b++) {
+        double bv[EBLOCK], ba[EBLOCK], bt[EBLOCK], bf[EBLOCK];
+        uint8_t bfl[EBLOCK];
+        size_t idx[EBLOCK];
+        size_t lo = b * EBLOCK, m = n - lo < EBLOCK ? n - lo : EBLOCK;
+        for (size_t cl = 0; cl < sc->n_classes; cl++) {
+            size_t cnt = 0;
+            for (size_t k = 0; k < m; k++) {
+                size_t s = wf_corridor_slot(vh, lo + k);
+                if (vh->class_id[s] != cl) continue;
+                idx[cnt] = s;
+                bv[cnt] = vh->v_mps[s], ba[cnt] = vh->a_mps2[s], bt[cnt] = vh->theta_rad[s];
+                cnt++;
+            }
+            if (!cnt) continue;
+            const WfVehicleClass *vc = &sc->classes[cl].vc;
+            vc->model->eval(vc->params, cnt, bv, ba, bt, 0, bf, bfl);
+            for (size_t k = 0; k < cnt; k++) vh->fuel_rate_gps[idx[k]] = bf[k], vh->flag[idx[k]] = bfl[k];
+        }
+    }
+}
+
+/* Statistics of the step that use its start (left-point rule, as the ring: docs/metrics.md), controller memory,
+ * integration, then the statistics that need the new state. */
+static void phase_advance(WfCorridor *c, int in_window)
+{
+    WfCorridorVehicles *vh = &c->veh;
+    const WfScenario *sc = c->sc;
+    size_t n = vh->n;
+    double dt = sc->dt_s;
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, sc, n, dt, in_window)
+    for (size_t k = 0; k < n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        double v = vh->v_mps[s], a = vh->a_mps2[s], fr = vh->fuel_rate_gps[s];
+        uint8_t mode = c->mode[s];
+        int braking = a < -sc->hard_brake_mps2, stopped = v < sc->v_stop_mps;
+        int new_brake = braking && !(mode & MODE_BRAKING), infeas = vh->flag[s] == WF_INFEASIBLE_ACCEL;
+        c->trip_fuel[s] += fr * dt;
+        c->trip_stopped[s] += stopped ? dt : 0.0;
+        c->trip_hard[s] += (uint32_t)new_brake;
+        c->trip_infeas[s] += (uint32_t)infeas;
+        if (in_window) {
+            c->w_fuel[s] += fr * dt;
+            c->w_stopped[s] += stopped ? dt : 0.0;
+            c->w_hard[s] += (uint32_t)new_brake;
+            c->w_infeas[s] += (uint32_t)infeas;
+            c->w_steps[s]++;
+        }
+        /* A non-finite acceleration or fuel rate would be laundered by the integrator: flag it (as the ring). */
+        int fault = !isfinite(a) || !isfinite(fr);
+        c->mode[s] = (uint8_t)((mode & ~MODE_BRAKING) | (braking ? MODE_BRAKING : 0) | (fault ? MODE_FAULT : 0));
+        c->xold[s] = vh->x_m[s];
+        size_t g = vh->group_id[s];
+        const WfCfModel *m = sc->groups[g].model;
+        if (m->state_size && m->update_state) {
+            double buf[WF_MAX_MODEL_PARAMS];
+            const double *p = params_at(c, g, vh->params + s * c->pstride, vh->x_m[s], buf);
+            m->update_state(p, vh->state + s * c->sstride, vh->gap_m[s], v, vh->v_lead_mps[s], dt);
+        }
+    }
+    /* The logical range is at most two contiguous runs of slots. */
+    size_t first = vh->first, run = vh->cap - first < n ? vh->cap - first : n;
+    c->ig->step(run, dt, vh->x_m + first, vh->v_mps + first, vh->a_mps2 + first);
+    if (n > run) c->ig->step(n - run, dt, vh->x_m, vh->v_mps, vh->a_mps2);
+#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, sc, n, in_window)
+    for (size_t k = 0; k < n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        double v = vh->v_mps[s], d = vh->x_m[s] - c->xold[s];
+        uint8_t mode = c->mode[s];
+        if ((mode & MODE_MOVING) && v < sc->v_stop_mps) {
+            mode &= (uint8_t)~MODE_MOVING;
+            c->trip_stops[s]++;
+            if (in_window) c->w_stops[s]++;
+        } else if (!(mode & MODE_MOVING) && v > sc->v_go_mps) {
+            mode |= MODE_MOVING;
+        }
+        c->mode[s] = mode;
+        c->trip_dist[s] += d;
+        if (in_window) c->w_dist[s] += d;
+    }
+}
+
+/* No gap may be negative: a vehicle that would overlap its leader (or pass the virtual leader) is put at gap 0
+ * behind it and stopped, front to back so a repaired leader is seen by its follower; each event is counted. A
+ * non-finite state is a numerical fault (the run stops). */
+static void phase_overlaps(WfCorridor *c, int in_window)
+{
+    WfCorridorVehicles *vh = &c->veh;
+    for (size_t k = 0; k < vh->n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        if (!isfinite(vh->x_m[s]) || !isfinite(vh->v_mps[s]) || (c->mode[s] & MODE_FAULT)) {
+            c->fault_slot = (long)s;
+            return;
+        }
+        double limit;
+        if (k > 0) {
+            size_t p = wf_corridor_slot(vh, k - 1);
+            limit = vh->x_m[p] - vh->length_m[p];
+        } else if (c->has_vl) {
+            limit = c->vl_x;
+        } else {
+            continue;
+        }
+        if (vh->x_m[s] > limit) {
+            double d = limit - vh->x_m[s];
+            c->trip_dist[s] += d;
+            if (in_window) c->w_dist[s] += d;
+            vh->x_m[s] = limit;
+            vh->v_mps[s] = 0.0;
+            c->counts.overlaps++;
+        }
+    }
+}
+
+/* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Within a step
+ * the vehicle is taken to move at constant speed, so time and fuel split between cells in proportion to distance.
+ * Serial in road order: several vehicles add to one cell, and the sums must not depend on threads. */
+static void phase_measure(WfCorridor *c, long step, int in_window)
+{
+    WfCorridorVehicles *vh = &c->veh;
+    const WfScenario *sc = c->sc;
+    WfEdie *e = &c->edie;
+    WfDetectors *dt_ = &c->det;
+    double dt = sc->dt_s, L = c->L;
+    size_t j = (size_t)(step / c->edie_every), nx = e->nx;
+    double *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx, *erow_f = e->fuel_g + j * nx;
+    size_t jd = dt_->n_det ? (size_t)(step / c->det_every) : 0;
+    for (size_t k = 0; k < vh->n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        double xa = c->xold[s], xb = vh->x_m[s], fuel = vh->fuel_rate_gps[s] * dt, len = vh->length_m[s];
+        size_t cl = vh->class_id[s];
+        double *cd = e->class_dist_m + cl * nx, *cf = e->class_fuel_g + cl * nx;
+        if (xb > xa) {
+            double span = xb - xa, lo = xa > 0.0 ? xa : 0.0, hi = xb < L ? xb : L;
+            size_t i = (size_t)(lo / e->dx_m);
+            if (i >= nx) i = nx - 1; /* round-off at the far end */
+            for (; i < nx && lo < hi; i++) {
+                /* The last cell ends at L (it may be shorter than dx). */
+                double edge = i + 1 == nx ? L : (double)(i + 1) * e->dx_m;
+                double b = edge < hi ? edge : hi, d = b - lo, w = d / span;
+                erow_d[i] += d, erow_t[i] += dt * w, erow_f[i] += fuel * w;
+                if (in_window) cd[i] += d, cf[i] += fuel * w;
+                lo = b;
+            }
+        } else if (xa >= 0.0 && xa < L) {
+            size_t i = (size_t)(xa / e->dx_m);
+            if (i >= nx) i = nx - 1;
+            erow_t[i] += dt, erow_f[i] += fuel;
+            if (in_window) cf[i] += fuel;
+        }
+        for (size_t q = 0; q < dt_->n_det; q++) {
+            double xd = dt_->x_m[q];
+            size_t cell = jd * dt_->n_det + q;
+            if (xa <= xd && xd < xb) {
+                double v = (xb - xa) / dt; /* > 0: xb > xa */
+                dt_->count[cell]++;
+                dt_->sum_v_mps[cell] += v;
+                dt_->sum_inv_v_spm[cell] += 1.0 / v;
+            }
+            /* Time within the step when the body [x - len, x] covers xd, x moving linearly from xa to xb. */
+            double occ;
+            if (xb > xa) {
+                double t0 = (xd - xa) / (xb - xa) * dt, t1 = (xd + len - xa) / (xb - xa) * dt;
+                t0 = t0 > 0.0 ? t0 : 0.0;
+                t1 = t1 < dt ? t1 : dt;
+                occ = t1 > t0 ? t1 - t0 : 0.0;
+            } else {
+                occ = (xa >= xd && xa - len <= xd) ? dt : 0.0;
+            }
+            dt_->occupied_s[cell] += occ;
+        }
+    }
+}
+
+static int flush_trips(WfCorridor *c, const WfCorridorOutput *out, WfError *err)
+{
+    int rc = 0;
+    if (c->n_trips && out && out->trips) rc = out->trips(out->ctx, c, c->trips, c->n_trips, err);
+    c->n_trips = 0;
+    return rc;
+}
+
+/* A vehicle's window totals join its class's; its trip joins the buffer. */
+static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed, const WfCorridorOutput *out,
+                          WfError *err)
+{
+    const WfCorridorVehicles *vh = &c->veh;
+    size_t cl = vh->class_id[s];
+    c->cls_fuel[cl] += c->w_fuel[s];
+    c->cls_dist[cl] += c->w_dist[s];
+    c->cls_stops[cl] += c->w_stops[s];
+    c->cls_infeas[cl] += c->w_infeas[s];
+    c->cls_steps[cl] += c->w_steps[s];
+    c->tot_hard += c->w_hard[s];
+    c->tot_stopped_s += c->w_stopped[s];
+    if (completed) {
+        c->trips_done++;
+        c->sum_trip_time += t_exit - c->t_ent[s];
+        c->sum_trip_fuel += c->trip_fuel[s];
+        c->cls_trips[cl]++;
+        c->cls_trip_time[cl] += t_exit - c->t_ent[s];
+        c->cls_trip_fuel[cl] += c->trip_fuel[s];
+    }
+    WfTrip *tr = &c->trips[c->n_trips++];
+    *tr = (WfTrip){.serial = vh->serial[s], .class_id = vh->class_id[s], .group_id = vh->group_id[s],
+                   .completed = (uint8_t)completed, .t_arrival_s = c->t_arr[s], .t_entry_s = c->t_ent[s],
+                   .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = c->v_ent[s], .fuel_g = c->trip_fuel[s],
+                   .dist_m = c->trip_dist[s], .time_stopped_s = c->trip_stopped[s], .stops = c->trip_stops[s],
+                   .hard_brakes = c->trip_hard[s], .infeasible_steps = c->trip_infeas[s]};
+    return c->n_trips == TRIP_BUF ? flush_trips(c, out, err) : 0;
+}
+
+/* Vehicles whose front has reached L leave (front first); with the speed outflow each one becomes the virtual
+ * leader: its rear bumper drives on at the prescribed speed. */
+static int phase_exits(WfCorridor *c, double t_end, int in_window, const WfCorridorOutput *out, WfError *err)
+{
+    WfCorridorVehicles *vh = &c->veh;
+    while (vh->n > 0 && vh->x_m[vh->first] >= c->L) {
+        size_t s = vh->first;
+        int rc = finish_vehicle(c, s, t_end, 1, out, err);
+        if (c->cs->outflow == WF_OUTFLOW_SPEED) {
+            size_t seg = c->vl_seg;
+            c->vl_xref = vh->x_m[s] - vh->length_m[s];
+            c->vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
+            c->vl_x = c->vl_xref;
+        }
+        vh->first = vh->first + 1 == vh->cap ? 0 : vh->first + 1;
+        vh->n--;
+        c->counts.exited++;
+        if (in_window) c->w_exits++;
+        if (rc) return rc;
+    }
+    return 0;
+}
+
+/* The virtual leader at time t: x = x_ref + ∫ v (exact for the piecewise-linear profile). */
+static void advance_leader(WfCorridor *c, double t)
+{
+    if (!c->has_vl) return;
+    const WfProfile *p = &c->cs->leader_speed_mps;
+    c->vl_x = c->vl_xref + (wf_profile_integral(p, t, &c->vl_seg) - c->vl_iref);
+    c->vl_v = wf_profile_value(p, t, &c->vl_seg);
+}
+
+static void record(const WfCorridor *c, double t, WfCorridorRow *row)
+{
+    const WfCorridorVehicles *vh = &c->veh;
+    const WfScenario *sc = c->sc;
+    size_t n = vh->n;
+    memset(row, 0, sizeof *row);
+    double sv = 0, sg = 0, stopped = 0, waves = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY, fuel = 0;
+    int prev_slow = 0;
+    for (size_t k = 0; k < n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        double v = vh->v_mps[s];
+        sv += v;
+        stopped += v < sc->v_stop_mps;
+        int slow = v < sc->wave_speed_mps;
+        waves += slow && !prev_slow;
+        prev_slow = slow;
+        vmin = fmin(vmin, v), vmax = fmax(vmax, v);
+        row->class_fuel_rate_gps[vh->class_id[s]] += vh->fuel_rate_gps[s];
+        if (k > 0) sg += vh->gap_m[s], gmin = fmin(gmin, vh->gap_m[s]);
+    }
+    double mean = n ? sv / (double)n : NAN, m2 = 0.0;
+    for (size_t k = 0; k < n; k++) {
+        double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
+        m2 += d * d;
+    }
+    for (size_t cl = 0; cl < sc->n_classes; cl++) fuel += row->class_fuel_rate_gps[cl];
+    row->v[WF_CTS_T] = t;
+    row->v[WF_CTS_VEHICLES] = (double)n;
+    row->v[WF_CTS_MEAN_V] = mean;
+    row->v[WF_CTS_SD_V] = n ? sqrt(m2 / (double)n) : NAN;
+    row->v[WF_CTS_MIN_V] = n ? vmin : NAN;
+    row->v[WF_CTS_MAX_V] = n ? vmax : NAN;
+    row->v[WF_CTS_FRAC_STOPPED] = n ? stopped / (double)n : 0.0;
+    row->v[WF_CTS_WAVES] = waves;
+    row->v[WF_CTS_FUEL_RATE] = fuel;
+    row->v[WF_CTS_MEAN_GAP] = n > 1 ? sg / (double)(n - 1) : NAN;
+    row->v[WF_CTS_MIN_GAP] = n > 1 ? gmin : NAN;
+    row->v[WF_CTS_OVERLAPS] = (double)c->counts.overlaps;
+    row->v[WF_CTS_ARRIVED] = (double)c->counts.arrived;
+    row->v[WF_CTS_ENTERED] = (double)c->counts.entered;
+    row->v[WF_CTS_EXITED] = (double)c->counts.exited;
+    row->v[WF_CTS_QUEUED] = (double)c->counts.queued;
+    row->v[WF_CTS_DELAYED] = (double)c->counts.delayed;
+}
+
+static void summarize(WfCorridor *c)
+{
+    const WfScenario *sc = c->sc;
+    WfCorridorSummary *s = &c->summary;
+    memset(s, 0, sizeof *s);
+    long window = c->steps_done - c->warm_steps;
+    s->window_s = window > 0 ? (double)window * sc->dt_s : 0.0;
+    double litres = 0, gallons = 0, stops = 0, infeas = 0, steps = 0;
+    const WfEdie *e = &c->edie;
+    for (size_t k = 0; k < sc->n_classes; k++) {
+        WfCorridorClassSummary *cs = &s->cls[k];
+        const WfVehicleClass *vc = &sc->classes[k].vc;
+        cs->entered = c->cls_entered[k];
+        cs->trips = c->cls_trips[k];
+        cs->fuel_g = c->cls_fuel[k];
+        cs->dist_m = c->cls_dist[k];
+        cs->l_per_100km = wf_l_per_100km(vc, cs->fuel_g, cs->dist_m);
+        cs->mpg = wf_mpg(vc, cs->fuel_g, cs->dist_m);
+        cs->stops_per_vkm = cs->dist_m > 0 ? c->cls_stops[k] / (cs->dist_m / 1000.0) : 0.0;
+        cs->infeasible_share = c->cls_steps[k] > 0 ? c->cls_infeas[k] / c->cls_steps[k] : 0.0;
+        cs->trip_fuel_mean_g = cs->trips ? c->cls_trip_fuel[k] / (double)cs->trips : NAN;
+        cs->trip_time_mean_s = cs->trips ? c->cls_trip_time[k] / (double)cs->trips : NAN;
+        double fu = 0, du = 0, fd = 0, dd = 0, ff = 0, df = 0;
+        for (size_t i = 0; i < e->nx; i++) {
+            double th = e->grade_mean_rad[i], f = e->class_fuel_g[k * e->nx + i], d = e->class_dist_m[k * e->nx + i];
+            if (th > 1e-4) fu += f, du += d;
+            else if (th < -1e-4) fd += f, dd += d;
+            else ff += f, df += d;
+        }
+        cs->g_per_km_up = du > 0 ? fu / (du / 1000.0) : NAN;
+        cs->g_per_km_down = dd > 0 ? fd / (dd / 1000.0) : NAN;
+        cs->g_per_km_flat = df > 0 ? ff / (df / 1000.0) : NAN;
+        s->fuel_g += cs->fuel_g;
+        s->dist_m += cs->dist_m;
+        stops += c->cls_stops[k];
+        infeas += c->cls_infeas[k];
+        steps += c->cls_steps[k];
+        litres += cs->fuel_g / vc->fuel_density_g_per_l;
+        gallons += cs->fuel_g / vc->fuel_density_g_per_l / WF_L_PER_US_GAL;
+    }
+    double vht_s = steps * sc->dt_s;
+    s->vkt_km = s->dist_m / 1000.0;
+    s->vht_h = vht_s / 3600.0;
+    s->l_per_100km = s->dist_m > 0 ? litres / (s->dist_m / 1e5) : INFINITY;
+    s->mpg = gallons > 0 ? (s->dist_m / WF_M_PER_MILE) / gallons : 0.0;
+    s->stops_per_vkm = s->vkt_km > 0 ? stops / s->vkt_km : 0.0;
+    s->hard_brakes_per_vkm = s->vkt_km > 0 ? c->tot_hard / s->vkt_km : 0.0;
+    s->mean_speed_mps = vht_s > 0 ? s->dist_m / vht_s : 0.0;
+    s->sd_speed_time_avg_mps = c->n_sd ? c->sd_sum / (double)c->n_sd : NAN;
+    s->inflow_vph = s->window_s > 0 ? (double)c->w_entries / s->window_s * 3600.0 : 0.0;
+    s->outflow_vph = s->window_s > 0 ? (double)c->w_exits / s->window_s * 3600.0 : 0.0;
+    s->infeasible_share = steps > 0 ? infeas / steps : 0.0;
+    s->time_stopped_share = vht_s > 0 ? c->tot_stopped_s / vht_s : 0.0;
+    s->trips = c->trips_done;
+    s->mean_travel_time_s = c->trips_done ? c->sum_trip_time / (double)c->trips_done : NAN;
+    s->mean_trip_fuel_g = c->trips_done ? c->sum_trip_fuel / (double)c->trips_done : NAN;
+    s->mean_queue_delay_s = c->counts.entered ? c->counts.queue_delay_s / (double)c->counts.entered : NAN;
+    s->counts = c->counts;
+}
+
+static int numerical_fault(const WfCorridor *c, long step, WfError *err)
+{
+    const WfCorridorVehicles *vh = &c->veh;
+    size_t s = (size_t)c->fault_slot;
+    const WfDriverGroup *g = &c->sc->groups[vh->group_id[s]];
+    return wf_err(err, WF_ESYS,
+                  "numerical fault at t = %.9g s: vehicle %llu (driver group '%s', model %s, class %s): a non-finite "
+                  "acceleration, fuel rate or state (now x = %g m, v = %g m/s); partial results kept",
+                  (double)(step + 1) * c->sc->dt_s, (unsigned long long)vh->serial[s], g->name, g->model->name,
+                  c->sc->classes[vh->class_id[s]].vc.name, vh->x_m[s], vh->v_mps[s]);
+}
+
+int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
+                    volatile sig_atomic_t *stop, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    int rc = out && out->begin ? out->begin(out->ctx, c, err) : 0;
+    if (rc) return rc;
+    double t0 = wall_now(), last_progress = t0;
+    const char *reason = NULL;
+    WfCorridorRow row;
+    for (long step = c->steps_done; step <= c->n_steps; step++) {
+        double t = (double)step * sc->dt_s;
+        int in_window = step >= c->warm_steps;
+        if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, t, step, err))) break;
+        phase_accel(c, step);
+        phase_energy(c);
+        if (step % c->out_every == 0) {
+            record(c, t, &row);
+            if (in_window && c->veh.n) c->sd_sum += row.v[WF_CTS_SD_V], c->n_sd++;
+            if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) break;
+        }
+        if (sc->trajectories && step % c->traj_every == 0 && out && out->trajectory &&
+            (rc = out->trajectory(out->ctx, c, t, err)))
+            break;
+        if (step == c->n_steps) break;
+        double t_next = (double)(step + 1) * sc->dt_s;
+        phase_advance(c, in_window);
+        advance_leader(c, t_next);
+        phase_overlaps(c, in_window);
+        if (c->fault_slot >= 0) {
+            rc = numerical_fault(c, step, err);
+            break;
+        }
+        phase_measure(c, step, in_window);
+        if ((rc = phase_exits(c, t_next, in_window, out, err))) break;
+        c->steps_done = step + 1;
+        if (stop && *stop) {
+            reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+            break;
+        }
+        if (progress && (step & 63) == 0) {
+            double now = wall_now();
+            if (now - last_progress >= 0.2) {
+                progress(pctx, t_next, sc->duration_s, step + 1, c->n_steps);
+                last_progress = now;
+            }
+        }
+    }
+    c->wall_s = wall_now() - t0;
+    /* Vehicles still on the road: their window totals count, their trips are reported as unfinished. */
+    WfError e2 = {0};
+    int rc2 = flush_trips(c, out, rc ? &e2 : err);
+    for (size_t k = 0; !rc2 && k < c->veh.n; k++)
+        rc2 = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, out, rc ? &e2 : err);
+    if (!rc2) rc2 = flush_trips(c, out, rc ? &e2 : err);
+    summarize(c);
+    if (!rc && rc2) rc = rc2;
+    if (rc) {
+        if (out && out->end) out->end(out->ctx, c, 0, err->msg, &e2);
+        return rc;
+    }
+    int completed = reason == NULL;
+    if (out && out->end && (rc = out->end(out->ctx, c, completed, reason ? reason : "", err))) return rc;
+    if (!completed)
+        return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
+                      (double)c->steps_done * sc->dt_s);
+    return 0;
+}
+
+const WfScenario *wf_corridor_scenario(const WfCorridor *c) { return c->sc; }
+const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->veh; }
+const WfCorridorCounts *wf_corridor_counts(const WfCorridor *c) { return &c->counts; }
+const WfCorridorSummary *wf_corridor_summary(const WfCorridor *c) { return &c->summary; }
+const WfDetectors *wf_corridor_detectors(const WfCorridor *c) { return &c->det; }
+const WfEdie *wf_corridor_edie(const WfCorridor *c) { return &c->edie; }
+double wf_corridor_wall_s(const WfCorridor *c) { return c->wall_s; }
+long wf_corridor_steps_done(const WfCorridor *c) { return c->steps_done; }
+int wf_corridor_threads(const WfCorridor *c) { return c->nthreads; }
+
+int wf_corridor_leader(const WfCorridor *c, double *x_m, double *v_mps)
+{
+    if (!c->has_vl) return 0;
+    *x_m = c->vl_x;
+    *v_mps = c->vl_v;
+    return 1;
+}
