@@ -27,7 +27,7 @@ LDLIBS   += $(HDF5_LIBS) -lsundials_cvodes -lsundials_arkode -lsundials_nvecseri
             -lsundials_generic -lyaml -llapacke -llapack -lgsl -lgslcblas -lm
 
 LIB_SRC  := $(sort $(wildcard src/*.c src/*/*.c))
-LIB_SRC  := $(filter-out src/main.c src/cli/%,$(LIB_SRC))
+LIB_SRC  := $(filter-out src/main.c src/cli/% src/mpi/%,$(LIB_SRC))
 CLI_SRC  := src/main.c $(sort $(wildcard src/cli/*.c))
 TEST_SRC := $(sort $(wildcard tests/test_*.c))
 BENCH_SRC:= $(sort $(wildcard bench/*.c))
@@ -119,6 +119,20 @@ tsan:
 valgrind:
 	@$(MAKE) --no-print-directory tests
 	@./tools/valgrind-tests.sh
+
+# MPI sweep driver (docs/sweeps.md): bin/wavefuel-mpi = src/mpi/*.c + src/cli/cmd_sweep.c built with -DWF_MPI by
+# mpicc in $(BUILD)/mpi, linked with the library. Optional: needs `tools/install-deps.sh mpi`; `make` never does.
+MPICC    ?= mpicc
+MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o
+.PHONY: mpi
+mpi: bin/wavefuel-mpi
+$(BUILD)/mpi/%.o: %.c Makefile
+	@mkdir -p $(dir $@)
+	$(MPICC) $(CFLAGS) -DWF_MPI -c $< -o $@
+bin/wavefuel-mpi: $(MPI_OBJ) $(LIBA)
+	@mkdir -p $(dir $@)
+	$(MPICC) $(LDFLAGS) $(MPI_OBJ) $(LIBA) $(LDLIBS) -o $@
+-include $(MPI_OBJ:.o=.d)
 
 clean:
 	rm -rf $(BUILD) build-san build-fuzz build-tsan bin lib

@@ -8,10 +8,11 @@
 static const WfCommand commands[] = {
     {"run", "simulate a scenario and write an HDF5 result", wf_cmd_run},
     {"info", "print the summary of a result file", wf_cmd_info},
-    {"fit", "derive an explicit vehicle class model from a tabulated one (model reduction)", wf_cmd_fit},
+    {"sweep", "run a sweep or ensemble of runs into one result table (also across MPI ranks)", wf_cmd_sweep},
     {"energy", "evaluate a vehicle class's fuel rate at (v, a, theta) points", wf_cmd_energy},
     {"cycle", "drive a vehicle class over a drive cycle, or run the paper's validation protocol", wf_cmd_cycle},
     {"table", "import a tabulated (semi-principled) energy model: CSV -> HDF5", wf_cmd_table},
+    {"fit", "derive an explicit vehicle class model from a tabulated one (model reduction)", wf_cmd_fit},
 };
 enum { N_COMMANDS = sizeof commands / sizeof commands[0] };
 

@@ -5,6 +5,7 @@
 # their make targets (so `make test` never requires them):
 #   fuzz      clang + compiler-rt (libFuzzer, sanitizers) + LLVM libomp (Archer)  make fuzz, fuzz-smoke, tsan
 #   valgrind  valgrind                                                           make valgrind
+#   mpi       OpenMPI (mpicc, mpirun)                                            make mpi (bin/wavefuel-mpi)
 set -euo pipefail
 PKGS=()
 [ $# -eq 0 ] && set -- base
@@ -14,7 +15,8 @@ for set_name in "$@"; do
                  python3-h5py python3-numpy python3-matplotlib) ;;
     fuzz) PKGS+=(clang libclang-rt-14-dev libomp-14-dev) ;;
     valgrind) PKGS+=(valgrind) ;;
-    *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind)" >&2; exit 2 ;;
+    mpi) PKGS+=(libopenmpi-dev openmpi-bin) ;;
+    *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind, mpi)" >&2; exit 2 ;;
   esac
 done
 missing=()

@@ -17,6 +17,7 @@ int wf_cmd_table(int argc, char **argv);
 int wf_cmd_fit(int argc, char **argv);
 int wf_cmd_run(int argc, char **argv);
 int wf_cmd_info(int argc, char **argv);
+int wf_cmd_sweep(int argc, char **argv);
 
 /* Print "wavefuel: <message>" on stderr and return the exit status for the error's code. */
 int wf_cli_fail(const WfError *err);

@@ -1,0 +1,143 @@
+/* Sweeps and ensembles: many runs of one base scenario, each the scenario with `--set` overrides, into one result
+ * table (docs/sweeps.md). A sweep file lists axes (scenario keys with a list or a range of values, and a number of
+ * seeds) whose Cartesian product is the list of runs, or the runs one by one. Any run can be reproduced alone with
+ * the `wavefuel run SCENARIO --set ...` command that wf_sweep_command() prints. */
+#ifndef WAVEFUEL_SWEEP_H
+#define WAVEFUEL_SWEEP_H
+
+#include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "wavefuel/err.h"
+#include "wavefuel/stats.h"
+
+#define WF_SWEEP_MAX_AXES 32
+#define WF_SWEEP_MAX_RUNS 100000L /* the table is held in memory: about 4 kB per run */
+
+typedef struct WfSweepAxis {
+    char   name[64];   /* column name in the result table (/params/NAME) */
+    char   keys[512];  /* the scenario keys this axis sets, comma-separated (one, or several with `with`/`points`) */
+    char   units[16];  /* unit of the values, from the first key's suffix (_mps -> "m/s"); "1" for plain numbers,
+                          "" for text values */
+    int    numeric;    /* 1: every value is a finite number (a float64 column), 0: text (a string column) */
+    size_t n_values;
+} WfSweepAxis;
+
+typedef struct WfSweepRun {
+    const char **set;   /* n_set assignments "key=value", applied in this order: the sweep's common `set`, each
+                           axis in file order, `seed=N` last; borrowed from the sweep */
+    size_t       n_set;
+    const char **value; /* one per axis: the value's text, NULL when an explicit run leaves that axis unset */
+    int64_t      seed;  /* the `seeds` value of this run, -1 when the sweep does not set seeds */
+} WfSweepRun;
+
+typedef struct WfSweep {
+    char        path[1024];          /* the sweep file as given */
+    char       *text;                /* owned: the sweep file verbatim */
+    char        name[128];           /* `name:` or the file stem */
+    char        scenario_path[1024]; /* base scenario, resolved against the sweep file's directory */
+    char       *scenario_text;       /* owned: the base scenario verbatim, read once: every run uses this text */
+    char        output[1024];        /* default result table: `output:` or output/NAME.h5 */
+    WfSweepAxis axes[WF_SWEEP_MAX_AXES];
+    size_t      n_axes;
+    WfSweepRun *runs;                /* owned, n_runs, in table order (first axis outermost, seeds innermost) */
+    size_t      n_runs;
+    struct WfSweepPool *pool;        /* owned: storage of every string above */
+} WfSweep;
+
+/* Read and expand a sweep file; the base scenario's text is read too (not validated: a run whose overrides do not
+ * fit it fails alone, recorded in the table). Errors name file:line and key; WF_EINPUT for bad input. */
+int  wf_sweep_load(const char *path, WfSweep **out, WfError *err);
+/* Same from texts already in memory (MPI ranks get them from rank 0); `path` resolves the scenario path and names
+ * errors; scenario_text NULL: read the scenario file. */
+int  wf_sweep_load_text(const char *path, const char *text, const char *scenario_text, WfSweep **out,
+                        WfError *err);
+void wf_sweep_destroy(WfSweep **sw);
+
+/* The run's overrides, one per line (the format of a result file's /meta/overrides); *out is malloc'ed. Identifies
+ * the run when a sweep is resumed. */
+int  wf_sweep_overrides(const WfSweep *sw, size_t run, char **out, WfError *err);
+/* `wavefuel run SCENARIO --set k=v ...` for the run, each argument quoted for a POSIX shell where needed. Returns 0,
+ * or WF_EINPUT if it does not fit in len bytes. */
+int  wf_sweep_command(const WfSweep *sw, size_t run, char *buf, size_t len);
+
+/* ---- One run ---- */
+typedef enum { WF_RUN_PENDING = 0, WF_RUN_OK = 1, WF_RUN_FAILED = 2 } WfRunStatus;
+extern const char *const wf_run_status_names[3]; /* "pending", "ok", "failed" */
+
+typedef struct WfSweepResult {
+    int       status;          /* WfRunStatus; an interrupted run stays pending */
+    int       error_code;      /* WF_E* of a failed run */
+    char      error[1024];     /* why it failed (or was interrupted), "" when ok */
+    int64_t   seed;            /* the scenario's seed after overrides; the override, or -1, if it did not load */
+    WfSummary summary;         /* every aggregate (docs/metrics.md); valid when ok */
+    size_t    n_classes;
+    char      classes[1024];   /* the classes' names, comma-separated, in the order of summary.cls[] */
+    char      file[1024];      /* this run's own result file, "" without per-run files */
+    /* timing: not part of the reproducible table (differs between executions) */
+    double    wall_s;          /* load, simulation and per-run file, s */
+    int       worker;          /* thread number, or MPI rank, that ran it */
+    int       threads;         /* OpenMP threads inside the run */
+} WfSweepResult;
+
+typedef struct WfSweepRunOpts {
+    int         threads;     /* OpenMP threads inside the run (the engine's loops), >= 1 */
+    const char *per_run_dir; /* NULL: no per-run file; else DIR/run_HASH.h5 (HASH of the overrides), replaced if
+                                the table did not record it as complete */
+    int         worker;      /* recorded in the result */
+} WfSweepRunOpts;
+
+/* Load the run's scenario (the base text + overrides), simulate it, fill *res. Never stops the caller: a failure
+ * is recorded in res (status failed, error); *stop (may be NULL) set by a signal interrupts the run, which then
+ * stays pending. Thread-safe: runs may execute concurrently (HDF5 is used only for per-run files, and the library
+ * is built thread-safe; see docs/sweeps.md). */
+void wf_sweep_run(const WfSweep *sw, size_t run, const WfSweepRunOpts *o, volatile sig_atomic_t *stop,
+                  WfSweepResult *res);
+
+/* ---- The metrics of the table: every WfSummary field, with the names and units of a run file's /summary ---- */
+typedef struct WfSweepMetric {
+    const char *name, *units, *desc;
+    size_t      offset; /* of a double in WfSummary (metrics) or in WfClassSummary (class metrics) */
+} WfSweepMetric;
+extern const WfSweepMetric wf_sweep_metrics[];       /* doubles of WfSummary; `overlaps` (int64) is extra */
+extern const size_t        wf_sweep_n_metrics;
+extern const WfSweepMetric wf_sweep_class_metrics[]; /* doubles of WfClassSummary; `count` (long) is extra */
+extern const size_t        wf_sweep_n_class_metrics;
+
+/* ---- The result table file (src/h5sweep.c; layout in docs/sweeps.md) ---- */
+typedef struct WfSweepTiming {
+    const char *mode;          /* "threads" or "mpi" */
+    int         workers;       /* runs executing at once */
+    int         threads_per_run;
+    double      wall_s;        /* wall time of this invocation so far */
+} WfSweepTiming;
+
+/* Write the whole table to `path` atomically: PATH.partial is written, then renamed over PATH, so PATH always holds
+ * a complete snapshot (/meta/runs_pending says how many rows remain). timing may be NULL. */
+int wf_sweep_table_write(const char *path, const WfSweep *sw, const WfSweepResult *res, const WfSweepTiming *timing,
+                         WfError *err);
+
+/* Turn off HDF5's printing of its error stack for the calling thread (a setting per thread in the thread-safe
+ * library; wavefuel reports errors itself). wf_sweep_run calls it in every thread that writes a per-run file. */
+void wf_sweep_h5_quiet_thread(void);
+
+/* A table read back (resume, tests). */
+typedef struct WfSweepSaved {
+    size_t         n;
+    char         **overrides;     /* owned, n */
+    WfSweepResult *res;           /* owned, n */
+    char          *scenario_text; /* owned */
+    char          *scenario_path; /* owned */
+} WfSweepSaved;
+/* WF_EINPUT if `path` is not a wavefuel sweep table. */
+int  wf_sweep_table_read(const char *path, WfSweepSaved *out, WfError *err);
+void wf_sweep_saved_free(WfSweepSaved *s);
+
+/* Resume: copy the finished rows of `saved` (ok, and failed unless retry_failed) into res[] (n_runs entries,
+ * matched by their overrides) and count them in *n_reused. WF_EINPUT if the saved table was written from another
+ * base scenario text, or holds a run the sweep no longer lists (the rerun would drop it). */
+int wf_sweep_resume(const WfSweep *sw, const WfSweepSaved *saved, int retry_failed, WfSweepResult *res,
+                    size_t *n_reused, WfError *err);
+
+#endif

@@ -1,0 +1,25 @@
+/* wavefuel-mpi: `wavefuel sweep` across MPI ranks (`mpirun -n K bin/wavefuel-mpi SWEEP.yaml [options]`; options as
+ * for `wavefuel sweep`, docs/sweeps.md). Only prolog and epilog: MPI is initialised for funneled threads (rank 0's
+ * main thread alone calls MPI while its other thread runs simulations). */
+#include <mpi.h>
+#include <stdio.h>
+
+#include "cli/commands.h"
+
+int main(int argc, char **argv)
+{
+    int provided = 0;
+    if (MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
+        fprintf(stderr, "wavefuel-mpi: MPI_Init_thread failed\n");
+        return 1;
+    }
+    int status;
+    if (provided < MPI_THREAD_FUNNELED) {
+        fprintf(stderr, "wavefuel-mpi: the MPI library does not support MPI_THREAD_FUNNELED\n");
+        status = 1;
+    } else {
+        status = wf_cmd_sweep(argc, argv);
+    }
+    MPI_Finalize();
+    return status;
+}
