@@ -406,6 +406,16 @@ static void step_fused(WfSim *s, long step, int in_window)
     int nth = n >= PAR_MIN ? s->nthreads : 1;
     if ((size_t)nth > nblk) nth = (int)nblk;
     double *bx = s->bound_x, *bv = s->bound_v;
+    if (nth == 1) {
+        /* Small fleets: no OpenMP region at all (even a one-thread region costs runtime calls every step). */
+        bx[0] = f->x_m[0];
+        bv[0] = f->v_mps[0];
+        for (size_t b = 0; b < nblk; b++) {
+            size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
+            fused_block(s, lo, m, lo + m == n, bx[0] + sc->road.length_m, bv[0], step, in_window);
+        }
+        return;
+    }
 #pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, nth, bx, bv, step, in_window)
     {
         int t = thread_id();
@@ -491,14 +501,20 @@ static long phase_overlaps(WfSim *s, int in_window)
     const double *x = f->x_m, *v = f->v_mps, *len = f->length_m;
     const uint8_t *mode = f->mode;
     long bad = 0, nonfinite = 0;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, x, v, len, L, mode) \
-    reduction(+ : bad, nonfinite)
-    for (size_t i = 0; i < n; i++) {
-        size_t lead = i + 1 < n ? i + 1 : 0;
-        double xl = x[lead] + (i + 1 < n ? 0.0 : L);
-        bad += xl - len[lead] - x[i] < 0.0;
-        nonfinite += !isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT);
+#define OVERLAP_CHECK_BODY                                                               \
+    for (size_t i = 0; i < n; i++) {                                                     \
+        size_t lead = i + 1 < n ? i + 1 : 0;                                             \
+        double xl = x[lead] + (i + 1 < n ? 0.0 : L);                                     \
+        bad += xl - len[lead] - x[i] < 0.0;                                              \
+        nonfinite += !isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT);    \
     }
+    if (n < PAR_MIN) {
+        OVERLAP_CHECK_BODY /* no OpenMP region for small fleets, as in step_fused */
+    } else {
+#pragma omp parallel for schedule(static) default(none) shared(n, x, v, len, L, mode) reduction(+ : bad, nonfinite)
+        OVERLAP_CHECK_BODY
+    }
+#undef OVERLAP_CHECK_BODY
     /* A non-finite state, acceleration or fuel rate is a numerical fault: the run stops (see wf_sim_run). */
     if (nonfinite) {
         for (size_t i = 0; i < n; i++)

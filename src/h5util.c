@@ -15,13 +15,12 @@ static int h5fail(WfError *err, const char *what, const char *name)
 
 void wf_h5_library_init(void)
 {
-    static int done;
-    if (done) return;
-    done = 1;
     /* No HDF5 clean-up at exit: after a failed H5Fclose (disk full), HDF5 1.10's exit handler closes the file
-     * again and crashes; the operating system releases everything anyway. */
+     * again and crashes; the operating system releases everything anyway. Only effective before the library
+     * initialises; later calls return an error, which is harmless. */
     H5dont_atexit();
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL); /* wavefuel reports errors itself, naming the object */
+    /* Per thread in HDF5 (each sweep worker calls this): wavefuel reports errors itself, naming the object. */
+    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
 }
 
 int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
