@@ -12,6 +12,7 @@
 #endif
 
 #include "wavefuel/rng.h"
+#include "par.h"
 
 #define PAR_MIN 4096 /* vehicles below which loops run on one thread */
 #define EBLOCK  512  /* energy evaluation gather block */
@@ -152,13 +153,13 @@ static void phase_noise(WfSim *s, long step)
     size_t n = s->f->n, pairs = (n + 1) / 2;
     double *z = s->noise;
     uint64_t seed = s->sc->seed;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, pairs, z, seed, step)
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, pairs, z, seed, step)",
     for (size_t p = 0; p < pairs; p++) {
         double r[2];
         wf_rng_normal2(seed, WF_RNG_NOISE, p, (uint64_t)step, r);
         z[2 * p] = r[0];
         if (2 * p + 1 < n) z[2 * p + 1] = r[1];
-    }
+    });
 }
 
 /* Phase 2: inputs at the step's start (gap to the leader, leader speed, grade) and the acceleration, driver
@@ -199,8 +200,7 @@ static void phase_accel(WfSim *s, const double *x, const double *v)
         const uint32_t *mem = f->group_member[g];
         const unsigned char *params = f->group_params[g], *state = f->group_state[g];
         size_t cnt = f->group_n[g], psz = grp->model->param_size, ssz = grp->model->state_size;
-#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) \
-    shared(n, L, road, x, len, v, gap, vl, th, seg, cnt, mem, params, state, psz, ssz, grp, cid, a, sc, z)
+        WF_PAR_FOR(cnt >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, L, road, x, len, v, gap, vl, th, seg, cnt, mem, params, state, psz, ssz, grp, cid, a, sc, z)",
         for (size_t k = 0; k < cnt; k++) {
             size_t i = mem[k];
             /* The leader of the last vehicle is vehicle 0, one lap ahead. */
@@ -211,7 +211,7 @@ static void phase_accel(WfSim *s, const double *x, const double *v)
             gap[i] = gi, vl[i] = vli, th[i] = thi;
             a[i] = accel_one(sc, grp, params + k * psz, ssz ? state + k * ssz : NULL, &sc->classes[cid[i]].vc, gi, vi,
                              vli, thi, z ? z[i] : 0.0);
-        }
+        });
     }
 }
 
@@ -229,8 +229,8 @@ static void phase_energy(WfSim *s, const double *v, const double *a)
         uint8_t *flag = f->flag, *fbuf = s->fbuf;
         /* The gather buffers exist for s->nthreads threads: never run this loop on more. */
         int nth = s->nthreads;
-#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) num_threads(nth) default(none) \
-    shared(nblk, cnt, mem, vc, v, a, th, fr, flag, ebuf, fbuf)
+        (void)nth; /* used by the pragma only */
+        WF_PAR_FOR(cnt >= PAR_MIN, "omp parallel for schedule(static) num_threads(nth) default(none) shared(nblk, cnt, mem, vc, v, a, th, fr, flag, ebuf, fbuf)",
         for (size_t b = 0; b < nblk; b++) {
             int t = thread_id();
             double *bv = ebuf + (size_t)t * 4 * EBLOCK, *ba = bv + EBLOCK, *bt = ba + EBLOCK, *bf = bt + EBLOCK;
@@ -246,7 +246,7 @@ static void phase_energy(WfSim *s, const double *v, const double *a)
                 fr[i] = bf[k];
                 flag[i] = bfl[k];
             }
-        }
+        });
     }
 }
 
@@ -308,7 +308,7 @@ static void phase_advance(WfSim *s, int in_window)
     double dt = sc->dt_s;
     const WfIntegrator *ig = s->ig;
     /* Blocks keep the old positions in cache between the integration and the statistics that need them. */
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(f, sc, nblk, n, dt, ig, in_window)
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(f, sc, nblk, n, dt, ig, in_window)",
     for (size_t b = 0; b < nblk; b++) {
         size_t lo = b * IBLOCK, m = n - lo < IBLOCK ? n - lo : IBLOCK;
         double xold[IBLOCK];
@@ -318,7 +318,7 @@ static void phase_advance(WfSim *s, int in_window)
         }
         ig->step(m, dt, f->x_m + lo, f->v_mps + lo, f->a_mps2 + lo);
         for (size_t k = 0; k < m; k++) stats_after(f, sc, lo + k, xold[k], in_window);
-    }
+    });
 }
 
 /* One block of the fused step (see step_fused). last_in_chunk: the block's last leader is (xs, vs). */
@@ -447,20 +447,19 @@ static int ode_rhs(void *ctx, double t, const double *x, const double *v, double
     phase_accel(s, x, v);
     const double *a = f->a_mps2;
     int bad = 0;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, x, v, a, xdot, vdot) \
-    reduction(| : bad)
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, v, a, xdot, vdot) reduction(| : bad)",
     for (size_t i = 0; i < n; i++) {
         double vi = v[i] > 0.0 ? v[i] : 0.0;
         xdot[i] = vi;
         vdot[i] = (v[i] <= 0.0 && a[i] < 0.0) ? 0.0 : a[i];
         bad |= !isfinite(vdot[i]) || !isfinite(x[i]);
-    }
+    });
     if (bad) return -1; /* a non-finite state is not recoverable by a smaller step */
     if (fuel) {
         /* energy at the clamped speed and applied acceleration: s->vplus / vdot */
         double *vp = s->vplus;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(n, v, vp)
-        for (size_t i = 0; i < n; i++) vp[i] = v[i] > 0.0 ? v[i] : 0.0;
+        WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, v, vp)",
+        for (size_t i = 0; i < n; i++) vp[i] = v[i] > 0.0 ? v[i] : 0.0;);
         phase_energy(s, vp, vdot);
         memcpy(fuel, f->fuel_rate_gps, n * sizeof *fuel);
     }
@@ -474,19 +473,19 @@ static int phase_advance_ode(WfSim *s, double t_next, int in_window, WfError *er
     const WfScenario *sc = s->sc;
     size_t n = f->n;
     double *xold = s->xold, *vold = s->vold, *fs = s->fuel_step;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(f, sc, n, xold, vold, in_window)
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(f, sc, n, xold, vold, in_window)",
     for (size_t i = 0; i < n; i++) {
         xold[i] = f->x_m[i];
         vold[i] = f->v_mps[i];
         stats_before(f, sc, i, f->a_mps2[i], f->fuel_rate_gps[i], f->flag[i], in_window, 0);
-    }
+    });
     int rc = wf_ode_advance(s->ode, t_next, f->x_m, f->v_mps, fs, err);
     if (rc) return rc;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(f, sc, n, xold, fs, in_window)
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(f, sc, n, xold, fs, in_window)",
     for (size_t i = 0; i < n; i++) {
         if (in_window) f->fuel_g[i] += fs[i];
         stats_after(f, sc, i, xold[i], in_window);
-    }
+    });
     return 0;
 }
 
@@ -501,20 +500,13 @@ static long phase_overlaps(WfSim *s, int in_window)
     const double *x = f->x_m, *v = f->v_mps, *len = f->length_m;
     const uint8_t *mode = f->mode;
     long bad = 0, nonfinite = 0;
-#define OVERLAP_CHECK_BODY                                                               \
-    for (size_t i = 0; i < n; i++) {                                                     \
-        size_t lead = i + 1 < n ? i + 1 : 0;                                             \
-        double xl = x[lead] + (i + 1 < n ? 0.0 : L);                                     \
-        bad += xl - len[lead] - x[i] < 0.0;                                              \
-        nonfinite += !isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT);    \
-    }
-    if (n < PAR_MIN) {
-        OVERLAP_CHECK_BODY /* no OpenMP region for small fleets, as in step_fused */
-    } else {
-#pragma omp parallel for schedule(static) default(none) shared(n, x, v, len, L, mode) reduction(+ : bad, nonfinite)
-        OVERLAP_CHECK_BODY
-    }
-#undef OVERLAP_CHECK_BODY
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, v, len, L, mode) reduction(+ : bad, nonfinite)",
+    for (size_t i = 0; i < n; i++) {
+        size_t lead = i + 1 < n ? i + 1 : 0;
+        double xl = x[lead] + (i + 1 < n ? 0.0 : L);
+        bad += xl - len[lead] - x[i] < 0.0;
+        nonfinite += !isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT);
+    });
     /* A non-finite state, acceleration or fuel rate is a numerical fault: the run stops (see wf_sim_run). */
     if (nonfinite) {
         for (size_t i = 0; i < n; i++)
@@ -564,11 +556,11 @@ static void phase_controller_state(WfSim *s)
         unsigned char *state = f->group_state[g];
         const double *gap = f->gap_m, *vl = f->v_lead_mps, *v = f->v_mps;
         double dt = s->sc->dt_s;
-#pragma omp parallel for schedule(static) if (cnt >= PAR_MIN) default(none) shared(cnt, mem, params, state, psz, ssz, m, gap, vl, v, dt)
+        WF_PAR_FOR(cnt >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(cnt, mem, params, state, psz, ssz, m, gap, vl, v, dt)",
         for (size_t k = 0; k < cnt; k++) {
             size_t i = mem[k];
             m->update_state(params + k * psz, state + k * ssz, gap[i], v[i], vl[i], dt);
-        }
+        });
     }
 }
 

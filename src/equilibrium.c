@@ -1,5 +1,6 @@
 /* Equilibria for initial conditions: Illinois regula falsi on brackets of monotone functions. */
 #include "wavefuel/equilibrium.h"
+#include "par.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -83,7 +84,7 @@ static double ring_fn(double v, const void *vctx)
     const WfScenario *sc = c->sc;
     size_t n = f->n, nb = (n + EQ_BLOCK - 1) / EQ_BLOCK;
     double L = sc->road.length_m, *gap = c->gap, *bs = c->block_sum;
-#pragma omp parallel for schedule(dynamic, 1) if (n >= 2 * EQ_BLOCK) default(none) shared(n, nb, f, sc, L, v, gap, bs)
+    WF_PAR_FOR(n >= 2 * EQ_BLOCK, "omp parallel for schedule(dynamic, 1) default(none) shared(n, nb, f, sc, L, v, gap, bs)",
     for (size_t b = 0; b < nb; b++) {
         size_t end = (b + 1) * EQ_BLOCK < n ? (b + 1) * EQ_BLOCK : n;
         double s = 0.0;
@@ -92,7 +93,7 @@ static double ring_fn(double v, const void *vctx)
             s += gap[i] + f->length_m[i];
         }
         bs[b] = s;
-    }
+    });
     double total = 0.0;
     for (size_t b = 0; b < nb; b++) total += bs[b];
     return total - L;

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "wavefuel/vehicle.h"
+#include "par.h"
 
 const WfColumn wf_ts_columns[WF_TS_N_COLS] = {
     {"t", "s", "simulated time of the record"},
@@ -36,7 +37,7 @@ void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t
     const uint16_t *cid = f->class_id;
     double v_stop = sc->v_stop_mps, v_wave = sc->wave_speed_mps;
     /* Pass 1 per block: sum of speeds, of gaps, of fuel rates per class, stopped count, wave starts. */
-#pragma omp parallel for schedule(static) if (nb > 1) default(none) shared(nb, n, nc, stride, scratch, v, gap, fr, cid, v_stop, v_wave)
+    WF_PAR_FOR(nb > 1, "omp parallel for schedule(static) default(none) shared(nb, n, nc, stride, scratch, v, gap, fr, cid, v_stop, v_wave)",
     for (size_t b = 0; b < nb; b++) {
         double *out = scratch + b * stride, sv = 0.0, sg = 0.0, stopped = 0.0, waves = 0.0;
         for (size_t c = 0; c < nc; c++) out[4 + c] = 0.0;
@@ -54,7 +55,7 @@ void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t
         out[1] = sg;
         out[2] = stopped;
         out[3] = waves;
-    }
+    });
     double sv = 0, sg = 0, stopped = 0, waves = 0;
     memset(row, 0, sizeof *row);
     for (size_t b = 0; b < nb; b++) {
@@ -64,7 +65,7 @@ void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t
     }
     double mean = sv / (double)n;
     /* Pass 2: centred second moment (two-pass for accuracy when the spread is tiny), extremes. */
-#pragma omp parallel for schedule(static) if (nb > 1) default(none) shared(nb, n, stride, scratch, v, gap, mean)
+    WF_PAR_FOR(nb > 1, "omp parallel for schedule(static) default(none) shared(nb, n, stride, scratch, v, gap, mean)",
     for (size_t b = 0; b < nb; b++) {
         double m2 = 0.0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY;
         size_t end = (b + 1) * WF_STATS_BLOCK < n ? (b + 1) * WF_STATS_BLOCK : n;
@@ -77,7 +78,7 @@ void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t
         }
         double *out = scratch + b * stride;
         out[0] = m2, out[1] = vmin, out[2] = vmax, out[3] = gmin;
-    }
+    });
     double m2 = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY, fuel = 0;
     for (size_t b = 0; b < nb; b++) {
         const double *o = scratch + b * stride;
