@@ -93,6 +93,10 @@ void wf_sim_destroy(WfSim **ps)
 int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 {
     *out = NULL;
+    /* Corridors have their own engine (src/corridor.c): refuse rather than simulate a ring of nominal vehicles. */
+    if (sc->corridor)
+        return wf_err(err, WF_EINPUT, "%s: road.type corridor runs with `wavefuel run` (src/corridor.c); the ring "
+                      "engine, and so `wavefuel sweep`, does not take corridors yet", sc->path);
     WfSim *s = calloc(1, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     s->sc = sc;
