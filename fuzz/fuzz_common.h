@@ -1,28 +1,38 @@
 /* Shared by the fuzz targets. wavefuel's loaders read files by path (relative names resolve against the
  * file's directory), so each input is written to a scratch file in a private directory created on first
- * use and removed at exit. Standard input is pointed at /dev/null so an input naming "-" or /dev/stdin
+ * use and removed at normal exit (an input that aborts leaves it behind: the scripts point TMPDIR at a directory
+ * they delete). Standard input is pointed at /dev/null so an input naming "-" or /dev/stdin
  * cannot block a fuzzing run. */
 #ifndef WAVEFUEL_FUZZ_COMMON_H
 #define WAVEFUEL_FUZZ_COMMON_H
 
+#include <dirent.h>
 #include <fcntl.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "wavefuel/err.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
+enum { FUZZ_MAX_FILES = 64 };
 static char fuzz_dir[512];
-static char fuzz_dir_file[8][600];
+static char fuzz_dir_file[FUZZ_MAX_FILES][600];
 static int  fuzz_n_dir_file;
+static int  fuzz_has_data_dir;
 
 static void fuzz_cleanup(void)
 {
     for (int i = 0; i < fuzz_n_dir_file; i++) unlink(fuzz_dir_file[i]);
+    if (fuzz_has_data_dir) {
+        char d[600];
+        snprintf(d, sizeof d, "%s/data", fuzz_dir);
+        rmdir(d);
+    }
     if (fuzz_dir[0]) rmdir(fuzz_dir);
 }
 
@@ -46,9 +56,44 @@ static inline const char *fuzz_path(const char *name)
         const char *slash = strrchr(fuzz_dir_file[i], '/');
         if (strcmp(slash + 1, name) == 0) return fuzz_dir_file[i];
     }
-    if (fuzz_n_dir_file == 8) abort();
+    if (fuzz_n_dir_file == FUZZ_MAX_FILES) abort();
     snprintf(fuzz_dir_file[fuzz_n_dir_file], sizeof fuzz_dir_file[0], "%s/%s", fuzz_dir, name);
     return fuzz_dir_file[fuzz_n_dir_file++];
+}
+
+/* Copies the repository's scenarios/data/ (the corridor scenarios' inflow and elevation CSVs) into the scratch
+ * directory's data/, so the seeds that name them by relative path load as they do in the tree. */
+static inline void fuzz_copy_scenario_data(void)
+{
+#ifdef WF_REPO_DIR
+    if (fuzz_has_data_dir) return;
+    char src_dir[600], dst[600], src[1300];
+    fuzz_path("fuzz.yaml"); /* creates the scratch directory */
+    snprintf(src_dir, sizeof src_dir, "%s/scenarios/data", WF_REPO_DIR);
+    snprintf(dst, sizeof dst, "%s/data", fuzz_dir);
+    if (mkdir(dst, 0700) != 0) return;
+    fuzz_has_data_dir = 1;
+    DIR *d = opendir(src_dir);
+    if (!d) return;
+    struct dirent *e;
+    while ((e = readdir(d)) && fuzz_n_dir_file < FUZZ_MAX_FILES) {
+        if (e->d_name[0] == '.') continue;
+        int ws = snprintf(src, sizeof src, "%s/%s", src_dir, e->d_name);
+        FILE *in = ws > 0 && (size_t)ws < sizeof src ? fopen(src, "rb") : NULL;
+        if (!in) continue;
+        int w = snprintf(fuzz_dir_file[fuzz_n_dir_file], sizeof fuzz_dir_file[0], "%s/data/%s", fuzz_dir, e->d_name);
+        FILE *out = w > 0 && (size_t)w < sizeof fuzz_dir_file[0] ? fopen(fuzz_dir_file[fuzz_n_dir_file], "wb") : NULL;
+        if (out) {
+            char buf[4096];
+            size_t n;
+            while ((n = fread(buf, 1, sizeof buf, in)) > 0) fwrite(buf, 1, n, out);
+            fclose(out);
+            fuzz_n_dir_file++;
+        }
+        fclose(in);
+    }
+    closedir(d);
+#endif
 }
 
 /* Writes size bytes to scratch file `name` (replacing it); returns its path. */

@@ -5,12 +5,16 @@
  *   2  drive cycle      time_s,speed_mps     -> wf_cycle_load
  *   3  tabulated model  Velocity,...,Infeasible (5 columns) -> wf_table_read_csv, then evaluation
  *   4  raw reader, no header names, 1 + (second byte mod 5) columns
+ *   5  corridor inflow profile  time_s,flow_vph  -> a corridor scenario naming it (corridor.inflow.csv)
+ *   6  corridor elevation       x_m,z_m          -> a corridor scenario naming it (road.elevation.csv)
  * Accepted tables must satisfy what each reader documents (checked below). */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "fuzz_common.h"
+#include "wavefuel/corridor.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/cycle.h"
 #include "wavefuel/road.h"
@@ -165,17 +169,60 @@ static void raw(const char *path, size_t n_cols)
     wf_csv_free(&t);
 }
 
+/* A corridor scenario whose inflow (elevation = 0) or elevation profile (elevation = 1) is the fuzzed CSV, read
+ * by the scenario loader's own CSV path (relative to the scenario file). */
+static void corridor_profile(int elevation)
+{
+    static const char inflow_yaml[] =
+        "road: {type: corridor, length_m: 10000}\n"
+        "time: {duration_s: 10}\n"
+        "fleet:\n  classes: [{class: midsize_sedan, fraction: 1}]\n  drivers: [{model: idm, fraction: 1}]\n"
+        "corridor:\n  inflow: {csv: fuzz.csv, arrivals: poisson}\n";
+    static const char elevation_yaml[] =
+        "road: {type: corridor, length_m: 10000, elevation: {csv: fuzz.csv}}\n"
+        "time: {duration_s: 10}\n"
+        "fleet:\n  classes: [{class: midsize_sedan, fraction: 1}]\n  drivers: [{model: idm, fraction: 1}]\n"
+        "corridor:\n  inflow: {flow_vph: 1200}\n";
+    const char *yaml = elevation ? elevation_yaml : inflow_yaml;
+    const char *path = fuzz_write("corridor.yaml", (const uint8_t *)yaml, strlen(yaml));
+    WfScenario *sc = NULL;
+    WfError err = {0};
+    int rc = wf_scenario_load(path, NULL, 0, &sc, &err);
+    if (rc) {
+        fuzz_check_error(elevation ? "corridor elevation" : "corridor inflow", rc, &err);
+        return;
+    }
+    fuzz_note(elevation ? "corridor elevation" : "corridor inflow", 0, &err);
+    const WfCorridorSpec *cs = sc->corridor;
+    FUZZ_REQUIRE(cs != NULL, "not a corridor");
+    for (size_t i = 0; i < cs->n_grade; i++) {
+        FUZZ_REQUIRE(cs->grade_x_m[i] >= 0 && cs->grade_x_m[i] <= 10000, "grade x %g", cs->grade_x_m[i]);
+        FUZZ_REQUIRE(i == 0 || cs->grade_x_m[i] > cs->grade_x_m[i - 1], "grade x not increasing at %zu", i);
+        FUZZ_REQUIRE(fabs(cs->grade_rad[i]) <= 0.2, "grade %g rad", cs->grade_rad[i]);
+    }
+    const WfProfile *p = &cs->inflow_vph;
+    FUZZ_REQUIRE(p->n >= 1, "empty inflow profile");
+    for (size_t i = 0; i < p->n; i++) {
+        FUZZ_REQUIRE(isfinite(p->t[i]) && (i == 0 || p->t[i] > p->t[i - 1]), "inflow t[%zu] = %g", i, p->t[i]);
+        FUZZ_REQUIRE(isfinite(p->y[i]) && p->y[i] >= 0, "inflow[%zu] = %g veh/h", i, p->y[i]);
+        FUZZ_REQUIRE(isfinite(p->cum[i]), "inflow integral[%zu] = %g", i, p->cum[i]);
+    }
+    wf_scenario_destroy(&sc);
+}
+
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     if (size < 1) return 0;
-    int mode = data[0] % 5;
+    int mode = data[0] % 7;
     const char *path = fuzz_write("fuzz.csv", data + 1, size - 1);
     switch (mode) {
     case 0: grade(path); break;
     case 1: energy(path); break;
     case 2: cycle(path); break;
     case 3: table(path); break;
-    default: raw(path, 1 + (size > 1 ? data[1] % 5 : 0)); break;
+    case 4: raw(path, 1 + (size > 1 ? data[1] % 5 : 0)); break;
+    case 5: corridor_profile(0); break;
+    default: corridor_profile(1); break;
     }
     return 0;
 }

@@ -1,16 +1,41 @@
-/* Fuzz target: the scenario loader (YAML -> WfScenario) including --set overrides.
+/* Fuzz target: the scenario loader (YAML -> WfScenario, rings and corridors) including --set overrides.
  * Input: the scenario's YAML text, optionally followed by a NUL byte and newline-separated --set assignments
  * ("fleet.vehicles=30\ntime.dt_s=0.2"). Every input must either load into a scenario that satisfies the
- * loader's documented guarantees (checked below) or fail with WF_EINPUT and a message. */
+ * loader's documented guarantees (checked below) or fail with WF_EINPUT and a message. The repository's
+ * scenarios/data/ is copied beside the input, so relative CSV paths of the seeds resolve. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "fuzz_common.h"
+#include "wavefuel/corridor.h"
 #include "wavefuel/scenario.h"
 
 enum { MAX_SETS = 16 };
+
+/* Corridors (docs/corridors.md): profiles increasing in x or t, grades within +-0.2 rad, demand >= 0. */
+static void check_corridor(const WfScenario *sc)
+{
+    const WfCorridorSpec *cs = sc->corridor;
+    double L = sc->road.length_m;
+    for (size_t i = 0; i < cs->n_grade; i++) {
+        FUZZ_REQUIRE(cs->grade_x_m[i] >= 0 && cs->grade_x_m[i] <= L, "corridor grade x %g", cs->grade_x_m[i]);
+        FUZZ_REQUIRE(i == 0 || cs->grade_x_m[i] > cs->grade_x_m[i - 1], "corridor grade x not increasing at %zu", i);
+        FUZZ_REQUIRE(fabs(cs->grade_rad[i]) <= 0.2, "corridor grade %g", cs->grade_rad[i]);
+    }
+    const WfProfile *p = &cs->inflow_vph;
+    for (size_t i = 0; i < p->n; i++) {
+        FUZZ_REQUIRE(isfinite(p->t[i]) && (i == 0 || p->t[i] > p->t[i - 1]), "inflow t[%zu] = %g", i, p->t[i]);
+        FUZZ_REQUIRE(isfinite(p->y[i]) && p->y[i] >= 0, "inflow[%zu] = %g veh/h", i, p->y[i]);
+        FUZZ_REQUIRE(isfinite(p->cum[i]), "inflow integral[%zu] = %g", i, p->cum[i]);
+    }
+    for (size_t z = 0; z < cs->n_zones; z++)
+        FUZZ_REQUIRE(isfinite(cs->zones[z].from_m) && cs->zones[z].from_m < cs->zones[z].to_m, "zone %zu [%g, %g)", z,
+                     cs->zones[z].from_m, cs->zones[z].to_m);
+    for (size_t d = 0; d < cs->n_det; d++)
+        FUZZ_REQUIRE(cs->det_x_m[d] >= 0 && cs->det_x_m[d] <= L, "detector at %g m", cs->det_x_m[d]);
+}
 
 static void check_scenario(const WfScenario *sc)
 {
@@ -37,7 +62,8 @@ static void check_scenario(const WfScenario *sc)
         total_len_m += (double)cs->count * cs->length_m;
     }
     FUZZ_REQUIRE(sum == sc->n_vehicles, "class counts sum to %ld, fleet %ld", sum, sc->n_vehicles);
-    FUZZ_REQUIRE(total_len_m < sc->road.length_m, "vehicles %g m on a %g m ring", total_len_m, sc->road.length_m);
+    if (!sc->corridor) /* a corridor's counts only resolve its shares (WF_CORRIDOR_SHARE_BASE): nothing to fit */
+        FUZZ_REQUIRE(total_len_m < sc->road.length_m, "vehicles %g m on a %g m ring", total_len_m, sc->road.length_m);
     sum = 0;
     for (size_t g = 0; g < sc->n_groups; g++) {
         const WfDriverGroup *gr = &sc->groups[g];
@@ -55,6 +81,10 @@ static void check_scenario(const WfScenario *sc)
                  sc->perturb_vehicle);
     FUZZ_REQUIRE(isfinite(sc->perturb_dx_m) && isfinite(sc->perturb_dv_mps) && isfinite(sc->jitter_m), "perturbation");
     FUZZ_REQUIRE(sc->v_go_mps > sc->v_stop_mps, "v_go %g <= v_stop %g", sc->v_go_mps, sc->v_stop_mps);
+    if (sc->corridor) {
+        check_corridor(sc);
+        return;
+    }
     const WfRoad *r = &sc->road;
     for (size_t i = 0; i < r->n_grade; i++) {
         FUZZ_REQUIRE(r->grade_x_m[i] >= 0 && r->grade_x_m[i] < r->length_m, "grade x %g", r->grade_x_m[i]);
@@ -74,6 +104,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
     const uint8_t *nul = memchr(data, 0, size);
     size_t yaml_len = nul ? (size_t)(nul - data) : size;
+    fuzz_copy_scenario_data();
     const char *path = fuzz_write("fuzz.yaml", data, yaml_len);
 
     /* --set assignments: the bytes after the NUL, one per line (at most MAX_SETS). */

@@ -6,7 +6,7 @@
 # inputs are left in build-fuzz/artifacts/TARGET/. Exits 1 if any target found anything.
 # Usage: fuzz/run.sh [TARGET...]   (FUZZ_SECONDS, FUZZ_CC=clang, FUZZ_BUILD=build-fuzz)
 set -uo pipefail
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/.." || exit 1
 SECONDS_EACH=${FUZZ_SECONDS:-60}
 FUZZ_CC=${FUZZ_CC:-clang}
 FB=${FUZZ_BUILD:-build-fuzz}
@@ -29,6 +29,10 @@ make --no-print-directory -j"$(nproc)" BUILD="$FB" CC="$FUZZ_CC" \
   LIBA="$FB/lib/libwavefuel.a" $(printf "$FB/fuzz/%s_fuzzer " "${TARGETS[@]}") >"$FB.log" 2>&1 ||
   { tail -30 "$FB.log" >&2; echo "fuzz/run.sh: build failed (log: $FB.log)" >&2; exit 1; }
 
+# The targets' scratch directories (left behind by inputs that abort) go under build-fuzz/tmp, emptied here.
+export TMPDIR="$PWD/$FB/tmp"
+rm -rf "$TMPDIR" && mkdir -p "$TMPDIR"
+trap 'rm -rf "$TMPDIR"' EXIT
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=1}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 found=0
@@ -36,27 +40,32 @@ for t in "${TARGETS[@]}"; do
   work="$FB/corpus/$t" art="$FB/artifacts/$t/"
   mkdir -p "$work" "$art" "fuzz/crashes/$t"
   log="$FB/fuzz-$t.log"
-  before=$(ls "$art" | wc -l)
+  ls "$art" > "$FB/artifacts/$t.before"
   # Fixed crash regressions seed the run (they reach deep paths); open-* ones (reported, unfixed) would stop it
   # at once, so they stay out.
   for f in fuzz/crashes/$t/*; do
     case "$(basename "$f")" in open-*) ;; *) [ -f "$f" ] && cp -n "$f" "$work/" ;; esac
   done
   # -timeout: a single input taking 10 s is a finding (a hang); -rss_limit_mb bounds hostile allocations.
-  "$FB/fuzz/${t}_fuzzer" -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
-    -dict="fuzz/$t.dict" -artifact_prefix="$art" "$work" "fuzz/corpus/$t" \
-    </dev/null >"$log" 2>&1
-  rc=$?
+  for _ in 1 2 3; do
+    "$FB/fuzz/${t}_fuzzer" -max_total_time="$SECONDS_EACH" -timeout=10 -rss_limit_mb=2048 -print_final_stats=1 \
+      -dict="fuzz/$t.dict" -artifact_prefix="$art" "$work" "fuzz/corpus/$t" \
+      </dev/null >"$log" 2>&1
+    rc=$?
+    # A binary linked a moment ago can still be "busy" (ETXTBSY, status 126) for a short while.
+    [ $rc -eq 126 ] && grep -q 'Text file busy' "$log" && { sleep 2; continue; }
+    break
+  done
   execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -n 1)
   cov=$(grep -oE 'cov: [0-9]+' "$log" | tail -n 1)
   printf '%-9s %3ss  %9s executions  %-10s corpus %5s files  exit %d\n' "$t" "$SECONDS_EACH" "${execs:-?}" \
     "${cov:-cov: ?}" "$(ls "$work" | wc -l)" "$rc"
-  after=$(ls "$art" | wc -l)
-  if [ "$rc" -ne 0 ] || [ "$after" -ne "$before" ]; then
+  new=$(ls "$art" | grep -vxF -f "$FB/artifacts/$t.before")
+  if [ "$rc" -ne 0 ] || [ -n "$new" ]; then
     found=1
-    for f in "$art"crash-* "$art"leak-*; do
-      [ -e "$f" ] || continue
-      cp -n "$f" "fuzz/crashes/$t/" && echo "  regression input: fuzz/crashes/$t/$(basename "$f")"
+    for f in $new; do
+      case "$f" in crash-*|leak-*) cp -n "$art$f" "fuzz/crashes/$t/" && echo "  regression input: fuzz/crashes/$t/$f" ;;
+                   *) echo "  input: $art$f" ;; esac
     done
     grep -m1 -E 'ERROR|runtime error|property violated|broken error contract' "$log" | sed 's/^/  /'
     echo "  log: $log"

@@ -64,13 +64,13 @@ Y
 # --- vehicle: class files ---
 for f in vehicles/*.yaml; do cp "$f" "$C/vehicle/$(basename "$f")"; done
 
-# --- csv: a selector byte (0 grade, 1 energy, 2 cycle, 3 tabulated, 4 raw), then the file ---
+# --- csv: a selector byte (0 grade, 1 energy, 2 cycle, 3 tabulated, 4 raw, 5 inflow, 6 elevation), then the file ---
 seed_csv() { local name=$1 mode=$2; { printf "\\x0$mode"; cat; } > "$C/csv/$name"; }
 printf 'x_m,grade_rad\n0,0\n250,0.01\n500,0\n750,-0.01\n' | seed_csv grade 0
 printf '# comment\r\n0,0.01\r\n500,-0.01\r\n' | seed_csv grade_crlf 0
 printf 'v,a,theta\n0,0,0\n10,1,0.01\n30,-2,-0.02\n-1,0,0\n' | seed_csv energy 1
 printf '\xef\xbb\xbfv,a,theta\n5,0.5,0\n' | seed_csv energy_bom 1
-for f in /work/shared/data/cycles/udds.csv /work/shared/data/cycles/us06.csv; do
+for f in ../shared/data/cycles/udds.csv ../shared/data/cycles/us06.csv; do # next to the repository
   [ -f "$f" ] && head -40 "$f" | seed_csv "cycle_$(basename "$f" .csv)" 2
 done
 printf '0,0\n1,1.5\n2.5,3\n4,0\n' | seed_csv cycle_noheader 2
@@ -83,4 +83,10 @@ for v in (0, 10, 20):
             print(f"{v:g},{a:g},{t:g},{0.2 + 0.01 * v + 0.3 * max(a, 0) + 5 * t:.6g},{int(a > 0 and v > 15)}")
 PY
 printf '1,2,3,4,5\n6,7,8,9,10\n' | seed_csv raw5 4
+for f in scenarios/data/*.csv; do
+  case "$(head -n 1 "$f")" in
+    time_s,*) seed_csv "inflow_$(basename "$f" .csv)" 5 < "$f" ;;
+    x_m,z_m*) seed_csv "elevation_$(basename "$f" .csv)" 6 < "$f" ;;
+  esac
+done
 echo "seeded: $(ls "$C/scenario" | wc -l) scenario, $(ls "$C/vehicle" | wc -l) vehicle, $(ls "$C/csv" | wc -l) csv"

@@ -119,7 +119,9 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
         if (!seen_data && !out->had_header) {
             char first[256];
             size_t k = strcspn(s, ",");
-            snprintf(first, sizeof first, "%.*s", (int)(k < 255 ? k : 255), s);
+            if (k > sizeof first - 1) k = sizeof first - 1;
+            memcpy(first, s, k);
+            first[k] = '\0';
             double dummy;
             if (wf_parse_double(trim(first), &dummy) != 0) {
                 out->had_header = 1;

@@ -5,11 +5,12 @@
 # 2) If clang with libFuzzer is installed, builds the real fuzzers (build-fuzz/, incremental) and fuzzes each
 # target for FUZZ_SMOKE_SECONDS (default 3; 0 skips) on a scratch copy of its corpus.
 set -u
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/.." || exit 1
 BUILD=${BUILD:-build}
 SMOKE=${FUZZ_SMOKE_SECONDS:-3}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+export TMPDIR="$tmp" # the fuzz targets' scratch directories (an aborting input leaves its own behind)
 ok() { echo "PASS $1"; }
 ko() { echo "FAIL $1: $2"; }
 TARGETS="scenario vehicle csv"
@@ -66,9 +67,14 @@ fi
 for t in $TARGETS; do
   mkdir -p "$tmp/$t" "$tmp/art_$t"
   cp fuzz/corpus/$t/* "$tmp/$t/"
-  ASAN_OPTIONS=detect_leaks=1 "$FB/fuzz/${t}_fuzzer" -max_total_time="$SMOKE" -timeout=10 -rss_limit_mb=2048 \
-    -dict="fuzz/$t.dict" -artifact_prefix="$tmp/art_$t/" "$tmp/$t" </dev/null >"$tmp/$t.log" 2>&1
-  rc=$?
+  for _ in 1 2 3; do
+    ASAN_OPTIONS=detect_leaks=1 "$FB/fuzz/${t}_fuzzer" -max_total_time="$SMOKE" -timeout=10 -rss_limit_mb=2048 \
+      -dict="fuzz/$t.dict" -artifact_prefix="$tmp/art_$t/" "$tmp/$t" </dev/null >"$tmp/$t.log" 2>&1
+    rc=$?
+    # A binary linked a moment ago can still be "busy" (ETXTBSY, status 126) for a short while.
+    [ $rc -eq 126 ] && grep -q 'Text file busy' "$tmp/$t.log" && { sleep 2; continue; }
+    break
+  done
   execs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$tmp/$t.log" | grep -o '[0-9]*$' | tail -n 1)
   [ -z "$execs" ] && execs=$(grep -oE '#[0-9]+' "$tmp/$t.log" | tail -n 1 | tr -d '#')
   if [ $rc -eq 0 ] && [ -z "$(ls "$tmp/art_$t")" ]; then ok "fuzz_$t (${SMOKE}s, ${execs:-?} runs)"

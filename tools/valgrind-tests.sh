@@ -7,7 +7,7 @@
 # lost") are suppressed by tools/valgrind.supp. A test that fails on its own (exit != expected, clean valgrind
 # log) is reported as a test failure, not a memory error.
 set -u
-cd "$(dirname "$0")/.."
+cd "$(dirname "$0")/.." || exit 1
 BUILD=${BUILD:-build}
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 command -v valgrind >/dev/null 2>&1 || ./tools/install-deps.sh valgrind || exit 1
@@ -15,6 +15,7 @@ export OMP_NUM_THREADS=${OMP_NUM_THREADS:-2}
 export WAVEFUEL_VEHICLES=
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
+export TMPDIR="$tmp" # the fuzz targets' scratch directories (an aborting input leaves its own behind)
 VG=(valgrind --leak-check=full --show-leak-kinds=definite,indirect,possible
     --errors-for-leak-kinds=definite,indirect,possible --error-exitcode=1 --track-origins=yes -q
     --suppressions=tools/valgrind.supp)
@@ -51,7 +52,7 @@ for t in scenario vehicle csv; do
   drv="$BUILD/fuzz/${t}_replay"
   [ -x "$drv" ] || continue
   # The seeds and the fixed crash regressions (open-* ones still abort by design: tests/t_fuzz_smoke.sh).
-  files=(fuzz/corpus/$t/*)
+  files=("fuzz/corpus/$t"/*)
   for f in fuzz/crashes/$t/*; do case "$(basename "$f")" in open-*) ;; *) [ -f "$f" ] && files+=("$f") ;; esac; done
   vg "replay_$t" 0 "$drv" "${files[@]}"
 done
