@@ -35,8 +35,9 @@ static int derive(WfCycle *c, const char *shown, const int *lines, WfError *err)
         int line = lines ? lines[i] : (int)i + 1;
         if (!isfinite(c->t_s[i]) || !isfinite(c->v_mps[i]))
             return wf_err(err, WF_EINPUT, "%s:%d: time and speed must be finite", shown, line);
-        if (c->v_mps[i] < 0)
-            return wf_err(err, WF_EINPUT, "%s:%d: field 2 (speed_mps) must be >= 0 m/s (got %.17g)", shown, line,
+        /* 150 m/s is far above any road vehicle; the bound also keeps distances and accelerations finite. */
+        if (c->v_mps[i] < 0 || c->v_mps[i] > 150.0)
+            return wf_err(err, WF_EINPUT, "%s:%d: field 2 (speed_mps) must be in [0, 150] m/s (got %.17g)", shown, line,
                           c->v_mps[i]);
         if (i > 0 && !(c->t_s[i] > c->t_s[i - 1]))
             return wf_err(err, WF_EINPUT, "%s:%d: field 1 (time_s) must increase strictly (%.17g after %.17g)", shown,

@@ -95,7 +95,10 @@ static int resolve_counts(const char *what, size_t m, double *fraction, long *co
     long assigned = 0;
     double rem[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
     for (size_t i = 0; i < m; i++) {
-        double exact = fraction[i] * (double)n;
+        /* Fractions are normalised by their sum (within 1e-9 of 1): floors of un-normalised shares could add up to
+         * more than n for a billion vehicles. */
+        double exact = fraction[i] / sum * (double)n;
+        if (exact > (double)n) exact = (double)n;
         count[i] = (long)floor(exact);
         rem[i] = exact - (double)count[i];
         assigned += count[i];
