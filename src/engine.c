@@ -27,8 +27,6 @@ struct WfSim {
     int64_t  overlaps;
     int      nthreads;
     double  *stat_scratch;
-    double  *ebuf;          /* nthreads x 4 x EBLOCK: v, a, theta, fuel */
-    uint8_t *fbuf;          /* nthreads x EBLOCK flags */
     double  *noise;         /* standard normal draw of each vehicle for the current step; NULL without noise */
     WfOde   *ode;           /* SUNDIALS integrator, or NULL for a fixed-step scheme */
     double  *xold, *vold, *fuel_step, *vplus; /* ODE path only */
@@ -59,6 +57,15 @@ static double wall_now(void)
 #endif
 }
 
+static int team_size(void)
+{
+#ifdef _OPENMP
+    return omp_get_num_threads();
+#else
+    return 1;
+#endif
+}
+
 static int thread_id(void)
 {
 #ifdef _OPENMP
@@ -76,8 +83,6 @@ void wf_sim_destroy(WfSim **ps)
     WfSim *s = *ps;
     wf_fleet_destroy(&s->f);
     free(s->stat_scratch);
-    free(s->ebuf);
-    free(s->fbuf);
     free(s->noise);
     wf_ode_destroy(&s->ode);
     free(s->xold);
@@ -118,14 +123,12 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     s->nthreads = 1;
 #endif
     s->stat_scratch = malloc(wf_stats_scratch_size(s->f->n, s->f->n_classes) * sizeof(double));
-    s->ebuf = malloc((size_t)s->nthreads * 4 * EBLOCK * sizeof(double));
-    s->fbuf = malloc((size_t)s->nthreads * EBLOCK);
     int noisy = 0;
     for (size_t g = 0; g < sc->n_groups; g++) noisy |= sc->groups[g].noise_mps2 > 0.0;
     if (noisy) s->noise = malloc((s->f->n + 1) * sizeof(double));
     s->bound_x = malloc(((size_t)s->nthreads + 1) * sizeof(double));
     s->bound_v = malloc(((size_t)s->nthreads + 1) * sizeof(double));
-    if (!s->stat_scratch || !s->ebuf || !s->fbuf || (noisy && !s->noise) || !s->bound_x || !s->bound_v) {
+    if (!s->stat_scratch || (noisy && !s->noise) || !s->bound_x || !s->bound_v) {
         wf_sim_destroy(&s);
         return wf_err(err, WF_ESYS, "out of memory");
     }
@@ -229,16 +232,15 @@ static void phase_energy(WfSim *s, const double *v, const double *a)
         const uint32_t *mem = f->class_member[c];
         size_t cnt = f->class_n[c], nblk = (cnt + EBLOCK - 1) / EBLOCK;
         const double *th = f->theta_rad;
-        double *fr = f->fuel_rate_gps, *ebuf = s->ebuf;
-        uint8_t *flag = f->flag, *fbuf = s->fbuf;
-        /* The gather buffers exist for s->nthreads threads: never run this loop on more. */
-        int nth = s->nthreads;
-        (void)nth; /* used by the pragma only */
-        WF_PAR_FOR(cnt >= PAR_MIN, "omp parallel for schedule(static) num_threads(nth) default(none) shared(nblk, cnt, mem, vc, v, a, th, fr, flag, ebuf, fbuf)",
+        double *fr = f->fuel_rate_gps;
+        uint8_t *flag = f->flag;
+        /* Gather buffers on the stack of whichever thread runs the block (16.5 kB): no per-thread indexing, which
+         * would break when the engine runs inside another OpenMP team (a sweep worker has a thread number of its
+         * own while this loop runs serially in it). */
+        WF_PAR_FOR(cnt >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(nblk, cnt, mem, vc, v, a, th, fr, flag)",
         for (size_t b = 0; b < nblk; b++) {
-            int t = thread_id();
-            double *bv = ebuf + (size_t)t * 4 * EBLOCK, *ba = bv + EBLOCK, *bt = ba + EBLOCK, *bf = bt + EBLOCK;
-            uint8_t *bfl = fbuf + (size_t)t * EBLOCK;
+            double bv[EBLOCK], ba[EBLOCK], bt[EBLOCK], bf[EBLOCK];
+            uint8_t bfl[EBLOCK];
             size_t lo = b * EBLOCK, m = cnt - lo < EBLOCK ? cnt - lo : EBLOCK;
             for (size_t k = 0; k < m; k++) {
                 size_t i = mem[lo + k];
@@ -420,17 +422,19 @@ static void step_fused(WfSim *s, long step, int in_window)
         }
         return;
     }
-#pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, nth, bx, bv, step, in_window)
+#pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, bx, bv, step, in_window)
     {
-        int t = thread_id();
-        size_t b0 = nblk * (size_t)t / (size_t)nth, b1 = nblk * (size_t)(t + 1) / (size_t)nth;
+        /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the
+         * team actually running. */
+        int t = thread_id(), nt = team_size();
+        size_t b0 = nblk * (size_t)t / (size_t)nt, b1 = nblk * (size_t)(t + 1) / (size_t)nt;
         size_t lo_t = b0 * FBLOCK, hi_t = b1 * FBLOCK < n ? b1 * FBLOCK : n;
         bx[t] = f->x_m[lo_t];
         bv[t] = f->v_mps[lo_t];
 #pragma omp barrier
         /* Leader of this chunk's last vehicle: the next chunk's first, saved (plus one lap after the last). */
-        int tn = t + 1 < nth ? t + 1 : 0;
-        double xs = bx[tn] + (t + 1 < nth ? 0.0 : sc->road.length_m), vs = bv[tn];
+        int tn = t + 1 < nt ? t + 1 : 0;
+        double xs = bx[tn] + (t + 1 < nt ? 0.0 : sc->road.length_m), vs = bv[tn];
         for (size_t b = b0; b < b1; b++) {
             size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
             fused_block(s, lo, m, lo + m == hi_t, xs, vs, step, in_window);

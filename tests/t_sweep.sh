@@ -99,11 +99,12 @@ PY
 then ok per_run_files; else ko per_run_files "see above"; fi
 
 # MPI: the same table from two ranks (rank 0 hands out runs, both compute).
+# Bounded by a timeout: a hung MPI job must fail this test, not hang the whole suite.
 if command -v mpicc >/dev/null 2>&1 && command -v mpirun >/dev/null 2>&1; then
   export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_vader_single_copy_mechanism=none
   # The default build tree: a sanitizer run of the suite (BUILD=build-san in the environment) must not mix its objects.
   if make -s --no-print-directory mpi BUILD=build >"$tmp/make_mpi.log" 2>&1; then
-    mpirun -n 2 --oversubscribe bin/wavefuel-mpi "$tmp/s1.yaml" -o "$tmp/tm.h5" -q >"$tmp/mpi.log" 2>&1; rc=$?
+    timeout 300 mpirun -n 2 --oversubscribe bin/wavefuel-mpi "$tmp/s1.yaml" -o "$tmp/tm.h5" -q >"$tmp/mpi.log" 2>&1; rc=$?
     if [ $rc -eq 0 ] && same "$tmp/t1.h5" "$tmp/tm.h5" &&
        $PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); assert f['timing/mode'][()]==b'mpi' and f['timing/workers'][()]==2" "$tmp/tm.h5"; then
       ok table_same_under_mpirun_n2
