@@ -222,7 +222,8 @@ static void expect_cycle_error(const char *name, const char *text, const char *w
 static void test_cycle_errors(void)
 {
     expect_cycle_error("back.csv", "time_s,speed_mps\n0,0\n1,1\n1,2\n", ":4: field 1 (time_s) must increase strictly");
-    expect_cycle_error("neg.csv", "0,0\n1,-0.5\n2,0\n", ":2: field 2 (speed_mps) must be >= 0");
+    expect_cycle_error("neg.csv", "0,0\n1,-0.5\n2,0\n", ":2: field 2 (speed_mps) must be in [0, 150] m/s");
+    expect_cycle_error("fast.csv", "0,0\n1,1e308\n2,0\n", ":2: field 2 (speed_mps) must be in [0, 150] m/s");
     expect_cycle_error("one.csv", "time_s,speed_mps\n0,0\n", "at least 2 samples");
     expect_cycle_error("hdr.csv", "t,v\n0,0\n1,0\n", "header column 1 is 't', expected 'time_s'");
     expect_cycle_error("nan.csv", "0,0\n1,nan\n", ":2: field 2 (speed_mps): expected a finite number");
