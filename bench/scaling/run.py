@@ -8,8 +8,8 @@ and after each configuration is recorded next to its figures):
                statistics and output included), and the same over the whole process wall (setup, HDF5 included);
   strong       fixed N on 1 and 2 threads: speedup T1/T2 and parallel efficiency speedup/2;
   weak         fixed N per thread (1e5 and 1e6): N on 1 thread against 2N on 2 threads;
-  memory       peak RSS of the child (getrusage through os.wait4) / N, also minus the N = 22 baseline; with the
-               default trajectories off and, at 1e6 and 1e7, with trajectories on;
+  memory       peak RSS of the child (GNU time %M) / N, also minus the N = 22 baseline; with the default
+               trajectories off and, at 1e6 and 1e7, with trajectories on (one run each);
   phases       /meta/phase_time per /meta/phase_name of the best run;
   bandwidth    build/bench/stream_triad (STREAM triad, 1 and 2 threads) for the roofline columns.
 
@@ -17,10 +17,10 @@ The binary is copied once at the start, so a rebuild during the sweep cannot mix
 (/meta/git_hash) and SHA-256 are recorded. Results: bench/scaling/results.json (every run) and results.csv (one
 row per configuration); the Markdown tables are printed at the end and by --table from results.json.
 
-Usage: /usr/bin/python3 bench/scaling/run.py [--repeats 3] [--repeats-large R] [--sizes 22,1000,...] [--bin bin/wavefuel]
-                                             [--out bench/scaling] [--no-triad] [--table [results.json]]
-The roofline columns use BYTES_PER_VSTEP below, counted in bench/README.md ("STREAM triad
-and roofline") from src/engine.c; recount them when the step loop changes.
+Usage: /usr/bin/python3 bench/scaling/run.py [--repeats 3] [--repeats-large R] [--sizes 22,1000,...]
+           [--bin bin/wavefuel] [--out bench/scaling] [--no-triad] [--no-weak] [--no-memory] [--table [results.json]]
+The roofline columns use BYTES_PER_VSTEP below, counted in bench/README.md ("STREAM triad and roofline") from
+src/engine.c; recount it when the step loop changes.
 """
 import argparse
 import csv
