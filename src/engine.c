@@ -17,7 +17,7 @@
 #define PAR_MIN 4096 /* vehicles below which loops run on one thread */
 #define EBLOCK  512  /* energy evaluation gather block */
 #define IBLOCK  1024 /* integration block */
-#define FBLOCK  256  /* fused-step block (even: noise pairs stay whole) */
+#define FBLOCK  256  /* fused-step block, and the noise block (changing it changes the draws) */
 
 struct WfSim {
     const WfScenario   *sc; /* borrowed */
@@ -26,17 +26,19 @@ struct WfSim {
     long     n_steps, out_every, traj_every, warm_steps, steps_done;
     int64_t  overlaps;
     int      nthreads;
-    double  *stat_scratch;
-    double  *noise;         /* standard normal draw of each vehicle for the current step; NULL without noise */
+    WfStatsBlock *stat_blocks; /* one record's partial sums, block by block */
+    int      noisy;         /* some driver group has acceleration noise */
+    double  *noise;         /* multi-pass step: each vehicle's standard normal draw for the step; else NULL */
     WfOde   *ode;           /* SUNDIALS integrator, or NULL for a fixed-step scheme */
     double  *xold, *vold, *fuel_step, *vplus; /* ODE path only */
     int      repaired;      /* the last step repaired an overlap */
     double   phase_s[WF_N_PHASES]; /* wall time per phase */
     double  *bound_x, *bound_v;    /* fused step: each chunk's first vehicle at the step's start */
+    int     *chunk_flags;          /* fused step: FUSED_* flags raised by each thread's chunk */
     double   checkpoint_every_s;
     long     fault_vehicle;         /* first vehicle with a non-finite state, or -1 */
     struct {                       /* scalars of the state, packed for wf_sim_state */
-        int64_t steps_done, overlaps, n_sd, repaired;
+        int64_t steps_done, overlaps, n_sd, repaired, window_open;
         double  sd_sum;
     } ck;
     int      stateful;      /* some driver model keeps per-vehicle memory */
@@ -82,7 +84,8 @@ void wf_sim_destroy(WfSim **ps)
     if (!ps || !*ps) return;
     WfSim *s = *ps;
     wf_fleet_destroy(&s->f);
-    free(s->stat_scratch);
+    free(s->stat_blocks);
+    free(s->chunk_flags);
     free(s->noise);
     wf_ode_destroy(&s->ode);
     free(s->xold);
@@ -122,13 +125,14 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 #else
     s->nthreads = 1;
 #endif
-    s->stat_scratch = malloc(wf_stats_scratch_size(s->f->n, s->f->n_classes) * sizeof(double));
-    int noisy = 0;
-    for (size_t g = 0; g < sc->n_groups; g++) noisy |= sc->groups[g].noise_mps2 > 0.0;
-    if (noisy) s->noise = malloc((s->f->n + 1) * sizeof(double));
+    s->stat_blocks = malloc(wf_stats_scratch_blocks(s->f->n) * sizeof *s->stat_blocks);
+    for (size_t g = 0; g < sc->n_groups; g++) s->noisy |= sc->groups[g].noise_mps2 > 0.0;
+    int need_noise = s->noisy && s->f->multipass;
+    if (need_noise) s->noise = malloc((s->f->n + 1) * sizeof(double));
     s->bound_x = malloc(((size_t)s->nthreads + 1) * sizeof(double));
     s->bound_v = malloc(((size_t)s->nthreads + 1) * sizeof(double));
-    if (!s->stat_scratch || (noisy && !s->noise) || !s->bound_x || !s->bound_v) {
+    s->chunk_flags = calloc((size_t)s->nthreads + 1, sizeof(int));
+    if (!s->stat_blocks || (need_noise && !s->noise) || !s->bound_x || !s->bound_v || !s->chunk_flags) {
         wf_sim_destroy(&s);
         return wf_err(err, WF_ESYS, "out of memory");
     }
@@ -152,33 +156,30 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     return 0;
 }
 
-/* Phase 1: acceleration noise. One Philox draw gives two normals (Box-Muller): vehicles 2p and 2p+1 share the
- * draw keyed by (seed, pair p, step), which halves the cost of the transcendental functions. */
+/* Phase 1: acceleration noise. Vehicles are drawn in blocks of FBLOCK (the fused step's blocks): block b's
+ * normals at a step come from one Philox stream keyed (seed, b, step) through GSL's ziggurat, so the fused and
+ * the multi-pass step see the same draws whatever thread runs the block. */
 static void phase_noise(WfSim *s, long step)
 {
     if (!s->noise) return;
-    size_t n = s->f->n, pairs = (n + 1) / 2;
+    size_t n = s->f->n, nblk = (n + FBLOCK - 1) / FBLOCK;
     double *z = s->noise;
     uint64_t seed = s->sc->seed;
-    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, pairs, z, seed, step)",
-    for (size_t p = 0; p < pairs; p++) {
-        double r[2];
-        wf_rng_normal2(seed, WF_RNG_NOISE, p, (uint64_t)step, r);
-        z[2 * p] = r[0];
-        if (2 * p + 1 < n) z[2 * p + 1] = r[1];
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, nblk, z, seed, step)",
+    for (size_t b = 0; b < nblk; b++) {
+        size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
+        wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, b, (uint64_t)step, m, z + lo);
     });
 }
 
 /* Phase 2: inputs at the step's start (gap to the leader, leader speed, grade) and the acceleration, driver
  * group by driver group (no branching on model names in the loop). */
-/* One vehicle's applied acceleration: model + noise, clipped to the group's limits, optionally to the class's
- * feasible a_max, and to the speed limit. Shared by the multi-pass and the fused step so both give the same bits. */
-static inline double accel_one(const WfScenario *sc, const WfDriverGroup *grp, const void *params,
-                               const void *state, const WfVehicleClass *vc, double gi, double vi, double vli,
-                               double thi, double zi)
+/* What the engine adds to a model's acceleration: noise, the group's limits, optionally the class's feasible
+ * a_max, and the speed limit. Shared by the multi-pass and the fused step so both give the same bits. */
+static inline double accel_post(const WfScenario *sc, const WfDriverGroup *grp, const WfVehicleClass *vc,
+                                double ai, double vi, double thi, double zi)
 {
     double dmax = grp->decel_max_mps2, vlim = sc->road.speed_limit_mps;
-    double ai = grp->model->accel(params, state, gi, vi, vli);
     if (grp->noise_mps2 > 0.0) ai += grp->noise_mps2 * zi;
     ai = ai > grp->accel_max_mps2 ? grp->accel_max_mps2 : ai;
     ai = ai < -dmax ? -dmax : ai;
@@ -191,6 +192,8 @@ static inline double accel_one(const WfScenario *sc, const WfDriverGroup *grp, c
     return ai > to_limit && isfinite(vlim) ? (to_limit > -dmax ? to_limit : -dmax) : ai;
 }
 
+static inline uint32_t *grade_cache(const WfFleet *f, size_t i) { return f->grade_seg ? &f->grade_seg[i] : NULL; }
+
 static void phase_accel(WfSim *s, const double *x, const double *v)
 {
     WfFleet *f = s->f;
@@ -198,26 +201,25 @@ static void phase_accel(WfSim *s, const double *x, const double *v)
     const WfRoad *road = &sc->road;
     size_t n = f->n;
     double L = road->length_m;
-    const double *z = s->noise, *len = f->length_m;
+    const double *z = s->noise;
     double *gap = f->gap_m, *vl = f->v_lead_mps, *th = f->theta_rad, *a = f->a_mps2;
-    uint32_t *seg = f->grade_seg;
     const uint16_t *cid = f->class_id;
     for (size_t g = 0; g < f->n_groups; g++) {
         const WfDriverGroup *grp = &sc->groups[g];
         const uint32_t *mem = f->group_member[g];
         const unsigned char *params = f->group_params[g], *state = f->group_state[g];
-        size_t cnt = f->group_n[g], psz = grp->model->param_size, ssz = grp->model->state_size;
-        WF_PAR_FOR(cnt >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, L, road, x, len, v, gap, vl, th, seg, cnt, mem, params, state, psz, ssz, grp, cid, a, sc, z)",
+        size_t cnt = f->group_n[g], psz = f->group_param_stride[g], ssz = grp->model->state_size;
+        WF_PAR_FOR(cnt >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, L, road, x, v, gap, vl, th, f, cnt, mem, params, state, psz, ssz, grp, cid, a, sc, z)",
         for (size_t k = 0; k < cnt; k++) {
             size_t i = mem[k];
             /* The leader of the last vehicle is vehicle 0, one lap ahead. */
             size_t lead = i + 1 < n ? i + 1 : 0;
             double xl = x[lead] + (i + 1 < n ? 0.0 : L);
-            double gi = xl - len[lead] - x[i], vi = v[i], vli = v[lead];
-            double thi = wf_road_grade(road, x[i], &seg[i]);
+            double gi = xl - wf_fleet_length(f, lead) - x[i], vi = v[i], vli = v[lead];
+            double thi = wf_road_grade(road, x[i], grade_cache(f, i));
             gap[i] = gi, vl[i] = vli, th[i] = thi;
-            a[i] = accel_one(sc, grp, params + k * psz, ssz ? state + k * ssz : NULL, &sc->classes[cid[i]].vc, gi, vi,
-                             vli, thi, z ? z[i] : 0.0);
+            double am = grp->model->accel(params + k * psz, ssz ? state + k * ssz : NULL, gi, vi, vli);
+            a[i] = accel_post(sc, grp, &sc->classes[cid[i]].vc, am, vi, thi, z ? z[i] : 0.0);
         });
     }
 }
@@ -257,17 +259,17 @@ static void phase_energy(WfSim *s, const double *v, const double *a)
 }
 
 /* Phase 4: statistics over the step (left-point rule: values at the step's start held for dt), integration,
- * then the statistics that need the new state (distance, passages, stops). With a SUNDIALS integrator the fuel
- * of the step is its exact integral (quadrature) instead of the left-point rule. */
-static inline void stats_before(WfFleet *f, const WfScenario *sc, size_t i, double ai, double fuel_rate_gps,
-                                uint8_t flag, int in_window, int left_point_fuel)
+ * then the statistics that need the new state (stops). Distances and passages follow from the positions (see
+ * WfFleet). With a SUNDIALS integrator the fuel of the step is its exact integral (quadrature) instead of the
+ * left-point rule. */
+static inline void stats_before(WfFleet *f, const WfScenario *sc, size_t i, double vi, double ai,
+                                double fuel_rate_gps, uint8_t flag, int in_window, int left_point_fuel)
 {
-    double dt = sc->dt_s, vi = f->v_mps[i];
     uint8_t mode = f->mode[i];
     int braking = ai < -sc->hard_brake_mps2;
     if (in_window) {
-        if (left_point_fuel) f->fuel_g[i] += fuel_rate_gps * dt;
-        f->time_stopped_s[i] += vi < sc->v_stop_mps ? dt : 0.0;
+        if (left_point_fuel) f->fuel_g[i] += fuel_rate_gps * sc->dt_s;
+        f->stopped_steps[i] += vi < sc->v_stop_mps;
         f->sum_v[i] += vi;
         f->sum_v2[i] += vi * vi;
         f->sum_a[i] += ai;
@@ -281,17 +283,9 @@ static inline void stats_before(WfFleet *f, const WfScenario *sc, size_t i, doub
     f->mode[i] = (uint8_t)((mode & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0) | (fault ? WF_MODE_FAULT : 0));
 }
 
-/* floor(q) as an integer without the libm call (floor is not inlined on baseline x86-64): truncate, then step
- * down for negative non-integers. |q| stays far below 2^63 (positions / ring length). */
-static inline int64_t lap_index(double q)
+static inline void stats_after(WfFleet *f, const WfScenario *sc, size_t i, int in_window)
 {
-    int64_t k = (int64_t)q;
-    return k - (q < (double)k);
-}
-
-static inline void stats_after(WfFleet *f, const WfScenario *sc, size_t i, double xold, int in_window)
-{
-    double vi = f->v_mps[i], L = sc->road.length_m;
+    double vi = f->v_mps[i];
     uint8_t mode = f->mode[i];
     if ((mode & WF_MODE_MOVING) && vi < sc->v_stop_mps) {
         mode &= (uint8_t)~WF_MODE_MOVING;
@@ -300,10 +294,62 @@ static inline void stats_after(WfFleet *f, const WfScenario *sc, size_t i, doubl
         mode |= WF_MODE_MOVING;
     }
     f->mode[i] = mode;
+}
+
+enum { FUSED_OVERLAP = 1, FUSED_FAULT = 2 };
+
+/* stats_before and stats_after over one block of the fused step, with the same arithmetic per vehicle, written
+ * as plain loops over restrict pointers so that the compiler vectorises them (the per-vehicle forms reload
+ * every fleet pointer after each store). */
+static void stats_before_block(WfFleet *f, const WfScenario *sc, size_t lo, size_t m, const double *restrict v,
+                               const double *restrict a, const double *restrict fr, const uint8_t *restrict fl,
+                               int in_window)
+{
+    double dt = sc->dt_s, v_stop = sc->v_stop_mps, hard = -sc->hard_brake_mps2;
+    uint8_t *restrict mode = f->mode + lo;
     if (in_window) {
-        f->dist_m[i] += f->x_m[i] - xold;
-        f->laps[i] += lap_index(f->x_m[i] / L) - lap_index(xold / L);
+        double *restrict fuel = f->fuel_g + lo, *restrict sv = f->sum_v + lo, *restrict sv2 = f->sum_v2 + lo;
+        double *restrict sa = f->sum_a + lo, *restrict sa2 = f->sum_a2 + lo;
+        uint32_t *restrict stopped = f->stopped_steps + lo, *restrict infeasible = f->infeasible_steps + lo;
+        uint32_t *restrict hb = f->hard_brakes + lo;
+#pragma omp simd
+        for (size_t k = 0; k < m; k++) {
+            fuel[k] += fr[k] * dt;
+            stopped[k] += v[k] < v_stop;
+            sv[k] += v[k];
+            sv2[k] += v[k] * v[k];
+            sa[k] += a[k];
+            sa2[k] += a[k] * a[k];
+            infeasible[k] += fl[k] == 1;
+            hb[k] += a[k] < hard && !(mode[k] & WF_MODE_BRAKING);
+        }
     }
+#pragma omp simd
+    for (size_t k = 0; k < m; k++) {
+        int braking = a[k] < hard, fault = !isfinite(a[k]) || !isfinite(fr[k]);
+        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0) | (fault ? WF_MODE_FAULT : 0));
+    }
+}
+
+/* Returns FUSED_* flags: overlaps inside the block (its last vehicle's is checked once every block has moved)
+ * and faults. */
+static int stats_after_block(WfFleet *f, const WfScenario *sc, size_t lo, size_t m, int in_window)
+{
+    const double *restrict x = f->x_m + lo, *restrict v = f->v_mps + lo, *clen = f->class_length_m;
+    const uint16_t *restrict cid = f->class_id + lo;
+    uint8_t *restrict mode = f->mode + lo;
+    uint32_t *restrict stops = f->stops + lo;
+    double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps;
+    int over = 0, bad = 0;
+#pragma omp simd reduction(| : over, bad)
+    for (size_t k = 0; k < m; k++) {
+        int moving = mode[k] & WF_MODE_MOVING, stop = moving && v[k] < v_stop, go = !moving && v[k] > v_go;
+        stops[k] += in_window && stop;
+        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_MOVING) | ((moving && !stop) || go ? WF_MODE_MOVING : 0));
+        bad |= !isfinite(x[k]) || !isfinite(v[k]) || (mode[k] & WF_MODE_FAULT);
+    }
+    for (size_t k = 0; k + 1 < m; k++) over |= x[k + 1] - clen[cid[k + 1]] - x[k] < 0.0;
+    return (over ? FUSED_OVERLAP : 0) | (bad ? FUSED_FAULT : 0);
 }
 
 static void phase_advance(WfSim *s, int in_window)
@@ -313,56 +359,88 @@ static void phase_advance(WfSim *s, int in_window)
     size_t n = f->n, nblk = (n + IBLOCK - 1) / IBLOCK;
     double dt = sc->dt_s;
     const WfIntegrator *ig = s->ig;
-    /* Blocks keep the old positions in cache between the integration and the statistics that need them. */
     WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(f, sc, nblk, n, dt, ig, in_window)",
     for (size_t b = 0; b < nblk; b++) {
         size_t lo = b * IBLOCK, m = n - lo < IBLOCK ? n - lo : IBLOCK;
-        double xold[IBLOCK];
-        for (size_t k = 0; k < m; k++) {
-            xold[k] = f->x_m[lo + k];
-            stats_before(f, sc, lo + k, f->a_mps2[lo + k], f->fuel_rate_gps[lo + k], f->flag[lo + k], in_window, 1);
-        }
+        for (size_t k = 0; k < m; k++)
+            stats_before(f, sc, lo + k, f->v_mps[lo + k], f->a_mps2[lo + k], f->fuel_rate_gps[lo + k], f->flag[lo + k],
+                         in_window, 1);
         ig->step(m, dt, f->x_m + lo, f->v_mps + lo, f->a_mps2 + lo);
-        for (size_t k = 0; k < m; k++) stats_after(f, sc, lo + k, xold[k], in_window);
+        for (size_t k = 0; k < m; k++) stats_after(f, sc, lo + k, in_window);
     });
 }
 
-/* One block of the fused step (see step_fused). last_in_chunk: the block's last leader is (xs, vs). */
-static void fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double xs, double vs, long step,
-                        int in_window)
+/* Accelerations of the cnt vehicles of driver group g listed (ring order) in one block, from their inputs in
+ * the gathered arrays: the model's block kernel when it has one, else accel() per vehicle; then accel_post. The
+ * members of a group inside a block have consecutive slots, so their parameters and states are contiguous. */
+static void accel_group(const WfSim *s, size_t g, size_t first, size_t cnt, const double *gap, const double *v,
+                        const double *vl, const double *th, const double *z, const uint16_t *cls, double *a)
+{
+    const WfFleet *f = s->f;
+    const WfScenario *sc = s->sc;
+    const WfDriverGroup *grp = &sc->groups[g];
+    const WfCfModel *m = grp->model;
+    size_t psz = f->group_param_stride[g], ssz = m->state_size;
+    const unsigned char *params = f->group_params[g] + (size_t)f->slot[first] * psz;
+    const unsigned char *state = ssz ? f->group_state[g] + (size_t)f->slot[first] * ssz : NULL;
+    if (m->accel_block && !ssz) {
+        m->accel_block(params, psz, cnt, gap, v, vl, a);
+    } else {
+        for (size_t j = 0; j < cnt; j++) a[j] = m->accel(params + j * psz, ssz ? state + j * ssz : NULL, gap[j], v[j], vl[j]);
+    }
+    for (size_t j = 0; j < cnt; j++) a[j] = accel_post(sc, grp, &sc->classes[cls[j]].vc, a[j], v[j], th[j], s->noisy ? z[j] : 0.0);
+}
+
+/* One block of the fused step (see step_fused). last_in_chunk: the block's last leader is (xs, vs). rec: this
+ * step is recorded, so the block's partial sums of the record go there. advance: 0 for the record of the final
+ * instant (inputs and record only, no step). Returns FUSED_* flags seen inside the block after the step. */
+static int fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double xs, double vs, long step,
+                       int in_window, WfStatsBlock *rec, int advance)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     const WfRoad *road = &sc->road;
-    double a[FBLOCK], th[FBLOCK], fr[FBLOCK], gap[FBLOCK], vl[FBLOCK], z[FBLOCK], xold[FBLOCK];
-    double gv[FBLOCK], ga[FBLOCK], gt[FBLOCK], gf[FBLOCK];
+    double a[FBLOCK], th[FBLOCK], fr[FBLOCK], gap[FBLOCK], vl[FBLOCK], z[FBLOCK];
+    double gg[FBLOCK], gv[FBLOCK], gl[FBLOCK], gt[FBLOCK], gz[FBLOCK], ga[FBLOCK];
     uint8_t fl[FBLOCK], gfl[FBLOCK];
+    uint16_t gc[FBLOCK];
     uint32_t idx[FBLOCK];
+    size_t n = f->n;
     double *x = f->x_m + lo, *v = f->v_mps + lo;
-    if (s->noise) {
-        /* The block starts at an even index, so its pairs are whole: same draws as phase_noise. */
-        for (size_t k = 0; k < m; k += 2) {
-            double r[2];
-            wf_rng_normal2(sc->seed, WF_RNG_NOISE, (lo + k) / 2, (uint64_t)step, r);
-            z[k] = r[0];
-            if (k + 1 < m) z[k + 1] = r[1];
-        }
+    const uint16_t *cid = f->class_id + lo, *gid = f->group_id + lo;
+    const double *clen = f->class_length_m;
+    if (s->noisy) wf_rng_normal_block(sc->seed, WF_RNG_NOISE_BLOCK, lo / FBLOCK, (uint64_t)step, m, z);
+    for (size_t k = 0; k + 1 < m; k++) {
+        gap[k] = x[k + 1] - clen[cid[k + 1]] - x[k];
+        vl[k] = v[k + 1];
     }
-    for (size_t k = 0; k < m; k++) {
-        size_t i = lo + k;
-        int edge = last_in_chunk && k + 1 == m;
-        double xl = edge ? xs : x[k + 1], vli = edge ? vs : v[k + 1];
-        double len_l = f->length_m[i + 1 < f->n ? i + 1 : 0];
-        size_t g = f->group_id[i];
-        const WfDriverGroup *grp = &sc->groups[g];
-        size_t psz = grp->model->param_size, ssz = grp->model->state_size;
-        const unsigned char *params = f->group_params[g] + (size_t)f->slot[i] * psz;
-        unsigned char *state = ssz ? f->group_state[g] + (size_t)f->slot[i] * ssz : NULL;
-        gap[k] = xl - len_l - x[k];
-        vl[k] = vli;
-        th[k] = wf_road_grade(road, x[k], &f->grade_seg[i]);
-        a[k] = accel_one(sc, grp, params, state, &sc->classes[f->class_id[i]].vc, gap[k], v[k], vli, th[k],
-                         s->noise ? z[k] : 0.0);
+    {
+        /* The block's last vehicle: its leader starts the next block, or the next chunk (saved), or is vehicle 0
+         * one lap ahead (saved too: the last vehicle is always last in its chunk). */
+        size_t k = m - 1, lead = lo + m < n ? lo + m : 0;
+        double xl = last_in_chunk ? xs : x[m];
+        vl[k] = last_in_chunk ? vs : v[m];
+        gap[k] = xl - clen[f->class_id[lead]] - x[k];
+    }
+    if (road->n_grade)
+        for (size_t k = 0; k < m; k++) th[k] = wf_road_grade(road, x[k], &f->grade_seg[lo + k]);
+    else
+        memset(th, 0, m * sizeof *th);
+    if (f->n_groups == 1) {
+        accel_group(s, 0, lo, m, gap, v, vl, th, z, cid, a);
+    } else {
+        for (size_t g = 0; g < f->n_groups; g++) {
+            size_t cnt = 0;
+            for (size_t k = 0; k < m; k++)
+                if (gid[k] == g) idx[cnt++] = (uint32_t)k;
+            if (!cnt) continue;
+            for (size_t j = 0; j < cnt; j++) {
+                size_t k = idx[j];
+                gg[j] = gap[k], gv[j] = v[k], gl[j] = vl[k], gt[j] = th[k], gz[j] = s->noisy ? z[k] : 0.0, gc[j] = cid[k];
+            }
+            accel_group(s, g, lo + idx[0], cnt, gg, gv, gl, gt, gz, gc, ga);
+            for (size_t j = 0; j < cnt; j++) a[idx[j]] = ga[j];
+        }
     }
     if (f->n_classes == 1) {
         const WfVehicleClass *vc = &sc->classes[0].vc;
@@ -371,40 +449,41 @@ static void fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double
         for (size_t c = 0; c < f->n_classes; c++) {
             size_t cnt = 0;
             for (size_t k = 0; k < m; k++)
-                if (f->class_id[lo + k] == c) idx[cnt++] = (uint32_t)k;
+                if (cid[k] == c) idx[cnt++] = (uint32_t)k;
             if (!cnt) continue;
             for (size_t j = 0; j < cnt; j++) gv[j] = v[idx[j]], ga[j] = a[idx[j]], gt[j] = th[idx[j]];
             const WfVehicleClass *vc = &sc->classes[c].vc;
-            vc->model->eval(vc->params, cnt, gv, ga, gt, 0, gf, gfl);
-            for (size_t j = 0; j < cnt; j++) fr[idx[j]] = gf[j], fl[idx[j]] = gfl[j];
+            vc->model->eval(vc->params, cnt, gv, ga, gt, 0, gg, gfl);
+            for (size_t j = 0; j < cnt; j++) fr[idx[j]] = gg[j], fl[idx[j]] = gfl[j];
         }
     }
+    if (rec) wf_stats_block(m, v, gap, fr, cid, f->n_classes, sc, rec);
+    if (!advance) return 0;
     if (s->stateful) {
         for (size_t k = 0; k < m; k++) {
-            size_t i = lo + k, g = f->group_id[i];
+            size_t i = lo + k, g = gid[k];
             const WfCfModel *cm = sc->groups[g].model;
             if (!cm->state_size || !cm->update_state) continue;
-            cm->update_state(f->group_params[g] + (size_t)f->slot[i] * cm->param_size,
+            cm->update_state(f->group_params[g] + (size_t)f->slot[i] * f->group_param_stride[g],
                              f->group_state[g] + (size_t)f->slot[i] * cm->state_size, gap[k], v[k], vl[k], sc->dt_s);
         }
     }
-    for (size_t k = 0; k < m; k++) {
-        xold[k] = x[k];
-        stats_before(f, sc, lo + k, a[k], fr[k], fl[k], in_window, 1);
-    }
+    stats_before_block(f, sc, lo, m, v, a, fr, fl, in_window);
     s->ig->step(m, sc->dt_s, x, v, a);
-    for (size_t k = 0; k < m; k++) stats_after(f, sc, lo + k, xold[k], in_window);
+    return stats_after_block(f, sc, lo, m, in_window);
 }
 
-/* A whole fixed-step time step in one pass over the vehicles, for steps that record nothing: per block of
- * FBLOCK vehicles, noise, inputs, accelerations, fuel, controller memory, statistics and integration, with the
- * block's intermediate values in local arrays instead of fleet-wide ones (far less memory traffic at large N).
- * Positions and speeds are updated in place. That is race-free and order-free because every vehicle reads only
- * its leader's values from the step's start: within a thread's chunk, vehicle i's leader i + 1 is updated after i;
- * the leader of a chunk's last vehicle is the first vehicle of the next chunk (of chunk 0 for the last vehicle,
- * one lap ahead), whose old position and speed are saved before any update. Same arithmetic as the multi-pass
- * step (the same inline functions), so a vehicle's result does not depend on which path or thread ran it. */
-static void step_fused(WfSim *s, long step, int in_window)
+/* A whole fixed-step time step in one pass over the vehicles: per block of FBLOCK vehicles, noise, inputs,
+ * accelerations, fuel, controller memory, the record's partial sums (rec != NULL), statistics and integration,
+ * with the block's intermediate values in local arrays instead of fleet-wide ones (far less memory traffic and
+ * memory at large N). Positions and speeds are updated in place. That is race-free and order-free because every
+ * vehicle reads only its leader's values from the step's start: within a thread's chunk, vehicle i's leader
+ * i + 1 is updated after i; the leader of a chunk's last vehicle is the first vehicle of the next chunk (of chunk
+ * 0 for the last vehicle, one lap ahead), whose old position and speed are saved before any update. Same
+ * arithmetic as the multi-pass step (the same inline functions), so a vehicle's result does not depend on which
+ * path or thread ran it. advance = 0 takes the record only. Returns the FUSED_* flags of all blocks, including
+ * overlaps across block boundaries. */
+static int step_fused(WfSim *s, long step, int in_window, WfStatsBlock *rec, int advance)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
@@ -412,34 +491,47 @@ static void step_fused(WfSim *s, long step, int in_window)
     int nth = n >= PAR_MIN ? s->nthreads : 1;
     if ((size_t)nth > nblk) nth = (int)nblk;
     double *bx = s->bound_x, *bv = s->bound_v;
+    int flags = 0, *cf = s->chunk_flags;
     if (nth == 1) {
         /* Small fleets: no OpenMP region at all (even a one-thread region costs runtime calls every step). */
         bx[0] = f->x_m[0];
         bv[0] = f->v_mps[0];
         for (size_t b = 0; b < nblk; b++) {
             size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
-            fused_block(s, lo, m, lo + m == n, bx[0] + sc->road.length_m, bv[0], step, in_window);
+            flags |= fused_block(s, lo, m, lo + m == n, bx[0] + sc->road.length_m, bv[0], step, in_window,
+                                 rec ? rec + b : NULL, advance);
         }
-        return;
-    }
-#pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, bx, bv, step, in_window)
-    {
-        /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the
-         * team actually running. */
-        int t = thread_id(), nt = team_size();
-        size_t b0 = nblk * (size_t)t / (size_t)nt, b1 = nblk * (size_t)(t + 1) / (size_t)nt;
-        size_t lo_t = b0 * FBLOCK, hi_t = b1 * FBLOCK < n ? b1 * FBLOCK : n;
-        bx[t] = f->x_m[lo_t];
-        bv[t] = f->v_mps[lo_t];
+    } else {
+#pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, bx, bv, step, in_window, rec, advance, cf)
+        {
+            /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the
+             * team actually running. */
+            int t = thread_id(), nt = team_size(), fl = 0;
+            size_t b0 = nblk * (size_t)t / (size_t)nt, b1 = nblk * (size_t)(t + 1) / (size_t)nt;
+            size_t lo_t = b0 * FBLOCK, hi_t = b1 * FBLOCK < n ? b1 * FBLOCK : n;
+            bx[t] = f->x_m[lo_t];
+            bv[t] = f->v_mps[lo_t];
 #pragma omp barrier
-        /* Leader of this chunk's last vehicle: the next chunk's first, saved (plus one lap after the last). */
-        int tn = t + 1 < nt ? t + 1 : 0;
-        double xs = bx[tn] + (t + 1 < nt ? 0.0 : sc->road.length_m), vs = bv[tn];
-        for (size_t b = b0; b < b1; b++) {
-            size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
-            fused_block(s, lo, m, lo + m == hi_t, xs, vs, step, in_window);
+            /* Leader of this chunk's last vehicle: the next chunk's first, saved (plus one lap after the last). */
+            int tn = t + 1 < nt ? t + 1 : 0;
+            double xs = bx[tn] + (t + 1 < nt ? 0.0 : sc->road.length_m), vs = bv[tn];
+            for (size_t b = b0; b < b1; b++) {
+                size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
+                fl |= fused_block(s, lo, m, lo + m == hi_t, xs, vs, step, in_window, rec ? rec + b : NULL, advance);
+            }
+            cf[t] = fl;
         }
+        for (int t = 0; t < nth; t++) flags |= cf[t];
     }
+    if (!advance) return 0;
+    /* Each block's last vehicle against its leader (the next block's first, or vehicle 0 one lap ahead). */
+    double L = sc->road.length_m;
+    for (size_t b = 0; b < nblk && !(flags & FUSED_OVERLAP); b++) {
+        size_t i = b * FBLOCK + FBLOCK - 1 < n ? b * FBLOCK + FBLOCK - 1 : n - 1, lead = i + 1 < n ? i + 1 : 0;
+        double xl = f->x_m[lead] + (lead ? 0.0 : L);
+        if (n > 1 && xl - wf_fleet_length(f, lead) - f->x_m[i] < 0.0) flags |= FUSED_OVERLAP;
+    }
+    return flags;
 }
 
 /* The right-hand side for the SUNDIALS integrators: the same car-following phase as the fixed-step schemes,
@@ -485,14 +577,14 @@ static int phase_advance_ode(WfSim *s, double t_next, int in_window, WfError *er
     for (size_t i = 0; i < n; i++) {
         xold[i] = f->x_m[i];
         vold[i] = f->v_mps[i];
-        stats_before(f, sc, i, f->a_mps2[i], f->fuel_rate_gps[i], f->flag[i], in_window, 0);
+        stats_before(f, sc, i, f->v_mps[i], f->a_mps2[i], f->fuel_rate_gps[i], f->flag[i], in_window, 0);
     });
     int rc = wf_ode_advance(s->ode, t_next, f->x_m, f->v_mps, fs, err);
     if (rc) return rc;
-    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(f, sc, n, xold, fs, in_window)",
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(f, sc, n, fs, in_window)",
     for (size_t i = 0; i < n; i++) {
         if (in_window) f->fuel_g[i] += fs[i];
-        stats_after(f, sc, i, xold[i], in_window);
+        stats_after(f, sc, i, in_window);
     });
     return 0;
 }
@@ -500,19 +592,19 @@ static int phase_advance_ode(WfSim *s, double t_next, int in_window, WfError *er
 /* Phase 5: no gap may be negative. A vehicle that would overlap its leader (noise, or a model that brakes
  * too late) is put at gap 0 behind it and stopped; each such event is counted. Rare, so it is found in
  * parallel and repaired serially, going backwards so a repaired leader is seen by its follower. */
-static long phase_overlaps(WfSim *s, int in_window)
+static long phase_overlaps(WfSim *s)
 {
     WfFleet *f = s->f;
     size_t n = f->n;
     double L = s->sc->road.length_m;
-    const double *x = f->x_m, *v = f->v_mps, *len = f->length_m;
+    const double *x = f->x_m, *v = f->v_mps;
     const uint8_t *mode = f->mode;
     long bad = 0, nonfinite = 0;
-    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, v, len, L, mode) reduction(+ : bad, nonfinite)",
+    WF_PAR_FOR(n >= PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, v, f, L, mode) reduction(+ : bad, nonfinite)",
     for (size_t i = 0; i < n; i++) {
         size_t lead = i + 1 < n ? i + 1 : 0;
         double xl = x[lead] + (i + 1 < n ? 0.0 : L);
-        bad += xl - len[lead] - x[i] < 0.0;
+        bad += xl - wf_fleet_length(f, lead) - x[i] < 0.0;
         nonfinite += !isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT);
     });
     /* A non-finite state, acceleration or fuel rate is a numerical fault: the run stops (see wf_sim_run). */
@@ -531,14 +623,9 @@ static long phase_overlaps(WfSim *s, int in_window)
         for (size_t j = n; j-- > 0;) {
             size_t lead = j + 1 < n ? j + 1 : 0;
             double xl = f->x_m[lead] + (j + 1 < n ? 0.0 : L);
-            if (xl - f->length_m[lead] - f->x_m[j] < 0.0) {
-                double x_new = xl - f->length_m[lead];
-                /* The step's distance and lap count were taken before the repair: correct them. */
-                if (in_window) {
-                    f->dist_m[j] += x_new - f->x_m[j];
-                    f->laps[j] += lap_index(x_new / L) - lap_index(f->x_m[j] / L);
-                }
-                f->x_m[j] = x_new;
+            if (xl - wf_fleet_length(f, lead) - f->x_m[j] < 0.0) {
+                /* Distance and passages follow the repaired position (they are taken from positions). */
+                f->x_m[j] = xl - wf_fleet_length(f, lead);
                 f->v_mps[j] = 0.0;
                 fixed++;
             }
@@ -558,7 +645,7 @@ static void phase_controller_state(WfSim *s)
     for (size_t g = 0; g < f->n_groups; g++) {
         const WfCfModel *m = s->sc->groups[g].model;
         if (!m->state_size || !m->update_state) continue;
-        size_t cnt = f->group_n[g], psz = m->param_size, ssz = m->state_size;
+        size_t cnt = f->group_n[g], psz = f->group_param_stride[g], ssz = m->state_size;
         const uint32_t *mem = f->group_member[g];
         const unsigned char *params = f->group_params[g];
         unsigned char *state = f->group_state[g];
@@ -601,64 +688,62 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
         double t = (double)step * sc->dt_s;
         double tp = wall_now(), tq;
 #define LAP(ph) (tq = wall_now(), s->phase_s[ph] += tq - tp, tp = tq)
-        int records = step % s->out_every == 0 || (sc->trajectories && step % s->traj_every == 0);
-        if (!s->ode && sc->fused_step && !records && step < s->n_steps) {
-            step_fused(s, step, step >= s->warm_steps);
+        if (step == s->warm_steps && !s->f->window_open) wf_fleet_open_window(s->f);
+        int in_window = step >= s->warm_steps, records = step % s->out_every == 0;
+        if (!s->f->multipass) {
+            /* Every step in one pass, records included; the final instant is recorded without a step. */
+            size_t nblk = (s->f->n + FBLOCK - 1) / FBLOCK;
+            int flags = step_fused(s, step, in_window, records ? s->stat_blocks : NULL, step < s->n_steps);
             LAP(WF_PHASE_FUSED);
-            s->repaired = phase_overlaps(s, step >= s->warm_steps) > 0;
+            if (records) {
+                wf_stats_combine(s->stat_blocks, nblk, s->f->n_classes, sc, t, s->overlaps, &row);
+                if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
+                LAP(WF_PHASE_STATISTICS);
+                if (out && out->record && (rc = out->record(out->ctx, s, &row, err))) break;
+                LAP(WF_PHASE_OUTPUT);
+            }
+            if (step == s->n_steps) break;
+            s->repaired = flags ? phase_overlaps(s) > 0 : 0;
             LAP(WF_PHASE_INTEGRATION);
-            if (s->fault_vehicle >= 0) {
-                rc = numerical_fault(s, step, err);
-                break;
-            }
-            s->steps_done = step + 1;
-            if (stop && *stop) {
-                reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
-                break;
-            }
-            if (s->checkpoint_every_s > 0 && out && out->checkpoint && wall_now() - last_ckpt >= s->checkpoint_every_s) {
-                if ((rc = out->checkpoint(out->ctx, s, err))) break;
-                last_ckpt = wall_now();
-            }
-            continue;
-        }
-        phase_noise(s, step);
-        phase_accel(s, s->f->x_m, s->f->v_mps);
-        LAP(WF_PHASE_CAR_FOLLOWING);
-        phase_energy(s, s->f->v_mps, s->f->a_mps2);
-        LAP(WF_PHASE_ENERGY);
-        if (step % s->out_every == 0) {
-            wf_stats_record(s->f, sc, t, s->overlaps, s->stat_scratch, &row);
-            if (step >= s->warm_steps) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
-            LAP(WF_PHASE_STATISTICS);
-            if (out && out->record && (rc = out->record(out->ctx, s, &row, err))) break;
-            LAP(WF_PHASE_OUTPUT);
-        }
-        if (sc->trajectories && step % s->traj_every == 0 && out && out->trajectory &&
-            (rc = out->trajectory(out->ctx, s, t, err)))
-            break;
-        LAP(WF_PHASE_OUTPUT);
-        if (step == s->n_steps) break;
-        int in_window = step >= s->warm_steps;
-        if (s->ode) {
-            /* The right-hand side jumps where the noise or the controller memory changes, and the state jumps
-             * at an overlap repair: restart the solver there rather than integrate across the discontinuity. */
-            if (step > 0 && (s->noise || s->stateful || s->repaired) &&
-                (rc = wf_ode_reinit(s->ode, t, s->f->x_m, s->f->v_mps, err)))
-                break;
-            if ((rc = phase_advance_ode(s, t + sc->dt_s, in_window, err))) break;
-            if (s->stateful) {
-                /* Memory advances with the inputs of the step's start, as in the fixed-step path. */
-                phase_accel(s, s->xold, s->vold);
-                phase_controller_state(s);
-            }
         } else {
-            phase_controller_state(s);
-            phase_advance(s, in_window);
+            phase_noise(s, step);
+            phase_accel(s, s->f->x_m, s->f->v_mps);
+            LAP(WF_PHASE_CAR_FOLLOWING);
+            phase_energy(s, s->f->v_mps, s->f->a_mps2);
+            LAP(WF_PHASE_ENERGY);
+            if (records) {
+                wf_stats_record(s->f, sc, t, s->overlaps, s->stat_blocks, &row);
+                if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
+                LAP(WF_PHASE_STATISTICS);
+                if (out && out->record && (rc = out->record(out->ctx, s, &row, err))) break;
+                LAP(WF_PHASE_OUTPUT);
+            }
+            if (sc->trajectories && step % s->traj_every == 0 && out && out->trajectory &&
+                (rc = out->trajectory(out->ctx, s, t, err)))
+                break;
+            LAP(WF_PHASE_OUTPUT);
+            if (step == s->n_steps) break;
+            if (s->ode) {
+                /* The right-hand side jumps where the noise or the controller memory changes, and the state
+                 * jumps at an overlap repair: restart the solver there rather than integrate across the
+                 * discontinuity. */
+                if (step > 0 && (s->noisy || s->stateful || s->repaired) &&
+                    (rc = wf_ode_reinit(s->ode, t, s->f->x_m, s->f->v_mps, err)))
+                    break;
+                if ((rc = phase_advance_ode(s, t + sc->dt_s, in_window, err))) break;
+                if (s->stateful) {
+                    /* Memory advances with the inputs of the step's start, as in the fixed-step path. */
+                    phase_accel(s, s->xold, s->vold);
+                    phase_controller_state(s);
+                }
+            } else {
+                phase_controller_state(s);
+                phase_advance(s, in_window);
+            }
+            LAP(WF_PHASE_INTEGRATION);
+            s->repaired = phase_overlaps(s) > 0;
+            LAP(WF_PHASE_INTEGRATION);
         }
-        LAP(WF_PHASE_INTEGRATION);
-        s->repaired = phase_overlaps(s, in_window) > 0;
-        LAP(WF_PHASE_INTEGRATION);
         if (s->fault_vehicle >= 0) {
             rc = numerical_fault(s, step, err);
             break;
@@ -737,6 +822,7 @@ size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
     s->ck.n_sd = s->n_sd;
     s->ck.repaired = s->repaired;
     s->ck.sd_sum = s->sd_sum;
+    s->ck.window_open = f->window_open;
 #define VAR(nm, ptr, bytes)                                               \
     do {                                                                  \
         if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (bytes)}; \
@@ -745,10 +831,10 @@ size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
     VAR("scalars", &s->ck, sizeof s->ck);
     VAR("x", f->x_m, n * sizeof *f->x_m);
     VAR("v", f->v_mps, n * sizeof *f->v_mps);
-    VAR("grade_seg", f->grade_seg, n * sizeof *f->grade_seg);
-    VAR("dist", f->dist_m, n * sizeof *f->dist_m);
+    if (f->grade_seg) VAR("grade_seg", f->grade_seg, n * sizeof *f->grade_seg); /* NULL on a flat road */
+    VAR("x_start", f->x_start_m, n * sizeof *f->x_start_m);
     VAR("fuel", f->fuel_g, n * sizeof *f->fuel_g);
-    VAR("time_stopped", f->time_stopped_s, n * sizeof *f->time_stopped_s);
+    VAR("stopped_steps", f->stopped_steps, n * sizeof *f->stopped_steps);
     VAR("sum_v", f->sum_v, n * sizeof *f->sum_v);
     VAR("sum_v2", f->sum_v2, n * sizeof *f->sum_v2);
     VAR("sum_a", f->sum_a, n * sizeof *f->sum_a);
@@ -756,7 +842,6 @@ size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
     VAR("stops", f->stops, n * sizeof *f->stops);
     VAR("hard_brakes", f->hard_brakes, n * sizeof *f->hard_brakes);
     VAR("infeasible_steps", f->infeasible_steps, n * sizeof *f->infeasible_steps);
-    VAR("laps", f->laps, n * sizeof *f->laps);
     VAR("mode", f->mode, n * sizeof *f->mode);
     static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",
                                                            "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
@@ -776,6 +861,7 @@ void wf_sim_restored(WfSim *s)
     s->n_sd = (long)s->ck.n_sd;
     s->repaired = (int)s->ck.repaired;
     s->sd_sum = s->ck.sd_sum;
+    s->f->window_open = (int)s->ck.window_open;
     /* A SUNDIALS solver restarts from the restored state (as after a noise change): exact with noise or
      * controller memory, where the uninterrupted run restarts at every step too; within tolerance otherwise. */
     if (s->ode) {

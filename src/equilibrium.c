@@ -88,9 +88,14 @@ static double ring_fn(double v, const void *vctx)
     for (size_t b = 0; b < nb; b++) {
         size_t end = (b + 1) * EQ_BLOCK < n ? (b + 1) * EQ_BLOCK : n;
         double s = 0.0;
+        const void *prev = NULL;
         for (size_t i = b * EQ_BLOCK; i < end; i++) {
-            gap[i] = wf_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), v, L);
-            s += gap[i] + f->length_m[i];
+            /* Vehicles sharing a parameter block (a group without heterogeneity) share their gap: same inputs,
+             * same root, so reusing it changes no bit and saves a root solve per vehicle. */
+            const void *p = wf_fleet_params(f, sc, i);
+            gap[i] = p == prev ? gap[i - 1] : wf_equilibrium_gap(sc->groups[f->group_id[i]].model, p, v, L);
+            prev = p;
+            s += gap[i] + wf_fleet_length(f, i);
         }
         bs[b] = s;
     });

@@ -14,9 +14,9 @@ void wf_fleet_destroy(WfFleet **pf)
     if (!pf || !*pf) return;
     WfFleet *f = *pf;
     void *arrays[] = {f->x_m, f->v_mps, f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps,
-                      f->flag, f->grade_seg, f->length_m, f->class_id, f->group_id, f->slot, f->dist_m, f->fuel_g,
-                      f->time_stopped_s, f->sum_v, f->sum_v2, f->sum_a, f->sum_a2, f->stops, f->hard_brakes,
-                      f->infeasible_steps, f->laps, f->mode};
+                      f->flag, f->grade_seg, f->class_id, f->group_id, f->slot, f->x_start_m, f->fuel_g,
+                      f->stopped_steps, f->sum_v, f->sum_v2, f->sum_a, f->sum_a2, f->stops, f->hard_brakes,
+                      f->infeasible_steps, f->mode};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
         free(f->group_member[g]);
@@ -218,41 +218,62 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     f->n = n;
     f->n_groups = sc->n_groups;
     f->n_classes = sc->n_classes;
-    ALLOC(f->x_m, n); ALLOC(f->v_mps, n); ALLOC(f->a_mps2, n); ALLOC(f->gap_m, n); ALLOC(f->v_lead_mps, n);
-    ALLOC(f->theta_rad, n); ALLOC(f->fuel_rate_gps, n); ALLOC(f->flag, n); ALLOC(f->grade_seg, n);
-    ALLOC(f->length_m, n); ALLOC(f->class_id, n); ALLOC(f->group_id, n); ALLOC(f->slot, n);
-    ALLOC(f->dist_m, n); ALLOC(f->fuel_g, n); ALLOC(f->time_stopped_s, n); ALLOC(f->sum_v, n); ALLOC(f->sum_v2, n);
+    /* The multi-pass step keeps the per-step values fleet-wide; the fused step keeps them per block. */
+    f->multipass = sc->adaptive || sc->trajectories || !sc->fused_step;
+    ALLOC(f->x_m, n); ALLOC(f->v_mps, n);
+    if (f->multipass) {
+        ALLOC(f->a_mps2, n); ALLOC(f->gap_m, n); ALLOC(f->v_lead_mps, n); ALLOC(f->theta_rad, n);
+        ALLOC(f->fuel_rate_gps, n); ALLOC(f->flag, n);
+    }
+    if (sc->road.n_grade) ALLOC(f->grade_seg, n);
+    ALLOC(f->class_id, n); ALLOC(f->group_id, n); ALLOC(f->slot, n);
+    ALLOC(f->x_start_m, n); ALLOC(f->fuel_g, n); ALLOC(f->stopped_steps, n); ALLOC(f->sum_v, n); ALLOC(f->sum_v2, n);
     ALLOC(f->sum_a, n); ALLOC(f->sum_a2, n); ALLOC(f->stops, n); ALLOC(f->hard_brakes, n);
-    ALLOC(f->infeasible_steps, n); ALLOC(f->laps, n); ALLOC(f->mode, n);
+    ALLOC(f->infeasible_steps, n); ALLOC(f->mode, n);
 
     if ((rc = place_all(sc, f, err))) goto fail;
 
-    for (size_t c = 0; c < sc->n_classes; c++) ALLOC(f->class_member[c], (size_t)sc->classes[c].count);
+    for (size_t c = 0; c < sc->n_classes; c++) {
+        f->class_length_m[c] = sc->classes[c].length_m;
+        if (f->multipass) ALLOC(f->class_member[c], (size_t)sc->classes[c].count);
+    }
     for (size_t g = 0; g < sc->n_groups; g++) {
         const WfCfModel *m = sc->groups[g].model;
-        ALLOC(f->group_member[g], (size_t)sc->groups[g].count);
-        f->group_params[g] = calloc((size_t)sc->groups[g].count + 1, m->param_size);
+        int het = 0;
+        for (size_t k = 0; k < m->n_spec; k++) het |= sc->groups[g].spread[k] > 0.0;
+        /* Without heterogeneity every member has the group's parameters: one copy, stride 0. */
+        f->group_param_stride[g] = het ? m->param_size : 0;
+        if (f->multipass) ALLOC(f->group_member[g], (size_t)sc->groups[g].count);
+        f->group_params[g] = calloc(het ? (size_t)sc->groups[g].count + 1 : 1, m->param_size);
         f->group_state[g] = m->state_size ? calloc((size_t)sc->groups[g].count + 1, m->state_size) : NULL;
         if (!f->group_params[g] || (m->state_size && !f->group_state[g])) {
             rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);
             goto fail;
         }
+        if (!het) memcpy(f->group_params[g], sc->groups[g].params, m->param_size);
     }
     for (size_t i = 0; i < n; i++) {
         size_t c = f->class_id[i], g = f->group_id[i];
-        f->class_member[c][f->class_n[c]++] = (uint32_t)i;
-        f->slot[i] = (uint32_t)f->group_n[g];
-        f->group_member[g][f->group_n[g]++] = (uint32_t)i;
-        f->length_m[i] = sc->classes[c].length_m;
-        double *p = (double *)(f->group_params[g] + (size_t)f->slot[i] * sc->groups[g].model->param_size);
+        if (f->multipass) {
+            f->class_member[c][f->class_n[c]] = (uint32_t)i;
+            f->group_member[g][f->group_n[g]] = (uint32_t)i;
+        }
+        f->class_n[c]++;
+        f->slot[i] = (uint32_t)f->group_n[g]++;
+        if (!f->group_param_stride[g]) continue;
+        double *p = (double *)(f->group_params[g] + (size_t)f->slot[i] * f->group_param_stride[g]);
         if ((rc = draw_params(sc, &sc->groups[g], i, p, err))) goto fail;
     }
 
     /* Initial state. */
-    double L = sc->road.length_m, total_len = 0.0, jam = 0.0;
+    double L = sc->road.length_m, total_len = 0.0, jam = 0.0, jam_i = 0.0;
+    const void *prev = NULL;
     for (size_t i = 0; i < n; i++) {
-        total_len += f->length_m[i];
-        jam += wf_equilibrium_gap(sc->groups[f->group_id[i]].model, wf_fleet_params(f, sc, i), 0.0, L);
+        total_len += wf_fleet_length(f, i);
+        /* Vehicles sharing a parameter block share their standstill gap: solve once per block. */
+        const void *p = wf_fleet_params(f, sc, i);
+        if (p != prev) jam_i = wf_equilibrium_gap(sc->groups[f->group_id[i]].model, p, 0.0, L), prev = p;
+        jam += jam_i;
     }
     if (total_len + jam > L) {
         rc = wf_err(err, WF_EINPUT,
@@ -262,16 +283,21 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
         goto fail;
     }
     double v0 = 0.0;
-    double *gap = f->gap_m; /* scratch until the first step */
+    double *gap = f->gap_m ? f->gap_m : malloc(n * sizeof *gap); /* scratch until the first step */
+    if (!gap) {
+        rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);
+        goto fail;
+    }
     if (sc->init_state == WF_INIT_EQUILIBRIUM) {
         double v_hi = isfinite(sc->road.speed_limit_mps) ? sc->road.speed_limit_mps : 100.0;
         v0 = wf_equilibrium_ring(sc, f, v_hi, gap);
         if (isnan(v0)) {
+            if (gap != f->gap_m) free(gap);
             rc = wf_err(err, WF_ESYS, "out of memory");
             goto fail;
         }
         double used = 0.0;
-        for (size_t i = 0; i < n; i++) used += gap[i] + f->length_m[i];
+        for (size_t i = 0; i < n; i++) used += gap[i] + wf_fleet_length(f, i);
         /* Spare length (speed limit reached, or bisection residue) is shared equally. */
         for (size_t i = 0; i < n; i++) gap[i] += (L - used) / (double)n;
     } else {
@@ -279,8 +305,9 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     }
     f->v_init_mps = v0;
     /* x_0 = length_0 so vehicle 0's rear bumper sits at 0; x_{i+1} = x_i + gap_i + length_{i+1}. */
-    f->x_m[0] = f->length_m[0];
-    for (size_t i = 0; i + 1 < n; i++) f->x_m[i + 1] = f->x_m[i] + gap[i] + f->length_m[i + 1];
+    f->x_m[0] = wf_fleet_length(f, 0);
+    for (size_t i = 0; i + 1 < n; i++) f->x_m[i + 1] = f->x_m[i] + gap[i] + wf_fleet_length(f, i + 1);
+    if (gap != f->gap_m) free(gap);
     for (size_t i = 0; i < n; i++) f->v_mps[i] = v0;
     for (size_t i = 0; sc->jitter_m > 0 && i < n; i++) {
         double u[2];
@@ -299,7 +326,7 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     for (size_t i = 0; i < n; i++) {
         size_t lead = i + 1 < n ? i + 1 : 0;
         double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
-        double g = xl - f->length_m[lead] - f->x_m[i];
+        double g = xl - wf_fleet_length(f, lead) - f->x_m[i];
         if (!(g >= 0.0)) {
             rc = wf_err(err, WF_EINPUT,
                         "%s: the initial perturbation or jitter makes vehicle %zu overlap its leader (gap %.6g m)",
@@ -315,7 +342,7 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
             size_t lead = i + 1 < n ? i + 1 : 0;
             double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
             m->init_state(wf_fleet_params(f, sc, i), f->group_state[g] + (size_t)f->slot[i] * m->state_size,
-                          xl - f->length_m[lead] - f->x_m[i], f->v_mps[i], f->v_mps[lead]);
+                          xl - wf_fleet_length(f, lead) - f->x_m[i], f->v_mps[i], f->v_mps[lead]);
         }
     }
     *out = f;
@@ -323,4 +350,10 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
 fail:
     wf_fleet_destroy(&f);
     return rc;
+}
+
+void wf_fleet_open_window(WfFleet *f)
+{
+    memcpy(f->x_start_m, f->x_m, f->n * sizeof *f->x_m);
+    f->window_open = 1;
 }

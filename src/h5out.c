@@ -257,16 +257,16 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
     }
     I64("class_id", f->class_id[i], "1", "index into /classes");
     I64("group_id", f->group_id[i], "1", "index into /drivers");
-    F64("length", f->length_m[i], "m", "vehicle length");
-    F64("distance", f->dist_m[i], "m", "distance travelled in the statistics window");
+    F64("length", wf_fleet_length(f, i), "m", "vehicle length");
+    F64("distance", wf_fleet_distance(f, i), "m", "distance travelled in the statistics window");
     F64("fuel", f->fuel_g[i], "g", "fuel burnt in the statistics window");
-    F64("l_per_100km", wf_l_per_100km(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], f->dist_m[i]), "L/100km",
+    F64("l_per_100km", wf_l_per_100km(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], wf_fleet_distance(f, i)), "L/100km",
         "fuel economy (volume per distance)");
-    F64("mpg", wf_mpg(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], f->dist_m[i]), "mi/gal",
+    F64("mpg", wf_mpg(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], wf_fleet_distance(f, i)), "mi/gal",
         "fuel economy (US miles per US gallon)");
     I64("stops", f->stops[i], "1", "stops: speed fell below v_stop after exceeding v_go");
-    F64("time_stopped", f->time_stopped_s[i], "s", "time spent slower than v_stop");
-    F64("mean_speed", s->window_s > 0 ? f->dist_m[i] / s->window_s : 0.0, "m/s", "distance / window length");
+    F64("time_stopped", (double)f->stopped_steps[i] * sc->dt_s, "s", "time spent slower than v_stop");
+    F64("mean_speed", s->window_s > 0 ? wf_fleet_distance(f, i) / s->window_s : 0.0, "m/s", "distance / window length");
     F64("speed_var",
         win_steps > 0 ? fmax(0.0, f->sum_v2[i] / win_steps - (f->sum_v[i] / win_steps) * (f->sum_v[i] / win_steps))
                       : 0.0,

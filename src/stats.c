@@ -23,83 +23,84 @@ const WfColumn wf_ts_columns[WF_TS_N_COLS] = {
     {"overlaps", "1", "overlap events so far (a vehicle stopped behind its leader to keep its gap >= 0)"},
 };
 
-size_t wf_stats_scratch_size(size_t n, size_t n_classes)
+size_t wf_stats_scratch_blocks(size_t n) { return (n + WF_STATS_BLOCK - 1) / WF_STATS_BLOCK + 1; }
+
+void wf_stats_block(size_t m, const double *v, const double *gap, const double *fr, const uint16_t *cid,
+                    size_t nc, const WfScenario *sc, WfStatsBlock *out)
 {
-    size_t blocks = (n + WF_STATS_BLOCK - 1) / WF_STATS_BLOCK;
-    return blocks * (4 + n_classes) + 1;
+    double v_stop = sc->v_stop_mps, v_wave = sc->wave_speed_mps;
+    double sv = 0.0, sg = 0.0, stopped = 0.0, waves = 0.0;
+    for (size_t c = 0; c < nc; c++) out->class_fuel_rate_gps[c] = 0.0;
+    for (size_t k = 0; k < m; k++) {
+        sv += v[k];
+        sg += gap[k];
+        stopped += v[k] < v_stop;
+        out->class_fuel_rate_gps[cid[k]] += fr[k];
+        /* A wave starts at a slow vehicle whose follower (k - 1, ring order) is not slow; the block's first
+         * vehicle is settled in wf_stats_combine, which knows the previous block's last. */
+        waves += k > 0 && (v[k] < v_wave) && !(v[k - 1] < v_wave);
+    }
+    double mean = sv / (double)m, m2 = 0.0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY;
+    for (size_t k = 0; k < m; k++) {
+        double d = v[k] - mean;
+        m2 += d * d;
+        vmin = v[k] < vmin ? v[k] : vmin;
+        vmax = v[k] > vmax ? v[k] : vmax;
+        gmin = gap[k] < gmin ? gap[k] : gmin;
+    }
+    out->n = (double)m, out->sum_v = sv, out->sum_gap = sg, out->stopped = stopped, out->waves = waves;
+    out->m2 = m2, out->vmin = vmin, out->vmax = vmax, out->gmin = gmin;
+    out->first_slow = v[0] < v_wave;
+    out->last_slow = v[m - 1] < v_wave;
 }
 
-void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t overlaps, double *scratch,
-                     WfTsRow *row)
+void wf_stats_combine(const WfStatsBlock *b, size_t nb, size_t nc, const WfScenario *sc, double t_s,
+                      int64_t overlaps, WfTsRow *row)
 {
-    size_t n = f->n, nc = f->n_classes, nb = (n + WF_STATS_BLOCK - 1) / WF_STATS_BLOCK, stride = 4 + nc;
-    const double *v = f->v_mps, *gap = f->gap_m, *fr = f->fuel_rate_gps;
-    const uint16_t *cid = f->class_id;
-    double v_stop = sc->v_stop_mps, v_wave = sc->wave_speed_mps;
-    /* Pass 1 per block: sum of speeds, of gaps, of fuel rates per class, stopped count, wave starts. */
-    WF_PAR_FOR(nb > 1, "omp parallel for schedule(static) default(none) shared(nb, n, nc, stride, scratch, v, gap, fr, cid, v_stop, v_wave)",
-    for (size_t b = 0; b < nb; b++) {
-        double *out = scratch + b * stride, sv = 0.0, sg = 0.0, stopped = 0.0, waves = 0.0;
-        for (size_t c = 0; c < nc; c++) out[4 + c] = 0.0;
-        size_t end = (b + 1) * WF_STATS_BLOCK < n ? (b + 1) * WF_STATS_BLOCK : n;
-        for (size_t i = b * WF_STATS_BLOCK; i < end; i++) {
-            sv += v[i];
-            sg += gap[i];
-            stopped += v[i] < v_stop;
-            out[4 + cid[i]] += fr[i];
-            /* A wave starts at a slow vehicle whose follower (i - 1, ring order) is not slow. */
-            size_t prev = i ? i - 1 : n - 1;
-            waves += (v[i] < v_wave) && !(v[prev] < v_wave);
-        }
-        out[0] = sv;
-        out[1] = sg;
-        out[2] = stopped;
-        out[3] = waves;
-    });
-    double sv = 0, sg = 0, stopped = 0, waves = 0;
+    double n = 0, sv = 0, sg = 0, stopped = 0, waves = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY;
     memset(row, 0, sizeof *row);
-    for (size_t b = 0; b < nb; b++) {
-        const double *o = scratch + b * stride;
-        sv += o[0], sg += o[1], stopped += o[2], waves += o[3];
-        for (size_t c = 0; c < nc; c++) row->class_fuel_rate_gps[c] += o[4 + c];
+    for (size_t k = 0; k < nb; k++) {
+        n += b[k].n, sv += b[k].sum_v, sg += b[k].sum_gap, stopped += b[k].stopped, waves += b[k].waves;
+        /* The follower of block k's first vehicle is the previous block's last (the last block's for block 0). */
+        waves += b[k].first_slow && !b[k ? k - 1 : nb - 1].last_slow;
+        vmin = fmin(vmin, b[k].vmin);
+        vmax = fmax(vmax, b[k].vmax);
+        gmin = fmin(gmin, b[k].gmin);
+        for (size_t c = 0; c < nc; c++) row->class_fuel_rate_gps[c] += b[k].class_fuel_rate_gps[c];
     }
-    double mean = sv / (double)n;
-    /* Pass 2: centred second moment (two-pass for accuracy when the spread is tiny), extremes. */
-    WF_PAR_FOR(nb > 1, "omp parallel for schedule(static) default(none) shared(nb, n, stride, scratch, v, gap, mean)",
-    for (size_t b = 0; b < nb; b++) {
-        double m2 = 0.0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY;
-        size_t end = (b + 1) * WF_STATS_BLOCK < n ? (b + 1) * WF_STATS_BLOCK : n;
-        for (size_t i = b * WF_STATS_BLOCK; i < end; i++) {
-            double d = v[i] - mean;
-            m2 += d * d;
-            vmin = v[i] < vmin ? v[i] : vmin;
-            vmax = v[i] > vmax ? v[i] : vmax;
-            gmin = gap[i] < gmin ? gap[i] : gmin;
-        }
-        double *out = scratch + b * stride;
-        out[0] = m2, out[1] = vmin, out[2] = vmax, out[3] = gmin;
-    });
-    double m2 = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY, fuel = 0;
-    for (size_t b = 0; b < nb; b++) {
-        const double *o = scratch + b * stride;
-        m2 += o[0];
-        vmin = fmin(vmin, o[1]);
-        vmax = fmax(vmax, o[2]);
-        gmin = fmin(gmin, o[3]);
+    double mean = sv / n, m2 = 0.0, fuel = 0.0;
+    for (size_t k = 0; k < nb; k++) {
+        double d = b[k].sum_v / b[k].n - mean;
+        m2 += b[k].m2 + b[k].n * d * d;
     }
     for (size_t c = 0; c < nc; c++) fuel += row->class_fuel_rate_gps[c];
+    double v_wave = sc->wave_speed_mps;
     row->v[WF_TS_T] = t_s;
     row->v[WF_TS_MEAN_V] = mean;
-    row->v[WF_TS_SD_V] = sqrt(m2 / (double)n);
+    row->v[WF_TS_SD_V] = sqrt(m2 / n);
     row->v[WF_TS_MIN_V] = vmin;
     row->v[WF_TS_MAX_V] = vmax;
-    row->v[WF_TS_FRAC_STOPPED] = stopped / (double)n;
+    row->v[WF_TS_FRAC_STOPPED] = stopped / n;
     /* Every vehicle slow: one wave spanning the ring (no start was found above). */
     row->v[WF_TS_WAVES] = (waves == 0 && vmax < v_wave) ? 1.0 : waves;
     row->v[WF_TS_FUEL_RATE] = fuel;
-    row->v[WF_TS_MEAN_GAP] = sg / (double)n;
+    row->v[WF_TS_MEAN_GAP] = sg / n;
     row->v[WF_TS_MIN_GAP] = gmin;
     row->v[WF_TS_OVERLAPS] = (double)overlaps;
+}
+
+void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t overlaps, WfStatsBlock *scratch,
+                     WfTsRow *row)
+{
+    size_t n = f->n, nc = f->n_classes, nb = (n + WF_STATS_BLOCK - 1) / WF_STATS_BLOCK;
+    const double *v = f->v_mps, *gap = f->gap_m, *fr = f->fuel_rate_gps;
+    const uint16_t *cid = f->class_id;
+    WF_PAR_FOR(n >= 4096, "omp parallel for schedule(static) default(none) shared(nb, n, nc, scratch, v, gap, fr, cid, sc)",
+    for (size_t b = 0; b < nb; b++) {
+        size_t lo = b * WF_STATS_BLOCK, m = n - lo < WF_STATS_BLOCK ? n - lo : WF_STATS_BLOCK;
+        wf_stats_block(m, v + lo, gap + lo, fr + lo, cid + lo, nc, sc, &scratch[b]);
+    });
+    wf_stats_combine(scratch, nb, nc, sc, t_s, overlaps, row);
 }
 
 void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, long n_sd, long window_steps,
@@ -109,21 +110,22 @@ void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, lon
     double dt = sc->dt_s;
     s->window_s = (double)window_steps * dt;
     double stops = 0, hard = 0, infeas = 0, stopped_s = 0, laps = 0, litres = 0, gallons = 0;
+    double L = sc->road.length_m;
+    for (size_t i = 0; i < f->n; i++) {
+        WfClassSummary *cs = &s->cls[f->class_id[i]];
+        cs->fuel_g += f->fuel_g[i];
+        cs->dist_m += wf_fleet_distance(f, i);
+        cs->stops_per_vkm += f->stops[i];          /* counts until the loop below */
+        cs->infeasible_share += f->infeasible_steps[i];
+        hard += f->hard_brakes[i];
+        stopped_s += (double)f->stopped_steps[i] * dt;
+        laps += (double)wf_fleet_laps(f, L, i);
+    }
     for (size_t c = 0; c < f->n_classes; c++) {
         WfClassSummary *cs = &s->cls[c];
         const WfVehicleClass *vc = &sc->classes[c].vc;
-        double cstops = 0, cinf = 0;
+        double cstops = cs->stops_per_vkm, cinf = cs->infeasible_share;
         cs->count = (long)f->class_n[c];
-        for (size_t k = 0; k < f->class_n[c]; k++) {
-            size_t i = f->class_member[c][k];
-            cs->fuel_g += f->fuel_g[i];
-            cs->dist_m += f->dist_m[i];
-            cstops += f->stops[i];
-            cinf += f->infeasible_steps[i];
-            hard += f->hard_brakes[i];
-            stopped_s += f->time_stopped_s[i];
-            laps += (double)f->laps[i];
-        }
         cs->l_per_100km = wf_l_per_100km(vc, cs->fuel_g, cs->dist_m);
         cs->mpg = wf_mpg(vc, cs->fuel_g, cs->dist_m);
         cs->infeasible_share = cs->count && window_steps ? cinf / ((double)cs->count * (double)window_steps) : 0.0;

@@ -3,6 +3,7 @@
  * sweeps over gaps [0, 500] m and speeds [0, 40] m/s, and the registry/spec contract. Parameters are set
  * through the spec tables only, so the tests do not depend on the models' private structs. */
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -461,6 +462,57 @@ static void test_hand_gipps(void)
     CHECK_REL(acc(m, &p, 2.0, 1.0, 0.0), -1.0 / 0.66, 1e-14);
 }
 
+/* Every model with a block kernel: the kernel's accelerations equal accel()'s bit for bit, with one shared
+ * parameter set (stride 0, the vectorised loop), with per-vehicle sets (stride = param_size), and for a
+ * non-default exponent; inputs span gaps from 0 (the floor) to 500 m and speeds from 0 to 45 m/s. */
+static void test_block_kernels(void)
+{
+    enum { N = 4099 }; /* odd: the vector loop's remainder runs too */
+    static double gap[N], v[N], vl[N], a[N], params[N * 16];
+    uint64_t st = 0x9e3779b97f4a7c15ull;
+    for (size_t k = 0; k < N; k++) {
+        double u[3];
+        for (int j = 0; j < 3; j++) {
+            st = st * 6364136223846793005ull + 1442695040888963407ull;
+            u[j] = (double)(st >> 11) * 0x1p-53;
+        }
+        gap[k] = k % 17 == 0 ? 0.0 : 500.0 * u[0] * u[0];
+        v[k] = 45.0 * u[1];
+        vl[k] = 45.0 * u[2];
+    }
+    int tested = 0;
+    for (size_t mi = 0; wf_cf_models[mi]; mi++) {
+        const WfCfModel *m = wf_cf_models[mi];
+        if (!m->accel_block) continue;
+        CHECK(m->state_size == 0, "%s: a block kernel on a model with memory", m->name);
+        CHECK(m->param_size <= 16 * sizeof(double), "%s: parameter struct too large for the test", m->name);
+        double base[16] = {0};
+        wf_param_defaults(m->spec, m->n_spec, base);
+        for (int variant = 0; variant < 3; variant++) {
+            size_t stride = variant == 0 ? 0 : m->param_size;
+            for (size_t k = 0; k < N; k++) {
+                double *pk = params + k * (m->param_size / sizeof(double));
+                memcpy(pk, base, m->param_size);
+                /* per-vehicle sets (variant 1), or the exponent 3 everywhere (variant 2, shared) */
+                for (size_t p = 0; variant == 1 && p < m->n_spec; p++)
+                    *wf_param_ptr(pk, &m->spec[p]) *= 1.0 + 0.1 * sin((double)(k + p));
+                const WfParamSpec *d = wf_param_find(m->spec, m->n_spec, "delta");
+                if (variant == 2 && d) *wf_param_ptr(pk, d) = 3.0;
+            }
+            if (variant == 2) stride = 0;
+            m->accel_block(params, stride, N, gap, v, vl, a);
+            size_t diff = 0;
+            for (size_t k = 0; k < N; k++) {
+                double want = m->accel(params + (stride ? k * (m->param_size / sizeof(double)) : 0), NULL, gap[k], v[k], vl[k]);
+                diff += memcmp(&want, &a[k], sizeof want) != 0;
+            }
+            CHECK(diff == 0, "%s, variant %d: %zu of %d accelerations differ from accel()", m->name, variant, diff, N);
+        }
+        tested++;
+    }
+    CHECK(tested >= 1, "no model has a block kernel");
+}
+
 int main(void)
 {
     RUN(test_registry_find);
@@ -476,5 +528,6 @@ int main(void)
     RUN(test_hand_idm);
     RUN(test_hand_ovm);
     RUN(test_hand_gipps);
+    RUN(test_block_kernels);
     TEST_EXIT();
 }

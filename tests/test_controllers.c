@@ -311,7 +311,7 @@ static int same_fleet(const WfFleet *a, const WfFleet *b)
     if (a->n != b->n) return 0;
     size_t sz = a->n * sizeof(double);
     return memcmp(a->x_m, b->x_m, sz) == 0 && memcmp(a->v_mps, b->v_mps, sz) == 0 &&
-           memcmp(a->fuel_g, b->fuel_g, sz) == 0 && memcmp(a->dist_m, b->dist_m, sz) == 0;
+           memcmp(a->fuel_g, b->fuel_g, sz) == 0 && memcmp(a->x_start_m, b->x_start_m, sz) == 0;
 }
 
 static const char *ring_yaml =
@@ -437,11 +437,11 @@ static void test_group_placement(void)
  * measured effect at this seed. The control that they can fail: the same slot driven by an ACC with
  * Milanés & Shladover's string-unstable production gains leaves the wave in place (measured +5.4 % s.d.,
  * +5.3 % fuel). */
-static int summary_of(const char *text, const char *name, WfSummary *out)
+static int summary_of(const char *path, const char *const *set_, size_t n_set, WfSummary *out)
 {
     WfError err = {0};
-    WfScenario *sc = load(write_tmp(name, text), NULL, 0, &err);
-    CHECK(sc != NULL, "%s: %s", name, err.msg);
+    WfScenario *sc = load(path, set_, n_set, &err);
+    CHECK(sc != NULL, "%s: %s", path, err.msg);
     WfSim *sim = sc ? run(sc) : NULL;
     int ok = sim != NULL;
     if (ok) *out = *wf_sim_summary(sim);
@@ -458,11 +458,10 @@ static void test_sugiyama_one_av(void)
     WfScenario *plain = load("scenarios/sugiyama.yaml", NULL, 0, &err);
     CHECK(with && without && plain, "%s", err.msg);
     WfSim *a = with ? run(with) : NULL, *b = without ? run(without) : NULL, *c = plain ? run(plain) : NULL;
-    WfSummary sb = {0};
     int have_b = b != NULL;
     if (a && b && c) {
         const WfSummary *sa = wf_sim_summary(a);
-        sb = *wf_sim_summary(b);
+        WfSummary sb = *wf_sim_summary(b);
         double dsd = sa->sd_speed_time_avg_mps / sb.sd_speed_time_avg_mps - 1.0;
         double dfuel = sa->l_per_100km / sb.l_per_100km - 1.0;
         printf("  one FollowerStopper AV: speed s.d. %.4f -> %.4f m/s (%+.1f %%), fuel %.4f -> %.4f L/100km "
@@ -501,11 +500,26 @@ static void test_sugiyama_one_av(void)
     char rest[4096];
     snprintf(rest, sizeof rest, "%s", eol);
     snprintf(params_line, sizeof text - (size_t)(params_line - text), "%s%s", acc, rest);
-    WfSummary sh = {0};
-    if (summary_of(text, "acc_slot.yaml", &sh)) {
-        double dsd = sh.sd_speed_time_avg_mps / sb.sd_speed_time_avg_mps - 1.0;
-        double dfuel = sh.l_per_100km / sb.l_per_100km - 1.0;
-        printf("  one production-gain ACC: speed s.d. %+.1f %%, fuel %+.1f %%\n", 100 * dsd, 100 * dfuel);
+    /* Averaged over seeds: on one realisation of the noise the ACC's effect on the wave ranges from -23 % to
+     * +9 % (seeds 1-8 and 2008), far from the FollowerStopper's -90 % and more. */
+    const char *acc_path = write_tmp("acc_slot.yaml", text);
+    double dsd = 0.0, dfuel = 0.0;
+    int runs = 0;
+    for (int seed = 1; seed <= 4; seed++) {
+        char seed_set[32];
+        snprintf(seed_set, sizeof seed_set, "seed=%d", seed);
+        const char *base_set[] = {"fleet.drivers[0].count=22", "fleet.drivers[1].count=0", seed_set};
+        WfSummary sh = {0}, s0 = {0};
+        if (!summary_of(acc_path, base_set + 2, 1, &sh) || !summary_of(SUGIYAMA_FS, base_set, 3, &s0)) continue;
+        dsd += sh.sd_speed_time_avg_mps / s0.sd_speed_time_avg_mps - 1.0;
+        dfuel += sh.l_per_100km / s0.l_per_100km - 1.0;
+        runs++;
+    }
+    CHECK(runs == 4, "%d of 4 seeds ran", runs);
+    if (runs) {
+        dsd /= runs, dfuel /= runs;
+        printf("  one production-gain ACC (mean of seeds 1-4): speed s.d. %+.1f %%, fuel %+.1f %%\n", 100 * dsd,
+               100 * dfuel);
         CHECK(dsd > -0.2 && dfuel > -0.05, "ACC slot: s.d. %+.1f %%, fuel %+.1f %%", 100 * dsd, 100 * dfuel);
     }
 }
@@ -528,7 +542,7 @@ static void test_fs_initial_equilibrium(void)
         int rc = sc ? wf_sim_create(sc, &sim, &err) : -1;
         if (rc == 0) {
             const WfFleet *f = wf_sim_fleet(sim);
-            double gap0 = f->x_m[1] - f->length_m[1] - f->x_m[0]; /* the AV is vehicle 0 */
+            double gap0 = f->x_m[1] - wf_fleet_length(f, 1) - f->x_m[0]; /* the AV is vehicle 0 */
             if (!(f->v_init_mps <= U && gap0 >= 5.25 - 1e-9)) rc = -2;
         }
         if (rc && bad++ < 3)

@@ -1,6 +1,7 @@
-/* The engine's execution paths give the same bits: the fused one-pass step (steps that record nothing) and the
- * multi-pass step (steps that record), on 1 and 2 threads, with noise, heterogeneous drivers, three classes, a
- * controller with memory (PI with saturation) and a graded ring. Any difference in arithmetic or ordering between
+/* The engine's execution paths give the same bits: the fused one-pass step and the multi-pass step, on 1 and 2
+ * threads, final state and every time-series record, with noise, heterogeneous drivers (per-vehicle parameters)
+ * beside homogeneous ones (one shared parameter set, IDM's block kernel), three classes, a controller with memory
+ * (PI with saturation) and a graded ring. Any difference in arithmetic or ordering between
  * the paths, or a race in the in-place update of the fused step, shows up as a bit difference. */
 #include <math.h>
 #ifdef _OPENMP
@@ -23,15 +24,29 @@ static const char *yaml =
     "  classes:\n    - {class: midsize_sedan, fraction: 0.5}\n    - {class: midsize_suv, fraction: 0.3}\n"
     "    - {class: class8_tractor, fraction: 0.2}\n"
     "  drivers:\n"
-    "    - {model: idm, fraction: 0.9, noise_mps2: 0.3, feasible_accel: clip,\n"
+    "    - {model: idm, fraction: 0.6, noise_mps2: 0.3, feasible_accel: clip,\n"
     "       heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1}}}\n"
+    "    - {model: idm, fraction: 0.3, noise_mps2: 0.2}\n"
     "    - {model: pi_saturation, fraction: 0.1}\n"
     "initial: {state: equilibrium, jitter_m: 0.5}\n";
 
 typedef struct Out {
     size_t n;
     double *x, *v, *fuel;
+    WfTsRow rows[32]; /* the time series: 21 records */
+    size_t  n_rows;
+    /* the complete state a checkpoint saves (accumulators, modes, controller memory), concatenated */
+    unsigned char *state;
+    size_t state_size;
 } Out;
+
+static int keep_row(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
+{
+    (void)sim, (void)err;
+    Out *o = ctx;
+    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) o->rows[o->n_rows++] = *row;
+    return 0;
+}
 
 static int run(const char *path, const char *fused, int threads, Out *o)
 {
@@ -46,7 +61,8 @@ static int run(const char *path, const char *fused, int threads, Out *o)
 #endif
     int rc = wf_scenario_load(path, set, 1, &sc, &err);
     if (!rc) rc = wf_sim_create(sc, &sim, &err);
-    if (!rc) rc = wf_sim_run(sim, NULL, NULL, NULL, NULL, &err);
+    WfOutput out = {.record = keep_row, .ctx = o};
+    if (!rc) rc = wf_sim_run(sim, &out, NULL, NULL, NULL, &err);
     if (rc) printf("  %s\n", err.msg);
     if (!rc) {
         const WfFleet *f = wf_sim_fleet(sim);
@@ -57,6 +73,14 @@ static int run(const char *path, const char *fused, int threads, Out *o)
         memcpy(o->x, f->x_m, f->n * sizeof(double));
         memcpy(o->v, f->v_mps, f->n * sizeof(double));
         memcpy(o->fuel, f->fuel_g, f->n * sizeof(double));
+        WfStateVar vars[64];
+        size_t nv = wf_sim_state(sim, vars, 64);
+        for (size_t k = 0; k < nv && k < 64; k++) o->state_size += vars[k].size;
+        o->state = malloc(o->state_size);
+        for (size_t k = 0, off = 0; o->state && k < nv && k < 64; k++) {
+            memcpy(o->state + off, vars[k].data, vars[k].size);
+            off += vars[k].size;
+        }
     }
     wf_sim_destroy(&sim);
     wf_scenario_destroy(&sc);
@@ -83,6 +107,16 @@ static void test_paths_bitwise_equal(void)
         CHECK(memcmp(o.v, ref.v, o.n * sizeof(double)) == 0, "%s, %d threads: speeds differ", modes[k], threads[k]);
         CHECK(memcmp(o.fuel, ref.fuel, o.n * sizeof(double)) == 0, "%s, %d threads: fuel differs", modes[k],
               threads[k]);
+        CHECK(o.n_rows == 21 && o.n_rows == ref.n_rows, "%s, %d threads: %zu records, reference %zu", modes[k],
+              threads[k], o.n_rows, ref.n_rows);
+        for (size_t r = 0; r < o.n_rows && r < ref.n_rows; r++)
+            CHECK(memcmp(&o.rows[r], &ref.rows[r], sizeof o.rows[r]) == 0, "%s, %d threads: record %zu (t = %g s) differs",
+                  modes[k], threads[k], r, o.rows[r].v[WF_TS_T]);
+        CHECK(o.state && ref.state && o.state_size == ref.state_size &&
+                  memcmp(o.state, ref.state, o.state_size) == 0,
+              "%s, %d threads: the checkpoint state (accumulators, modes, controller memory) differs", modes[k],
+              threads[k]);
+        free(o.state);
         free(o.x), free(o.v), free(o.fuel);
     }
     if (ref.x) {
@@ -90,7 +124,7 @@ static void test_paths_bitwise_equal(void)
         for (size_t i = 0; i < ref.n; i++) spread += fabs(ref.v[i] - ref.v[0]);
         CHECK(spread > 1.0, "speeds do not vary: the scenario would not exercise the paths");
     }
-    free(ref.x), free(ref.v), free(ref.fuel);
+    free(ref.x), free(ref.v), free(ref.fuel), free(ref.state);
     unlink(path);
     rmdir(dir);
 }

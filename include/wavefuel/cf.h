@@ -27,6 +27,12 @@ typedef struct WfCfModel {
     void (*init_state)(const void *params, void *state, double gap_m, double v_mps, double v_lead_mps);
     void (*update_state)(const void *params, void *state, double gap_m, double v_mps, double v_lead_mps,
                          double dt_s);
+    /* Optional block form of accel() for memoryless models: a[k] for n vehicles whose parameter structs are at
+     * params + k * param_stride (stride 0: one shared struct), with exactly accel()'s arithmetic, so both forms
+     * give the same bits (tests/test_cf.c checks it). Lets the compiler vectorise the common case of one
+     * parameter set. NULL: the engine calls accel() per vehicle. */
+    void (*accel_block)(const void *params, size_t param_stride, size_t n, const double *gap_m,
+                        const double *v_mps, const double *v_lead_mps, double *a_mps2);
 } WfCfModel;
 
 /* NULL-terminated registry of every built-in model. */

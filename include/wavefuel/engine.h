@@ -18,8 +18,9 @@ typedef struct WfSim WfSim;
 
 /* Phases of a step whose wall time is measured (docs/output.md: /meta/phase_time). car_following includes the
  * noise draws; integration includes the per-vehicle statistics accumulated with it and the overlap check;
- * statistics is the time-series record; output the writer's callbacks; fused_step the steps that record nothing,
- * which run car-following, energy and integration in one pass (time.fused_step; set it false to split them). */
+ * statistics is the time-series record; output the writer's callbacks; fused_step the fused one-pass step, which
+ * runs car-following, energy, the record's partial sums and integration in one pass (used unless the run has a
+ * SUNDIALS integrator or trajectories, or time.fused_step is false; then the first five are timed apart). */
 enum { WF_PHASE_CAR_FOLLOWING, WF_PHASE_ENERGY, WF_PHASE_INTEGRATION, WF_PHASE_STATISTICS, WF_PHASE_OUTPUT,
        WF_PHASE_FUSED, WF_N_PHASES };
 extern const char *const wf_phase_names[WF_N_PHASES];
@@ -27,6 +28,8 @@ extern const char *const wf_phase_names[WF_N_PHASES];
 /* Output sink (HDF5 in src/h5out.c; tests use their own). Each callback returns 0 or an error code. */
 typedef struct WfOutput {
     int (*begin)(void *ctx, const WfSim *sim, WfError *err);
+    /* row describes the instant row->v[WF_TS_T]; the fleet may already be one step further (the fused step takes
+     * the record and the step in one pass), so a sink that needs the fleet at that instant uses trajectory. */
     int (*record)(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err);
     int (*trajectory)(void *ctx, const WfSim *sim, double t_s, WfError *err); /* x, v, a, fuel rate now */
     /* Save everything needed to resume (called every checkpoint interval of wall time, and when the run is

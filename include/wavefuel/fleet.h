@@ -11,30 +11,36 @@
 
 typedef struct WfFleet {
     size_t n;
-    /* state: front-bumper position (unwrapped, m), speed (m/s), acceleration applied in the last step */
-    double *x_m, *v_mps, *a_mps2;
-    /* per-step values at the step's start: bumper-to-bumper gap, leader speed, grade, fuel rate, flag */
-    double  *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps;
+    /* state: front-bumper position (unwrapped, m), speed (m/s) */
+    double *x_m, *v_mps;
+    /* per-step values at the step's start: applied acceleration, bumper-to-bumper gap, leader speed, grade,
+     * fuel rate, feasibility flag. Fleet-wide only for the multi-pass step (SUNDIALS integrators, trajectories,
+     * fused_step off: f->multipass); NULL otherwise, where the fused step keeps them per block. */
+    int      multipass;
+    double  *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps;
     uint8_t *flag;
-    uint32_t *grade_seg; /* per-vehicle cache for wf_road_grade */
-    /* attributes */
-    double   *length_m;
+    uint32_t *grade_seg; /* per-vehicle cache for wf_road_grade; NULL on a flat road */
+    /* attributes: class, driver group, index within the group (controller state, drawn parameters) */
     uint16_t *class_id, *group_id;
-    uint32_t *slot;      /* index of the vehicle within its group (parameters, state) */
-    /* groups: members in ring order, drawn parameters (param_size bytes each), controller state */
+    uint32_t *slot;
+    double    class_length_m[WF_MAX_CLASSES];
+    /* groups: drawn parameters (param_size bytes each; one block with stride 0 when the group has no
+     * heterogeneity), controller state, members in ring order (multi-pass only, else NULL) */
     size_t    n_groups;
     uint32_t *group_member[WF_MAX_GROUPS];
     size_t    group_n[WF_MAX_GROUPS];
     unsigned char *group_params[WF_MAX_GROUPS];
+    size_t    group_param_stride[WF_MAX_GROUPS];
     unsigned char *group_state[WF_MAX_GROUPS];
-    /* classes: members in ring order */
+    /* classes: members in ring order (multi-pass only, else NULL) */
     size_t    n_classes;
     uint32_t *class_member[WF_MAX_CLASSES];
     size_t    class_n[WF_MAX_CLASSES];
-    /* accumulators over the statistics window (after warm-up) */
-    double   *dist_m, *fuel_g, *time_stopped_s, *sum_v, *sum_v2, *sum_a, *sum_a2;
-    uint32_t *stops, *hard_brakes, *infeasible_steps;
-    int64_t  *laps;      /* passages of the reference point x = 0 (mod L) */
+    /* accumulators over the statistics window (after warm-up). Distance and passages of x = 0 (mod L) follow
+     * from the positions and x_start_m, the positions when the window opened. */
+    int       window_open;
+    double   *x_start_m, *fuel_g, *sum_v, *sum_v2, *sum_a, *sum_a2;
+    uint32_t *stopped_steps, *stops, *hard_brakes, *infeasible_steps;
     uint8_t  *mode;      /* bit 0: moving (above v_go since the last stop); bit 1: braking hard; bit 2: fault */
     /* initial equilibrium (for the record) */
     double    v_init_mps;
@@ -46,6 +52,8 @@ enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };
  * speeds. Fails (WF_EINPUT) when the vehicles do not fit at their standstill gaps, when a drawn parameter set
  * is rejected by its model, or when a perturbation makes vehicles overlap. */
 int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err);
+/* Open the statistics window now: positions become the reference of distances and passages. */
+void wf_fleet_open_window(WfFleet *f);
 void wf_fleet_destroy(WfFleet **f);
 
 /* One vehicle's driver-model parameters, drawn as wf_fleet_create() draws them: the group's values times
@@ -57,8 +65,30 @@ int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, d
 /* Pointer to vehicle i's parameters / state within its group. */
 static inline const void *wf_fleet_params(const WfFleet *f, const WfScenario *sc, size_t i)
 {
+    (void)sc;
     size_t g = f->group_id[i];
-    return f->group_params[g] + (size_t)f->slot[i] * sc->groups[g].model->param_size;
+    return f->group_params[g] + (size_t)f->slot[i] * f->group_param_stride[g];
+}
+
+/* Vehicle i's length (m): its class's. */
+static inline double wf_fleet_length(const WfFleet *f, size_t i) { return f->class_length_m[f->class_id[i]]; }
+
+/* floor(q) as an integer without the libm call (floor is not inlined on baseline x86-64): truncate, then step
+ * down for negative non-integers. |q| stays far below 2^63 (positions / ring length). */
+static inline int64_t wf_lap_index(double q)
+{
+    int64_t k = (int64_t)q;
+    return k - (q < (double)k);
+}
+
+/* Distance vehicle i travelled in the statistics window (m), and its passages of x = 0 (mod L). */
+static inline double wf_fleet_distance(const WfFleet *f, size_t i)
+{
+    return f->window_open ? f->x_m[i] - f->x_start_m[i] : 0.0;
+}
+static inline int64_t wf_fleet_laps(const WfFleet *f, double L, size_t i)
+{
+    return f->window_open ? wf_lap_index(f->x_m[i] / L) - wf_lap_index(f->x_start_m[i] / L) : 0;
 }
 
 #endif

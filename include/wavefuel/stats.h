@@ -9,7 +9,9 @@
 #include "wavefuel/fleet.h"
 #include "wavefuel/scenario.h"
 
-#define WF_STATS_BLOCK 4096
+/* Vehicles per statistics block; the fused step's block (src/engine.c) is the same size, so a record taken by
+ * the fused and by the multi-pass step sums the same blocks in the same order. */
+#define WF_STATS_BLOCK 256
 
 /* Columns of one time-series record, in order (names and units in wf_ts_columns). */
 enum {
@@ -25,12 +27,26 @@ typedef struct WfTsRow {
     double class_fuel_rate_gps[WF_MAX_CLASSES];
 } WfTsRow;
 
-/* Fill a record from the fleet's state at the step's start (speeds, gaps, fuel rates). `scratch` holds at
- * least ceil(n / WF_STATS_BLOCK) * (2 + n_classes) doubles. Parallel over blocks when called outside a
- * parallel region. */
-void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t overlaps, double *scratch,
+/* Partial sums of a record over one block of consecutive vehicles (ring order). */
+typedef struct WfStatsBlock {
+    double n, sum_v, sum_gap, stopped, waves, m2, vmin, vmax, gmin; /* m2: about the block's own mean */
+    int    first_slow, last_slow; /* the block's first / last vehicle is slower than wave_speed_mps */
+    double class_fuel_rate_gps[WF_MAX_CLASSES];
+} WfStatsBlock;
+
+/* The partial sums of m vehicles from their speeds, gaps, fuel rates and classes at the step's start. */
+void wf_stats_block(size_t m, const double *v, const double *gap, const double *fuel_rate_gps,
+                    const uint16_t *class_id, size_t n_classes, const WfScenario *sc, WfStatsBlock *out);
+/* A record from the blocks' partial sums, combined in block order (Chan et al.'s pairwise formula for the
+ * second moment about the fleet mean: no cancellation when the spread is tiny). */
+void wf_stats_combine(const WfStatsBlock *blocks, size_t n_blocks, size_t n_classes, const WfScenario *sc,
+                      double t_s, int64_t overlaps, WfTsRow *row);
+
+/* Fill a record from the fleet's per-step arrays (multi-pass step). `scratch` holds
+ * wf_stats_scratch_blocks(n) blocks. Parallel over blocks when called outside a parallel region. */
+void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t overlaps, WfStatsBlock *scratch,
                      WfTsRow *row);
-size_t wf_stats_scratch_size(size_t n, size_t n_classes);
+size_t wf_stats_scratch_blocks(size_t n);
 
 /* Aggregates over the statistics window. */
 typedef struct WfClassSummary {

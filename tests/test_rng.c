@@ -1,0 +1,97 @@
+/* The noise generator (wf_rng_normal_block): its deviates against the standard normal distribution computed
+ * independently (moments, Kolmogorov-Smirnov against 0.5 erfc(-x / sqrt 2), tail frequencies), and the
+ * properties the engine relies on (a pure function of its key; a block's prefix does not depend on its size). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wavefuel/rng.h"
+#include "wf_test.h"
+
+#define NBLK 4000
+#define BLK  256
+#define NTOT ((size_t)NBLK * BLK)
+
+static int cmp_double(const void *a, const void *b)
+{
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double *draw_all(uint64_t seed)
+{
+    double *z = malloc(NTOT * sizeof *z);
+    /* blocks at several steps, as the engine draws them */
+    for (size_t b = 0; b < NBLK; b++) wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, b % 97, b / 97, BLK, z + b * BLK);
+    return z;
+}
+
+static void test_moments_and_tails(void)
+{
+    double *z = draw_all(42);
+    double s1 = 0, s2 = 0, s3 = 0, s4 = 0, lag = 0;
+    size_t t2 = 0, t3 = 0;
+    for (size_t i = 0; i < NTOT; i++) {
+        double x = z[i];
+        s1 += x, s2 += x * x, s3 += x * x * x, s4 += x * x * x * x;
+        if (i + 1 < NTOT) lag += x * z[i + 1];
+        t2 += fabs(x) > 2.0;
+        t3 += fabs(x) > 3.0;
+    }
+    double n = (double)NTOT, se = 1.0 / sqrt(n);
+    /* standard errors of the sample moments of N(0,1): mean 1, var sqrt 2, skew sqrt 6, kurtosis sqrt 24 (/sqrt n) */
+    CHECK_ABS(s1 / n, 0.0, 5 * se);
+    CHECK_ABS(s2 / n, 1.0, 5 * sqrt(2.0) * se);
+    CHECK_ABS(s3 / n, 0.0, 5 * sqrt(15.0) * se);
+    CHECK_ABS(s4 / n, 3.0, 5 * sqrt(96.0) * se);
+    CHECK_ABS(lag / n, 0.0, 5 * se);
+    double p2 = erfc(2.0 / sqrt(2.0)), p3 = erfc(3.0 / sqrt(2.0));
+    CHECK_ABS((double)t2 / n, p2, 5 * sqrt(p2 * (1 - p2) / n));
+    CHECK_ABS((double)t3 / n, p3, 5 * sqrt(p3 * (1 - p3) / n));
+    free(z);
+}
+
+static void test_kolmogorov_smirnov(void)
+{
+    double *z = draw_all(7);
+    qsort(z, NTOT, sizeof *z, cmp_double);
+    double d = 0.0, n = (double)NTOT;
+    for (size_t i = 0; i < NTOT; i++) {
+        double F = 0.5 * erfc(-z[i] / sqrt(2.0));
+        double dp = (double)(i + 1) / n - F, dm = F - (double)i / n;
+        d = fmax(d, fmax(dp, dm));
+    }
+    /* sqrt(n) D > 1.95 has probability 0.001 for a correct generator */
+    CHECK(sqrt(n) * d < 1.95, "KS statistic sqrt(n) D = %.3f over %zu deviates", sqrt(n) * d, NTOT);
+    free(z);
+}
+
+static void test_pure_function(void)
+{
+    double a[BLK], b[BLK], c[100];
+    wf_rng_normal_block(1, WF_RNG_NOISE_BLOCK, 12, 345, BLK, a);
+    wf_rng_normal_block(1, WF_RNG_NOISE_BLOCK, 12, 345, BLK, b);
+    CHECK(memcmp(a, b, sizeof a) == 0, "same key, different deviates");
+    wf_rng_normal_block(1, WF_RNG_NOISE_BLOCK, 12, 345, 100, c);
+    CHECK(memcmp(a, c, sizeof c) == 0, "a block's first 100 deviates depend on the block size");
+    /* another block, step, seed or stream: a different sequence */
+    const uint64_t keys[4][4] = {{1, WF_RNG_NOISE_BLOCK, 13, 345}, {1, WF_RNG_NOISE_BLOCK, 12, 346},
+                                 {2, WF_RNG_NOISE_BLOCK, 12, 345}, {1, WF_RNG_NOISE, 12, 345}};
+    for (int k = 0; k < 4; k++) {
+        wf_rng_normal_block(keys[k][0], (uint32_t)keys[k][1], keys[k][2], keys[k][3], BLK, b);
+        size_t same = 0;
+        for (size_t i = 0; i < BLK; i++) same += a[i] == b[i];
+        CHECK(same == 0, "key %d: %zu of %d deviates equal to the reference block", k, same, BLK);
+    }
+    /* indices above 2^32 are folded, not truncated */
+    wf_rng_normal_block(1, WF_RNG_NOISE_BLOCK, 12 + (1ull << 32), 345, BLK, b);
+    CHECK(memcmp(a, b, sizeof a) != 0, "block 12 and 12 + 2^32 share their deviates");
+}
+
+int main(void)
+{
+    RUN(test_moments_and_tails);
+    RUN(test_kolmogorov_smirnov);
+    RUN(test_pure_function);
+    TEST_EXIT();
+}
