@@ -17,6 +17,14 @@
 #define PAR_MIN 4096 /* vehicles below which loops run on one thread */
 #define EBLOCK  512  /* energy evaluation gather block */
 #define IBLOCK  1024 /* integration block */
+/* The fused block is built twice, for baseline x86-64 and for AVX2, and the loader picks the one the CPU runs
+ * (GCC function multi-versioning): its loops vectorise 4 doubles wide where AVX2 exists. The arithmetic is
+ * lane-wise IEEE either way, without FMA (contraction is off), so both versions give the same bits. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
+#define WF_SIMD_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define WF_SIMD_CLONES
+#endif
 #define FBLOCK  256  /* fused-step block, and the noise block (changing it changes the draws) */
 
 struct WfSim {
@@ -299,11 +307,11 @@ static inline void stats_after(WfFleet *f, const WfScenario *sc, size_t i, int i
 enum { FUSED_OVERLAP = 1, FUSED_FAULT = 2 };
 
 /* stats_before and stats_after over one block of the fused step, with the same arithmetic per vehicle, written
- * as plain loops over restrict pointers so that the compiler vectorises them (the per-vehicle forms reload
- * every fleet pointer after each store). */
-static void stats_before_block(WfFleet *f, const WfScenario *sc, size_t lo, size_t m, const double *restrict v,
-                               const double *restrict a, const double *restrict fr, const uint8_t *restrict fl,
-                               int in_window)
+ * without control flow (bitwise & and | on comparison results, NaN checks by arithmetic) so that the compiler
+ * vectorises them; the per-vehicle forms, with their && and ||, do not. */
+static inline __attribute__((always_inline)) int stats_before_block(WfFleet *f, const WfScenario *sc, size_t lo, size_t m, const double *restrict v,
+                              const double *restrict a, const double *restrict fr, const uint8_t *restrict fl,
+                              int in_window)
 {
     double dt = sc->dt_s, v_stop = sc->v_stop_mps, hard = -sc->hard_brake_mps2;
     uint8_t *restrict mode = f->mode + lo;
@@ -315,41 +323,53 @@ static void stats_before_block(WfFleet *f, const WfScenario *sc, size_t lo, size
 #pragma omp simd
         for (size_t k = 0; k < m; k++) {
             fuel[k] += fr[k] * dt;
-            stopped[k] += v[k] < v_stop;
+            stopped[k] += (uint32_t)(v[k] < v_stop);
             sv[k] += v[k];
             sv2[k] += v[k] * v[k];
             sa[k] += a[k];
             sa2[k] += a[k] * a[k];
-            infeasible[k] += fl[k] == 1;
-            hb[k] += a[k] < hard && !(mode[k] & WF_MODE_BRAKING);
+            infeasible[k] += (uint32_t)(fl[k] == 1);
+            hb[k] += (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING));
         }
     }
-#pragma omp simd
+    /* x - x is 0 for a finite x and NaN otherwise: one sum tells whether the block has a non-finite value. */
+    double nonfinite = 0.0;
+#pragma omp simd reduction(+ : nonfinite)
     for (size_t k = 0; k < m; k++) {
-        int braking = a[k] < hard, fault = !isfinite(a[k]) || !isfinite(fr[k]);
-        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_BRAKING) | (braking ? WF_MODE_BRAKING : 0) | (fault ? WF_MODE_FAULT : 0));
+        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_BRAKING) | (a[k] < hard) * WF_MODE_BRAKING);
+        nonfinite += (a[k] - a[k]) + (fr[k] - fr[k]);
     }
+    if (nonfinite == 0.0) return 0;
+    /* Rare: mark the vehicles (the step then ends in a numerical-fault error naming the first). */
+    for (size_t k = 0; k < m; k++)
+        if (!isfinite(a[k]) || !isfinite(fr[k])) mode[k] |= WF_MODE_FAULT;
+    return FUSED_FAULT;
 }
 
-/* Returns FUSED_* flags: overlaps inside the block (its last vehicle's is checked once every block has moved)
- * and faults. */
-static int stats_after_block(WfFleet *f, const WfScenario *sc, size_t lo, size_t m, int in_window)
+/* lead_len[k]: the length of vehicle k's leader. Returns FUSED_* flags: overlaps inside the block (its last
+ * vehicle's is checked once every block has moved) and non-finite states. */
+static inline __attribute__((always_inline)) int stats_after_block(WfFleet *f, const WfScenario *sc, size_t lo, size_t m, const double *restrict lead_len,
+                             int in_window)
 {
-    const double *restrict x = f->x_m + lo, *restrict v = f->v_mps + lo, *clen = f->class_length_m;
-    const uint16_t *restrict cid = f->class_id + lo;
+    const double *restrict x = f->x_m + lo, *restrict v = f->v_mps + lo;
     uint8_t *restrict mode = f->mode + lo;
     uint32_t *restrict stops = f->stops + lo;
-    double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps;
-    int over = 0, bad = 0;
-#pragma omp simd reduction(| : over, bad)
+    double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps, nonfinite = 0.0, gmin = INFINITY;
+    uint32_t counting = in_window != 0;
+#pragma omp simd reduction(+ : nonfinite)
     for (size_t k = 0; k < m; k++) {
-        int moving = mode[k] & WF_MODE_MOVING, stop = moving && v[k] < v_stop, go = !moving && v[k] > v_go;
-        stops[k] += in_window && stop;
-        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_MOVING) | ((moving && !stop) || go ? WF_MODE_MOVING : 0));
-        bad |= !isfinite(x[k]) || !isfinite(v[k]) || (mode[k] & WF_MODE_FAULT);
+        int moving = mode[k] & WF_MODE_MOVING, stop = moving & (v[k] < v_stop), go = !moving & (v[k] > v_go);
+        stops[k] += counting & (uint32_t)stop;
+        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_MOVING) | ((moving & !stop) | go) * WF_MODE_MOVING);
+        nonfinite += (x[k] - x[k]) + (v[k] - v[k]);
     }
-    for (size_t k = 0; k + 1 < m; k++) over |= x[k + 1] - clen[cid[k + 1]] - x[k] < 0.0;
-    return (over ? FUSED_OVERLAP : 0) | (bad ? FUSED_FAULT : 0);
+    size_t pairs = m - 1; /* m >= 1 */
+#pragma omp simd reduction(min : gmin)
+    for (size_t k = 0; k < pairs; k++) {
+        double g = x[k + 1] - lead_len[k] - x[k];
+        gmin = g < gmin ? g : gmin;
+    }
+    return (gmin < 0.0 ? FUSED_OVERLAP : 0) | (nonfinite != 0.0 ? FUSED_FAULT : 0);
 }
 
 static void phase_advance(WfSim *s, int in_window)
@@ -373,34 +393,71 @@ static void phase_advance(WfSim *s, int in_window)
 /* Accelerations of the cnt vehicles of driver group g listed (ring order) in one block, from their inputs in
  * the gathered arrays: the model's block kernel when it has one, else accel() per vehicle; then accel_post. The
  * members of a group inside a block have consecutive slots, so their parameters and states are contiguous. */
-static void accel_group(const WfSim *s, size_t g, size_t first, size_t cnt, const double *gap, const double *v,
-                        const double *vl, const double *th, const double *z, const uint16_t *cls, double *a)
+/* accel_post over a group's vehicles in a block, step by step over the arrays (each step a loop without control
+ * flow, so it vectorises): the same operations in the same order per vehicle, so the same bits. */
+static inline __attribute__((always_inline)) void accel_post_block(const WfScenario *sc, const WfDriverGroup *grp,
+                                                                   size_t cnt, const double *restrict v,
+                                                                   const double *restrict th, const double *restrict z,
+                                                                   const uint16_t *restrict cls, double *restrict a)
+{
+    double amax = grp->accel_max_mps2, dmax = grp->decel_max_mps2, noise = grp->noise_mps2;
+    double vlim = sc->road.speed_limit_mps, dt = sc->dt_s;
+    if (noise > 0.0) {
+#pragma omp simd
+        for (size_t j = 0; j < cnt; j++) a[j] += noise * z[j];
+    }
+#pragma omp simd
+    for (size_t j = 0; j < cnt; j++) {
+        double ai = a[j] > amax ? amax : a[j];
+        a[j] = ai < -dmax ? -dmax : ai;
+    }
+    if (grp->clip_feasible) {
+        for (size_t j = 0; j < cnt; j++) {
+            const WfVehicleClass *vc = &sc->classes[cls[j]].vc;
+            double am = vc->model->a_max(vc->params, v[j], th[j]);
+            a[j] = a[j] > am ? am : a[j];
+        }
+    }
+    if (isfinite(vlim)) {
+#pragma omp simd
+        for (size_t j = 0; j < cnt; j++) {
+            double to_limit = (vlim - v[j]) / dt, floor_a = to_limit > -dmax ? to_limit : -dmax;
+            a[j] = a[j] > to_limit ? floor_a : a[j];
+        }
+    }
+}
+
+static inline __attribute__((always_inline)) void accel_group(const WfSim *s, size_t g, size_t first, size_t cnt,
+                                                              const double *gap, const double *v, const double *vl,
+                                                              const double *th, const double *z, const uint16_t *cls,
+                                                              double *a)
 {
     const WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     const WfDriverGroup *grp = &sc->groups[g];
     const WfCfModel *m = grp->model;
     size_t psz = f->group_param_stride[g], ssz = m->state_size;
-    const unsigned char *params = f->group_params[g] + (size_t)f->slot[first] * psz;
-    const unsigned char *state = ssz ? f->group_state[g] + (size_t)f->slot[first] * ssz : NULL;
+    const unsigned char *params = f->group_params[g] + wf_fleet_slot(f, first) * psz;
+    const unsigned char *state = ssz ? f->group_state[g] + wf_fleet_slot(f, first) * ssz : NULL;
     if (m->accel_block && !ssz) {
         m->accel_block(params, psz, cnt, gap, v, vl, a);
     } else {
         for (size_t j = 0; j < cnt; j++) a[j] = m->accel(params + j * psz, ssz ? state + j * ssz : NULL, gap[j], v[j], vl[j]);
     }
-    for (size_t j = 0; j < cnt; j++) a[j] = accel_post(sc, grp, &sc->classes[cls[j]].vc, a[j], v[j], th[j], s->noisy ? z[j] : 0.0);
+    accel_post_block(sc, grp, cnt, v, th, z, cls, a);
 }
 
 /* One block of the fused step (see step_fused). last_in_chunk: the block's last leader is (xs, vs). rec: this
  * step is recorded, so the block's partial sums of the record go there. advance: 0 for the record of the final
  * instant (inputs and record only, no step). Returns FUSED_* flags seen inside the block after the step. */
+WF_SIMD_CLONES
 static int fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double xs, double vs, long step,
                        int in_window, WfStatsBlock *rec, int advance)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     const WfRoad *road = &sc->road;
-    double a[FBLOCK], th[FBLOCK], fr[FBLOCK], gap[FBLOCK], vl[FBLOCK], z[FBLOCK];
+    double a[FBLOCK], th[FBLOCK], fr[FBLOCK], gap[FBLOCK], vl[FBLOCK], z[FBLOCK], ll[FBLOCK];
     double gg[FBLOCK], gv[FBLOCK], gl[FBLOCK], gt[FBLOCK], gz[FBLOCK], ga[FBLOCK];
     uint8_t fl[FBLOCK], gfl[FBLOCK];
     uint16_t gc[FBLOCK];
@@ -411,7 +468,8 @@ static int fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double 
     const double *clen = f->class_length_m;
     if (s->noisy) wf_rng_normal_block(sc->seed, WF_RNG_NOISE_BLOCK, lo / FBLOCK, (uint64_t)step, m, z);
     for (size_t k = 0; k + 1 < m; k++) {
-        gap[k] = x[k + 1] - clen[cid[k + 1]] - x[k];
+        ll[k] = clen[cid[k + 1]];
+        gap[k] = x[k + 1] - ll[k] - x[k];
         vl[k] = v[k + 1];
     }
     {
@@ -464,13 +522,13 @@ static int fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double 
             size_t i = lo + k, g = gid[k];
             const WfCfModel *cm = sc->groups[g].model;
             if (!cm->state_size || !cm->update_state) continue;
-            cm->update_state(f->group_params[g] + (size_t)f->slot[i] * f->group_param_stride[g],
-                             f->group_state[g] + (size_t)f->slot[i] * cm->state_size, gap[k], v[k], vl[k], sc->dt_s);
+            cm->update_state(f->group_params[g] + wf_fleet_slot(f, i) * f->group_param_stride[g],
+                             f->group_state[g] + wf_fleet_slot(f, i) * cm->state_size, gap[k], v[k], vl[k], sc->dt_s);
         }
     }
-    stats_before_block(f, sc, lo, m, v, a, fr, fl, in_window);
+    int flags = stats_before_block(f, sc, lo, m, v, a, fr, fl, in_window);
     s->ig->step(m, sc->dt_s, x, v, a);
-    return stats_after_block(f, sc, lo, m, in_window);
+    return flags | stats_after_block(f, sc, lo, m, ll, in_window);
 }
 
 /* A whole fixed-step time step in one pass over the vehicles: per block of FBLOCK vehicles, noise, inputs,

@@ -226,7 +226,13 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
         ALLOC(f->fuel_rate_gps, n); ALLOC(f->flag, n);
     }
     if (sc->road.n_grade) ALLOC(f->grade_seg, n);
-    ALLOC(f->class_id, n); ALLOC(f->group_id, n); ALLOC(f->slot, n);
+    ALLOC(f->class_id, n); ALLOC(f->group_id, n);
+    int per_vehicle = 0; /* some group keeps per-vehicle parameters or state: vehicles need their slot */
+    for (size_t g = 0; g < sc->n_groups; g++) {
+        per_vehicle |= sc->groups[g].model->state_size > 0;
+        for (size_t k = 0; k < sc->groups[g].model->n_spec; k++) per_vehicle |= sc->groups[g].spread[k] > 0.0;
+    }
+    if (per_vehicle) ALLOC(f->slot, n);
     ALLOC(f->x_start_m, n); ALLOC(f->fuel_g, n); ALLOC(f->stopped_steps, n); ALLOC(f->sum_v, n); ALLOC(f->sum_v2, n);
     ALLOC(f->sum_a, n); ALLOC(f->sum_a2, n); ALLOC(f->stops, n); ALLOC(f->hard_brakes, n);
     ALLOC(f->infeasible_steps, n); ALLOC(f->mode, n);
@@ -259,9 +265,10 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
             f->group_member[g][f->group_n[g]] = (uint32_t)i;
         }
         f->class_n[c]++;
-        f->slot[i] = (uint32_t)f->group_n[g]++;
+        size_t slot = f->group_n[g]++;
+        if (f->slot) f->slot[i] = (uint32_t)slot;
         if (!f->group_param_stride[g]) continue;
-        double *p = (double *)(f->group_params[g] + (size_t)f->slot[i] * f->group_param_stride[g]);
+        double *p = (double *)(f->group_params[g] + slot * f->group_param_stride[g]);
         if ((rc = draw_params(sc, &sc->groups[g], i, p, err))) goto fail;
     }
 
@@ -341,7 +348,7 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
         if (m->state_size && m->init_state) {
             size_t lead = i + 1 < n ? i + 1 : 0;
             double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
-            m->init_state(wf_fleet_params(f, sc, i), f->group_state[g] + (size_t)f->slot[i] * m->state_size,
+            m->init_state(wf_fleet_params(f, sc, i), f->group_state[g] + wf_fleet_slot(f, i) * m->state_size,
                           xl - wf_fleet_length(f, lead) - f->x_m[i], f->v_mps[i], f->v_mps[lead]);
         }
     }

@@ -74,6 +74,14 @@ static void test_pure_function(void)
     CHECK(memcmp(a, b, sizeof a) == 0, "same key, different deviates");
     wf_rng_normal_block(1, WF_RNG_NOISE_BLOCK, 12, 345, 100, c);
     CHECK(memcmp(a, c, sizeof c) == 0, "a block's first 100 deviates depend on the block size");
+    /* a long block takes its words in several batches: its start is still the short block's */
+    static double longb[5000];
+    wf_rng_normal_block(1, WF_RNG_NOISE_BLOCK, 12, 345, 5000, longb);
+    CHECK(memcmp(a, longb, sizeof a) == 0, "a 5000-deviate block does not start with the 256-deviate block");
+    double m1 = 0, m2 = 0;
+    for (size_t i = 0; i < 5000; i++) m1 += longb[i], m2 += longb[i] * longb[i];
+    CHECK(fabs(m1 / 5000) < 5 / sqrt(5000.0) && fabs(m2 / 5000 - 1) < 5 * sqrt(2.0 / 5000),
+          "long block: mean %g, second moment %g", m1 / 5000, m2 / 5000);
     /* another block, step, seed or stream: a different sequence */
     const uint64_t keys[4][4] = {{1, WF_RNG_NOISE_BLOCK, 13, 345}, {1, WF_RNG_NOISE_BLOCK, 12, 346},
                                  {2, WF_RNG_NOISE_BLOCK, 12, 345}, {1, WF_RNG_NOISE, 12, 345}};

@@ -20,7 +20,8 @@ typedef struct WfFleet {
     double  *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps;
     uint8_t *flag;
     uint32_t *grade_seg; /* per-vehicle cache for wf_road_grade; NULL on a flat road */
-    /* attributes: class, driver group, index within the group (controller state, drawn parameters) */
+    /* attributes: class, driver group, index within the group (controller state, drawn parameters; NULL when no
+     * group has either, see wf_fleet_slot) */
     uint16_t *class_id, *group_id;
     uint32_t *slot;
     double    class_length_m[WF_MAX_CLASSES];
@@ -62,12 +63,15 @@ void wf_fleet_destroy(WfFleet **f);
  * vehicle's serial number. Fails (WF_EINPUT) when 1000 draws are all rejected. */
 int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, double *out, WfError *err);
 
-/* Pointer to vehicle i's parameters / state within its group. */
+/* Vehicle i's index within its group (0 when no group keeps per-vehicle parameters or state). */
+static inline size_t wf_fleet_slot(const WfFleet *f, size_t i) { return f->slot ? f->slot[i] : 0; }
+
+/* Pointer to vehicle i's parameters within its group. */
 static inline const void *wf_fleet_params(const WfFleet *f, const WfScenario *sc, size_t i)
 {
     (void)sc;
     size_t g = f->group_id[i];
-    return f->group_params[g] + (size_t)f->slot[i] * f->group_param_stride[g];
+    return f->group_params[g] + wf_fleet_slot(f, i) * f->group_param_stride[g];
 }
 
 /* Vehicle i's length (m): its class's. */

@@ -2,10 +2,13 @@
  * Physics-Like Models"): fuel rate f(v, a, theta) in g/s, polynomial with a fuel cut, a lower bound and an
  * idle rule, plus the feasible-acceleration bound a_max(v, theta). Evaluation order and arithmetic follow
  * the authors' release; powers are written as products and this file is built with -ffp-contract=off.
- * The kernel evaluates two points per step with GNU C vector types; results are those of the scalar formula. */
+ * The kernel evaluates two or four points per step with GNU C vector types; results are those of the scalar
+ * formula. */
 #include <math.h>
+#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "wavefuel/energy.h"
@@ -104,80 +107,54 @@ double wf_circles_a_max(const WfCirclesParams *p, double v, double theta)
     return min1(p->b1, p->b2 / vs - p->b3 * v * v) - min1(p->b4, p->b5 + p->b6 * v) * theta;
 }
 
-/* The kernel works on two points at a time with GNU C vector types (SSE2 on x86-64, NEON on AArch64, plain
- * scalar code where there is no SIMD). GCC 12 does not vectorize the scalar loop at the project's -O2:
- * the very-cheap cost model refuses unknown trip counts, and with the default -ftrapping-math it will not
- * if-convert the selects (bench/README.md). Vector arithmetic is lane-wise IEEE, the same operations in the
- * same order as the scalar formula, so every lane's result is bitwise the scalar result. */
-typedef double  WfVec2 __attribute__((vector_size(16)));
-typedef int64_t WfMask2 __attribute__((vector_size(16))); /* lanes all-ones (true) or zero */
+/* The array kernel in two widths from one source (circles_kernel.h): 2 lanes (SSE2, every x86-64; NEON or
+ * scalar code elsewhere) and, on x86-64, 4 lanes compiled for AVX2 and chosen at run time when the CPU has it.
+ * Both give the scalar formula's bits (tests/test_energy.c checks each width against circles_eval1). */
+#define WF_LANES  2
+#define WF_KERNEL circles_kernel2
+#include "circles_kernel.h"
+#undef WF_LANES
+#undef WF_KERNEL
 
-static inline WfVec2 vsplat(double x) { return (WfVec2){x, x}; }
-static inline WfVec2 vselect(WfMask2 m, WfVec2 x, WfVec2 y) { return (WfVec2)((m & (WfMask2)x) | (~m & (WfMask2)y)); }
-static inline WfVec2 vmin(WfVec2 x, WfVec2 y) { return vselect(x < y, x, y); }                  /* min1 per lane */
-static inline WfVec2 vmax(WfVec2 x, WfVec2 y) { return vselect(x > y, x, y); }                  /* max1 per lane */
-static inline WfVec2 vmin_nan(WfVec2 x, WfVec2 y) { return vselect((x < y) | (y != y), x, y); } /* min_nan */
-static inline WfVec2 vmax_nan(WfVec2 x, WfVec2 y) { return vselect((x > y) | (y != y), x, y); } /* max_nan */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#define WF_HAVE_AVX2_KERNEL 1
+#pragma GCC push_options
+#pragma GCC target("avx2")
+#define WF_LANES  4
+#define WF_KERNEL circles_kernel4
+#include "circles_kernel.h"
+#undef WF_LANES
+#undef WF_KERNEL
+#pragma GCC pop_options
+#endif
 
-/* n evaluations of the array form; flag may be NULL. circles_eval1() below is the same formula for
- * one point: the two must change together (tests/test_energy.c checks them bitwise against each other). */
+typedef void CirclesKernel(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
+                           const double *restrict a_in, const double *restrict th_in, int project,
+                           double *restrict fuel, uint8_t *restrict flag);
+
+/* The widest kernel this CPU runs; WAVEFUEL_SIMD=2 forces the 2-lane one (tests compare the two). */
+static CirclesKernel *circles_kernel_select(void)
+{
+#ifdef WF_HAVE_AVX2_KERNEL
+    const char *force = getenv("WAVEFUEL_SIMD");
+    if (!(force && strcmp(force, "2") == 0) && __builtin_cpu_supports("avx2")) return circles_kernel4;
+#endif
+    return circles_kernel2;
+}
+
 static void circles_kernel(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag)
 {
-    const WfVec2 b1 = vsplat(p->b1), b2 = vsplat(p->b2), b3 = vsplat(p->b3), b4 = vsplat(p->b4), b5 = vsplat(p->b5),
-                 b6 = vsplat(p->b6);
-    const WfVec2 c0 = vsplat(p->c0), c1 = vsplat(p->c1), c2 = vsplat(p->c2), c3 = vsplat(p->c3);
-    const WfVec2 p0 = vsplat(p->p0), p1 = vsplat(p->p1), p2 = vsplat(p->p2), q0 = vsplat(p->q0), q1 = vsplat(p->q1);
-    const WfVec2 z0 = vsplat(p->z0), z1 = vsplat(p->z1), z2 = vsplat(p->z2), f_idle = vsplat(p->f_idle);
-    const WfVec2 a0 = vsplat(p->a0), a1 = vsplat(p->a1), a2 = vsplat(p->a2), a3 = vsplat(p->a3), a4 = vsplat(p->a4);
-    const WfVec2 cut_v = vsplat(p->cut_v), lb_beta = vsplat(p->lb_beta), lb_h0 = vsplat(p->lb_h0),
-                 lb_h1 = vsplat(p->lb_h1);
-    const WfVec2 zero = vsplat(0.0), v_floor = vsplat(1e-12), two = vsplat(2.0);
-    const WfVec2 idle_v = vsplat(0.1), idle_a = vsplat(0.01);
-    const WfMask2 proj = (WfMask2){0, 0} - (project != 0), abs_bits = (WfMask2){INT64_MAX, INT64_MAX};
-    for (size_t i = 0; i < n; i += 2) {
-        int pair = i + 1 < n;
-        WfVec2 v, a, th;
-        if (pair) {
-            memcpy(&v, v_in + i, sizeof v);
-            memcpy(&a, a_in + i, sizeof a);
-            memcpy(&th, th_in + i, sizeof th);
-        } else { /* odd n: the last point fills both lanes; the second is not stored */
-            v = vsplat(v_in[i]);
-            a = vsplat(a_in[i]);
-            th = vsplat(th_in[i]);
-        }
-        /* 1-2. a_max from the raw v; flag from the original a: 2 if v < 0, else 1 if a > a_max. */
-        WfVec2 amax = vmin(b1, b2 / vmax(v, v_floor) - b3 * v * v) - vmin(b4, b5 + b6 * v) * th;
-        WfMask2 negative = v < zero, above = a > amax;
-        WfMask2 fl = (negative & WF_NEGATIVE_SPEED) | (above & ~negative & WF_INFEASIBLE_ACCEL);
-        /* 3-5. Projection, v >= 0, a+ (v floored at 1e-12 inside Q keeps Q off 0 at rest when q0 = 0). */
-        a = vselect(proj, vmin_nan(a, amax), a);
-        v = vmax(v, zero);
-        WfVec2 P = p0 + p1 * v + p2 * v * v;
-        WfVec2 Q = q0 + q1 * vmax(v, v_floor);
-        WfVec2 ap = vmax_nan(a, -P / (two * Q));
-        /* 6. Only the two squared terms use a+. */
-        WfVec2 f = c0 + c1 * v + c2 * v * v + c3 * v * v * v + p0 * a + p1 * a * v + p2 * a * v * v + q0 * ap * ap +
-                   q1 * ap * ap * v + z0 * th + z1 * th * v + z2 * th * v * v;
-        /* 7. Light duty: beta below v_c, 0 above (lb_h0 = lb_h1 = 0 add exact zeros).
-         *    Heavy duty: h0 + h1 v (lb_beta = 0, cut_v = inf). */
-        WfVec2 lb = vselect(v <= cut_v, lb_beta, zero) + lb_h0 + lb_h1 * v;
-        f = vmax(f, lb);
-        /* 8. Fuel cut (never for heavy duty: v > inf is false). */
-        WfVec2 a_cut = a0 + a1 * v + a2 * th + a3 * v * v + a4 * v * th;
-        f = vselect((v > cut_v) & (a <= a_cut), zero, f);
-        /* 9. Idle, with the v of step 4 and the a of step 3. */
-        WfVec2 abs_a = (WfVec2)((WfMask2)a & abs_bits);
-        f = vselect((v < idle_v) & (abs_a < idle_a), f_idle, f);
-        fuel[i] = f[0];
-        if (flag) flag[i] = (uint8_t)fl[0];
-        if (pair) {
-            fuel[i + 1] = f[1];
-            if (flag) flag[i + 1] = (uint8_t)fl[1];
-        }
+    /* Chosen once; a data race on the first calls would only store the same pointer twice, but keep it clean
+     * with a relaxed atomic. */
+    static CirclesKernel *_Atomic kernel;
+    CirclesKernel *k = atomic_load_explicit(&kernel, memory_order_relaxed);
+    if (!k) {
+        k = circles_kernel_select();
+        atomic_store_explicit(&kernel, k, memory_order_relaxed);
     }
+    k(p, n, v_in, a_in, th_in, project, fuel, flag);
 }
 
 /* One point, the same operations in the same order as a lane of circles_kernel(). A separate scalar body

@@ -1,0 +1,91 @@
+/* The CIRCLES array kernel, written once for any SIMD width: src/energy/circles.c includes this file once per
+ * width with WF_LANES (2 or 4) and WF_KERNEL (the function's name) defined, the 4-lane copy compiled for AVX2.
+ * GNU C vector types: lane-wise IEEE arithmetic, the same operations in the same order as the scalar formula
+ * (circles_eval1), so every lane's result is bitwise the scalar result whatever the width (contraction into
+ * FMA is off project-wide). GCC 12 does not vectorise the scalar loop at the project's -O2: the very-cheap cost
+ * model refuses unknown trip counts, and with the default -ftrapping-math it will not if-convert the selects. */
+#define WF_CAT2(a, b) a##b
+#define WF_CAT(a, b)  WF_CAT2(a, b)
+#define V   WF_CAT(WfVec, WF_LANES)
+#define M   WF_CAT(WfMask, WF_LANES)
+#define FN(name) WF_CAT(name, WF_LANES)
+
+typedef double  V __attribute__((vector_size(8 * WF_LANES)));
+typedef int64_t M __attribute__((vector_size(8 * WF_LANES))); /* lanes all-ones (true) or zero */
+
+static inline V FN(vsplat)(double x)
+{
+    V r;
+    for (int l = 0; l < WF_LANES; l++) r[l] = x;
+    return r;
+}
+static inline V FN(vselect)(M m, V x, V y) { return (V)((m & (M)x) | (~m & (M)y)); }
+static inline V FN(vmin)(V x, V y) { return FN(vselect)(x < y, x, y); }                  /* min1 per lane */
+static inline V FN(vmax)(V x, V y) { return FN(vselect)(x > y, x, y); }                  /* max1 per lane */
+static inline V FN(vmin_nan)(V x, V y) { return FN(vselect)((x < y) | (y != y), x, y); } /* min_nan */
+static inline V FN(vmax_nan)(V x, V y) { return FN(vselect)((x > y) | (y != y), x, y); } /* max_nan */
+
+static void WF_KERNEL(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
+                      const double *restrict a_in, const double *restrict th_in, int project, double *restrict fuel,
+                      uint8_t *restrict flag)
+{
+    const V b1 = FN(vsplat)(p->b1), b2 = FN(vsplat)(p->b2), b3 = FN(vsplat)(p->b3), b4 = FN(vsplat)(p->b4),
+            b5 = FN(vsplat)(p->b5), b6 = FN(vsplat)(p->b6);
+    const V c0 = FN(vsplat)(p->c0), c1 = FN(vsplat)(p->c1), c2 = FN(vsplat)(p->c2), c3 = FN(vsplat)(p->c3);
+    const V p0 = FN(vsplat)(p->p0), p1 = FN(vsplat)(p->p1), p2 = FN(vsplat)(p->p2), q0 = FN(vsplat)(p->q0),
+            q1 = FN(vsplat)(p->q1);
+    const V z0 = FN(vsplat)(p->z0), z1 = FN(vsplat)(p->z1), z2 = FN(vsplat)(p->z2), f_idle = FN(vsplat)(p->f_idle);
+    const V a0 = FN(vsplat)(p->a0), a1 = FN(vsplat)(p->a1), a2 = FN(vsplat)(p->a2), a3 = FN(vsplat)(p->a3),
+            a4 = FN(vsplat)(p->a4);
+    const V cut_v = FN(vsplat)(p->cut_v), lb_beta = FN(vsplat)(p->lb_beta), lb_h0 = FN(vsplat)(p->lb_h0),
+            lb_h1 = FN(vsplat)(p->lb_h1);
+    const V zero = FN(vsplat)(0.0), v_floor = FN(vsplat)(1e-12), two = FN(vsplat)(2.0);
+    const V idle_v = FN(vsplat)(0.1), idle_a = FN(vsplat)(0.01);
+    M proj, abs_bits;
+    for (int l = 0; l < WF_LANES; l++) proj[l] = project ? -1 : 0, abs_bits[l] = INT64_MAX;
+    for (size_t i = 0; i < n; i += WF_LANES) {
+        size_t lanes = n - i < WF_LANES ? n - i : WF_LANES;
+        V v, a, th;
+        if (lanes == WF_LANES) {
+            memcpy(&v, v_in + i, sizeof v);
+            memcpy(&a, a_in + i, sizeof a);
+            memcpy(&th, th_in + i, sizeof th);
+        } else { /* the tail: the last point fills the missing lanes, which are not stored */
+            for (size_t l = 0; l < WF_LANES; l++) {
+                size_t j = i + (l < lanes ? l : lanes - 1);
+                v[l] = v_in[j], a[l] = a_in[j], th[l] = th_in[j];
+            }
+        }
+        /* 1-2. a_max from the raw v; flag from the original a: 2 if v < 0, else 1 if a > a_max. */
+        V amax = FN(vmin)(b1, b2 / FN(vmax)(v, v_floor) - b3 * v * v) - FN(vmin)(b4, b5 + b6 * v) * th;
+        M negative = v < zero, above = a > amax;
+        M fl = (negative & WF_NEGATIVE_SPEED) | (above & ~negative & WF_INFEASIBLE_ACCEL);
+        /* 3-5. Projection, v >= 0, a+ (v floored at 1e-12 inside Q keeps Q off 0 at rest when q0 = 0). */
+        a = FN(vselect)(proj, FN(vmin_nan)(a, amax), a);
+        v = FN(vmax)(v, zero);
+        V P = p0 + p1 * v + p2 * v * v;
+        V Q = q0 + q1 * FN(vmax)(v, v_floor);
+        V ap = FN(vmax_nan)(a, -P / (two * Q));
+        /* 6. Only the two squared terms use a+. */
+        V f = c0 + c1 * v + c2 * v * v + c3 * v * v * v + p0 * a + p1 * a * v + p2 * a * v * v + q0 * ap * ap +
+              q1 * ap * ap * v + z0 * th + z1 * th * v + z2 * th * v * v;
+        /* 7. Light duty: beta below v_c, 0 above (lb_h0 = lb_h1 = 0 add exact zeros).
+         *    Heavy duty: h0 + h1 v (lb_beta = 0, cut_v = inf). */
+        V lb = FN(vselect)(v <= cut_v, lb_beta, zero) + lb_h0 + lb_h1 * v;
+        f = FN(vmax)(f, lb);
+        /* 8. Fuel cut (never for heavy duty: v > inf is false). */
+        V a_cut = a0 + a1 * v + a2 * th + a3 * v * v + a4 * v * th;
+        f = FN(vselect)((v > cut_v) & (a <= a_cut), zero, f);
+        /* 9. Idle, with the v of step 4 and the a of step 3. */
+        V abs_a = (V)((M)a & abs_bits);
+        f = FN(vselect)((v < idle_v) & (abs_a < idle_a), f_idle, f);
+        for (size_t l = 0; l < lanes; l++) {
+            fuel[i + l] = f[l];
+            if (flag) flag[i + l] = (uint8_t)fl[l];
+        }
+    }
+}
+
+#undef V
+#undef M
+#undef FN
