@@ -13,18 +13,11 @@
 
 #include "wavefuel/rng.h"
 #include "par.h"
+#include "simd.h"
 
 #define PAR_MIN 4096 /* vehicles below which loops run on one thread */
 #define EBLOCK  512  /* energy evaluation gather block */
 #define IBLOCK  1024 /* integration block */
-/* The fused block is built twice, for baseline x86-64 and for AVX2, and the loader picks the one the CPU runs
- * (GCC function multi-versioning): its loops vectorise 4 doubles wide where AVX2 exists. The arithmetic is
- * lane-wise IEEE either way, without FMA (contraction is off), so both versions give the same bits. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
-#define WF_SIMD_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define WF_SIMD_CLONES
-#endif
 #define FBLOCK  256  /* fused-step block, and the noise block (changing it changes the draws) */
 
 struct WfSim {
@@ -332,14 +325,13 @@ static inline __attribute__((always_inline)) int stats_before_block(WfFleet *f, 
             hb[k] += (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING));
         }
     }
-    /* x - x is 0 for a finite x and NaN otherwise: one sum tells whether the block has a non-finite value. */
-    double nonfinite = 0.0;
-#pragma omp simd reduction(+ : nonfinite)
+    /* x - x is 0 for a finite x and NaN (!= 0) otherwise. */
+    int nonfinite = 0;
     for (size_t k = 0; k < m; k++) {
         mode[k] = (uint8_t)((mode[k] & ~WF_MODE_BRAKING) | (a[k] < hard) * WF_MODE_BRAKING);
-        nonfinite += (a[k] - a[k]) + (fr[k] - fr[k]);
+        nonfinite |= (a[k] - a[k] != 0.0) | (fr[k] - fr[k] != 0.0);
     }
-    if (nonfinite == 0.0) return 0;
+    if (!nonfinite) return 0;
     /* Rare: mark the vehicles (the step then ends in a numerical-fault error naming the first). */
     for (size_t k = 0; k < m; k++)
         if (!isfinite(a[k]) || !isfinite(fr[k])) mode[k] |= WF_MODE_FAULT;
@@ -354,22 +346,19 @@ static inline __attribute__((always_inline)) int stats_after_block(WfFleet *f, c
     const double *restrict x = f->x_m + lo, *restrict v = f->v_mps + lo;
     uint8_t *restrict mode = f->mode + lo;
     uint32_t *restrict stops = f->stops + lo;
-    double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps, nonfinite = 0.0, gmin = INFINITY;
+    double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps;
     uint32_t counting = in_window != 0;
-#pragma omp simd reduction(+ : nonfinite)
+    int bad = 0, over = 0;
     for (size_t k = 0; k < m; k++) {
         int moving = mode[k] & WF_MODE_MOVING, stop = moving & (v[k] < v_stop), go = !moving & (v[k] > v_go);
         stops[k] += counting & (uint32_t)stop;
         mode[k] = (uint8_t)((mode[k] & ~WF_MODE_MOVING) | ((moving & !stop) | go) * WF_MODE_MOVING);
-        nonfinite += (x[k] - x[k]) + (v[k] - v[k]);
     }
-    size_t pairs = m - 1; /* m >= 1 */
-#pragma omp simd reduction(min : gmin)
-    for (size_t k = 0; k < pairs; k++) {
-        double g = x[k + 1] - lead_len[k] - x[k];
-        gmin = g < gmin ? g : gmin;
-    }
-    return (gmin < 0.0 ? FUSED_OVERLAP : 0) | (nonfinite != 0.0 ? FUSED_FAULT : 0);
+    /* x - x is 0 for a finite x and NaN (!= 0) otherwise; integer OR reductions vectorise without reassociating
+     * any floating-point sum. */
+    for (size_t k = 0; k < m; k++) bad |= (x[k] - x[k] != 0.0) | (v[k] - v[k] != 0.0);
+    for (size_t k = 0; k + 1 < m; k++) over |= x[k + 1] - lead_len[k] - x[k] < 0.0;
+    return (over ? FUSED_OVERLAP : 0) | (bad ? FUSED_FAULT : 0);
 }
 
 static void phase_advance(WfSim *s, int in_window)

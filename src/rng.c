@@ -1,11 +1,15 @@
 /* Philox4x32-10 from Random123: key = seed, counter = (stream, a, b). 53-bit uniforms in (0,1), Box-Muller
- * normals, and blocks of normals from GSL's ziggurat fed by one Philox stream per block. */
+ * normals, and blocks of normals: Box-Muller over vectors with SLEEF's logarithm and sine/cosine. */
 #include "wavefuel/rng.h"
 
 #include <math.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
 #include <Random123/philox.h>
-#include <gsl/gsl_randist.h>
-#include <gsl/gsl_rng.h>
+
+#include "noise.h"
+#include "simd.h"
 
 static void draw(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, double u[2])
 {
@@ -36,75 +40,75 @@ void wf_rng_normal2(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, doub
     out[1] = r * sin(ang);
 }
 
-/* A gsl_rng whose words are the successive outputs of Philox4x32-10 at counters (c0, c1, c2, 0), (c0, c1, c2, 1),
- * ...: GSL's ziggurat draws from it like from any 32-bit generator, and the whole sequence is a pure function of
- * the key and the first three counter words. The words are computed ahead in batches (one vectorised loop: the
- * Philox rounds of independent counters run side by side) and handed out one by one. */
-#define STREAM_BATCH 80 /* Philox calls per batch: 320 words, a block of 256 deviates and its rejections */
-
-typedef struct PhiloxStream {
-    philox4x32_key_t key;
-    uint32_t c0, c1, c2;
-    uint32_t next_call; /* counter word 3 of the next batch's first call */
-    unsigned used, have; /* words of buf handed out / filled */
-    uint32_t buf[4 * STREAM_BATCH];
-} PhiloxStream;
-
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && !defined(__SANITIZE_ADDRESS__)
-__attribute__((target_clones("avx2", "default")))
-#endif
-static void philox_fill(philox4x32_key_t key, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first, unsigned calls,
+/* Philox words for calls (c0, c1, c2, first), (c0, c1, c2, first + 1), ...: one loop over independent counters,
+ * which the compiler vectorises (the AVX2 clone runs eight 32x32->64-bit multiplies per instruction pair). */
+WF_SIMD_CLONES
+static void philox_fill(philox4x32_key_t key, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first, size_t calls,
                         uint32_t *restrict out)
 {
+    /* A size_t index: with a 32-bit one GCC 12 does not vectorise this loop. */
 #pragma omp simd
-    for (unsigned j = 0; j < calls; j++) {
-        philox4x32_ctr_t c = {{c0, c1, c2, first + j}};
+    for (size_t j = 0; j < calls; j++) {
+        philox4x32_ctr_t c = {{c0, c1, c2, first + (uint32_t)j}};
         philox4x32_ctr_t r = philox4x32(c, key);
         out[4 * j] = r.v[0], out[4 * j + 1] = r.v[1], out[4 * j + 2] = r.v[2], out[4 * j + 3] = r.v[3];
     }
 }
 
-static void stream_refill(PhiloxStream *s, unsigned calls)
+typedef void BoxMuller(size_t pairs, const double *u1, const double *u2, double *z);
+
+#if !defined(__x86_64__)
+/* Elsewhere: the same formula with libm (bits may differ from x86-64's SLEEF in the last place). */
+static void box_muller_libm(size_t pairs, const double *u1, const double *u2, double *z)
 {
-    philox_fill(s->key, s->c0, s->c1, s->c2, s->next_call, calls, s->buf);
-    s->next_call += calls;
-    s->used = 0;
-    s->have = 4 * calls;
+    for (size_t p = 0; p < pairs; p++) {
+        double r = sqrt(-2.0 * log(u1[p]));
+        z[2 * p] = r * cos(6.283185307179586476925 * u2[p]);
+        z[2 * p + 1] = r * sin(6.283185307179586476925 * u2[p]);
+    }
+}
+#endif
+
+/* The widest Box-Muller kernel the CPU runs (same bits either way); WAVEFUEL_SIMD=2 forces the SSE2 one. */
+static BoxMuller *box_muller(void)
+{
+    static BoxMuller *_Atomic chosen;
+    BoxMuller *k = atomic_load_explicit(&chosen, memory_order_relaxed);
+    if (k) return k;
+#if defined(__x86_64__)
+    const char *force = getenv("WAVEFUEL_SIMD");
+    k = !(force && strcmp(force, "2") == 0) && __builtin_cpu_supports("avx") ? wf_noise_avx : wf_noise_sse2;
+#else
+    k = box_muller_libm;
+#endif
+    atomic_store_explicit(&chosen, k, memory_order_relaxed);
+    return k;
 }
 
-static unsigned long stream_get(void *vs)
-{
-    PhiloxStream *s = vs;
-    if (s->used == s->have) stream_refill(s, 16); /* past the first batch: rejections beyond the margin */
-    return s->buf[s->used++];
-}
-
-static double stream_get_double(void *vs) { return (double)stream_get(vs) * 0x1p-32; }
-
-/* set is never called: wf_rng_normal_block fills the state itself. */
-static void stream_set(void *vs, unsigned long seed)
-{
-    (void)seed;
-    ((PhiloxStream *)vs)->used = ((PhiloxStream *)vs)->have;
-}
-
-static const gsl_rng_type philox_stream_type = {
-    "wavefuel-philox4x32-10-stream", 0xFFFFFFFFUL, 0, sizeof(PhiloxStream),
-    stream_set, stream_get, stream_get_double,
-};
+#define NB_CHUNK 128 /* pairs per chunk: the buffers below stay on the stack (9 kB) */
 
 void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_t step, size_t n, double *out)
 {
-    PhiloxStream st;
-    st.key = (philox4x32_key_t){{(uint32_t)seed, (uint32_t)(seed >> 32)}};
-    /* Word 3 counts the calls; the high halves of block and step are folded into word 2 as in draw(). */
-    st.c0 = (uint32_t)block, st.c1 = (uint32_t)step;
-    st.c2 = stream ^ (uint32_t)(block >> 32) * 0x9E3779B9u ^ (uint32_t)(step >> 32) * 0x85EBCA6Bu;
-    st.next_call = 0;
-    /* One word per deviate plus about 1.2 % rejections (each takes one or two more words): n + n/32 + 8 words
-     * almost always suffice; the rest comes in further batches. */
-    size_t words = n + n / 32 + 8, calls = (words + 3) / 4;
-    stream_refill(&st, (unsigned)(calls < STREAM_BATCH ? calls : STREAM_BATCH));
-    gsl_rng r = {&philox_stream_type, &st};
-    for (size_t k = 0; k < n; k++) out[k] = gsl_ran_gaussian_ziggurat(&r, 1.0);
+    philox4x32_key_t key = {{(uint32_t)seed, (uint32_t)(seed >> 32)}};
+    /* Word 3 counts the pairs; the high halves of block and step are folded into word 2 as in draw(). */
+    uint32_t c0 = (uint32_t)block, c1 = (uint32_t)step;
+    uint32_t c2 = stream ^ (uint32_t)(block >> 32) * 0x9E3779B9u ^ (uint32_t)(step >> 32) * 0x85EBCA6Bu;
+    BoxMuller *bm = box_muller();
+    uint32_t w[4 * NB_CHUNK];
+    double u1[NB_CHUNK], u2[NB_CHUNK], z[2 * NB_CHUNK];
+    size_t pairs = (n + 1) / 2;
+    for (size_t p0 = 0; p0 < pairs; p0 += NB_CHUNK) {
+        size_t cnt = pairs - p0 < NB_CHUNK ? pairs - p0 : NB_CHUNK, padded = (cnt + 3) & ~(size_t)3;
+        philox_fill(key, c0, c1, c2, (uint32_t)p0, cnt, w);
+        for (size_t j = 0; j < cnt; j++) {
+            uint64_t x = ((uint64_t)w[4 * j] << 32) | w[4 * j + 1], y = ((uint64_t)w[4 * j + 2] << 32) | w[4 * j + 3];
+            /* 53-bit uniforms strictly inside (0, 1), as draw(): log never sees 0 */
+            u1[j] = ((double)(x >> 11) + 0.5) * 0x1p-53;
+            u2[j] = ((double)(y >> 11) + 0.5) * 0x1p-53;
+        }
+        for (size_t j = cnt; j < padded; j++) u1[j] = 0.5, u2[j] = 0.5;
+        bm(padded, u1, u2, z);
+        size_t lo = 2 * p0, m = n - lo < 2 * cnt ? n - lo : 2 * cnt;
+        memcpy(out + lo, z, m * sizeof *z);
+    }
 }

@@ -152,7 +152,7 @@ else ko extended_sweep_resumes "rc $rc: $out"; fi
 
 # SIGINT after the first run: exit 3, the table holds the finished rows; the rerun does only the others and the
 # result equals an uninterrupted sweep.
-sweep "$tmp/s4.yaml" "[22]" 3 1000   # 2 x 1 x 3 = 6 runs of about 0.15 s
+sweep "$tmp/s4.yaml" "[22]" 3 8000   # 2 x 1 x 3 = 6 runs of about 0.2 s each
 $BIN sweep "$tmp/s4.yaml" -o "$tmp/i.h5" --threads 1 2>"$tmp/i.err" >/dev/null &
 pid=$!
 for _ in $(seq 400); do grep -q '^\[1/6\]' "$tmp/i.err" && break; sleep 0.05; done

@@ -11,7 +11,7 @@ PKGS=()
 [ $# -eq 0 ] && set -- base
 for set_name in "$@"; do
   case "$set_name" in
-    base) PKGS+=(gcc make pkg-config libyaml-dev libhdf5-dev hdf5-tools libsundials-dev librandom123-dev liblapacke-dev libgsl-dev
+    base) PKGS+=(gcc make pkg-config libyaml-dev libhdf5-dev hdf5-tools libsundials-dev librandom123-dev liblapacke-dev libgsl-dev libsleef-dev
                  python3-h5py python3-numpy python3-matplotlib) ;;
     fuzz) PKGS+=(clang libclang-rt-14-dev libomp-14-dev) ;;
     valgrind) PKGS+=(valgrind) ;;

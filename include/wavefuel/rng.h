@@ -14,10 +14,10 @@ enum { WF_RNG_NOISE = 1, WF_RNG_PLACEMENT = 2, WF_RNG_HETERO = 3, WF_RNG_JITTER 
 void wf_rng_normal2(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, double out[2]);
 /* Two independent uniforms in (0, 1). */
 void wf_rng_uniform2(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, double out[2]);
-/* n standard normal deviates for the items of one block at one step: GSL's ziggurat (Marsaglia & Tsang 2000,
- * gsl_ran_gaussian_ziggurat, 24-bit resolution) drawing 32-bit words from Philox4x32-10 at counters
- * (block, step, stream, 0), (block, step, stream, 1), ... A pure function of (seed, stream, block, step, n); about
- * one word per deviate (rejections, 1.2 %, take more), so about 3x cheaper than wf_rng_normal2 per deviate. */
+/* n standard normal deviates for the items of one block at one step: Box-Muller on 53-bit uniforms, item pair p
+ * from the Philox4x32-10 output at counter (block, step, stream, p), evaluated four lanes wide with SLEEF's
+ * consistent (no-FMA) log and sincospi (3.5 ulp), which give the same bits on every x86-64 vector extension. A pure function
+ * of (seed, stream, block, step, n); a block's first k deviates do not depend on n. */
 void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_t step, size_t n, double *out);
 
 #endif

@@ -5,6 +5,7 @@
 #include <stddef.h>
 
 #include "wavefuel/cf.h"
+#include "../simd.h"
 
 typedef struct IdmParams {
     double v0_mps; /* desired speed */
@@ -63,6 +64,7 @@ static double idm_accel(const void *params, const void *state, double gap_m, dou
 /* idm_accel over a block. With one shared parameter set and delta = 4 (the usual case) the loop has no call and
  * no branch the compiler cannot turn into a select, so it vectorises; the expressions are idm_accel's, term for
  * term (contraction into FMA is off project-wide), so the bits are the same. */
+WF_SIMD_CLONES
 static void idm_accel_block(const void *params, size_t stride, size_t n, const double *restrict gap_m,
                             const double *restrict v_mps, const double *restrict v_lead_mps, double *restrict a_mps2)
 {

@@ -1,0 +1,28 @@
+/* Box-Muller over arrays of uniforms, written once for a SIMD width: src/noise_sse2.c (2 lanes) and
+ * src/noise_avx.c (4 lanes, compiled with -mavx) include it with the vector type and SLEEF's functions defined.
+ * SLEEF's "cinz" functions (consistent, no FMA) return the same bits for every vector extension, and the rest
+ * is IEEE arithmetic (sqrt, products), so both widths give the same deviates. */
+#include <stddef.h>
+#include <string.h>
+
+/* z[2p], z[2p+1] from u1[p] in (0, 1) and u2[p] in [0, 1): r = sqrt(-2 ln u1), (z0, z1) = r (cos, sin)(2 pi u2).
+ * pairs is a multiple of NK_LANES (the caller pads). */
+static void NK_NAME(size_t pairs, const double *restrict u1, const double *restrict u2, double *restrict z)
+{
+    const NK_VEC minus_two = NK_SPLAT(-2.0), two = NK_SPLAT(2.0);
+    for (size_t p = 0; p < pairs; p += NK_LANES) {
+        NK_VEC a, b;
+        memcpy(&a, u1 + p, sizeof a);
+        memcpy(&b, u2 + p, sizeof b);
+        NK_VEC r = NK_SQRT(NK_MUL(minus_two, NK_LOG(a)));
+        NK_SC sc = NK_SINCOSPI(NK_MUL(two, b)); /* .x = sin, .y = cos */
+        double s[NK_LANES], c[NK_LANES], rr[NK_LANES];
+        memcpy(s, &sc.x, sizeof s);
+        memcpy(c, &sc.y, sizeof c);
+        memcpy(rr, &r, sizeof rr);
+        for (size_t l = 0; l < NK_LANES; l++) {
+            z[2 * (p + l)] = rr[l] * c[l];
+            z[2 * (p + l) + 1] = rr[l] * s[l];
+        }
+    }
+}
