@@ -46,6 +46,39 @@ const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
     {"delayed", "1", "entries so far that waited at least one step"},
 };
 
+/* The run's state outside the per-slot arrays: a checkpoint saves this struct verbatim (wf_corridor_state), so
+ * every scalar that changes during the run lives here; what WfCorridor keeps outside it and outside the arrays
+ * listed in wf_corridor_state is derived from the scenario or recomputed at every step. */
+typedef struct CorridorRunState {
+    /* window totals of vehicles that have left (and, after the run, of those still on the road) */
+    double   cls_fuel[WF_MAX_CLASSES], cls_dist[WF_MAX_CLASSES], cls_stops[WF_MAX_CLASSES],
+             cls_infeas[WF_MAX_CLASSES], cls_steps[WF_MAX_CLASSES];
+    double   tot_hard, tot_stopped_s;
+    /* trips */
+    int64_t  cls_entered[WF_MAX_CLASSES], cls_trips[WF_MAX_CLASSES];
+    double   cls_trip_fuel[WF_MAX_CLASSES], cls_trip_time[WF_MAX_CLASSES];
+    int64_t  trips_done;
+    double   sum_trip_time, sum_trip_fuel;
+    /* entrance */
+    size_t   q_head;        /* queue_t index of the queue's head */
+    double   next_target;   /* cumulative demand at which the next arrival happens */
+    size_t   in_seg;
+    int      have_cand;     /* the queue head's class, group and parameters are drawn */
+    uint16_t cand_class, cand_group;
+    double   cand_len;
+    double   cand_params[WF_MAX_MODEL_PARAMS];
+    int64_t  assigned_group[WF_MAX_GROUPS], assigned_class[WF_MAX_CLASSES], n_free_class;
+    /* virtual leader */
+    double   vl_x, vl_v, vl_xref, vl_iref;
+    size_t   vl_seg;
+    /* counters and statistics */
+    WfCorridorCounts counts;
+    long     steps_done;
+    int64_t  w_entries, w_exits;
+    double   sd_sum;
+    long     n_sd;
+} CorridorRunState;
+
 struct WfCorridor {
     const WfScenario     *sc; /* borrowed */
     const WfCorridorSpec *cs; /* borrowed: sc->corridor */
@@ -61,45 +94,24 @@ struct WfCorridor {
     uint32_t *trip_stops, *trip_hard, *trip_infeas;
     double   *w_fuel, *w_dist, *w_stopped;
     uint32_t *w_steps, *w_stops, *w_hard, *w_infeas;
-    /* window totals of vehicles that have left (and, after the run, of those still on the road) */
-    double   cls_fuel[WF_MAX_CLASSES], cls_dist[WF_MAX_CLASSES], cls_stops[WF_MAX_CLASSES],
-             cls_infeas[WF_MAX_CLASSES], cls_steps[WF_MAX_CLASSES];
-    double   tot_hard, tot_stopped_s;
-    /* trips */
-    int64_t  cls_entered[WF_MAX_CLASSES], cls_trips[WF_MAX_CLASSES];
-    double   cls_trip_fuel[WF_MAX_CLASSES], cls_trip_time[WF_MAX_CLASSES];
-    int64_t  trips_done;
-    double   sum_trip_time, sum_trip_fuel;
+    CorridorRunState st;
+    /* trips not yet handed to the output (none at a checkpoint) */
     WfTrip   trips[TRIP_BUF];
     size_t   n_trips;
     /* headway zones: offset (in doubles) of the zone's key in each group's parameters, or -1 */
     int      hw_off[WF_MAX_GROUPS][WF_CORRIDOR_MAX_ZONES];
     /* entrance */
     double  *queue_t;       /* arrival time of each waiting vehicle (FIFO ring) */
-    size_t   q_cap, q_head;
-    double   next_target;   /* cumulative demand at which the next arrival happens */
-    size_t   in_seg;
-    int      have_cand;     /* the queue head's class, group and parameters are drawn */
-    uint16_t cand_class, cand_group;
-    double   cand_len;
-    double   cand_params[WF_MAX_MODEL_PARAMS];
-    int64_t  assigned_group[WF_MAX_GROUPS], assigned_class[WF_MAX_CLASSES], n_free_class;
+    size_t   q_cap;
     double   free_share[WF_MAX_CLASSES]; /* class shares among vehicles whose group fixes no class */
-    /* virtual leader */
-    int      has_vl;
-    double   vl_x, vl_v, vl_xref, vl_iref;
-    size_t   vl_seg;
+    int      has_vl;        /* a virtual leader (outflow leader or speed) */
     /* measurement */
-    WfCorridorCounts counts;
     WfDetectors det;
     WfEdie   edie;
     long     det_every, edie_every;
     /* run */
-    long     n_steps, out_every, traj_every, warm_steps, steps_done;
-    int64_t  w_entries, w_exits;
-    double   sd_sum;
-    long     n_sd;
-    double   wall_s;
+    long     n_steps, out_every, traj_every, warm_steps;
+    double   wall_s, checkpoint_every_s;
     int      nthreads;
     long     fault_slot;
     WfCorridorSummary summary;
@@ -320,16 +332,16 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
     if (cs->arrivals == WF_ARRIVALS_POISSON) {
         double u[2];
         wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ARRIVAL, 0, 0, u);
-        c->next_target = -log(u[0]);
+        c->st.next_target = -log(u[0]);
     } else {
-        c->next_target = 1.0;
+        c->st.next_target = 1.0;
     }
     c->has_vl = cs->outflow != WF_OUTFLOW_FREE;
     if (c->has_vl) {
-        c->vl_xref = c->L + cs->leader_offset_m;
-        c->vl_iref = 0.0;
-        c->vl_x = c->vl_xref;
-        c->vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &c->vl_seg);
+        c->st.vl_xref = c->L + cs->leader_offset_m;
+        c->st.vl_iref = 0.0;
+        c->st.vl_x = c->st.vl_xref;
+        c->st.vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &c->st.vl_seg);
     }
     *out = c;
     return 0;
@@ -370,28 +382,28 @@ static size_t by_draw(size_t m, const double *share, double u)
 static int draw_candidate(WfCorridor *c, WfError *err)
 {
     const WfScenario *sc = c->sc;
-    uint64_t serial = (uint64_t)c->counts.entered;
+    uint64_t serial = (uint64_t)c->st.counts.entered;
     double gshare[WF_MAX_GROUPS], u[2];
     for (size_t g = 0; g < sc->n_groups; g++) gshare[g] = sc->groups[g].fraction;
     wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ENTRY, serial, 0, u);
-    size_t g = c->cs->interleaved ? by_deficit(sc->n_groups, gshare, c->assigned_group, (int64_t)serial)
+    size_t g = c->cs->interleaved ? by_deficit(sc->n_groups, gshare, c->st.assigned_group, (int64_t)serial)
                                   : by_draw(sc->n_groups, gshare, u[0]);
-    c->assigned_group[g]++;
+    c->st.assigned_group[g]++;
     size_t k;
     if (sc->groups[g].class_index >= 0) {
         k = (size_t)sc->groups[g].class_index;
     } else {
-        k = c->cs->interleaved ? by_deficit(sc->n_classes, c->free_share, c->assigned_class, c->n_free_class)
+        k = c->cs->interleaved ? by_deficit(sc->n_classes, c->free_share, c->st.assigned_class, c->st.n_free_class)
                                : by_draw(sc->n_classes, c->free_share, u[1]);
-        c->assigned_class[k]++;
-        c->n_free_class++;
+        c->st.assigned_class[k]++;
+        c->st.n_free_class++;
     }
-    c->cand_group = (uint16_t)g;
-    c->cand_class = (uint16_t)k;
-    c->cand_len = sc->classes[k].length_m;
-    int rc = wf_fleet_draw_params(sc, g, serial, c->cand_params, err);
+    c->st.cand_group = (uint16_t)g;
+    c->st.cand_class = (uint16_t)k;
+    c->st.cand_len = sc->classes[k].length_m;
+    int rc = wf_fleet_draw_params(sc, g, serial, c->st.cand_params, err);
     if (rc) return rc;
-    c->have_cand = 1;
+    c->st.have_cand = 1;
     return 0;
 }
 
@@ -401,24 +413,24 @@ static int draw_candidate(WfCorridor *c, WfError *err)
 static int arrivals(WfCorridor *c, double t, WfError *err)
 {
     const WfCorridorSpec *cs = c->cs;
-    double lam = wf_profile_integral(&cs->inflow_vph, t, &c->in_seg) / 3600.0;
+    double lam = wf_profile_integral(&cs->inflow_vph, t, &c->st.in_seg) / 3600.0;
     /* A deterministic target is an integer that the demand reaches up to round-off in t = k dt. */
-    while (lam + 1e-9 * fmax(1.0, lam) >= c->next_target &&
-           (cs->max_arrivals < 0 || c->counts.arrived < cs->max_arrivals)) {
-        if ((size_t)c->counts.queued >= c->q_cap)
+    while (lam + 1e-9 * fmax(1.0, lam) >= c->st.next_target &&
+           (cs->max_arrivals < 0 || c->st.counts.arrived < cs->max_arrivals)) {
+        if ((size_t)c->st.counts.queued >= c->q_cap)
             return wf_err(err, WF_ESYS, "%s: the entrance queue outgrew its %zu places at t = %.6g s", c->sc->path,
                           c->q_cap, t);
-        size_t slot = (c->q_head + (size_t)c->counts.queued) % c->q_cap;
+        size_t slot = (c->st.q_head + (size_t)c->st.counts.queued) % c->q_cap;
         c->queue_t[slot] = t;
-        c->counts.queued++;
-        c->counts.arrived++;
-        if (c->counts.queued > c->counts.max_queue) c->counts.max_queue = c->counts.queued;
+        c->st.counts.queued++;
+        c->st.counts.arrived++;
+        if (c->st.counts.queued > c->st.counts.max_queue) c->st.counts.max_queue = c->st.counts.queued;
         if (cs->arrivals == WF_ARRIVALS_POISSON) {
             double u[2];
-            wf_rng_uniform2(c->sc->seed, WF_RNG_CORRIDOR_ARRIVAL, (uint64_t)c->counts.arrived, 0, u);
-            c->next_target += -log(u[0]); /* u in (0, 1): finite and positive */
+            wf_rng_uniform2(c->sc->seed, WF_RNG_CORRIDOR_ARRIVAL, (uint64_t)c->st.counts.arrived, 0, u);
+            c->st.next_target += -log(u[0]); /* u in (0, 1): finite and positive */
         } else {
-            c->next_target += 1.0;
+            c->st.next_target += 1.0;
         }
     }
     return 0;
@@ -432,17 +444,17 @@ static int arrivals(WfCorridor *c, double t, WfError *err)
  * that too). At most one vehicle enters per step. */
 static int try_insert(WfCorridor *c, double t, long step, WfError *err)
 {
-    if (c->counts.queued == 0) return 0;
+    if (c->st.counts.queued == 0) return 0;
     WfCorridorVehicles *vh = &c->veh;
     if (vh->n >= vh->cap) return 0; /* cannot happen while gaps stay >= 0 (see wf_corridor_create) */
-    if (!c->have_cand) {
+    if (!c->st.have_cand) {
         int rc = draw_candidate(c, err);
         if (rc) return rc;
     }
     const WfScenario *sc = c->sc;
-    const WfDriverGroup *grp = &sc->groups[c->cand_group];
+    const WfDriverGroup *grp = &sc->groups[c->st.cand_group];
     double buf[WF_MAX_MODEL_PARAMS];
-    const double *p = params_at(c, c->cand_group, c->cand_params, 0.0, buf);
+    const double *p = params_at(c, c->st.cand_group, c->st.cand_params, 0.0, buf);
     double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, 0.0));
     double v_hi = isfinite(vcap) ? vcap : 100.0;
     double gap, vl;
@@ -452,8 +464,8 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
         gap = vh->x_m[last] - vh->length_m[last];
         vl = vh->v_mps[last];
     } else if (c->has_vl) {
-        gap = c->vl_x;
-        vl = c->vl_v;
+        gap = c->st.vl_x;
+        vl = c->st.vl_v;
     } else {
         gap = WF_CORRIDOR_FREE_GAP_M;
         vl = INFINITY;
@@ -472,21 +484,21 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     vh->x_m[s] = 0.0;
     vh->v_mps[s] = vin;
     vh->a_mps2[s] = 0.0;
-    vh->length_m[s] = c->cand_len;
-    vh->serial[s] = (uint64_t)c->counts.entered;
-    vh->class_id[s] = c->cand_class;
-    vh->group_id[s] = c->cand_group;
-    memcpy(vh->params + s * c->pstride, c->cand_params, grp->model->param_size);
+    vh->length_m[s] = c->st.cand_len;
+    vh->serial[s] = (uint64_t)c->st.counts.entered;
+    vh->class_id[s] = c->st.cand_class;
+    vh->group_id[s] = c->st.cand_group;
+    memcpy(vh->params + s * c->pstride, c->st.cand_params, grp->model->param_size);
     c->grade_seg[s] = 0;
     c->mode[s] = vin > sc->v_go_mps ? MODE_MOVING : 0;
-    double ta = c->queue_t[c->q_head];
-    c->q_head = (c->q_head + 1) % c->q_cap;
-    c->counts.queued--;
-    c->counts.entered++;
-    c->counts.queue_delay_s += t - ta;
-    c->counts.delayed += t - ta > 0.5 * sc->dt_s;
-    c->cls_entered[c->cand_class]++;
-    if (step >= c->warm_steps) c->w_entries++;
+    double ta = c->queue_t[c->st.q_head];
+    c->st.q_head = (c->st.q_head + 1) % c->q_cap;
+    c->st.counts.queued--;
+    c->st.counts.entered++;
+    c->st.counts.queue_delay_s += t - ta;
+    c->st.counts.delayed += t - ta > 0.5 * sc->dt_s;
+    c->st.cls_entered[c->st.cand_class]++;
+    if (step >= c->warm_steps) c->st.w_entries++;
     c->t_arr[s] = ta, c->t_ent[s] = t, c->v_ent[s] = vin;
     c->trip_fuel[s] = c->trip_dist[s] = c->trip_stopped[s] = 0.0;
     c->trip_stops[s] = c->trip_hard[s] = c->trip_infeas[s] = 0;
@@ -494,7 +506,7 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     c->w_steps[s] = c->w_stops[s] = c->w_hard[s] = c->w_infeas[s] = 0;
     if (grp->model->state_size && grp->model->init_state)
         grp->model->init_state(vh->params + s * c->pstride, vh->state + s * c->sstride, gap, vin, vl);
-    c->have_cand = 0;
+    c->st.have_cand = 0;
     return 0;
 }
 
@@ -509,8 +521,8 @@ static inline void leader_of(const WfCorridor *c, size_t k, size_t s, double *ga
         *gap = vh->x_m[p] - vh->length_m[p] - vh->x_m[s];
         *vl = vh->v_mps[p];
     } else if (c->has_vl) {
-        *gap = c->vl_x - vh->x_m[s];
-        *vl = c->vl_v;
+        *gap = c->st.vl_x - vh->x_m[s];
+        *vl = c->st.vl_v;
     } else {
         *gap = WF_CORRIDOR_FREE_GAP_M;
         *vl = vh->v_mps[s];
@@ -648,7 +660,7 @@ static void phase_overlaps(WfCorridor *c, int in_window)
             size_t p = wf_corridor_slot(vh, k - 1);
             limit = vh->x_m[p] - vh->length_m[p];
         } else if (c->has_vl) {
-            limit = c->vl_x;
+            limit = c->st.vl_x;
         } else {
             continue;
         }
@@ -658,7 +670,7 @@ static void phase_overlaps(WfCorridor *c, int in_window)
             if (in_window) c->w_dist[s] += d;
             vh->x_m[s] = limit;
             vh->v_mps[s] = 0.0;
-            c->counts.overlaps++;
+            c->st.counts.overlaps++;
         }
     }
 }
@@ -737,20 +749,20 @@ static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed,
 {
     const WfCorridorVehicles *vh = &c->veh;
     size_t cl = vh->class_id[s];
-    c->cls_fuel[cl] += c->w_fuel[s];
-    c->cls_dist[cl] += c->w_dist[s];
-    c->cls_stops[cl] += c->w_stops[s];
-    c->cls_infeas[cl] += c->w_infeas[s];
-    c->cls_steps[cl] += c->w_steps[s];
-    c->tot_hard += c->w_hard[s];
-    c->tot_stopped_s += c->w_stopped[s];
+    c->st.cls_fuel[cl] += c->w_fuel[s];
+    c->st.cls_dist[cl] += c->w_dist[s];
+    c->st.cls_stops[cl] += c->w_stops[s];
+    c->st.cls_infeas[cl] += c->w_infeas[s];
+    c->st.cls_steps[cl] += c->w_steps[s];
+    c->st.tot_hard += c->w_hard[s];
+    c->st.tot_stopped_s += c->w_stopped[s];
     if (completed) {
-        c->trips_done++;
-        c->sum_trip_time += t_exit - c->t_ent[s];
-        c->sum_trip_fuel += c->trip_fuel[s];
-        c->cls_trips[cl]++;
-        c->cls_trip_time[cl] += t_exit - c->t_ent[s];
-        c->cls_trip_fuel[cl] += c->trip_fuel[s];
+        c->st.trips_done++;
+        c->st.sum_trip_time += t_exit - c->t_ent[s];
+        c->st.sum_trip_fuel += c->trip_fuel[s];
+        c->st.cls_trips[cl]++;
+        c->st.cls_trip_time[cl] += t_exit - c->t_ent[s];
+        c->st.cls_trip_fuel[cl] += c->trip_fuel[s];
     }
     WfTrip *tr = &c->trips[c->n_trips++];
     *tr = (WfTrip){.serial = vh->serial[s], .class_id = vh->class_id[s], .group_id = vh->group_id[s],
@@ -770,15 +782,15 @@ static int phase_exits(WfCorridor *c, double t_end, int in_window, const WfCorri
         size_t s = vh->first;
         int rc = finish_vehicle(c, s, t_end, 1, out, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
-            size_t seg = c->vl_seg;
-            c->vl_xref = vh->x_m[s] - vh->length_m[s];
-            c->vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
-            c->vl_x = c->vl_xref;
+            size_t seg = c->st.vl_seg;
+            c->st.vl_xref = vh->x_m[s] - vh->length_m[s];
+            c->st.vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
+            c->st.vl_x = c->st.vl_xref;
         }
         vh->first = vh->first + 1 == vh->cap ? 0 : vh->first + 1;
         vh->n--;
-        c->counts.exited++;
-        if (in_window) c->w_exits++;
+        c->st.counts.exited++;
+        if (in_window) c->st.w_exits++;
         if (rc) return rc;
     }
     return 0;
@@ -789,8 +801,8 @@ static void advance_leader(WfCorridor *c, double t)
 {
     if (!c->has_vl) return;
     const WfProfile *p = &c->cs->leader_speed_mps;
-    c->vl_x = c->vl_xref + (wf_profile_integral(p, t, &c->vl_seg) - c->vl_iref);
-    c->vl_v = wf_profile_value(p, t, &c->vl_seg);
+    c->st.vl_x = c->st.vl_xref + (wf_profile_integral(p, t, &c->st.vl_seg) - c->st.vl_iref);
+    c->st.vl_v = wf_profile_value(p, t, &c->st.vl_seg);
 }
 
 static void record(const WfCorridor *c, double t, WfCorridorRow *row)
@@ -830,12 +842,12 @@ static void record(const WfCorridor *c, double t, WfCorridorRow *row)
     row->v[WF_CTS_FUEL_RATE] = fuel;
     row->v[WF_CTS_MEAN_GAP] = n > 1 ? sg / (double)(n - 1) : NAN;
     row->v[WF_CTS_MIN_GAP] = n > 1 ? gmin : NAN;
-    row->v[WF_CTS_OVERLAPS] = (double)c->counts.overlaps;
-    row->v[WF_CTS_ARRIVED] = (double)c->counts.arrived;
-    row->v[WF_CTS_ENTERED] = (double)c->counts.entered;
-    row->v[WF_CTS_EXITED] = (double)c->counts.exited;
-    row->v[WF_CTS_QUEUED] = (double)c->counts.queued;
-    row->v[WF_CTS_DELAYED] = (double)c->counts.delayed;
+    row->v[WF_CTS_OVERLAPS] = (double)c->st.counts.overlaps;
+    row->v[WF_CTS_ARRIVED] = (double)c->st.counts.arrived;
+    row->v[WF_CTS_ENTERED] = (double)c->st.counts.entered;
+    row->v[WF_CTS_EXITED] = (double)c->st.counts.exited;
+    row->v[WF_CTS_QUEUED] = (double)c->st.counts.queued;
+    row->v[WF_CTS_DELAYED] = (double)c->st.counts.delayed;
 }
 
 static void summarize(WfCorridor *c)
@@ -843,23 +855,23 @@ static void summarize(WfCorridor *c)
     const WfScenario *sc = c->sc;
     WfCorridorSummary *s = &c->summary;
     memset(s, 0, sizeof *s);
-    long window = c->steps_done - c->warm_steps;
+    long window = c->st.steps_done - c->warm_steps;
     s->window_s = window > 0 ? (double)window * sc->dt_s : 0.0;
     double litres = 0, gallons = 0, stops = 0, infeas = 0, steps = 0;
     const WfEdie *e = &c->edie;
     for (size_t k = 0; k < sc->n_classes; k++) {
         WfCorridorClassSummary *cs = &s->cls[k];
         const WfVehicleClass *vc = &sc->classes[k].vc;
-        cs->entered = c->cls_entered[k];
-        cs->trips = c->cls_trips[k];
-        cs->fuel_g = c->cls_fuel[k];
-        cs->dist_m = c->cls_dist[k];
+        cs->entered = c->st.cls_entered[k];
+        cs->trips = c->st.cls_trips[k];
+        cs->fuel_g = c->st.cls_fuel[k];
+        cs->dist_m = c->st.cls_dist[k];
         cs->l_per_100km = wf_l_per_100km(vc, cs->fuel_g, cs->dist_m);
         cs->mpg = wf_mpg(vc, cs->fuel_g, cs->dist_m);
-        cs->stops_per_vkm = cs->dist_m > 0 ? c->cls_stops[k] / (cs->dist_m / 1000.0) : 0.0;
-        cs->infeasible_share = c->cls_steps[k] > 0 ? c->cls_infeas[k] / c->cls_steps[k] : 0.0;
-        cs->trip_fuel_mean_g = cs->trips ? c->cls_trip_fuel[k] / (double)cs->trips : NAN;
-        cs->trip_time_mean_s = cs->trips ? c->cls_trip_time[k] / (double)cs->trips : NAN;
+        cs->stops_per_vkm = cs->dist_m > 0 ? c->st.cls_stops[k] / (cs->dist_m / 1000.0) : 0.0;
+        cs->infeasible_share = c->st.cls_steps[k] > 0 ? c->st.cls_infeas[k] / c->st.cls_steps[k] : 0.0;
+        cs->trip_fuel_mean_g = cs->trips ? c->st.cls_trip_fuel[k] / (double)cs->trips : NAN;
+        cs->trip_time_mean_s = cs->trips ? c->st.cls_trip_time[k] / (double)cs->trips : NAN;
         double fu = 0, du = 0, fd = 0, dd = 0, ff = 0, df = 0;
         for (size_t i = 0; i < e->nx; i++) {
             double th = e->grade_mean_rad[i], f = e->class_fuel_g[k * e->nx + i], d = e->class_dist_m[k * e->nx + i];
@@ -872,9 +884,9 @@ static void summarize(WfCorridor *c)
         cs->g_per_km_flat = df > 0 ? ff / (df / 1000.0) : NAN;
         s->fuel_g += cs->fuel_g;
         s->dist_m += cs->dist_m;
-        stops += c->cls_stops[k];
-        infeas += c->cls_infeas[k];
-        steps += c->cls_steps[k];
+        stops += c->st.cls_stops[k];
+        infeas += c->st.cls_infeas[k];
+        steps += c->st.cls_steps[k];
         litres += cs->fuel_g / vc->fuel_density_g_per_l;
         gallons += cs->fuel_g / vc->fuel_density_g_per_l / WF_L_PER_US_GAL;
     }
@@ -884,18 +896,18 @@ static void summarize(WfCorridor *c)
     s->l_per_100km = s->dist_m > 0 ? litres / (s->dist_m / 1e5) : INFINITY;
     s->mpg = gallons > 0 ? (s->dist_m / WF_M_PER_MILE) / gallons : 0.0;
     s->stops_per_vkm = s->vkt_km > 0 ? stops / s->vkt_km : 0.0;
-    s->hard_brakes_per_vkm = s->vkt_km > 0 ? c->tot_hard / s->vkt_km : 0.0;
+    s->hard_brakes_per_vkm = s->vkt_km > 0 ? c->st.tot_hard / s->vkt_km : 0.0;
     s->mean_speed_mps = vht_s > 0 ? s->dist_m / vht_s : 0.0;
-    s->sd_speed_time_avg_mps = c->n_sd ? c->sd_sum / (double)c->n_sd : NAN;
-    s->inflow_vph = s->window_s > 0 ? (double)c->w_entries / s->window_s * 3600.0 : 0.0;
-    s->outflow_vph = s->window_s > 0 ? (double)c->w_exits / s->window_s * 3600.0 : 0.0;
+    s->sd_speed_time_avg_mps = c->st.n_sd ? c->st.sd_sum / (double)c->st.n_sd : NAN;
+    s->inflow_vph = s->window_s > 0 ? (double)c->st.w_entries / s->window_s * 3600.0 : 0.0;
+    s->outflow_vph = s->window_s > 0 ? (double)c->st.w_exits / s->window_s * 3600.0 : 0.0;
     s->infeasible_share = steps > 0 ? infeas / steps : 0.0;
-    s->time_stopped_share = vht_s > 0 ? c->tot_stopped_s / vht_s : 0.0;
-    s->trips = c->trips_done;
-    s->mean_travel_time_s = c->trips_done ? c->sum_trip_time / (double)c->trips_done : NAN;
-    s->mean_trip_fuel_g = c->trips_done ? c->sum_trip_fuel / (double)c->trips_done : NAN;
-    s->mean_queue_delay_s = c->counts.entered ? c->counts.queue_delay_s / (double)c->counts.entered : NAN;
-    s->counts = c->counts;
+    s->time_stopped_share = vht_s > 0 ? c->st.tot_stopped_s / vht_s : 0.0;
+    s->trips = c->st.trips_done;
+    s->mean_travel_time_s = c->st.trips_done ? c->st.sum_trip_time / (double)c->st.trips_done : NAN;
+    s->mean_trip_fuel_g = c->st.trips_done ? c->st.sum_trip_fuel / (double)c->st.trips_done : NAN;
+    s->mean_queue_delay_s = c->st.counts.entered ? c->st.counts.queue_delay_s / (double)c->st.counts.entered : NAN;
+    s->counts = c->st.counts;
 }
 
 static int numerical_fault(const WfCorridor *c, long step, WfError *err)
@@ -910,16 +922,23 @@ static int numerical_fault(const WfCorridor *c, long step, WfError *err)
                   c->sc->classes[vh->class_id[s]].vc.name, vh->x_m[s], vh->v_mps[s]);
 }
 
+/* A checkpoint between steps: the completed trips go out first, so the output's row counts are the state's. */
+static int checkpoint(WfCorridor *c, const WfCorridorOutput *out, WfError *err)
+{
+    int rc = flush_trips(c, out, err);
+    return rc ? rc : out->checkpoint(out->ctx, c, err);
+}
+
 int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
                     volatile sig_atomic_t *stop, WfError *err)
 {
     const WfScenario *sc = c->sc;
     int rc = out && out->begin ? out->begin(out->ctx, c, err) : 0;
     if (rc) return rc;
-    double t0 = wall_now(), last_progress = t0;
+    double t0 = wall_now(), last_progress = t0, last_ckpt = t0;
     const char *reason = NULL;
     WfCorridorRow row;
-    for (long step = c->steps_done; step <= c->n_steps; step++) {
+    for (long step = c->st.steps_done; step <= c->n_steps; step++) {
         double t = (double)step * sc->dt_s;
         int in_window = step >= c->warm_steps;
         if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, t, step, err))) break;
@@ -927,7 +946,7 @@ int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn pro
         phase_energy(c);
         if (step % c->out_every == 0) {
             record(c, t, &row);
-            if (in_window && c->veh.n) c->sd_sum += row.v[WF_CTS_SD_V], c->n_sd++;
+            if (in_window && c->veh.n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
             if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) break;
         }
         if (sc->trajectories && step % c->traj_every == 0 && out && out->trajectory &&
@@ -944,10 +963,14 @@ int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn pro
         }
         phase_measure(c, step, in_window);
         if ((rc = phase_exits(c, t_next, in_window, out, err))) break;
-        c->steps_done = step + 1;
+        c->st.steps_done = step + 1;
         if (stop && *stop) {
             reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
             break;
+        }
+        if (c->checkpoint_every_s > 0 && out && out->checkpoint && wall_now() - last_ckpt >= c->checkpoint_every_s) {
+            if ((rc = checkpoint(c, out, err))) break;
+            last_ckpt = wall_now();
         }
         if (progress && (step & 63) == 0) {
             double now = wall_now();
@@ -958,6 +981,9 @@ int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn pro
         }
     }
     c->wall_s = wall_now() - t0;
+    /* An interrupted run can always be resumed: its checkpoint is taken before the vehicles still on the road
+     * are closed below (which changes the totals and appends unfinished trips that a resumed run drops). */
+    if (!rc && reason && out && out->checkpoint) rc = checkpoint(c, out, err);
     /* Vehicles still on the road: their window totals count, their trips are reported as unfinished. */
     WfError e2 = {0};
     int rc2 = flush_trips(c, out, rc ? &e2 : err);
@@ -974,24 +1000,107 @@ int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn pro
     if (out && out->end && (rc = out->end(out->ctx, c, completed, reason ? reason : "", err))) return rc;
     if (!completed)
         return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
-                      (double)c->steps_done * sc->dt_s);
+                      (double)c->st.steps_done * sc->dt_s);
     return 0;
 }
 
 const WfScenario *wf_corridor_scenario(const WfCorridor *c) { return c->sc; }
 const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->veh; }
-const WfCorridorCounts *wf_corridor_counts(const WfCorridor *c) { return &c->counts; }
+const WfCorridorCounts *wf_corridor_counts(const WfCorridor *c) { return &c->st.counts; }
 const WfCorridorSummary *wf_corridor_summary(const WfCorridor *c) { return &c->summary; }
 const WfDetectors *wf_corridor_detectors(const WfCorridor *c) { return &c->det; }
 const WfEdie *wf_corridor_edie(const WfCorridor *c) { return &c->edie; }
 double wf_corridor_wall_s(const WfCorridor *c) { return c->wall_s; }
-long wf_corridor_steps_done(const WfCorridor *c) { return c->steps_done; }
+long wf_corridor_steps_done(const WfCorridor *c) { return c->st.steps_done; }
 int wf_corridor_threads(const WfCorridor *c) { return c->nthreads; }
+
+void wf_corridor_set_checkpoint_interval(WfCorridor *c, double wall_s) { c->checkpoint_every_s = wall_s; }
+
+size_t wf_corridor_state(WfCorridor *c, WfStateVar *vars, size_t max)
+{
+    WfCorridorVehicles *vh = &c->veh;
+    size_t cap = vh->cap, k = 0, nd = c->det.n_int * c->det.n_det, ne = c->edie.nx * c->edie.nt;
+    size_t ncx = c->edie.nx * c->sc->n_classes;
+#define VAR(nm, ptr, count)                                                                     \
+    do {                                                                                        \
+        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (size_t)(count) * sizeof *(ptr)}; \
+        k++;                                                                                    \
+    } while (0)
+    VAR("scalars", &c->st, 1);
+    VAR("first", &vh->first, 1);
+    VAR("n", &vh->n, 1);
+    /* Per slot, whole buffers (a vehicle keeps its slot). Not saved: gap, leader speed, grade, acceleration, fuel
+     * rate, flag and xold, which every step recomputes from these before reading them. */
+    VAR("x", vh->x_m, cap);
+    VAR("v", vh->v_mps, cap);
+    VAR("length", vh->length_m, cap);
+    VAR("serial", vh->serial, cap);
+    VAR("class_id", vh->class_id, cap);
+    VAR("group_id", vh->group_id, cap);
+    VAR("params", vh->params, cap * c->pstride);
+    if (c->sstride) VAR("controller_state", vh->state, cap * c->sstride);
+    VAR("grade_seg", c->grade_seg, cap);
+    VAR("mode", c->mode, cap);
+    VAR("t_arrival", c->t_arr, cap);
+    VAR("t_entry", c->t_ent, cap);
+    VAR("v_entry", c->v_ent, cap);
+    VAR("trip_fuel", c->trip_fuel, cap);
+    VAR("trip_dist", c->trip_dist, cap);
+    VAR("trip_stopped", c->trip_stopped, cap);
+    VAR("trip_stops", c->trip_stops, cap);
+    VAR("trip_hard", c->trip_hard, cap);
+    VAR("trip_infeasible", c->trip_infeas, cap);
+    VAR("w_fuel", c->w_fuel, cap);
+    VAR("w_dist", c->w_dist, cap);
+    VAR("w_stopped", c->w_stopped, cap);
+    VAR("w_steps", c->w_steps, cap);
+    VAR("w_stops", c->w_stops, cap);
+    VAR("w_hard", c->w_hard, cap);
+    VAR("w_infeasible", c->w_infeas, cap);
+    VAR("queue_t", c->queue_t, c->q_cap);
+    if (nd) {
+        VAR("det_count", c->det.count, nd);
+        VAR("det_sum_v", c->det.sum_v_mps, nd);
+        VAR("det_sum_inv_v", c->det.sum_inv_v_spm, nd);
+        VAR("det_occupied", c->det.occupied_s, nd);
+    }
+    VAR("edie_dist", c->edie.dist_m, ne);
+    VAR("edie_time", c->edie.time_s, ne);
+    VAR("edie_fuel", c->edie.fuel_g, ne);
+    VAR("edie_class_dist", c->edie.class_dist_m, ncx);
+    VAR("edie_class_fuel", c->edie.class_fuel_g, ncx);
+#undef VAR
+    return k;
+}
+
+int wf_corridor_restored(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    const WfCorridorVehicles *vh = &c->veh;
+    const CorridorRunState *st = &c->st;
+    const WfCorridorCounts *n = &st->counts;
+    const char *bad = NULL;
+    if (vh->first >= vh->cap || vh->n > vh->cap) bad = "vehicle buffer indices";
+    else if (st->steps_done < 0 || st->steps_done > c->n_steps) bad = "step";
+    else if (st->q_head >= c->q_cap || n->queued < 0 || (uint64_t)n->queued > c->q_cap) bad = "entrance queue";
+    else if (n->arrived != n->entered + n->queued || n->entered != n->exited + (int64_t)vh->n) bad = "counters";
+    else if (st->have_cand && (st->cand_class >= sc->n_classes || st->cand_group >= sc->n_groups)) bad = "candidate";
+    for (size_t k = 0; !bad && k < vh->n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        if (vh->class_id[s] >= sc->n_classes || vh->group_id[s] >= sc->n_groups) bad = "class or driver group";
+    }
+    if (bad)
+        return wf_err(err, WF_EINPUT, "%s: the restored state does not fit this corridor (%s at step %ld)", sc->path,
+                      bad, st->steps_done);
+    c->fault_slot = -1;
+    c->n_trips = 0;
+    return 0;
+}
 
 int wf_corridor_leader(const WfCorridor *c, double *x_m, double *v_mps)
 {
     if (!c->has_vl) return 0;
-    *x_m = c->vl_x;
-    *v_mps = c->vl_v;
+    *x_m = c->st.vl_x;
+    *v_mps = c->st.vl_v;
     return 1;
 }

@@ -9,10 +9,15 @@
 #include <string.h>
 #include <time.h>
 
+#include "h5ckpt.h"
 #include "h5util.h"
 #include "wavefuel/version.h"
 
-#define TS_BUF 256
+#define TS_BUF     256
+#define TS_CHUNK   1024  /* rows per chunk of the time series (uncompressed) */
+#define TRIP_CHUNK 4096  /* ... of /trips (compressed) */
+#define TRAJ_CHUNK 65536 /* ... of /trajectories (compressed) */
+#define N_SERIES   (WF_CTS_N_COLS + 1 + TR_N + 6)
 
 /* Columns of /trips, in the order of WfTrip's fields as written (float64; integers are exact below 2^53). */
 enum { TR_SERIAL, TR_CLASS, TR_GROUP, TR_COMPLETED, TR_ARRIVAL, TR_ENTRY, TR_EXIT, TR_TRAVEL, TR_DELAY, TR_VENTRY,
@@ -36,6 +41,16 @@ static const WfColumn trip_cols[TR_N] = {
     {"infeasible_steps", "1", "steps whose requested acceleration exceeded the class a_max"},
 };
 
+/* Columns of /trajectories, one row per vehicle on the road per frame. */
+static const WfColumn traj_cols[6] = {
+    {"t", "s", "time of each point"},
+    {"serial", "1", "vehicle (trips/serial) of each point"},
+    {"x", "m", "front-bumper position from the entrance"},
+    {"v", "m/s", "speed"},
+    {"a", "m/s^2", "acceleration applied from this instant"},
+    {"fuel_rate", "g/s", "fuel rate"},
+};
+
 struct WfH5Corridor {
     WfH5File  *file;
     int        ended;
@@ -46,7 +61,12 @@ struct WfH5Corridor {
     WfH5Series tr_t, tr_id, tr_x, tr_v, tr_a, tr_f;
     double    *buf, *tbuf; /* TS_BUF time-series rows; one trajectory column of up to cap vehicles */
     size_t     n_buf, n_classes, tcap;
+    int        resume;     /* reopened .partial of an interrupted run */
 };
+
+/* The appended datasets whose rows a checkpoint counts (src/h5ckpt.h). */
+enum { CUR_TS, CUR_TRIPS, CUR_TRAJ, N_CUR };
+static const char *const cursor_names[N_CUR] = {"timeseries", "trips", "trajectories"};
 
 static int flush_ts(WfH5Corridor *w, WfError *err)
 {
@@ -189,56 +209,61 @@ static int write_road(hid_t fid, const WfCorridor *c, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
+/* Every appended dataset: its group, shape, chunking and compression, and the cursor that counts its rows. */
+static size_t series_specs(WfH5Corridor *w, const WfScenario *sc, WfCkptSeries *sp)
+{
+    static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class on the road [time x class]"};
+    size_t n = 0;
+    for (size_t k = 0; k < WF_CTS_N_COLS; k++)
+        sp[n++] = (WfCkptSeries){&w->ts[k], "timeseries", &wf_corridor_columns[k], 0, TS_CHUNK, 0, CUR_TS};
+    sp[n++] = (WfCkptSeries){&w->ts_class, "timeseries", &class_col, sc->n_classes, TS_CHUNK, 0, CUR_TS};
+    for (size_t k = 0; k < TR_N; k++)
+        sp[n++] = (WfCkptSeries){&w->trips[k], "trips", &trip_cols[k], 0, TRIP_CHUNK, 1, CUR_TRIPS};
+    WfH5Series *tr[6] = {&w->tr_t, &w->tr_id, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+    for (size_t k = 0; sc->trajectories && k < 6; k++)
+        sp[n++] = (WfCkptSeries){tr[k], "trajectories", &traj_cols[k], 0, TRAJ_CHUNK, 1, CUR_TRAJ};
+    return n;
+}
+
+/* The time-series rows and one trajectory column, buffered (a resumed run reopened its file already). */
+static int alloc_buffers(WfH5Corridor *w, const WfCorridor *c, WfError *err)
+{
+    w->n_classes = wf_corridor_scenario(c)->n_classes;
+    w->buf = malloc(TS_BUF * (WF_CTS_N_COLS + w->n_classes) * sizeof *w->buf);
+    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
+    if (wf_corridor_scenario(c)->trajectories) {
+        w->tcap = wf_corridor_vehicles(c)->cap;
+        w->tbuf = malloc(w->tcap * sizeof *w->tbuf);
+        if (!w->tbuf) return wf_err(err, WF_ESYS, "out of memory for trajectories");
+    }
+    return 0;
+}
+
 static int h5_begin(void *ctx, const WfCorridor *c, WfError *err)
 {
     WfH5Corridor *w = ctx;
+    int rc = alloc_buffers(w, c, err);
+    if (rc || w->resume) return rc;
     const WfScenario *sc = wf_corridor_scenario(c);
     hid_t fid = w->file->fid;
     time_t now = time(NULL);
     struct tm tmv;
     gmtime_r(&now, &tmv);
     strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
-    w->n_classes = sc->n_classes;
-    w->buf = malloc(TS_BUF * (WF_CTS_N_COLS + w->n_classes) * sizeof *w->buf);
-    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
     if (write_meta(fid, c, 0, "running", w->started, err) || write_classes_drivers(fid, c, err) ||
         write_road(fid, c, err))
         return WF_ESYS;
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sc, sp);
     w->g_ts = wf_h5_group(fid, "timeseries", err);
-    if (w->g_ts < 0) return WF_ESYS;
-    for (size_t k = 0; k < WF_CTS_N_COLS; k++)
-        if (wf_h5_series_create(w->g_ts, wf_corridor_columns[k].name, 0, 1024, 0, wf_corridor_columns[k].units,
-                                wf_corridor_columns[k].desc, &w->ts[k], err))
-            return WF_ESYS;
-    if (wf_h5_series_create(w->g_ts, "class_fuel_rate", w->n_classes, 1024, 0, "g/s",
-                            "fuel rate of each class on the road [time x class]", &w->ts_class, err))
+    w->g_trips = w->g_ts < 0 ? H5I_INVALID_HID : wf_h5_group(fid, "trips", err);
+    w->g_traj = w->g_trips < 0 || !sc->trajectories ? H5I_INVALID_HID : wf_h5_group(fid, "trajectories", err);
+    if (w->g_ts < 0 || w->g_trips < 0 || (sc->trajectories && w->g_traj < 0) ||
+        wf_ckpt_series_create(fid, sp, ns, err))
         return WF_ESYS;
-    w->g_trips = wf_h5_group(fid, "trips", err);
-    if (w->g_trips < 0) return WF_ESYS;
-    for (size_t k = 0; k < TR_N; k++)
-        if (wf_h5_series_create(w->g_trips, trip_cols[k].name, 0, 4096, 1, trip_cols[k].units, trip_cols[k].desc,
-                                &w->trips[k], err))
-            return WF_ESYS;
-    if (sc->trajectories) {
-        w->tcap = wf_corridor_vehicles(c)->cap;
-        w->tbuf = malloc(w->tcap * sizeof *w->tbuf);
-        if (!w->tbuf) return wf_err(err, WF_ESYS, "out of memory for trajectories");
-        w->g_traj = wf_h5_group(fid, "trajectories", err);
-        if (w->g_traj < 0 ||
-            wf_h5_series_create(w->g_traj, "t", 0, 65536, 1, "s", "time of each point", &w->tr_t, err) ||
-            wf_h5_series_create(w->g_traj, "serial", 0, 65536, 1, "1", "vehicle (trips/serial) of each point",
-                                &w->tr_id, err) ||
-            wf_h5_series_create(w->g_traj, "x", 0, 65536, 1, "m", "front-bumper position from the entrance",
-                                &w->tr_x, err) ||
-            wf_h5_series_create(w->g_traj, "v", 0, 65536, 1, "m/s", "speed", &w->tr_v, err) ||
-            wf_h5_series_create(w->g_traj, "a", 0, 65536, 1, "m/s^2", "acceleration applied from this instant",
-                                &w->tr_a, err) ||
-            wf_h5_series_create(w->g_traj, "fuel_rate", 0, 65536, 1, "g/s", "fuel rate", &w->tr_f, err))
-            return WF_ESYS;
-        if (wf_h5_attr_str(w->g_traj, "layout", "one row per vehicle on the road per frame, road order within a "
-                           "frame (front first)", err))
-            return WF_ESYS;
-    }
+    if (sc->trajectories && wf_h5_attr_str(w->g_traj, "layout", "one row per vehicle on the road per frame, road "
+                                           "order within a frame (front first)", err))
+        return WF_ESYS;
     H5Fflush(fid, H5F_SCOPE_GLOBAL);
     return 0;
 }
@@ -493,12 +518,22 @@ static void close_series(WfH5Corridor *w)
     }
 }
 
+/* The rows still in memory: the time-series buffer and the incomplete chunks of the compressed series. */
+static int flush_all(WfH5Corridor *w, const WfScenario *sc, WfError *err)
+{
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sc, sp);
+    int rc = flush_ts(w, err);
+    for (size_t i = 0; !rc && i < ns; i++) rc = wf_h5_series_flush(sp[i].s, err);
+    return rc;
+}
+
 static int h5_end(void *ctx, const WfCorridor *c, int completed, const char *reason, WfError *err)
 {
     WfH5Corridor *w = ctx;
     w->ended = 1;
     hid_t fid = w->file->fid;
-    int rc = flush_ts(w, err);
+    int rc = flush_all(w, wf_corridor_scenario(c), err);
     if (!rc) rc = write_detectors(fid, c, err);
     if (!rc) rc = write_edie(fid, c, err);
     if (!rc) rc = write_summary(fid, c, err);
@@ -511,7 +546,27 @@ static int h5_end(void *ctx, const WfCorridor *c, int completed, const char *rea
         return rc;
     }
     snprintf(w->final_path, sizeof w->final_path, "%s", w->file->path);
-    return wf_h5_commit(&w->file, err);
+    rc = wf_h5_commit(&w->file, err);
+    if (!rc) wf_ckpt_remove(w->final_path); /* the result is complete: its checkpoint is of no further use */
+    return rc;
+}
+
+/* ---- checkpoints and resumption ---- */
+
+static int h5_checkpoint(void *ctx, const WfCorridor *c, WfError *err)
+{
+    WfH5Corridor *w = ctx;
+    const WfScenario *sc = wf_corridor_scenario(c);
+    if (flush_ts(w, err)) return wf_err_prefix(err, "%s: ", w->file->partial);
+    /* The result file must hold every row the checkpoint counts (but those it saves) before the checkpoint exists. */
+    if (H5Fflush(w->file->fid, H5F_SCOPE_GLOBAL) < 0) return wf_err(err, WF_ESYS, "HDF5: flush %s", w->file->partial);
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sc, sp);
+    /* The blocks are only read here. */
+    size_t nv = wf_corridor_state((WfCorridor *)c, vars, WF_MAX_STATE_VARS);
+    return wf_ckpt_save(w->file->path, "corridor", sc, wf_corridor_steps_done(c), cursor_names, N_CUR, sp, ns, vars,
+                        nv, err);
 }
 
 static void init_handles(WfH5Corridor *w)
@@ -535,7 +590,36 @@ int wf_h5corridor_create(const char *path, int force, WfH5Corridor **out, WfCorr
         return rc;
     }
     *ops = (WfCorridorOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
-                              .trips = h5_trips, .end = h5_end, .ctx = w};
+                              .trips = h5_trips, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
+    *out = w;
+    return 0;
+}
+
+int wf_h5corridor_resume(const char *result, WfCorridor *c, WfH5Corridor **out, WfCorridorOutput *ops,
+                         WfError *err)
+{
+    *out = NULL;
+    const WfScenario *sc = wf_corridor_scenario(c);
+    WfH5Corridor *w = calloc(1, sizeof *w);
+    if (!w) return wf_err(err, WF_ESYS, "out of memory");
+    init_handles(w);
+    w->resume = 1;
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sc, sp);
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = wf_corridor_state(c, vars, WF_MAX_STATE_VARS);
+    /* What the interrupted run wrote at its end (detectors, Edie fields, summary) is written again at the end. */
+    static const char *const stale[] = {"detectors", "edie", "summary"};
+    /* The checkpoint is read and verified completely before the partial file is touched. */
+    int rc = wf_ckpt_restore(result, "corridor", sc, cursor_names, N_CUR, sp, ns, vars, nv, err);
+    if (!rc) rc = wf_corridor_restored(c, err);
+    if (!rc) rc = wf_ckpt_reopen(result, sc, sp, ns, stale, 3, &w->file, err);
+    if (rc) {
+        wf_h5corridor_destroy(&w);
+        return rc;
+    }
+    *ops = (WfCorridorOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
+                              .trips = h5_trips, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
     *out = w;
     return 0;
 }
@@ -544,11 +628,9 @@ void wf_h5corridor_destroy(WfH5Corridor **pw)
 {
     if (!pw || !*pw) return;
     WfH5Corridor *w = *pw;
-    if (w->file) {
-        close_series(w);
-        /* A run that never reached end() produced nothing useful. */
-        wf_h5_abandon(&w->file, !w->ended);
-    }
+    close_series(w);
+    /* A run that never reached end() produced nothing useful; a resumed one never deletes what it reopened. */
+    if (w->file) wf_h5_abandon(&w->file, !w->ended && !w->resume);
     free(w->buf);
     free(w->tbuf);
     free(w);

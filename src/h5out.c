@@ -6,15 +6,27 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <errno.h>
-#include <sys/stat.h>
 #include <time.h>
-#include <unistd.h>
 
+#include "h5ckpt.h"
 #include "h5util.h"
 #include "wavefuel/version.h"
 
 #define TS_BUF 256
+
+/* Columns of /trajectories. */
+static const WfColumn traj_cols[5] = {
+    {"t", "s", "time of each frame"},
+    {"x", "m", "unwrapped front-bumper position [time x vehicle]"},
+    {"v", "m/s", "speed [time x vehicle]"},
+    {"a", "m/s^2", "acceleration applied from this instant"},
+    {"fuel_rate", "g/s", "fuel rate [time x vehicle]"},
+};
+
+/* The appended datasets whose rows a checkpoint counts (src/h5ckpt.h). */
+enum { CUR_TS, CUR_TRAJ, N_CUR };
+static const char *const cursor_names[N_CUR] = {"timeseries", "trajectories"};
+#define N_SERIES (WF_TS_N_COLS + 1 + 5)
 
 struct WfH5Out {
     WfH5File  *file;
@@ -24,14 +36,27 @@ struct WfH5Out {
     WfH5Series ts[WF_TS_N_COLS], ts_class;
     WfH5Series tr_t, tr_x, tr_v, tr_a, tr_f;
     double    *buf;      /* TS_BUF x (WF_TS_N_COLS + n_classes) */
-    double    *tbuf;     /* one trajectory frame */
     size_t     n_buf, n_classes;
     char       started[64];
     int        resume;                  /* reopened .partial of an interrupted run */
-    hsize_t    resume_ts_rows, resume_traj_rows;
 };
 
-static void ckpt_path_of(const char *result, char *out, size_t len) { snprintf(out, len, "%s.ckpt", result); }
+/* Every appended dataset: group, shape, chunking, compression and the cursor that counts its rows. Time series
+ * and frame times are uncompressed; the [time x vehicle] arrays compressed, in chunks of up to 16 frames. */
+static size_t series_specs(WfH5Out *w, const WfSim *sim, WfCkptSeries *sp)
+{
+    static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class [time x class]"};
+    const WfScenario *sc = wf_sim_scenario(sim);
+    hsize_t n = wf_sim_fleet(sim)->n;
+    size_t k = 0;
+    for (size_t c = 0; c < WF_TS_N_COLS; c++)
+        sp[k++] = (WfCkptSeries){&w->ts[c], "timeseries", &wf_ts_columns[c], 0, 1024, 0, CUR_TS};
+    sp[k++] = (WfCkptSeries){&w->ts_class, "timeseries", &class_col, sc->n_classes, 1024, 0, CUR_TS};
+    WfH5Series *tr[5] = {&w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+    for (size_t i = 0; sc->trajectories && i < 5; i++)
+        sp[k++] = (WfCkptSeries){tr[i], "trajectories", &traj_cols[i], i ? n : 0, i ? 16 : 1024, i > 0, CUR_TRAJ};
+    return k;
+}
 
 static int flush_ts(WfH5Out *w, WfError *err)
 {
@@ -164,48 +189,27 @@ static int write_classes_drivers(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-static int h5_begin_resume(WfH5Out *w, const WfSim *sim, WfError *err);
-
 static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
 {
     WfH5Out *w = ctx;
-    if (w->resume) return h5_begin_resume(w, sim, err);
     const WfScenario *sc = wf_sim_scenario(sim);
-    const WfFleet *f = wf_sim_fleet(sim);
+    w->n_classes = sc->n_classes;
+    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
+    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
+    if (w->resume) return 0; /* wf_h5out_resume reopened the file and its datasets */
     hid_t fid = w->file->fid;
     time_t now = time(NULL);
     struct tm tmv;
     gmtime_r(&now, &tmv);
     strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
-    w->n_classes = sc->n_classes;
-    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
-    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
     if (write_meta(fid, sim, 0, "running", w->started, err) || write_classes_drivers(fid, sim, err)) return WF_ESYS;
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sim, sp);
     w->g_ts = wf_h5_group(fid, "timeseries", err);
-    if (w->g_ts < 0) return WF_ESYS;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++)
-        if (wf_h5_series_create(w->g_ts, wf_ts_columns[c].name, 0, 1024, 0, wf_ts_columns[c].units,
-                                wf_ts_columns[c].desc, &w->ts[c], err))
-            return WF_ESYS;
-    if (wf_h5_series_create(w->g_ts, "class_fuel_rate", w->n_classes, 1024, 0, "g/s",
-                            "fuel rate of each class [time x class]", &w->ts_class, err))
+    w->g_traj = w->g_ts < 0 || !sc->trajectories ? H5I_INVALID_HID : wf_h5_group(fid, "trajectories", err);
+    if (w->g_ts < 0 || (sc->trajectories && w->g_traj < 0) || wf_ckpt_series_create(fid, sp, ns, err))
         return WF_ESYS;
-    if (sc->trajectories) {
-        hsize_t n = f->n;
-        w->tbuf = malloc(n * sizeof *w->tbuf);
-        if (!w->tbuf) return wf_err(err, WF_ESYS, "out of memory for trajectories");
-        w->g_traj = wf_h5_group(fid, "trajectories", err);
-        if (w->g_traj < 0 ||
-            wf_h5_series_create(w->g_traj, "t", 0, 1024, 0, "s", "time of each frame", &w->tr_t, err) ||
-            wf_h5_series_create(w->g_traj, "x", n, 16, 1, "m", "unwrapped front-bumper position [time x vehicle]",
-                                &w->tr_x, err) ||
-            wf_h5_series_create(w->g_traj, "v", n, 16, 1, "m/s", "speed [time x vehicle]", &w->tr_v, err) ||
-            wf_h5_series_create(w->g_traj, "a", n, 16, 1, "m/s^2", "acceleration applied from this instant",
-                                &w->tr_a, err) ||
-            wf_h5_series_create(w->g_traj, "fuel_rate", n, 16, 1, "g/s", "fuel rate [time x vehicle]", &w->tr_f, err))
-            return WF_ESYS;
-        if (wf_h5_attr_f64(w->g_traj, "ring_length_m", sc->road.length_m, err)) return WF_ESYS;
-    }
+    if (sc->trajectories && wf_h5_attr_f64(w->g_traj, "ring_length_m", sc->road.length_m, err)) return WF_ESYS;
     H5Fflush(fid, H5F_SCOPE_GLOBAL);
     return 0;
 }
@@ -378,11 +382,12 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     WfH5Out *w = ctx;
     w->ended = 1;
     hid_t fid = w->file->fid;
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sim, sp);
     int rc = flush_ts(w, err);
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
-    wf_h5_series_close(&w->ts_class);
-    WfH5Series *tr[] = {&w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 5; i++) wf_h5_series_close(tr[i]);
+    for (size_t i = 0; !rc && i < ns; i++) rc = wf_h5_series_flush(sp[i].s, err);
+    if (rc) wf_err_prefix(err, "%s: ", w->file->partial);
+    for (size_t i = 0; i < ns; i++) wf_h5_series_close(sp[i].s);
     if (!rc) rc = write_vehicles(fid, sim, err);
     if (!rc) rc = write_summary(fid, sim, err);
     if (!rc) rc = write_solver(fid, sim, err);
@@ -397,196 +402,64 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
         return rc;
     }
     snprintf(w->final_path, sizeof w->final_path, "%s", w->file->path);
-    char ck[1200];
-    ckpt_path_of(w->file->path, ck, sizeof ck);
     rc = wf_h5_commit(&w->file, err);
-    if (!rc) unlink(ck); /* the result is complete: its checkpoint is of no further use */
+    if (!rc) wf_ckpt_remove(w->final_path); /* the result is complete: its checkpoint is of no further use */
     return rc;
 }
 
-/* ---- checkpoints (FILE.h5.ckpt) and resumption ---- */
+/* ---- checkpoints (FILE.h5.ckpt, src/h5ckpt.h) and resumption ---- */
 
 static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
 {
     WfH5Out *w = ctx;
-    const WfScenario *sc = wf_sim_scenario(sim);
     int rc = flush_ts(w, err);
-    if (rc) return rc;
-    /* The result file must hold every row the checkpoint counts before the checkpoint exists. */
+    if (rc) return wf_err_prefix(err, "%s: ", w->file->partial);
+    /* The result file must hold every row the checkpoint counts (but those it saves) before the checkpoint exists. */
     if (H5Fflush(w->file->fid, H5F_SCOPE_GLOBAL) < 0) return wf_err(err, WF_ESYS, "HDF5: flush %s", w->file->partial);
-    char ck[1200], tmp[1210];
-    ckpt_path_of(w->file->path, ck, sizeof ck);
-    snprintf(tmp, sizeof tmp, "%s.tmp", ck);
-    hid_t f = H5Fcreate(tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
-    if (f < 0) return wf_err(err, WF_ESYS, "%s: cannot create the checkpoint", tmp);
-    WfStateVar vars[64];
-    size_t nv = wf_sim_state((WfSim *)sim, vars, 64);
-    rc = wf_h5_attr_str(f, "scenario_path", sc->path, err) ||
-         wf_h5_attr_i64(f, "ts_rows", (int64_t)w->ts[0].rows, err) ||
-         wf_h5_attr_i64(f, "traj_rows", (int64_t)w->tr_t.rows, err) ||
-         wf_h5_attr_i64(f, "steps_done", wf_sim_steps_done(sim), err) ||
-         wf_h5_scalar_str(f, "scenario_text", sc->text, "scenario file verbatim", err) ||
-         wf_h5_scalar_str(f, "overrides", sc->overrides, "--set assignments, one per line", err);
-    hid_t g = rc ? H5I_INVALID_HID : wf_h5_group(f, "state", err);
-    if (!rc && g < 0) rc = WF_ESYS;
-    for (size_t i = 0; !rc && i < nv && i < 64; i++) {
-        hsize_t dim = vars[i].size;
-        rc = wf_h5_write_u8(g, vars[i].name, 1, &dim, vars[i].data, "1", "raw bytes of an engine state block", err);
-    }
-    if (g >= 0) H5Gclose(g);
-    if (H5Fclose(f) < 0 && !rc) rc = wf_err(err, WF_ESYS, "%s: close failed", tmp);
-    if (!rc && rename(tmp, ck) != 0) rc = wf_err(err, WF_ESYS, "rename %s -> %s: %s", tmp, ck, strerror(errno));
-    if (rc) unlink(tmp);
-    return rc;
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sim, sp);
+    /* wf_sim_state packs the scalars into the engine before listing the blocks; they are only read here. */
+    size_t nv = wf_sim_state((WfSim *)sim, vars, WF_MAX_STATE_VARS);
+    return wf_ckpt_save(w->file->path, "ring", wf_sim_scenario(sim), wf_sim_steps_done(sim), cursor_names, N_CUR, sp,
+                        ns, vars, nv, err);
 }
 
-static int read_scalar_string(hid_t loc, const char *name, char **out, WfError *err)
+static void init_handles(WfH5Out *w)
 {
-    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), t = H5Tcopy(H5T_C_S1);
-    char *s = NULL;
-    int rc = d < 0 || t < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0 ||
-             H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) < 0 || !s;
-    if (!rc) {
-        *out = strdup(s);
-        if (!*out) rc = 1;
-    }
-    if (s) H5free_memory(s);
-    if (t >= 0) H5Tclose(t);
-    if (d >= 0) H5Dclose(d);
-    return rc ? wf_err(err, WF_EINPUT, "checkpoint: cannot read '%s'", name) : 0;
-}
-
-void wf_checkpoint_info_free(WfCheckpointInfo *ck)
-{
-    free(ck->scenario_text);
-    free(ck->overrides);
-    ck->scenario_text = ck->overrides = NULL;
-}
-
-int wf_h5out_read_checkpoint(const char *result, WfCheckpointInfo *ck, WfError *err)
-{
-    memset(ck, 0, sizeof *ck);
-    char path[1200];
-    ckpt_path_of(result, path, sizeof path);
-    wf_h5_library_init();
-    struct stat st;
-    if (stat(result, &st) == 0)
-        return wf_err(err, WF_EINPUT, "%s is complete: nothing to resume", result);
-    if (stat(path, &st) != 0)
-        return wf_err(err, WF_EINPUT, "%s: no checkpoint (runs leave one when interrupted, or with --checkpoint-every)",
-                      path);
-    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
-    if (f < 0) return wf_err(err, WF_EINPUT, "%s: not a readable checkpoint", path);
-    int rc = read_scalar_string(f, "scenario_text", &ck->scenario_text, err);
-    if (!rc) rc = read_scalar_string(f, "overrides", &ck->overrides, err);
-    char sp[1024] = "";
-    if (!rc) {
-        hid_t a = H5Aopen(f, "scenario_path", H5P_DEFAULT), t = a >= 0 ? H5Aget_type(a) : H5I_INVALID_HID;
-        size_t sz = t >= 0 ? H5Tget_size(t) : 0;
-        if (a < 0 || t < 0 || sz >= sizeof sp || H5Aread(a, t, sp) < 0) rc = wf_err(err, WF_EINPUT, "%s: no scenario_path", path);
-        if (t >= 0) H5Tclose(t);
-        if (a >= 0) H5Aclose(a);
-        sp[sz < sizeof sp ? sz : sizeof sp - 1] = '\0';
-    }
-    snprintf(ck->scenario_path, sizeof ck->scenario_path, "%s", sp);
-    H5Fclose(f);
-    if (rc) wf_checkpoint_info_free(ck);
-    return rc;
+    w->g_ts = w->g_traj = H5I_INVALID_HID;
+    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+    for (size_t i = 0; i < 6; i++) all[i]->dset = H5I_INVALID_HID;
+    for (size_t c = 0; c < WF_TS_N_COLS; c++) w->ts[c].dset = H5I_INVALID_HID;
 }
 
 int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err)
 {
     *out = NULL;
-    char path[1200];
-    ckpt_path_of(result, path, sizeof path);
-    hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
-    if (f < 0) return wf_err(err, WF_EINPUT, "%s: not a readable checkpoint", path);
-    int64_t ts_rows = 0, traj_rows = 0;
-    hid_t a1 = H5Aopen(f, "ts_rows", H5P_DEFAULT), a2 = H5Aopen(f, "traj_rows", H5P_DEFAULT);
-    int rc = a1 < 0 || a2 < 0 || H5Aread(a1, H5T_NATIVE_INT64, &ts_rows) < 0 ||
-             H5Aread(a2, H5T_NATIVE_INT64, &traj_rows) < 0;
-    if (a1 >= 0) H5Aclose(a1);
-    if (a2 >= 0) H5Aclose(a2);
-    if (rc) {
-        H5Fclose(f);
-        return wf_err(err, WF_EINPUT, "%s: damaged checkpoint (row counts)", path);
-    }
-    /* Every state block must exist with exactly the size this scenario gives it. */
-    WfStateVar vars[64];
-    size_t nv = wf_sim_state(sim, vars, 64);
-    for (size_t i = 0; !rc && i < nv && i < 64; i++) {
-        char name[128];
-        snprintf(name, sizeof name, "state/%s", vars[i].name);
-        hid_t d = H5Dopen2(f, name, H5P_DEFAULT), sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
-        hssize_t np = sp >= 0 ? H5Sget_simple_extent_npoints(sp) : -1;
-        if (d < 0 || np != (hssize_t)vars[i].size)
-            rc = wf_err(err, WF_EINPUT, "%s: state block '%s' is missing or has %lld bytes, the scenario needs %zu",
-                        path, vars[i].name, (long long)np, vars[i].size);
-        else if (H5Dread(d, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, vars[i].data) < 0)
-            rc = wf_err(err, WF_ESYS, "%s: cannot read state block '%s'", path, vars[i].name);
-        if (sp >= 0) H5Sclose(sp);
-        if (d >= 0) H5Dclose(d);
-    }
-    H5Fclose(f);
-    if (rc) return rc;
-    wf_sim_restored(sim);
-
+    const WfScenario *sc = wf_sim_scenario(sim);
     WfH5Out *w = calloc(1, sizeof *w);
-    WfH5File *hf = calloc(1, sizeof *hf);
-    if (!w || !hf) {
-        free(w);
-        free(hf);
-        return wf_err(err, WF_ESYS, "out of memory");
+    if (!w) return wf_err(err, WF_ESYS, "out of memory");
+    init_handles(w);
+    w->resume = 1;
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sim, sp);
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS);
+    /* What the interrupted run wrote at its end is written again at the end of this one. */
+    static const char *const stale[] = {"vehicles", "summary", "solver"};
+    /* The checkpoint is read and verified completely before the partial file is touched. */
+    int rc = wf_ckpt_restore(result, "ring", sc, cursor_names, N_CUR, sp, ns, vars, nv, err);
+    if (!rc) {
+        wf_sim_restored(sim);
+        rc = wf_ckpt_reopen(result, sc, sp, ns, stale, 3, &w->file, err);
     }
-    snprintf(hf->path, sizeof hf->path, "%s", result);
-    snprintf(hf->partial, sizeof hf->partial, "%s.partial", result);
-    hf->fid = H5Fopen(hf->partial, H5F_ACC_RDWR, H5P_DEFAULT);
-    if (hf->fid < 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: cannot reopen the partial result (damaged by a hard kill?)", hf->partial);
-        free(w);
-        free(hf);
+    if (rc) {
+        wf_h5out_destroy(&w);
         return rc;
     }
-    w->file = hf;
-    w->g_ts = w->g_traj = H5I_INVALID_HID;
-    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 6; i++) all[i]->dset = H5I_INVALID_HID;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) w->ts[c].dset = H5I_INVALID_HID;
-    w->resume = 1;
-    w->resume_ts_rows = (hsize_t)ts_rows;
-    w->resume_traj_rows = (hsize_t)traj_rows;
     *ops = (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
                       .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
     *out = w;
-    return 0;
-}
-
-static int h5_begin_resume(WfH5Out *w, const WfSim *sim, WfError *err)
-{
-    const WfScenario *sc = wf_sim_scenario(sim);
-    hid_t fid = w->file->fid;
-    w->n_classes = sc->n_classes;
-    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
-    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
-    /* What the interrupted run wrote at its end is rewritten at the end of this one. */
-    const char *stale[] = {"vehicles", "summary", "solver"};
-    for (int i = 0; i < 3; i++)
-        if (H5Lexists(fid, stale[i], H5P_DEFAULT) > 0 && H5Ldelete(fid, stale[i], H5P_DEFAULT) < 0)
-            return wf_err(err, WF_ESYS, "HDF5: cannot remove /%s from %s", stale[i], w->file->partial);
-    w->g_ts = H5Gopen2(fid, "timeseries", H5P_DEFAULT);
-    if (w->g_ts < 0) return wf_err(err, WF_EINPUT, "%s: no /timeseries", w->file->partial);
-    for (size_t c = 0; c < WF_TS_N_COLS; c++)
-        if (wf_h5_series_open(w->g_ts, wf_ts_columns[c].name, w->resume_ts_rows, &w->ts[c], err)) return WF_EINPUT;
-    if (wf_h5_series_open(w->g_ts, "class_fuel_rate", w->resume_ts_rows, &w->ts_class, err)) return WF_EINPUT;
-    if (sc->trajectories) {
-        w->tbuf = malloc(wf_sim_fleet(sim)->n * sizeof *w->tbuf);
-        w->g_traj = H5Gopen2(fid, "trajectories", H5P_DEFAULT);
-        if (!w->tbuf || w->g_traj < 0) return wf_err(err, WF_EINPUT, "%s: no /trajectories", w->file->partial);
-        const char *names[] = {"t", "x", "v", "a", "fuel_rate"};
-        WfH5Series *tr[] = {&w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-        for (int i = 0; i < 5; i++)
-            if (wf_h5_series_open(w->g_traj, names[i], w->resume_traj_rows, tr[i], err)) return WF_EINPUT;
-    }
     return 0;
 }
 
@@ -595,10 +468,7 @@ int wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, W
     *out = NULL;
     WfH5Out *w = calloc(1, sizeof *w);
     if (!w) return wf_err(err, WF_ESYS, "out of memory");
-    w->g_ts = w->g_traj = H5I_INVALID_HID;
-    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 6; i++) all[i]->dset = H5I_INVALID_HID;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) w->ts[c].dset = H5I_INVALID_HID;
+    init_handles(w);
     int rc = wf_h5_create(path, force, &w->file, err);
     if (rc) {
         free(w);
@@ -614,17 +484,14 @@ void wf_h5out_destroy(WfH5Out **pw)
 {
     if (!pw || !*pw) return;
     WfH5Out *w = *pw;
-    if (w->file) {
-        for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
-        WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-        for (size_t i = 0; i < 6; i++) wf_h5_series_close(all[i]);
-    }
+    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
+    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+    for (size_t i = 0; i < 6; i++) wf_h5_series_close(all[i]);
     if (w->g_ts >= 0) H5Gclose(w->g_ts);
     if (w->g_traj >= 0) H5Gclose(w->g_traj);
     /* A run that never started writing removes its empty file; a resumed one never deletes what it reopened. */
     if (w->file) wf_h5_abandon(&w->file, !w->ended && !w->resume);
     free(w->buf);
-    free(w->tbuf);
     free(w);
     *pw = NULL;
 }

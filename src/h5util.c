@@ -23,11 +23,10 @@ void wf_h5_library_init(void)
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
 }
 
-int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
+/* A new WfH5File for PATH and PATH.partial, not yet open. */
+static int file_new(const char *path, WfH5File **out, WfError *err)
 {
-    wf_h5_library_init();
     *out = NULL;
-    struct stat st;
     WfH5File *f = calloc(1, sizeof *f);
     if (!f) return wf_err(err, WF_ESYS, "out of memory");
     int w1 = snprintf(f->path, sizeof f->path, "%s", path);
@@ -36,6 +35,37 @@ int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
         free(f);
         return wf_err(err, WF_EINPUT, "output path too long: %s", path);
     }
+    f->fid = H5I_INVALID_HID;
+    *out = f;
+    return 0;
+}
+
+int wf_h5_reopen(const char *path, WfH5File **out, WfError *err)
+{
+    wf_h5_library_init();
+    *out = NULL;
+    WfH5File *f = NULL;
+    int rc = file_new(path, &f, err);
+    if (rc) return rc;
+    f->fid = H5Fopen(f->partial, H5F_ACC_RDWR, H5P_DEFAULT);
+    if (f->fid < 0) {
+        rc = wf_err(err, WF_EINPUT, "%s: cannot reopen the partial result (missing, or damaged by a hard kill?)",
+                    f->partial);
+        free(f);
+        return rc;
+    }
+    *out = f;
+    return 0;
+}
+
+int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
+{
+    wf_h5_library_init();
+    *out = NULL;
+    struct stat st;
+    WfH5File *f = NULL;
+    int rc0 = file_new(path, &f, err);
+    if (rc0) return rc0;
     if (!force && stat(path, &st) == 0) {
         free(f);
         return wf_err(err, WF_EINPUT, "%s exists: results are never overwritten silently (use --force, or -o another file)",
@@ -128,6 +158,61 @@ int wf_h5_attr_f64(hid_t obj, const char *name, double value, WfError *err)
 int wf_h5_attr_i64(hid_t obj, const char *name, int64_t value, WfError *err)
 {
     return attr_scalar(obj, name, H5T_NATIVE_INT64, &value, err);
+}
+
+int wf_h5_read_attr_str(hid_t obj, const char *file, const char *name, char *out, size_t len, WfError *err)
+{
+    if (H5Aexists(obj, name) <= 0) return wf_err(err, WF_EINPUT, "%s: no attribute '%s'", file, name);
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT), t = a >= 0 ? H5Aget_type(a) : H5I_INVALID_HID;
+    size_t sz = t >= 0 ? H5Tget_size(t) : 0;
+    int rc = 0;
+    if (t < 0 || H5Tget_class(t) != H5T_STRING || H5Tis_variable_str(t) != 0 || sz >= len)
+        rc = wf_err(err, WF_EINPUT, "%s: attribute '%s' is not a string of at most %zu bytes", file, name, len - 1);
+    else if (H5Aread(a, t, out) < 0)
+        rc = wf_err(err, WF_ESYS, "%s: HDF5: read attribute '%s' failed", file, name);
+    else
+        out[sz] = '\0';
+    if (t >= 0) H5Tclose(t);
+    if (a >= 0) H5Aclose(a);
+    return rc;
+}
+
+int wf_h5_read_attr_i64(hid_t obj, const char *file, const char *name, int64_t *out, WfError *err)
+{
+    if (H5Aexists(obj, name) <= 0) return wf_err(err, WF_EINPUT, "%s: no attribute '%s'", file, name);
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT), t = a >= 0 ? H5Aget_type(a) : H5I_INVALID_HID;
+    int rc = 0;
+    if (t < 0 || H5Tget_class(t) != H5T_INTEGER)
+        rc = wf_err(err, WF_EINPUT, "%s: attribute '%s' is not an integer", file, name);
+    else if (H5Aread(a, H5T_NATIVE_INT64, out) < 0)
+        rc = wf_err(err, WF_ESYS, "%s: HDF5: read attribute '%s' failed", file, name);
+    if (t >= 0) H5Tclose(t);
+    if (a >= 0) H5Aclose(a);
+    return rc;
+}
+
+int wf_h5_read_scalar_str(hid_t loc, const char *file, const char *name, char **out, WfError *err)
+{
+    *out = NULL;
+    if (H5Lexists(loc, name, H5P_DEFAULT) <= 0) return wf_err(err, WF_EINPUT, "%s: no dataset '%s'", file, name);
+    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), ft = d >= 0 ? H5Dget_type(d) : H5I_INVALID_HID;
+    hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID, t = H5Tcopy(H5T_C_S1);
+    char *s = NULL;
+    int rc = 0;
+    if (ft < 0 || sp < 0 || H5Tget_class(ft) != H5T_STRING || H5Tis_variable_str(ft) <= 0 ||
+        H5Sget_simple_extent_npoints(sp) != 1)
+        rc = wf_err(err, WF_EINPUT, "%s: '%s' is not a scalar string", file, name);
+    else if (t < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0 ||
+             H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) < 0 || !s)
+        rc = wf_err(err, WF_ESYS, "%s: HDF5: read dataset '%s' failed", file, name);
+    else if (!(*out = strdup(s)))
+        rc = wf_err(err, WF_ESYS, "out of memory");
+    if (s) H5free_memory(s);
+    if (t >= 0) H5Tclose(t);
+    if (sp >= 0) H5Sclose(sp);
+    if (ft >= 0) H5Tclose(ft);
+    if (d >= 0) H5Dclose(d);
+    return rc;
 }
 
 static int label(hid_t d, const char *name, const char *units, const char *desc, WfError *err)
@@ -235,30 +320,69 @@ int wf_h5_scalar_str(hid_t loc, const char *name, const char *s, const char *des
     return rc;
 }
 
-int wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t chunk_rows, int compress,
-                        const char *units, const char *desc, WfH5Series *s, WfError *err)
+hsize_t wf_h5_series_chunk_rows(hsize_t cols, hsize_t chunk_rows)
+{
+    hsize_t r = chunk_rows ? chunk_rows : 1;
+    /* Keep a chunk near 4 MiB whatever the row width. */
+    if (cols && r * cols * 8 > (4u << 20)) r = (4u << 20) / (cols * 8) + 1;
+    return r;
+}
+
+/* "pending:" + the path with '.' for '/' (a checkpoint keeps its blocks as datasets of one group). */
+static void series_block_name(WfH5Series *s)
+{
+    snprintf(s->block, sizeof s->block, "pending:%s", s->name);
+    for (char *p = s->block; *p; p++)
+        if (*p == '/') *p = '.';
+}
+
+/* The identity of a series in messages and checkpoints (its path in the file), and the pending buffer of a
+ * compressed one. */
+static int series_setup(WfH5Series *s, const char *path, hsize_t cols, hsize_t chunk_rows, int compress,
+                        WfError *err)
 {
     memset(s, 0, sizeof *s);
     s->dset = H5I_INVALID_HID;
-    snprintf(s->name, sizeof s->name, "%s", name);
+    snprintf(s->name, sizeof s->name, "%s", path[0] == '/' ? path + 1 : path);
+    series_block_name(s);
+    s->cols = cols;
+    s->compress = compress != 0;
+    s->chunk_rows = wf_h5_series_chunk_rows(cols, chunk_rows);
+    /* A one-row chunk is complete at every append: nothing waits. */
+    if (compress && s->chunk_rows > 1) {
+        s->pend = malloc(s->chunk_rows * (cols ? cols : 1) * sizeof *s->pend);
+        if (!s->pend) return wf_err(err, WF_ESYS, "out of memory for the rows of dataset '%s'", s->name);
+    }
+    return 0;
+}
+
+int wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t chunk_rows, int compress,
+                        const char *units, const char *desc, WfH5Series *s, WfError *err)
+{
+    int rc = series_setup(s, name, cols, chunk_rows, compress, err);
+    if (rc) return rc;
     int rank = cols ? 2 : 1;
-    hsize_t dims[2] = {0, cols}, maxd[2] = {H5S_UNLIMITED, cols}, chunk[2] = {chunk_rows ? chunk_rows : 1, cols};
-    /* Keep a chunk near 1 MiB whatever the row width. */
-    if (cols && chunk[0] * cols * 8 > (4u << 20)) chunk[0] = (4u << 20) / (cols * 8) + 1;
+    hsize_t dims[2] = {0, cols}, maxd[2] = {H5S_UNLIMITED, cols}, chunk[2] = {s->chunk_rows, cols};
     hid_t sp = H5Screate_simple(rank, dims, maxd), dcpl = H5Pcreate(H5P_DATASET_CREATE);
-    int rc = (sp < 0 || dcpl < 0 || H5Pset_chunk(dcpl, rank, chunk) < 0);
+    rc = (sp < 0 || dcpl < 0 || H5Pset_chunk(dcpl, rank, chunk) < 0);
     if (!rc && compress && (H5Pset_shuffle(dcpl) < 0 || H5Pset_deflate(dcpl, 1) < 0)) rc = 1;
     if (!rc && (s->dset = H5Dcreate2(loc, name, H5T_IEEE_F64LE, sp, H5P_DEFAULT, dcpl, H5P_DEFAULT)) < 0) rc = 1;
     if (dcpl >= 0) H5Pclose(dcpl);
     if (sp >= 0) H5Sclose(sp);
     if (rc) return h5fail(err, "create dataset", name);
-    s->cols = cols;
+    /* From here on the series is named by its path in the file ("trips/serial"). */
+    char path[sizeof s->name];
+    ssize_t len = H5Iget_name(s->dset, path, sizeof path);
+    if (len > 0 && (size_t)len < sizeof path) {
+        snprintf(s->name, sizeof s->name, "%s", path[0] == '/' ? path + 1 : path);
+        series_block_name(s);
+    }
     return label(s->dset, name, units, desc, err);
 }
 
-int wf_h5_series_append(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
+/* Rows written to the file, extending it. */
+static int series_write(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
 {
-    if (n == 0) return 0;
     int rank = s->cols ? 2 : 1;
     hsize_t newdims[2] = {s->rows + n, s->cols}, start[2] = {s->rows, 0}, count[2] = {n, s->cols};
     if (H5Dset_extent(s->dset, newdims) < 0) return h5fail(err, "extend dataset", s->name);
@@ -272,29 +396,71 @@ int wf_h5_series_append(WfH5Series *s, hsize_t n, const double *rows, WfError *e
     return 0;
 }
 
+int wf_h5_series_append(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
+{
+    if (!s->pend) return n ? series_write(s, n, rows, err) : 0;
+    size_t width = s->cols ? s->cols : 1;
+    while (n > 0) {
+        hsize_t take = s->chunk_rows - s->n_pend < n ? s->chunk_rows - s->n_pend : n;
+        memcpy(s->pend + s->n_pend * width, rows, take * width * sizeof *rows);
+        s->n_pend += take, rows += take * width, n -= take;
+        if (s->n_pend == s->chunk_rows) {
+            int rc = series_write(s, s->n_pend, s->pend, err);
+            if (rc) return rc;
+            s->n_pend = 0;
+        }
+    }
+    return 0;
+}
+
+int wf_h5_series_flush(WfH5Series *s, WfError *err)
+{
+    if (!s->n_pend) return 0;
+    int rc = series_write(s, s->n_pend, s->pend, err);
+    if (!rc) s->n_pend = 0;
+    return rc;
+}
+
 void wf_h5_series_close(WfH5Series *s)
 {
     if (s->dset >= 0) H5Dclose(s->dset);
     s->dset = H5I_INVALID_HID;
+    free(s->pend);
+    s->pend = NULL;
+    s->n_pend = 0;
 }
 
-int wf_h5_series_open(hid_t loc, const char *name, hsize_t keep_rows, WfH5Series *s, WfError *err)
+int wf_h5_series_resume(WfH5Series *s, const char *path, hsize_t cols, hsize_t chunk_rows, int compress,
+                        hsize_t total_rows, WfError *err)
 {
-    memset(s, 0, sizeof *s);
-    snprintf(s->name, sizeof s->name, "%s", name);
-    s->dset = H5Dopen2(loc, name, H5P_DEFAULT);
-    if (s->dset < 0) return h5fail(err, "open dataset", name);
-    hid_t sp = H5Dget_space(s->dset);
-    hsize_t dims[2] = {0, 0};
+    int rc = series_setup(s, path, cols, chunk_rows, compress, err);
+    if (rc) return rc;
+    s->n_pend = s->pend ? total_rows % s->chunk_rows : 0;
+    s->rows = total_rows - s->n_pend;
+    return 0;
+}
+
+int wf_h5_series_reopen(hid_t fid, WfH5Series *s, WfError *err)
+{
+    const char *name = s->name;
+    s->dset = H5Lexists(fid, name, H5P_DEFAULT) > 0 ? H5Dopen2(fid, name, H5P_DEFAULT) : H5I_INVALID_HID;
+    if (s->dset < 0) return wf_err(err, WF_EINPUT, "no dataset '%s'", name);
+    hid_t sp = H5Dget_space(s->dset), dcpl = H5Dget_create_plist(s->dset);
+    hsize_t dims[2] = {0, 0}, chunk[2] = {0, 0};
     int rank = sp >= 0 ? H5Sget_simple_extent_dims(sp, dims, NULL) : -1;
+    int crank = dcpl >= 0 && H5Pget_layout(dcpl) == H5D_CHUNKED ? H5Pget_chunk(dcpl, 2, chunk) : -1;
+    int nfilt = dcpl >= 0 ? H5Pget_nfilters(dcpl) : -1;
+    if (dcpl >= 0) H5Pclose(dcpl);
     if (sp >= 0) H5Sclose(sp);
-    if (rank < 1 || rank > 2) return h5fail(err, "read the shape of", name);
-    if (dims[0] < keep_rows)
+    if (rank < 1 || rank > 2 || crank != rank || nfilt < 0) return h5fail(err, "read the layout of", name);
+    /* The resumed run must write the rows the interrupted one would have: same shape, chunks and filters. */
+    if ((rank == 2 ? dims[1] : 0) != s->cols || chunk[0] != s->chunk_rows || (nfilt > 0) != s->compress)
+        return wf_err(err, WF_EINPUT, "dataset '%s' has another shape, chunking or compression than this run writes",
+                      name);
+    if (dims[0] < s->rows)
         return wf_err(err, WF_EINPUT, "dataset '%s' has %llu rows, the checkpoint needs %llu", name,
-                      (unsigned long long)dims[0], (unsigned long long)keep_rows);
-    s->cols = rank == 2 ? dims[1] : 0;
-    s->rows = keep_rows;
-    dims[0] = keep_rows;
+                      (unsigned long long)dims[0], (unsigned long long)s->rows);
+    dims[0] = s->rows;
     /* Rows written after the checkpoint are dropped: the resumed run writes them again. */
     if (H5Dset_extent(s->dset, dims) < 0) return h5fail(err, "truncate dataset", name);
     return 0;

@@ -12,6 +12,7 @@
 #include <omp.h>
 #endif
 
+#include "hash.h"
 #include "wavefuel/config.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
@@ -675,12 +676,7 @@ static double now_s(void)
 }
 
 /* FNV-1a, 64 bit: names a run's own file after its overrides, so the name stays when the sweep is extended. */
-static uint64_t fnv1a(const char *s)
-{
-    uint64_t h = 14695981039346656037ull;
-    for (; *s; s++) h = (h ^ (unsigned char)*s) * 1099511628211ull;
-    return h;
-}
+static uint64_t fnv1a(const char *s) { return wf_fnv1a64(WF_FNV1A64_INIT, s, strlen(s)); }
 
 static void record_error(WfSweepResult *res, const WfError *err)
 {

@@ -7,6 +7,7 @@
  * scenario errors. Scenarios are written to a temporary directory and run through the public API with an
  * in-memory output. */
 #include <math.h>
+#include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -651,7 +652,165 @@ static void test_grade(void)
     grade_case(1);
 }
 
-/* --------------------------------------------------------------------------------- 5. scenario errors */
+/* ------------------------------------------------------------------------- 5. state save and restore */
+
+/* A run stopped at a record time by its own output (as SIGTERM stops it), its state blocks copied at the
+ * checkpoint the engine then requests, and a second engine built from the same scenario that gets the copied bytes
+ * and runs on: its records and trips must continue the first run's exactly, and every result of the two together
+ * must be the bytes of an uninterrupted run. The scenario exercises what the CLI test (tests/t_corridor_resume.sh)
+ * does not: interleaved placement, a time-varying deterministic demand that stops after a number of vehicles, a
+ * leader outflow starting inside the road, ACC and a PI controller with memory. */
+typedef struct Snap {
+    Rec            rec;
+    double         stop_at_s;
+    volatile sig_atomic_t stop;
+    int            taken;       /* checkpoints requested */
+    size_t         rows, trips; /* records and trips output when the last one was taken */
+    WfStateVar     vars[WF_MAX_STATE_VARS];
+    unsigned char *bytes[WF_MAX_STATE_VARS];
+    size_t         n_vars;
+} Snap;
+
+static int snap_row(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
+{
+    Snap *sn = ctx;
+    if (row->v[WF_CTS_T] >= sn->stop_at_s) sn->stop = SIGTERM;
+    return rec_row(&sn->rec, c, row, err);
+}
+
+static int snap_trips(void *ctx, const WfCorridor *c, const WfTrip *t, size_t n, WfError *err)
+{
+    return rec_trips(&((Snap *)ctx)->rec, c, t, n, err);
+}
+
+static int snap_checkpoint(void *ctx, const WfCorridor *c, WfError *err)
+{
+    Snap *sn = ctx;
+    sn->n_vars = wf_corridor_state((WfCorridor *)c, sn->vars, WF_MAX_STATE_VARS);
+    for (size_t i = 0; i < sn->n_vars; i++) {
+        if (!sn->bytes[i]) sn->bytes[i] = malloc(sn->vars[i].size + 1); /* block sizes are fixed for a corridor */
+        if (!sn->bytes[i]) return wf_err(err, WF_ESYS, "test: out of memory");
+        memcpy(sn->bytes[i], sn->vars[i].data, sn->vars[i].size);
+    }
+    sn->taken++;
+    sn->rows = sn->rec.n;
+    sn->trips = sn->rec.n_trips;
+    return 0;
+}
+
+static void test_state_restore(void)
+{
+    WfScenario *sc = load_text("restore.yaml",
+                               "seed: 5\n"
+                               "road:\n"
+                               "  type: corridor\n"
+                               "  length_m: 2000\n"
+                               "  speed_limit_mps: 30\n"
+                               "  grade: {points: [[0, 0.01], [1000, -0.01], [2000, 0.01]]}\n"
+                               "  zones: [{type: speed_limit, from_m: 1200, to_m: 1400, speed_limit_mps: 10},\n"
+                               "          {type: headway, from_m: 300, to_m: 700, factor: 1.3}]\n"
+                               "time: {duration_s: 1200, dt_s: 0.1, output_interval_s: 1, warmup_s: 100}\n"
+                               "fleet:\n"
+                               "  placement: interleaved\n"
+                               "  classes: [{class: midsize_sedan, fraction: 0.6},\n"
+                               "            {class: midsize_suv, fraction: 0.2},\n"
+                               "            {class: class8_tractor, fraction: 0.2}]\n"
+                               "  drivers:\n"
+                               "    - {name: human, model: idm, fraction: 0.6, noise_mps2: 0.3,\n"
+                               "       params: {v0_mps: 28, T_s: 1.3, s0_m: 2, a_mps2: 1.0, b_mps2: 1.5},\n"
+                               "       heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1}}}\n"
+                               "    - {name: acc, model: acc, fraction: 0.2}\n"
+                               "    - {name: pi, model: pi_saturation, fraction: 0.2, class: midsize_sedan}\n"
+                               "corridor:\n"
+                               "  inflow: {points: [[0, 900], [300, 2400], [900, 600]], vehicles: 400}\n"
+                               "  outflow: {type: leader, points: [[0, 20], [500, 6], [700, 20]], offset_m: -300}\n"
+                               "  detectors: {x_m: [100, 1300, 1900], interval_s: 60}\n"
+                               "  edie: {dx_m: 100, dt_s: 30}\n");
+    if (!sc) return;
+    Rec ra = {0};
+    WfCorridor *ca = run_corridor(sc, &ra), *cb = NULL, *cc = NULL;
+    WfError err = {0};
+    Snap sn = {.stop_at_s = 517.0};
+    Rec rc_ = {0};
+    int rc = wf_corridor_create(sc, &cb, &err);
+    CHECK(rc == 0, "create: %s", err.msg);
+    if (ca && !rc) {
+        WfCorridorOutput ob = {.record = snap_row, .trips = snap_trips, .checkpoint = snap_checkpoint, .ctx = &sn};
+        wf_corridor_set_checkpoint_interval(cb, 1e-9); /* every step: the last one taken is the interruption's */
+        rc = wf_corridor_run(cb, &ob, NULL, NULL, &sn.stop, &err);
+        CHECK(rc == WF_EINTR, "the stopped run: rc %d (%s)", rc, err.msg);
+        CHECK(sn.taken > 100 && sn.rows == 518, "checkpoints %d, records %zu at the last", sn.taken, sn.rows);
+        rc = wf_corridor_create(sc, &cc, &err);
+        CHECK(rc == 0, "create: %s", err.msg);
+    }
+    if (ca && cc && sn.taken) {
+        WfStateVar v[WF_MAX_STATE_VARS];
+        size_t nv = wf_corridor_state(cc, v, WF_MAX_STATE_VARS);
+        CHECK(nv == sn.n_vars && nv <= WF_MAX_STATE_VARS, "%zu blocks, %zu saved", nv, sn.n_vars);
+        for (size_t i = 0; i < nv && i < sn.n_vars; i++) {
+            CHECK(v[i].size == sn.vars[i].size && !strcmp(v[i].name, sn.vars[i].name), "block %zu differs", i);
+            if (v[i].size == sn.vars[i].size) memcpy(v[i].data, sn.bytes[i], v[i].size);
+        }
+        /* A state that cannot belong to this corridor is refused; the saved one is accepted. */
+        size_t first = wf_corridor_vehicles(cc)->first;
+        for (size_t i = 0; i < nv; i++)
+            if (!strcmp(v[i].name, "first")) *(size_t *)v[i].data = wf_corridor_vehicles(cc)->cap;
+        rc = wf_corridor_restored(cc, &err);
+        CHECK(rc == WF_EINPUT && strstr(err.msg, "vehicle buffer indices"), "bad state: rc %d '%s'", rc, err.msg);
+        for (size_t i = 0; i < nv; i++)
+            if (!strcmp(v[i].name, "first")) *(size_t *)v[i].data = first;
+        rc = wf_corridor_restored(cc, &err);
+        CHECK(rc == 0, "restored: %s", err.msg);
+        WfCorridorOutput oc = {.record = rec_row, .trips = rec_trips, .ctx = &rc_};
+        rc = rc ? rc : wf_corridor_run(cc, &oc, NULL, NULL, NULL, &err);
+        CHECK(rc == 0, "the resumed run: %s", err.msg);
+    }
+    if (ca && cc && !rc) {
+        const WfCorridorCounts *k = wf_corridor_counts(ca);
+        CHECK(sn.rows + rc_.n == ra.n, "records: %zu before, %zu after, %zu uninterrupted", sn.rows, rc_.n, ra.n);
+        CHECK(sn.trips + rc_.n_trips == ra.n_trips, "trips: %zu + %zu, %zu uninterrupted", sn.trips, rc_.n_trips,
+              ra.n_trips);
+        CHECK(sn.trips > 50 && k->delayed > 20 && k->arrived == 400 && k->overlaps > 0,
+              "the run must have trips before the stop (%zu), delayed entries (%lld), every arrival (%lld), overlaps "
+              "(%lld)", sn.trips, (long long)k->delayed, (long long)k->arrived, (long long)k->overlaps);
+        size_t same_rows = 0, same_trips = 0;
+        for (size_t i = 0; i < ra.n && i < sn.rows + rc_.n; i++) {
+            const WfCorridorRow *r = i < sn.rows ? &sn.rec.rows[i] : &rc_.rows[i - sn.rows];
+            same_rows += !memcmp(r, &ra.rows[i], sizeof *r);
+        }
+        for (size_t i = 0; i < ra.n_trips && i < sn.trips + rc_.n_trips; i++) {
+            const WfTrip *t = i < sn.trips ? &sn.rec.trips[i] : &rc_.trips[i - sn.trips];
+            same_trips += !memcmp(t, &ra.trips[i], sizeof *t);
+        }
+        CHECK(same_rows == ra.n && same_trips == ra.n_trips, "%zu of %zu records, %zu of %zu trips identical",
+              same_rows, ra.n, same_trips, ra.n_trips);
+        const WfEdie *ea = wf_corridor_edie(ca), *ec = wf_corridor_edie(cc);
+        const WfDetectors *da = wf_corridor_detectors(ca), *dc = wf_corridor_detectors(cc);
+        size_t ne = ea->nx * ea->nt, nd = da->n_int * da->n_det;
+        CHECK(!memcmp(ea->dist_m, ec->dist_m, ne * 8) && !memcmp(ea->time_s, ec->time_s, ne * 8) &&
+                  !memcmp(ea->fuel_g, ec->fuel_g, ne * 8) &&
+                  !memcmp(ea->class_fuel_g, ec->class_fuel_g, 3 * ea->nx * 8) &&
+                  !memcmp(ea->class_dist_m, ec->class_dist_m, 3 * ea->nx * 8),
+              "Edie sums differ");
+        CHECK(!memcmp(da->count, dc->count, nd * 8) && !memcmp(da->occupied_s, dc->occupied_s, nd * 8) &&
+                  !memcmp(da->sum_inv_v_spm, dc->sum_inv_v_spm, nd * 8),
+              "detector sums differ");
+        CHECK(!memcmp(wf_corridor_summary(ca), wf_corridor_summary(cc), sizeof(WfCorridorSummary)), "summaries differ");
+        printf("  state restore: stopped at t = %.0f s after %d checkpoints (%zu blocks), %zu records and %zu trips "
+               "identical to the uninterrupted run\n",
+               sn.stop_at_s + 0.1, sn.taken, sn.n_vars, same_rows, same_trips);
+    }
+    for (size_t i = 0; i < WF_MAX_STATE_VARS; i++) free(sn.bytes[i]);
+    wf_corridor_destroy(&ca);
+    wf_corridor_destroy(&cb);
+    wf_corridor_destroy(&cc);
+    wf_scenario_destroy(&sc);
+    rec_free(&ra);
+    rec_free(&sn.rec);
+    rec_free(&rc_);
+}
+
+/* --------------------------------------------------------------------------------- 6. scenario errors */
 
 static void expect_error(const char *name, const char *yaml, const char *needle)
 {
@@ -708,7 +867,7 @@ static void remove_tmp_dir(void)
     static const char *const names[] = {"inflow_a.csv", "inflow_b.csv", "cons_a.yaml", "cons_b.yaml", "free.yaml", "free_out.yaml",
                                         "fd_free.yaml", "fd_cong.yaml", "hill.yaml", "hill_z.yaml", "hill_z.csv",
                                         "e1.yaml", "e2.yaml", "e3.yaml", "e4.yaml", "e5.yaml", "e6.yaml", "e7.yaml",
-                                        "e8.yaml"};
+                                        "e8.yaml", "restore.yaml"};
     char path[256];
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
         snprintf(path, sizeof path, "%s/%s", tmp_dir, names[i]);
@@ -729,6 +888,7 @@ int main(void)
     RUN(test_fundamental_diagram_free);
     RUN(test_fundamental_diagram_congested);
     RUN(test_grade);
+    RUN(test_state_restore);
     RUN(test_scenario_errors);
     remove_tmp_dir();
     TEST_EXIT();

@@ -208,6 +208,9 @@ typedef struct WfCorridorOutput {
     int (*record)(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err);
     int (*trajectory)(void *ctx, const WfCorridor *c, double t_s, WfError *err);
     int (*trips)(void *ctx, const WfCorridor *c, const WfTrip *trips, size_t n, WfError *err);
+    /* Save everything needed to resume (every checkpoint interval of wall time, and when the run is interrupted):
+     * called between steps, after every completed trip so far has gone to trips(); may be NULL. */
+    int (*checkpoint)(void *ctx, const WfCorridor *c, WfError *err);
     int (*end)(void *ctx, const WfCorridor *c, int completed, const char *reason, WfError *err);
     void *ctx;
 } WfCorridorOutput;
@@ -217,10 +220,24 @@ typedef struct WfCorridorOutput {
  * keeping state can exceed), the entrance queue, trips buffer, detectors and Edie grid. */
 int  wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err);
 void wf_corridor_destroy(WfCorridor **c);
-/* Run to the end, as wf_sim_run: *stop (may be NULL) ends the run after the current step with WF_EINTR and
- * out->end(completed = 0); progress may be NULL. */
+/* Run to the end (from the restored step after wf_corridor_restored), as wf_sim_run: *stop (may be NULL) ends the
+ * run after the current step with out->checkpoint, out->end(completed = 0) and WF_EINTR; progress may be NULL. */
 int  wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
                      volatile sig_atomic_t *stop, WfError *err);
+
+/* Call out->checkpoint every `wall_s` seconds of wall time (0: only when the run is interrupted). */
+void wf_corridor_set_checkpoint_interval(WfCorridor *c, double wall_s);
+/* The complete state of a run between two steps as named byte blocks (WfStateVar, engine.h), at most max of
+ * them, returning their number (at most WF_MAX_STATE_VARS): the vehicles' slots (positions, speeds, drawn
+ * parameters, controller memory, serials, trip and window accumulators), the entrance queue and the drawn
+ * candidate at its head, the virtual leader, the counters and totals, the detector and Edie sums and the step,
+ * which with the vehicle serials and arrival numbers keys every random draw still to come. Blocks have fixed
+ * sizes for a given scenario. After saved bytes are written back into them, wf_corridor_restored() checks
+ * them and makes the next wf_corridor_run continue from the saved step. */
+size_t wf_corridor_state(WfCorridor *c, WfStateVar *vars, size_t max);
+/* WF_EINPUT naming the first inconsistency (a slot, queue or step index out of range, an unknown class or driver
+ * group on the road) when the restored blocks cannot be a state of this scenario. */
+int    wf_corridor_restored(WfCorridor *c, WfError *err);
 
 const WfScenario         *wf_corridor_scenario(const WfCorridor *c);
 const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c);

@@ -68,6 +68,9 @@ typedef struct WfStateVar {
     void       *data;
     size_t      size; /* bytes */
 } WfStateVar;
+/* Room for the blocks of a checkpoint: the ring engine has at most 16 + WF_MAX_GROUPS, the corridor engine at
+ * most 39, and the result writers add at most 22 (rows of compressed datasets still in memory). */
+#define WF_MAX_STATE_VARS 64
 size_t wf_sim_state(WfSim *sim, WfStateVar *vars, size_t max);
 void   wf_sim_restored(WfSim *sim);
 /* Call out->checkpoint every `wall_s` seconds of wall time (0: only when interrupted). */

@@ -1,7 +1,7 @@
 /* The HDF5 result file of a corridor run (layout in docs/corridors.md): /meta, /classes, /drivers, /road,
  * /timeseries, /trips, /detectors, /edie, /summary and optional /trajectories. Written as PATH.partial while the
  * run goes and renamed to PATH when it completes (src/h5util.h); every dataset carries `units` and
- * `description`. */
+ * `description`. Checkpoints (FILE.h5.ckpt) as for rings (docs/output.md). */
 #ifndef WAVEFUEL_H5CORRIDOR_H
 #define WAVEFUEL_H5CORRIDOR_H
 
@@ -13,6 +13,12 @@ typedef struct WfH5Corridor WfH5Corridor;
 /* Create the writer for `path` (refuses to replace an existing result unless force) and fill *ops with
  * callbacks bound to it. */
 int  wf_h5corridor_create(const char *path, int force, WfH5Corridor **out, WfCorridorOutput *ops, WfError *err);
+/* Load the checkpoint FILE.h5.ckpt (wavefuel/checkpoint.h) of `result` into `c`, built from the scenario it holds,
+ * and reopen FILE.h5.partial to continue writing it: rows appended after the checkpoint (time series, trips,
+ * trajectories) are dropped, and what the interrupted run wrote at its end is written again at the end. WF_EINPUT
+ * when the checkpoint is damaged, of a ring run or of another scenario, or the partial file is not this run's. */
+int  wf_h5corridor_resume(const char *result, WfCorridor *c, WfH5Corridor **out, WfCorridorOutput *ops,
+                          WfError *err);
 /* Free the writer; a file whose run never reached end() is removed (nothing was produced). */
 void wf_h5corridor_destroy(WfH5Corridor **w);
 /* Final path written ("x.h5" when completed, "x.h5.partial" otherwise; empty before end()). */

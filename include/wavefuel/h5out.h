@@ -4,6 +4,8 @@
 #ifndef WAVEFUEL_H5OUT_H
 #define WAVEFUEL_H5OUT_H
 
+#include <stdio.h>
+
 #include "wavefuel/engine.h"
 #include "wavefuel/err.h"
 
@@ -17,22 +19,9 @@ void wf_h5out_destroy(WfH5Out **w);
 /* Final path written ("x.h5" when completed, "x.h5.partial" otherwise). */
 const char *wf_h5out_path(const WfH5Out *w);
 
-
-
-#include <stdio.h>
-
-/* Checkpoints: FILE.h5.ckpt holds the scenario text, the overrides and every state block of the engine; it is
- * replaced atomically at each checkpoint, written when a run is interrupted, removed when the run completes. */
-typedef struct WfCheckpointInfo {
-    char *scenario_text, *overrides; /* owned */
-    char  scenario_path[1024];
-} WfCheckpointInfo;
-/* Read what is needed to rebuild the scenario of an interrupted run whose result is `result` (FILE.h5). Fails
- * if FILE.h5 already exists (complete) or there is no checkpoint. */
-int  wf_h5out_read_checkpoint(const char *result, WfCheckpointInfo *ck, WfError *err);
-void wf_checkpoint_info_free(WfCheckpointInfo *ck);
-/* Load the checkpoint's state into `sim` (built from that scenario) and reopen FILE.h5.partial to continue
- * writing it, dropping rows written after the checkpoint. */
+/* Load the checkpoint FILE.h5.ckpt (wavefuel/checkpoint.h) into `sim`, built from the scenario it holds, and
+ * reopen FILE.h5.partial to continue writing it, dropping rows written after the checkpoint. WF_EINPUT when the
+ * checkpoint is damaged, of a corridor run or of another scenario, or the partial file is not this run's. */
 int  wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err);
 /* `wavefuel info`: print a result file's /meta status and every /summary value with its units. Works on
  * .partial files too. WF_EINPUT if the file is not a wavefuel result. */

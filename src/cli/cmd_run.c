@@ -13,6 +13,7 @@
 
 #include "cli/commands.h"
 #include "cli/run_corridor.h"
+#include "wavefuel/checkpoint.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
 #include "wavefuel/scenario.h"
@@ -36,9 +37,11 @@ static void help(FILE *out)
             "  --force             replace an existing result file\n"
             "  -q, --quiet         no progress bar or summary\n"
             "  --checkpoint-every S  save the complete state to FILE.h5.ckpt every S seconds of wall time (an\n"
-            "                      interrupted run always saves one)\n"
-            "  --resume FILE.h5    continue an interrupted run from FILE.h5.ckpt and FILE.h5.partial; with the\n"
-            "                      fixed-step integrators the result is bit-identical to an uninterrupted run\n");
+            "                      interrupted run always saves one); rings and corridors\n"
+            "  --resume FILE.h5    continue an interrupted run from FILE.h5.ckpt and FILE.h5.partial (the scenario\n"
+            "                      comes from the checkpoint); with the fixed-step integrators the result is\n"
+            "                      bit-identical to an uninterrupted run. A damaged checkpoint, or one of another\n"
+            "                      run, is refused with exit status 2\n");
 }
 
 typedef struct Progress {
@@ -156,14 +159,12 @@ int wf_cmd_run(int argc, char **argv)
         /* The scenario is rebuilt from the checkpoint's copy of its text and overrides, not from the file on
          * disk, which may have changed since. */
         WfCheckpointInfo ck;
-        rc = wf_h5out_read_checkpoint(resume, &ck, &err);
+        rc = wf_checkpoint_read_info(resume, &ck, &err);
         if (!rc) {
             size_t n = 0;
             for (char *line = strtok(ck.overrides, "\n"); line; line = strtok(NULL, "\n")) sets[n++] = line;
             rc = wf_scenario_load_text(ck.scenario_path, ck.scenario_text, sets, n, &sc, &err);
             if (!rc) snprintf(sc->output_path, sizeof sc->output_path, "%s", resume);
-            if (!rc) rc = wf_sim_create(sc, &sim, &err);
-            if (!rc) rc = wf_h5out_resume(resume, sim, &h5, &ops, &err);
             wf_checkpoint_info_free(&ck);
         }
         free(sets);
@@ -171,17 +172,17 @@ int wf_cmd_run(int argc, char **argv)
         rc = wf_scenario_load(argv[optind], sets, n_set, &sc, &err);
         free(sets);
         if (!rc && outpath) snprintf(sc->output_path, sizeof sc->output_path, "%s", outpath);
-        if (!rc && sc->corridor) {
-            /* Open corridors have their own engine and writer (src/corridor.c, src/h5corridor.c). */
-            int st = ckpt_s > 0 ? (fprintf(stderr, "wavefuel run: corridor runs have no checkpoints yet\n"), 2)
-                                : wf_cli_run_corridor(sc, force, quiet);
-            wf_scenario_destroy(&sc);
-            return st;
-        }
-        /* Scenario and fleet errors come before the result file exists: nothing is left behind. */
-        if (!rc) rc = wf_sim_create(sc, &sim, &err);
-        if (!rc) rc = wf_h5out_create(sc->output_path, force, &h5, &ops, &err);
     }
+    if (!rc && sc->corridor) {
+        /* Open corridors have their own engine and writer (src/corridor.c, src/h5corridor.c). */
+        int st = wf_cli_run_corridor(sc, resume, ckpt_s, force, quiet);
+        wf_scenario_destroy(&sc);
+        return st;
+    }
+    /* Scenario and fleet errors come before the result file exists: nothing is left behind. */
+    if (!rc) rc = wf_sim_create(sc, &sim, &err);
+    if (!rc) rc = resume ? wf_h5out_resume(resume, sim, &h5, &ops, &err)
+                         : wf_h5out_create(sc->output_path, force, &h5, &ops, &err);
     if (!rc && ckpt_s > 0) wf_sim_set_checkpoint_interval(sim, ckpt_s);
     if (rc) {
         wf_sim_destroy(&sim);
@@ -199,11 +200,7 @@ int wf_cmd_run(int argc, char **argv)
     int status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
-        if (wf_h5out_path(h5)[0])
-            fprintf(stderr, err.code == WF_ESYS && strstr(err.msg, "HDF5")
-                                ? "wavefuel: %s is incomplete and may be unreadable after this write error\n"
-                                : "wavefuel: partial result kept in %s (resume with --resume)\n",
-                    wf_h5out_path(h5));
+        if (wf_h5out_path(h5)[0]) wf_cli_note_partial(&err, wf_h5out_path(h5));
     } else if (!quiet) {
         print_summary(sim, wf_h5out_path(h5));
     }

@@ -21,5 +21,8 @@ int wf_cmd_sweep(int argc, char **argv);
 
 /* Print "wavefuel: <message>" on stderr and return the exit status for the error's code. */
 int wf_cli_fail(const WfError *err);
+/* After a failed or interrupted run that left the partial result `path`: say whether it can be resumed or may be
+ * unreadable (an HDF5 write error). */
+void wf_cli_note_partial(const WfError *err, const char *path);
 
 #endif

@@ -67,19 +67,22 @@ static void print_summary(const WfCorridor *c, const char *path)
     printf("result: %s\n", path);
 }
 
-int wf_cli_run_corridor(const WfScenario *sc, int force, int quiet)
+int wf_cli_run_corridor(const WfScenario *sc, const char *resume, double checkpoint_s, int force, int quiet)
 {
     WfError err = {0};
     WfCorridor *c = NULL;
     WfH5Corridor *h5 = NULL;
     WfCorridorOutput ops;
-    /* Scenario errors come before the result file exists: nothing is left behind. */
+    /* Scenario errors come before the result file exists: nothing is left behind. A resumed run continues the
+     * checkpoint's state in the partial file it reopens. */
     int rc = wf_corridor_create(sc, &c, &err);
-    if (!rc) rc = wf_h5corridor_create(sc->output_path, force, &h5, &ops, &err);
+    if (!rc) rc = resume ? wf_h5corridor_resume(resume, c, &h5, &ops, &err)
+                         : wf_h5corridor_create(sc->output_path, force, &h5, &ops, &err);
     if (rc) {
         wf_corridor_destroy(&c);
         return wf_cli_fail(&err);
     }
+    if (checkpoint_s > 0) wf_corridor_set_checkpoint_interval(c, checkpoint_s);
     struct sigaction sa;
     memset(&sa, 0, sizeof sa);
     sa.sa_handler = on_signal;
@@ -92,7 +95,7 @@ int wf_cli_run_corridor(const WfScenario *sc, int force, int quiet)
     int status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
-        if (wf_h5corridor_path(h5)[0]) fprintf(stderr, "wavefuel: partial result kept in %s\n", wf_h5corridor_path(h5));
+        if (wf_h5corridor_path(h5)[0]) wf_cli_note_partial(&err, wf_h5corridor_path(h5));
     } else if (!quiet) {
         print_summary(c, wf_h5corridor_path(h5));
     }

@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "h5util.h"
+#include "hash.h"
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/version.h"
@@ -144,20 +145,11 @@ static size_t node_index(const WfTableAxis *ax, double x)
     return lo;
 }
 
-static uint64_t fnv_bytes(uint64_t h, const unsigned char *p, size_t n)
-{
-    for (size_t i = 0; i < n; i++) {
-        h ^= p[i];
-        h *= 0x100000001b3ULL;
-    }
-    return h;
-}
-
 static uint64_t fnv_u64(uint64_t h, uint64_t x)
 {
     unsigned char b[8];
     for (int i = 0; i < 8; i++) b[i] = (unsigned char)(x >> (8 * i)); /* little-endian on every host */
-    return fnv_bytes(h, b, 8);
+    return wf_fnv1a64(h, b, 8);
 }
 
 static uint64_t fnv_f64s(uint64_t h, const double *x, size_t n)
@@ -172,7 +164,7 @@ static uint64_t fnv_f64s(uint64_t h, const double *x, size_t n)
 
 uint64_t wf_table_checksum(const WfTable *t)
 {
-    uint64_t h = 0xcbf29ce484222325ULL;
+    uint64_t h = WF_FNV1A64_INIT;
     size_t n = t->v.n * t->a.n * t->theta.n;
     h = fnv_u64(h, t->v.n);
     h = fnv_u64(h, t->a.n);
@@ -181,7 +173,7 @@ uint64_t wf_table_checksum(const WfTable *t)
     h = fnv_f64s(h, t->a.x, t->a.n);
     h = fnv_f64s(h, t->theta.x, t->theta.n);
     h = fnv_f64s(h, t->fuel_gps, n);
-    return fnv_bytes(h, t->infeasible, n);
+    return wf_fnv1a64(h, t->infeasible, n);
 }
 
 static int file_fnv(const char *path, uint64_t *out, WfError *err)
@@ -189,9 +181,9 @@ static int file_fnv(const char *path, uint64_t *out, WfError *err)
     FILE *f = fopen(path, "rb");
     if (!f) return wf_err(err, WF_EINPUT, "%s: cannot open: %s", path, strerror(errno));
     unsigned char buf[1 << 16];
-    uint64_t h = 0xcbf29ce484222325ULL;
+    uint64_t h = WF_FNV1A64_INIT;
     size_t k;
-    while ((k = fread(buf, 1, sizeof buf, f)) > 0) h = fnv_bytes(h, buf, k);
+    while ((k = fread(buf, 1, sizeof buf, f)) > 0) h = wf_fnv1a64(h, buf, k);
     int bad = ferror(f);
     fclose(f);
     if (bad) return wf_err(err, WF_ESYS, "%s: read error", path);
