@@ -737,7 +737,10 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
 #define LAP(ph) (tq = wall_now(), s->phase_s[ph] += tq - tp, tp = tq)
         if (step == s->warm_steps && !s->f->window_open) wf_fleet_open_window(s->f);
         int in_window = step >= s->warm_steps, records = step % s->out_every == 0;
-        if (!s->f->multipass) {
+        /* The fused step unless the fleet-wide per-step arrays are needed now: SUNDIALS integrators (every step),
+         * trajectories (their steps only), or time.fused_step off. Both paths give the same bits. */
+        int traj_step = sc->trajectories && step % s->traj_every == 0;
+        if (!s->ode && sc->fused_step && !traj_step) {
             /* Every step in one pass, records included; the final instant is recorded without a step. */
             size_t nblk = (s->f->n + FBLOCK - 1) / FBLOCK;
             int flags = step_fused(s, step, in_window, records ? s->stat_blocks : NULL, step < s->n_steps);

@@ -48,9 +48,14 @@ static int keep_row(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *er
     return 0;
 }
 
-static int run(const char *path, const char *fused, int threads, Out *o)
+/* mode: "time.fused_step=..." or, with trajectories (every 2 s: fused and multi-pass steps alternate),
+ * "traj". */
+static int run(const char *path, const char *mode, int threads, Out *o)
 {
-    const char *set[] = {fused};
+    const char *traj[] = {"time.fused_step=true", "output.trajectories=true", "output.trajectory_interval_s=2"};
+    const char *plain[] = {mode};
+    int with_traj = strcmp(mode, "traj") == 0;
+    const char *const *set = with_traj ? traj : plain;
     WfError err = {0};
     WfScenario *sc = NULL;
     WfSim *sim = NULL;
@@ -59,7 +64,7 @@ static int run(const char *path, const char *fused, int threads, Out *o)
 #else
     (void)threads;
 #endif
-    int rc = wf_scenario_load(path, set, 1, &sc, &err);
+    int rc = wf_scenario_load(path, set, with_traj ? 3 : 1, &sc, &err);
     if (!rc) rc = wf_sim_create(sc, &sim, &err);
     WfOutput out = {.record = keep_row, .ctx = o};
     if (!rc) rc = wf_sim_run(sim, &out, NULL, NULL, NULL, &err);
@@ -97,9 +102,9 @@ static void test_paths_bitwise_equal(void)
     fclose(f);
     Out ref = {0}, o = {0};
     CHECK(run(path, "time.fused_step=false", 1, &ref) == 0, "multi-pass run failed");
-    const char *modes[] = {"time.fused_step=true", "time.fused_step=true", "time.fused_step=false"};
-    int threads[] = {1, 2, 2};
-    for (int k = 0; k < 3 && ref.x; k++) {
+    const char *modes[] = {"time.fused_step=true", "time.fused_step=true", "time.fused_step=false", "traj"};
+    int threads[] = {1, 2, 2, 2};
+    for (int k = 0; k < 4 && ref.x; k++) {
         memset(&o, 0, sizeof o);
         CHECK(run(path, modes[k], threads[k], &o) == 0, "run failed");
         if (!o.x) continue;
