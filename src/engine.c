@@ -530,11 +530,21 @@ static int fused_block(WfSim *s, size_t lo, size_t m, int last_in_chunk, double 
  * arithmetic as the multi-pass step (the same inline functions), so a vehicle's result does not depend on which
  * path or thread ran it. advance = 0 takes the record only. Returns the FUSED_* flags of all blocks, including
  * overlaps across block boundaries. */
+/* Overlap of block b's last vehicle with its leader (the next block's first, or vehicle 0 one lap ahead), once both
+ * have moved. */
+static int block_edge_overlap(const WfFleet *f, double L, size_t b)
+{
+    size_t n = f->n, i = (b + 1) * FBLOCK - 1 < n ? (b + 1) * FBLOCK - 1 : n - 1, lead = i + 1 < n ? i + 1 : 0;
+    double xl = f->x_m[lead] + (lead ? 0.0 : L);
+    return n > 1 && xl - wf_fleet_length(f, lead) - f->x_m[i] < 0.0 ? FUSED_OVERLAP : 0;
+}
+
 static int step_fused(WfSim *s, long step, int in_window, WfStatsBlock *rec, int advance)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     size_t n = f->n, nblk = (n + FBLOCK - 1) / FBLOCK;
+    double L = sc->road.length_m;
     int nth = n >= PAR_MIN ? s->nthreads : 1;
     if ((size_t)nth > nblk) nth = (int)nblk;
     double *bx = s->bound_x, *bv = s->bound_v;
@@ -545,40 +555,39 @@ static int step_fused(WfSim *s, long step, int in_window, WfStatsBlock *rec, int
         bv[0] = f->v_mps[0];
         for (size_t b = 0; b < nblk; b++) {
             size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
-            flags |= fused_block(s, lo, m, lo + m == n, bx[0] + sc->road.length_m, bv[0], step, in_window,
-                                 rec ? rec + b : NULL, advance);
+            flags |= fused_block(s, lo, m, lo + m == n, bx[0] + L, bv[0], step, in_window, rec ? rec + b : NULL,
+                                 advance);
+            if (advance && b > 0) flags |= block_edge_overlap(f, L, b - 1);
         }
-    } else {
-#pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, bx, bv, step, in_window, rec, advance, cf)
-        {
-            /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the
-             * team actually running. */
-            int t = thread_id(), nt = team_size(), fl = 0;
-            size_t b0 = nblk * (size_t)t / (size_t)nt, b1 = nblk * (size_t)(t + 1) / (size_t)nt;
-            size_t lo_t = b0 * FBLOCK, hi_t = b1 * FBLOCK < n ? b1 * FBLOCK : n;
-            bx[t] = f->x_m[lo_t];
-            bv[t] = f->v_mps[lo_t];
+        if (advance) flags |= block_edge_overlap(f, L, nblk - 1);
+        return advance ? flags : 0;
+    }
+#pragma omp parallel num_threads(nth) default(none) shared(s, f, sc, n, nblk, bx, bv, step, in_window, rec, advance, cf, L)
+    {
+        /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the
+         * team actually running. */
+        int t = thread_id(), nt = team_size(), fl = 0;
+        size_t b0 = nblk * (size_t)t / (size_t)nt, b1 = nblk * (size_t)(t + 1) / (size_t)nt;
+        size_t lo_t = b0 * FBLOCK, hi_t = b1 * FBLOCK < n ? b1 * FBLOCK : n;
+        bx[t] = f->x_m[lo_t];
+        bv[t] = f->v_mps[lo_t];
 #pragma omp barrier
-            /* Leader of this chunk's last vehicle: the next chunk's first, saved (plus one lap after the last). */
-            int tn = t + 1 < nt ? t + 1 : 0;
-            double xs = bx[tn] + (t + 1 < nt ? 0.0 : sc->road.length_m), vs = bv[tn];
-            for (size_t b = b0; b < b1; b++) {
-                size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
-                fl |= fused_block(s, lo, m, lo + m == hi_t, xs, vs, step, in_window, rec ? rec + b : NULL, advance);
-            }
-            cf[t] = fl;
+        /* Leader of this chunk's last vehicle: the next chunk's first, saved (plus one lap after the last). */
+        int tn = t + 1 < nt ? t + 1 : 0;
+        double xs = bx[tn] + (t + 1 < nt ? 0.0 : L), vs = bv[tn];
+        for (size_t b = b0; b < b1; b++) {
+            size_t lo = b * FBLOCK, m = n - lo < FBLOCK ? n - lo : FBLOCK;
+            fl |= fused_block(s, lo, m, lo + m == hi_t, xs, vs, step, in_window, rec ? rec + b : NULL, advance);
+            /* The previous block's edge, while both blocks are in cache. */
+            if (advance && b > b0) fl |= block_edge_overlap(f, L, b - 1);
         }
-        for (int t = 0; t < nth; t++) flags |= cf[t];
+        /* The chunk's last edge needs the next chunk moved. */
+#pragma omp barrier
+        if (advance && b1 > b0) fl |= block_edge_overlap(f, L, b1 - 1);
+        cf[t] = fl;
     }
-    if (!advance) return 0;
-    /* Each block's last vehicle against its leader (the next block's first, or vehicle 0 one lap ahead). */
-    double L = sc->road.length_m;
-    for (size_t b = 0; b < nblk && !(flags & FUSED_OVERLAP); b++) {
-        size_t i = b * FBLOCK + FBLOCK - 1 < n ? b * FBLOCK + FBLOCK - 1 : n - 1, lead = i + 1 < n ? i + 1 : 0;
-        double xl = f->x_m[lead] + (lead ? 0.0 : L);
-        if (n > 1 && xl - wf_fleet_length(f, lead) - f->x_m[i] < 0.0) flags |= FUSED_OVERLAP;
-    }
-    return flags;
+    for (int t = 0; t < nth; t++) flags |= cf[t];
+    return advance ? flags : 0;
 }
 
 /* The right-hand side for the SUNDIALS integrators: the same car-following phase as the fixed-step schemes,

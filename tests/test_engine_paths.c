@@ -92,14 +92,16 @@ static int run(const char *path, const char *mode, int threads, Out *o)
     return rc;
 }
 
-static void test_paths_bitwise_equal(void)
+/* Both paths over one scenario text; returns the reference's overlap count (final record). */
+static double compare_paths(const char *text)
 {
     char dir[] = "/tmp/wf_test_paths.XXXXXX", path[128];
-    if (!mkdtemp(dir)) return;
+    if (!mkdtemp(dir)) return -1;
     snprintf(path, sizeof path, "%s/s.yaml", dir);
     FILE *f = fopen(path, "w");
-    fputs(yaml, f);
+    fputs(text, f);
     fclose(f);
+    double overlaps = -1;
     Out ref = {0}, o = {0};
     CHECK(run(path, "time.fused_step=false", 1, &ref) == 0, "multi-pass run failed");
     const char *modes[] = {"time.fused_step=true", "time.fused_step=true", "time.fused_step=false", "traj"};
@@ -129,13 +131,51 @@ static void test_paths_bitwise_equal(void)
         for (size_t i = 0; i < ref.n; i++) spread += fabs(ref.v[i] - ref.v[0]);
         CHECK(spread > 1.0, "speeds do not vary: the scenario would not exercise the paths");
     }
+    if (ref.n_rows) overlaps = ref.rows[ref.n_rows - 1].v[WF_TS_OVERLAPS];
     free(ref.x), free(ref.v), free(ref.fuel), free(ref.state);
     unlink(path);
     rmdir(dir);
+    return overlaps;
+}
+
+static void test_paths_bitwise_equal(void) { CHECK(compare_paths(yaml) >= 0, "runs failed"); }
+
+/* Noise far beyond what the brakes absorb (as in test_ring_physics's overlap test) on a fleet of many blocks:
+ * the fused step must find overlaps inside blocks, at block edges and at chunk edges, and repair them exactly as
+ * the multi-pass step does. */
+static void test_paths_equal_with_overlaps(void)
+{
+    const char *text =
+        "seed: 7\n"
+        "road: {length_m: 60000}\n"
+        "time: {duration_s: 20, dt_s: 0.1, output_interval_s: 1.0}\n"
+        "fleet:\n  vehicles: 5000\n"
+        "  classes: [{class: midsize_sedan, fraction: 1}]\n"
+        "  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]\n"
+        "initial: {state: equilibrium}\n";
+    double overlaps = compare_paths(text);
+    printf("  noisy ring of 5000 vehicles: %.0f overlap events, the same on every path\n", overlaps);
+    CHECK(overlaps > 100, "only %.0f overlap events: the test would not exercise the repair", overlaps);
+
+    /* Overlaps only at block edges: the reckless drivers are the last vehicle of every block of 256, whose leader
+     * starts the next block (or, for the last, is vehicle 0 one lap ahead); the others drive without noise. */
+    char edge[2048];
+    int len = snprintf(edge, sizeof edge,
+                       "seed: 7\nroad: {length_m: 60000}\n"
+                       "time: {duration_s: 20, dt_s: 0.1, output_interval_s: 1.0}\n"
+                       "fleet:\n  vehicles: 5120\n  classes: [{class: midsize_sedan, fraction: 1}]\n"
+                       "  drivers:\n    - {model: idm, count: 5100}\n"
+                       "    - {model: idm, noise_mps2: 10, decel_max_mps2: 0.1, placement: explicit, indices: [");
+    for (int b = 0; b < 20; b++) len += snprintf(edge + len, sizeof edge - (size_t)len, "%s%d", b ? ", " : "", 256 * b + 255);
+    snprintf(edge + len, sizeof edge - (size_t)len, "]}\ninitial: {state: equilibrium}\n");
+    double edge_overlaps = compare_paths(edge);
+    printf("  overlaps at block edges only: %.0f events, the same on every path\n", edge_overlaps);
+    CHECK(edge_overlaps > 10, "only %.0f overlap events at block edges", edge_overlaps);
 }
 
 int main(void)
 {
     RUN(test_paths_bitwise_equal);
+    RUN(test_paths_equal_with_overlaps);
     TEST_EXIT();
 }

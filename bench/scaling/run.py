@@ -48,12 +48,11 @@ SIZES = [22, 1000, 10_000, 100_000, 1_000_000, 10_000_000]
 STEPS = {22: 100_000, 1000: 20_000, 10_000: 5_000, 100_000: 1_000, 1_000_000: 200, 10_000_000: 50}
 WEAK_PER_THREAD = [100_000, 1_000_000]
 TRAJ_SIZES = [1_000_000, 10_000_000]
-# DRAM traffic of one vehicle-step of the step loop at large N, as counted in bench/README.md from src/engine.c
-# (bf9d407): loads + stores + the write-allocate read of arrays that are only written; 9 fused steps at 258 B and
-# one recording step at 465 B per output interval of 10 steps. It divides the triad bandwidth counted the same way
-# (32 B per element).
-BYTES_PER_VSTEP = 279
-IN_CACHE_N = 1000  # its working set (~250 B per vehicle) fits the 1 MiB L2: the rate there is the compute roof
+# DRAM traffic of one vehicle-step of the step loop at large N, as counted in bench/README.md from src/engine.c:
+# loads + stores of the fleet arrays the fused step touches (every step, records included; no array is only
+# written, so no write-allocate reads). It divides the triad bandwidth counted the same way (32 B per element).
+BYTES_PER_VSTEP = 148
+IN_CACHE_N = 1000  # its working set (~100 B per vehicle) fits the 1 MiB L2: the rate there is the compute roof
 
 
 def steps_for(n):
