@@ -1,5 +1,9 @@
 /* HDF5 result files of simulation runs: /meta, /classes, /drivers, /vehicles, /timeseries, /summary and
- * optional /trajectories (docs/output.md). Time series are buffered and appended in blocks of rows. */
+ * optional /trajectories (docs/output.md). Every dataset whose size is known is created at that size before the
+ * first step and then only overwritten in place (time series in blocks of rows, the row counters, the end-of-run
+ * results and the status); trajectory frames are buffered and added a compressed chunk at a time, after the disk
+ * space is reserved (src/h5util.h). A write error at any point leaves a file whose structure is intact
+ * (docs/output.md, "Write errors"). */
 #include "wavefuel/h5out.h"
 
 #include <math.h>
@@ -19,19 +23,45 @@
 struct WfH5Out {
     WfH5File  *file;
     int        ended;
+    /* A write to the group failed: nothing more is written to it (its count stays true); the others go on. */
+    int        ts_failed, traj_failed;
     char       final_path[1100];
-    hid_t      g_ts, g_traj;
+    hid_t      g_meta, g_ts, g_traj;
     WfH5Series ts[WF_TS_N_COLS], ts_class;
     WfH5Series tr_t, tr_x, tr_v, tr_a, tr_f;
+    WfH5Series *traj[5];                /* x, v, a, fuel_rate, t: the order of tb */
     double    *buf;      /* TS_BUF x (WF_TS_N_COLS + n_classes) */
-    double    *tbuf;     /* one trajectory frame */
+    double    *cls;      /* TS_BUF x n_classes: the class block of buf, row-major */
+    double    *tb[5];    /* trajectory frames not yet written: x, v, a, fuel_rate (tb_cap x n), t (tb_cap) */
+    hsize_t    tb_rows, tb_cap;
     size_t     n_buf, n_classes;
     char       started[64];
     int        resume;                  /* reopened .partial of an interrupted run */
     hsize_t    resume_ts_rows, resume_traj_rows;
 };
 
+static void init_writer(WfH5Out *w)
+{
+    w->g_meta = w->g_ts = w->g_traj = H5I_INVALID_HID;
+    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_init(&w->ts[c]);
+    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+    for (size_t i = 0; i < 6; i++) wf_h5_series_init(all[i]);
+    w->traj[0] = &w->tr_x, w->traj[1] = &w->tr_v, w->traj[2] = &w->tr_a, w->traj[3] = &w->tr_f, w->traj[4] = &w->tr_t;
+}
+
 static void ckpt_path_of(const char *result, char *out, size_t len) { snprintf(out, len, "%s.ckpt", result); }
+
+/* /meta/timeseries_rows and /meta/trajectory_rows: how many rows of each group hold data. Written after the rows
+ * (raw data reaches the file in call order: src/h5util.c), so they never count a row that is not there. */
+static int write_counts(WfH5Out *w, WfH5Pass pass, WfError *err)
+{
+    return wf_h5_put_scalar_i64(w->g_meta, "timeseries_rows", pass, (int64_t)w->ts[0].rows, "1",
+                                "rows of /timeseries that hold data (the others are NaN until written)", err) ||
+                   wf_h5_put_scalar_i64(w->g_meta, "trajectory_rows", pass, (int64_t)w->tr_t.rows, "1",
+                                        "frames of /trajectories that hold data (0 without trajectories)", err)
+               ? WF_ESYS
+               : 0;
+}
 
 static int flush_ts(WfH5Out *w, WfError *err)
 {
@@ -40,64 +70,67 @@ static int flush_ts(WfH5Out *w, WfError *err)
     double col[TS_BUF];
     for (size_t c = 0; c < WF_TS_N_COLS; c++) {
         for (size_t r = 0; r < w->n_buf; r++) col[r] = w->buf[r * stride + c];
-        if (wf_h5_series_append(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
+        if (wf_h5_series_write(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
     }
-    double *cls = malloc(w->n_buf * (w->n_classes ? w->n_classes : 1) * sizeof *cls);
-    if (!cls) return wf_err(err, WF_ESYS, "out of memory");
     for (size_t r = 0; r < w->n_buf; r++)
-        for (size_t c = 0; c < w->n_classes; c++) cls[r * w->n_classes + c] = w->buf[r * stride + WF_TS_N_COLS + c];
-    int rc = wf_h5_series_append(&w->ts_class, w->n_buf, cls, err);
-    free(cls);
+        for (size_t c = 0; c < w->n_classes; c++) w->cls[r * w->n_classes + c] = w->buf[r * stride + WF_TS_N_COLS + c];
+    if (wf_h5_series_write(&w->ts_class, w->n_buf, w->cls, err)) return WF_ESYS;
     w->n_buf = 0;
-    return rc;
+    return write_counts(w, WF_H5_FILL, err);
 }
 
-static int write_meta(hid_t fid, const WfSim *sim, int completed, const char *reason, const char *started,
-                      WfError *err)
+/* The buffered trajectory frames: a chunk of each array at a time (each chunk compressed and written once). */
+static int flush_traj(WfH5Out *w, WfError *err)
+{
+    if (!w->tb_rows) return 0;
+    const double *const data[5] = {w->tb[0], w->tb[1], w->tb[2], w->tb[3], w->tb[4]};
+    if (wf_h5_series_append(w->file, w->traj, 5, w->tb_rows, data, "/trajectories", err)) return WF_ESYS;
+    w->tb_rows = 0;
+    return write_counts(w, WF_H5_FILL, err);
+}
+
+/* What /meta says about the run's progress: written in place (ALLOCATE when the file is created, FILL when the
+ * run ends). */
+static int meta_status(hid_t g, WfH5Pass pass, const WfSim *sim, int completed, const char *reason, WfError *err)
+{
+    hsize_t np = WF_N_PHASES;
+    int rc = wf_h5_put_text(g, "reason", pass, reason,
+                            "why the run stopped early: running while it runs, empty when completed", err) ||
+             wf_h5_put_scalar_f64(g, "wall_time_s", pass, wf_sim_wall_s(sim), "s", "wall time of the step loop",
+                                  err) ||
+             wf_h5_put_scalar_i64(g, "steps_done", pass, wf_sim_steps_done(sim), "1", "time steps completed", err) ||
+             wf_h5_put_f64(g, "phase_time", pass, 1, &np, wf_sim_phase_times(sim), "s",
+                           "wall time per phase of the step loop, in the order of phase_name", err) ||
+             /* Last: a file says completed only once everything else is written. */
+             wf_h5_put_scalar_i64(g, "completed", pass, completed, "1", "1 when the run reached its end", err);
+    return rc ? WF_ESYS : 0;
+}
+
+/* /meta at creation: provenance (final), the status (completed = 0, reason "running") and the row counts. */
+static int write_meta(WfH5Out *w, const WfSim *sim, WfError *err)
 {
     const WfScenario *sc = wf_sim_scenario(sim);
-    hid_t g = H5Gopen2(fid, "/meta", H5P_DEFAULT);
-    int fresh = g < 0;
-    if (fresh) g = wf_h5_group(fid, "meta", err);
+    hid_t g = w->g_meta = wf_h5_group(w->file->fid, "meta", err);
     if (g < 0) return WF_ESYS;
-    int rc = 0;
-    if (!fresh) {
-        /* Rewritten at the end of the run: drop the provisional values. */
-        const char *names[] = {"completed", "reason", "wall_time_s", "steps_done"};
-        for (int i = 0; i < 4; i++)
-            if (H5Lexists(g, names[i], H5P_DEFAULT) > 0) H5Ldelete(g, names[i], H5P_DEFAULT);
-    }
-    if (fresh) {
-        rc = wf_h5_scalar_str(g, "scenario_text", sc->text, "the scenario file, verbatim", err) ||
+    hsize_t np = WF_N_PHASES;
+    int rc = wf_h5_scalar_str(g, "scenario_text", sc->text, "the scenario file, verbatim", err) ||
              wf_h5_scalar_str(g, "scenario_path", sc->path, "scenario file as given", err) ||
              wf_h5_scalar_str(g, "overrides", sc->overrides, "--set assignments applied, one per line", err) ||
              wf_h5_scalar_str(g, "version", WF_VERSION, "wavefuel version", err) ||
              wf_h5_scalar_str(g, "git_hash", WF_GIT_HASH, "git describe of the source tree", err) ||
              wf_h5_scalar_i64(g, "seed", (int64_t)sc->seed, "1", "random seed", err) ||
              wf_h5_scalar_i64(g, "threads", wf_sim_threads(sim), "1", "OpenMP threads available to the run", err) ||
-             wf_h5_scalar_str(g, "start_time", started, "wall-clock start, UTC ISO 8601", err) ||
+             wf_h5_scalar_str(g, "start_time", w->started, "wall-clock start, UTC ISO 8601", err) ||
              wf_h5_scalar_str(g, "integrator", sc->integrator, "time integrator", err) ||
              wf_h5_scalar_f64(g, "dt", sc->dt_s, "s", "time step", err) ||
              wf_h5_scalar_f64(g, "duration", sc->duration_s, "s", "simulated duration", err) ||
              wf_h5_scalar_f64(g, "warmup", sc->warmup_s, "s", "warm-up excluded from statistics", err) ||
              wf_h5_scalar_f64(g, "road_length", sc->road.length_m, "m", "ring length", err) ||
              wf_h5_scalar_f64(g, "initial_speed", wf_sim_fleet(sim)->v_init_mps, "m/s",
-                              "common speed of the initial equilibrium (0 when starting at rest)", err);
-    }
-    if (!rc)
-        rc = wf_h5_scalar_i64(g, "completed", completed, "1", "1 when the run reached its end", err) ||
-             wf_h5_scalar_str(g, "reason", reason, "why the run stopped early (empty when completed)", err) ||
-             wf_h5_scalar_f64(g, "wall_time_s", wf_sim_wall_s(sim), "s", "wall time of the step loop", err) ||
-             wf_h5_scalar_i64(g, "steps_done", wf_sim_steps_done(sim), "1", "time steps completed", err);
-    if (!rc) {
-        hsize_t np = WF_N_PHASES;
-        if (H5Lexists(g, "phase_time", H5P_DEFAULT) > 0) H5Ldelete(g, "phase_time", H5P_DEFAULT);
-        if (H5Lexists(g, "phase_name", H5P_DEFAULT) > 0) H5Ldelete(g, "phase_name", H5P_DEFAULT);
-        rc = wf_h5_write_f64(g, "phase_time", 1, &np, wf_sim_phase_times(sim), "s",
-                             "wall time per phase of the step loop, in the order of phase_name", err) ||
-             wf_h5_write_strings(g, "phase_name", np, wf_phase_names, "phases of phase_time", err);
-    }
-    H5Gclose(g);
+                              "common speed of the initial equilibrium (0 when starting at rest)", err) ||
+             wf_h5_write_strings(g, "phase_name", np, wf_phase_names, "phases of phase_time", err) ||
+             meta_status(g, WF_H5_ALLOCATE, sim, 0, "", err) || meta_status(g, WF_H5_FILL, sim, 0, "running", err) ||
+             write_counts(w, WF_H5_ALLOCATE, err) || write_counts(w, WF_H5_FILL, err);
     return rc ? WF_ESYS : 0;
 }
 
@@ -164,75 +197,9 @@ static int write_classes_drivers(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-static int h5_begin_resume(WfH5Out *w, const WfSim *sim, WfError *err);
-
-static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
-{
-    WfH5Out *w = ctx;
-    if (w->resume) return h5_begin_resume(w, sim, err);
-    const WfScenario *sc = wf_sim_scenario(sim);
-    const WfFleet *f = wf_sim_fleet(sim);
-    hid_t fid = w->file->fid;
-    time_t now = time(NULL);
-    struct tm tmv;
-    gmtime_r(&now, &tmv);
-    strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
-    w->n_classes = sc->n_classes;
-    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
-    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
-    if (write_meta(fid, sim, 0, "running", w->started, err) || write_classes_drivers(fid, sim, err)) return WF_ESYS;
-    w->g_ts = wf_h5_group(fid, "timeseries", err);
-    if (w->g_ts < 0) return WF_ESYS;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++)
-        if (wf_h5_series_create(w->g_ts, wf_ts_columns[c].name, 0, 1024, 0, wf_ts_columns[c].units,
-                                wf_ts_columns[c].desc, &w->ts[c], err))
-            return WF_ESYS;
-    if (wf_h5_series_create(w->g_ts, "class_fuel_rate", w->n_classes, 1024, 0, "g/s",
-                            "fuel rate of each class [time x class]", &w->ts_class, err))
-        return WF_ESYS;
-    if (sc->trajectories) {
-        hsize_t n = f->n;
-        w->tbuf = malloc(n * sizeof *w->tbuf);
-        if (!w->tbuf) return wf_err(err, WF_ESYS, "out of memory for trajectories");
-        w->g_traj = wf_h5_group(fid, "trajectories", err);
-        if (w->g_traj < 0 ||
-            wf_h5_series_create(w->g_traj, "t", 0, 1024, 0, "s", "time of each frame", &w->tr_t, err) ||
-            wf_h5_series_create(w->g_traj, "x", n, 16, 1, "m", "unwrapped front-bumper position [time x vehicle]",
-                                &w->tr_x, err) ||
-            wf_h5_series_create(w->g_traj, "v", n, 16, 1, "m/s", "speed [time x vehicle]", &w->tr_v, err) ||
-            wf_h5_series_create(w->g_traj, "a", n, 16, 1, "m/s^2", "acceleration applied from this instant",
-                                &w->tr_a, err) ||
-            wf_h5_series_create(w->g_traj, "fuel_rate", n, 16, 1, "g/s", "fuel rate [time x vehicle]", &w->tr_f, err))
-            return WF_ESYS;
-        if (wf_h5_attr_f64(w->g_traj, "ring_length_m", sc->road.length_m, err)) return WF_ESYS;
-    }
-    H5Fflush(fid, H5F_SCOPE_GLOBAL);
-    return 0;
-}
-
-static int h5_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
-{
-    (void)sim;
-    WfH5Out *w = ctx;
-    double *dst = w->buf + w->n_buf * (WF_TS_N_COLS + w->n_classes);
-    memcpy(dst, row->v, WF_TS_N_COLS * sizeof(double));
-    memcpy(dst + WF_TS_N_COLS, row->class_fuel_rate_gps, w->n_classes * sizeof(double));
-    if (++w->n_buf == TS_BUF && flush_ts(w, err)) return wf_err_prefix(err, "%s: ", w->file->partial);
-    return 0;
-}
-
-static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
-{
-    WfH5Out *w = ctx;
-    const WfFleet *f = wf_sim_fleet(sim);
-    if (wf_h5_series_append(&w->tr_t, 1, &t, err) || wf_h5_series_append(&w->tr_x, 1, f->x_m, err) ||
-        wf_h5_series_append(&w->tr_v, 1, f->v_mps, err) || wf_h5_series_append(&w->tr_a, 1, f->a_mps2, err) ||
-        wf_h5_series_append(&w->tr_f, 1, f->fuel_rate_gps, err))
-        return wf_err_prefix(err, "%s: ", w->file->partial);
-    return 0;
-}
-
-static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
+/* /vehicles. ALLOCATE writes what is fixed from the start (class, group, length, drawn driver parameters) and
+ * allocates the end-of-run statistics; FILL writes those. */
+static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     const WfScenario *sc = wf_sim_scenario(sim);
     const WfFleet *f = wf_sim_fleet(sim);
@@ -240,24 +207,35 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
     size_t n = f->n;
     hsize_t dn = n;
     double win_steps = s->window_s / sc->dt_s;
-    hid_t g = wf_h5_group(fid, "vehicles", err);
+    int fill = pass == WF_H5_FILL;
+    hid_t g = wf_h5_group_pass(fid, "vehicles", pass, err);
     if (g < 0) return WF_ESYS;
-    double *d = malloc(n * sizeof *d);
-    int64_t *k = malloc(n * sizeof *k);
+    double *d = malloc((n ? n : 1) * sizeof *d);
+    int64_t *k = malloc((n ? n : 1) * sizeof *k);
     int rc = (!d || !k) ? wf_err(err, WF_ESYS, "out of memory") : 0;
-#define I64(name, expr, units, desc)                                                   \
-    if (!rc) {                                                                         \
+#define FIXED_I64(name, expr, units, desc)                                             \
+    if (!rc && !fill) {                                                                \
         for (size_t i = 0; i < n; i++) k[i] = (int64_t)(expr);                         \
         rc = wf_h5_write_i64(g, name, 1, &dn, k, units, desc, err);                    \
     }
-#define F64(name, expr, units, desc)                                                   \
-    if (!rc) {                                                                         \
+#define FIXED_F64(name, expr, units, desc)                                             \
+    if (!rc && !fill) {                                                                \
         for (size_t i = 0; i < n; i++) d[i] = (expr);                                  \
         rc = wf_h5_write_f64(g, name, 1, &dn, d, units, desc, err);                    \
     }
-    I64("class_id", f->class_id[i], "1", "index into /classes");
-    I64("group_id", f->group_id[i], "1", "index into /drivers");
-    F64("length", f->length_m[i], "m", "vehicle length");
+#define I64(name, expr, units, desc)                                                   \
+    if (!rc) {                                                                         \
+        for (size_t i = 0; fill && i < n; i++) k[i] = (int64_t)(expr);                 \
+        rc = wf_h5_put_i64(g, name, pass, 1, &dn, k, units, desc, err);                \
+    }
+#define F64(name, expr, units, desc)                                                   \
+    if (!rc) {                                                                         \
+        for (size_t i = 0; fill && i < n; i++) d[i] = (expr);                          \
+        rc = wf_h5_put_f64(g, name, pass, 1, &dn, d, units, desc, err);                \
+    }
+    FIXED_I64("class_id", f->class_id[i], "1", "index into /classes");
+    FIXED_I64("group_id", f->group_id[i], "1", "index into /drivers");
+    FIXED_F64("length", f->length_m[i], "m", "vehicle length");
     F64("distance", f->dist_m[i], "m", "distance travelled in the statistics window");
     F64("fuel", f->fuel_g[i], "g", "fuel burnt in the statistics window");
     F64("l_per_100km", wf_l_per_100km(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], f->dist_m[i]), "L/100km",
@@ -279,13 +257,17 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
     I64("infeasible_steps", f->infeasible_steps[i], "1", "steps whose acceleration exceeded the class a_max");
     F64("final_x", f->x_m[i], "m", "unwrapped position at the end");
     F64("final_v", f->v_mps[i], "m/s", "speed at the end");
-    /* Every driver-model parameter drawn for each vehicle; NaN for vehicles whose model lacks the key. */
-    for (size_t gi = 0; !rc && gi < sc->n_groups; gi++) {
+    /* Every driver-model parameter drawn for each vehicle (fixed from the start); NaN for vehicles whose model
+     * lacks the key. A key shared by several groups' models is written once, by the first group that has it. */
+    for (size_t gi = 0; !rc && !fill && gi < sc->n_groups; gi++) {
         const WfCfModel *m = sc->groups[gi].model;
         for (size_t p = 0; !rc && p < m->n_spec; p++) {
+            int seen = 0;
+            for (size_t gj = 0; gj < gi && !seen; gj++)
+                seen = wf_param_find(sc->groups[gj].model->spec, sc->groups[gj].model->n_spec, m->spec[p].key) != NULL;
+            if (seen) continue;
             char name[160];
             snprintf(name, sizeof name, "param_%s", m->spec[p].key);
-            if (H5Lexists(g, name, H5P_DEFAULT) > 0) continue;
             for (size_t i = 0; i < n; i++) {
                 const WfCfModel *mi = sc->groups[f->group_id[i]].model;
                 const WfParamSpec *sp = wf_param_find(mi->spec, mi->n_spec, m->spec[p].key);
@@ -294,6 +276,8 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
             rc = wf_h5_write_f64(g, name, 1, &dn, d, m->spec[p].unit, m->spec[p].doc, err);
         }
     }
+#undef FIXED_I64
+#undef FIXED_F64
 #undef I64
 #undef F64
     free(d);
@@ -302,35 +286,36 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-static int write_summary(hid_t fid, const WfSim *sim, WfError *err)
+static int write_summary(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     const WfSummary *s = wf_sim_summary(sim);
     const WfScenario *sc = wf_sim_scenario(sim);
-    hid_t g = wf_h5_group(fid, "summary", err);
+    hid_t g = wf_h5_group_pass(fid, "summary", pass, err);
     if (g < 0) return WF_ESYS;
-    int rc = wf_h5_scalar_f64(g, "window", s->window_s, "s", "statistics window (after warm-up)", err) ||
-             wf_h5_scalar_f64(g, "fuel", s->fuel_g, "g", "fleet fuel in the window", err) ||
-             wf_h5_scalar_f64(g, "distance", s->dist_m, "m", "fleet distance in the window", err) ||
-             wf_h5_scalar_f64(g, "vkt", s->vkt_km, "km", "vehicle-kilometres travelled", err) ||
-             wf_h5_scalar_f64(g, "l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy", err) ||
-             wf_h5_scalar_f64(g, "mpg", s->mpg, "mi/gal", "fleet fuel economy", err) ||
-             wf_h5_scalar_f64(g, "stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km", err) ||
-             wf_h5_scalar_f64(g, "hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km",
-                              "hard-braking events per vehicle-km", err) ||
-             wf_h5_scalar_f64(g, "mean_speed", s->mean_speed_mps, "m/s", "fleet mean speed", err) ||
-             wf_h5_scalar_f64(g, "sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
-                              "time average of the spatial speed standard deviation", err) ||
-             wf_h5_scalar_f64(g, "throughput", s->throughput_vph, "1/h", "passages of x = 0 per hour", err) ||
-             wf_h5_scalar_f64(g, "infeasible_share", s->infeasible_share, "1",
-                              "share of vehicle-steps with an infeasible acceleration request", err) ||
-             wf_h5_scalar_f64(g, "time_stopped_share", s->time_stopped_share, "1", "share of time stopped", err) ||
-             wf_h5_scalar_i64(g, "overlaps", s->overlaps, "1", "overlap events repaired", err);
+#define SCALAR(name, v, units, desc) wf_h5_put_scalar_f64(g, name, pass, v, units, desc, err)
+    int rc = SCALAR("window", s->window_s, "s", "statistics window (after warm-up)") ||
+             SCALAR("fuel", s->fuel_g, "g", "fleet fuel in the window") ||
+             SCALAR("distance", s->dist_m, "m", "fleet distance in the window") ||
+             SCALAR("vkt", s->vkt_km, "km", "vehicle-kilometres travelled") ||
+             SCALAR("l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy") ||
+             SCALAR("mpg", s->mpg, "mi/gal", "fleet fuel economy") ||
+             SCALAR("stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km") ||
+             SCALAR("hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km", "hard-braking events per vehicle-km") ||
+             SCALAR("mean_speed", s->mean_speed_mps, "m/s", "fleet mean speed") ||
+             SCALAR("sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
+                    "time average of the spatial speed standard deviation") ||
+             SCALAR("throughput", s->throughput_vph, "1/h", "passages of x = 0 per hour") ||
+             SCALAR("infeasible_share", s->infeasible_share, "1",
+                    "share of vehicle-steps with an infeasible acceleration request") ||
+             SCALAR("time_stopped_share", s->time_stopped_share, "1", "share of time stopped") ||
+             wf_h5_put_scalar_i64(g, "overlaps", pass, s->overlaps, "1", "overlap events repaired", err);
+#undef SCALAR
     hsize_t nc = sc->n_classes;
     double a[WF_MAX_CLASSES];
 #define CLS(name, field, units, desc)                                              \
     if (!rc) {                                                                     \
         for (size_t c = 0; c < nc; c++) a[c] = s->cls[c].field;                     \
-        rc = wf_h5_write_f64(g, name, 1, &nc, a, units, desc, err);                \
+        rc = wf_h5_put_f64(g, name, pass, 1, &nc, a, units, desc, err);            \
     }
     CLS("class_fuel", fuel_g, "g", "fuel per class in the window");
     CLS("class_distance", dist_m, "m", "distance per class in the window");
@@ -343,34 +328,173 @@ static int write_summary(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-/* Solver statistics of a SUNDIALS run (absent for the fixed-step schemes). */
-static int write_solver(hid_t fid, const WfSim *sim, WfError *err)
+/* Solver statistics of a SUNDIALS run (absent for the fixed-step schemes): the settings are written when the file
+ * is created, the counters at the end. */
+static int write_solver(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     WfOdeStats st;
     if (!wf_sim_ode_stats(sim, &st)) return 0;
     const WfOdeConfig *c = &wf_sim_scenario(sim)->solver;
-    hid_t g = wf_h5_group(fid, "solver", err);
+    hid_t g = wf_h5_group_pass(fid, "solver", pass, err);
     if (g < 0) return WF_ESYS;
     const char *method = c->kind == WF_ODE_CVODE ? (c->bdf ? "bdf" : "adams") : c->kind == WF_ODE_ARKODE ? c->erk_table
                                                                                                           : "classic RK4";
-    int rc = wf_h5_scalar_str(g, "integrator", wf_ode_kind_name(c->kind), "SUNDIALS package used", err) ||
+    int rc = 0;
+    if (pass == WF_H5_ALLOCATE)
+        rc = wf_h5_scalar_str(g, "integrator", wf_ode_kind_name(c->kind), "SUNDIALS package used", err) ||
              wf_h5_scalar_str(g, "method", method, "method or Butcher table", err) ||
              wf_h5_scalar_f64(g, "rtol", c->rtol, "1", "relative tolerance", err) ||
              wf_h5_scalar_f64(g, "atol_x", c->atol_x_m, "m", "absolute tolerance of positions", err) ||
              wf_h5_scalar_f64(g, "atol_v", c->atol_v_mps, "m/s", "absolute tolerance of speeds", err) ||
-             wf_h5_scalar_i64(g, "fuel_error_control", c->fuel_errcon, "1", "fuel integrals in error control", err) ||
-             wf_h5_scalar_i64(g, "steps", st.steps, "1", "internal solver steps", err) ||
-             wf_h5_scalar_i64(g, "rhs_evals", st.rhs_evals, "1", "right-hand-side evaluations (with quadratures)",
-                              err) ||
-             wf_h5_scalar_i64(g, "err_test_fails", st.err_test_fails, "1", "local error test failures", err) ||
-             wf_h5_scalar_i64(g, "nonlin_iters", st.nonlin_iters, "1", "nonlinear solver iterations (CVODES)", err) ||
-             wf_h5_scalar_i64(g, "nonlin_conv_fails", st.nonlin_conv_fails, "1",
-                              "nonlinear convergence failures (CVODES)", err) ||
-             wf_h5_scalar_i64(g, "reinits", st.reinits, "1",
-                              "restarts at discontinuities (noise changes, controller memory, overlap repairs)", err) ||
-             wf_h5_scalar_f64(g, "last_step", st.last_step_s, "s", "last internal step size", err);
+             wf_h5_scalar_i64(g, "fuel_error_control", c->fuel_errcon, "1", "fuel integrals in error control", err);
+#define COUNT(name, v, desc) wf_h5_put_scalar_i64(g, name, pass, v, "1", desc, err)
+    rc = rc || COUNT("steps", st.steps, "internal solver steps") ||
+         COUNT("rhs_evals", st.rhs_evals, "right-hand-side evaluations (with quadratures)") ||
+         COUNT("err_test_fails", st.err_test_fails, "local error test failures") ||
+         COUNT("nonlin_iters", st.nonlin_iters, "nonlinear solver iterations (CVODES)") ||
+         COUNT("nonlin_conv_fails", st.nonlin_conv_fails, "nonlinear convergence failures (CVODES)") ||
+         COUNT("reinits", st.reinits,
+               "restarts at discontinuities (noise changes, controller memory, overlap repairs)") ||
+         wf_h5_put_scalar_f64(g, "last_step", pass, st.last_step_s, "s", "last internal step size", err);
+#undef COUNT
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
+}
+
+static int h5_begin_resume(WfH5Out *w, const WfSim *sim, WfError *err);
+
+/* Buffers for cr frames of n vehicles. */
+static int alloc_traj(WfH5Out *w, hsize_t cr, hsize_t n)
+{
+    for (int k = 0; k < 5; k++) {
+        w->tb[k] = malloc((size_t)(cr * (k < 4 ? (n ? n : 1) : 1)) * sizeof(double));
+        if (!w->tb[k]) return -1;
+    }
+    w->tb_cap = cr;
+    return 0;
+}
+
+/* A failure while the file is set up (`why`, or the error in err): the message says what the file needs and that
+ * nothing is kept (the writer's destroy removes a file whose run never started). */
+static int setup_failed(WfH5Out *w, double ts, double traj, double end, const char *why, WfError *err)
+{
+    char a[32], b[32], c[32], d[32], inner[sizeof err->msg];
+    snprintf(inner, sizeof inner, "%s", why ? why : err->msg);
+    return wf_err(err, why || !err->code ? WF_ESYS : err->code,
+                  "%s: cannot create the result file, which needs up to about %s (time series %s, trajectories %s "
+                  "before compression, end-of-run results %s): %s; nothing was simulated and the file is removed",
+                  w->file->partial, wf_h5_size_text(ts + traj + end, a, sizeof a), wf_h5_size_text(ts, b, sizeof b),
+                  wf_h5_size_text(traj, c, sizeof c), wf_h5_size_text(end, d, sizeof d), inner);
+}
+
+static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
+{
+    WfH5Out *w = ctx;
+    if (w->resume) return h5_begin_resume(w, sim, err);
+    const WfScenario *sc = wf_sim_scenario(sim);
+    const WfFleet *f = wf_sim_fleet(sim);
+    hid_t fid = w->file->fid;
+    time_t now = time(NULL);
+    struct tm tmv;
+    gmtime_r(&now, &tmv);
+    strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
+    w->n_classes = sc->n_classes;
+    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
+    w->cls = malloc(TS_BUF * (w->n_classes ? w->n_classes : 1) * sizeof *w->cls);
+    if (!w->buf || !w->cls) return wf_err(err, WF_ESYS, "out of memory");
+    /* Every row the run can write: the records at steps 0, out_every, ... n_steps, and the trajectory frames. */
+    hsize_t ts_rows = (hsize_t)wf_scenario_records(sc, wf_scenario_output_every(sc));
+    hsize_t frames = sc->trajectories ? (hsize_t)wf_scenario_records(sc, wf_scenario_trajectory_every(sc)) : 0;
+    hsize_t n = f->n;
+    double ts_bytes = (double)ts_rows * (double)(WF_TS_N_COLS + w->n_classes) * 8.0;
+    double traj_bytes = (double)frames * (1.0 + 4.0 * (double)n) * 8.0;
+    double end_bytes = (double)n * 16.0 * 8.0;
+    /* Refuse a run whose result cannot fit before simulating it (trajectories are allocated as they grow, so this
+     * is the only early warning for them). */
+    char why[200];
+    if (wf_h5_check_room(w->file, ts_bytes + traj_bytes + end_bytes, why, sizeof why))
+        return setup_failed(w, ts_bytes, traj_bytes, end_bytes, why, err);
+    if (write_meta(w, sim, err) || write_classes_drivers(fid, sim, err) ||
+        write_vehicles(fid, sim, WF_H5_ALLOCATE, err) || write_summary(fid, sim, WF_H5_ALLOCATE, err) ||
+        write_solver(fid, sim, WF_H5_ALLOCATE, err))
+        return setup_failed(w, ts_bytes, traj_bytes, end_bytes, NULL, err);
+    w->g_ts = wf_h5_group(fid, "timeseries", err);
+    if (w->g_ts < 0) return setup_failed(w, ts_bytes, traj_bytes, end_bytes, NULL, err);
+    for (size_t c = 0; c < WF_TS_N_COLS; c++)
+        if (wf_h5_series_create(w->g_ts, wf_ts_columns[c].name, 0, ts_rows, 0, 0, wf_ts_columns[c].units,
+                                wf_ts_columns[c].desc, &w->ts[c], err))
+            return setup_failed(w, ts_bytes, traj_bytes, end_bytes, NULL, err);
+    if (wf_h5_series_create(w->g_ts, "class_fuel_rate", w->n_classes, ts_rows, 0, 0, "g/s",
+                            "fuel rate of each class [time x class]", &w->ts_class, err))
+        return setup_failed(w, ts_bytes, traj_bytes, end_bytes, NULL, err);
+    if (sc->trajectories) {
+        /* Chunks of 16 frames, fewer when that exceeds 4 MiB (measured: deflate is a third slower on 1 MiB chunks
+         * than on 16 frames of 3000 vehicles, 384 kB); frames are buffered and written a chunk at a time. */
+        hsize_t cr = n ? (4u << 20) / (8 * n) : 16;
+        cr = cr < 1 ? 1 : cr > 16 ? 16 : cr;
+        if (cr > frames) cr = frames;
+        if (alloc_traj(w, cr, n)) return wf_err(err, WF_ESYS, "out of memory for trajectories");
+        w->g_traj = wf_h5_group(fid, "trajectories", err);
+        if (w->g_traj < 0 ||
+            wf_h5_series_create(w->g_traj, "x", n, 0, cr, 1, "m", "unwrapped front-bumper position [time x vehicle]",
+                                &w->tr_x, err) ||
+            wf_h5_series_create(w->g_traj, "v", n, 0, cr, 1, "m/s", "speed [time x vehicle]", &w->tr_v, err) ||
+            wf_h5_series_create(w->g_traj, "a", n, 0, cr, 1, "m/s^2", "acceleration applied from this instant",
+                                &w->tr_a, err) ||
+            wf_h5_series_create(w->g_traj, "fuel_rate", n, 0, cr, 1, "g/s", "fuel rate [time x vehicle]", &w->tr_f,
+                                err) ||
+            wf_h5_series_create(w->g_traj, "t", 0, 0, 1024, 0, "s", "time of each frame", &w->tr_t, err) ||
+            wf_h5_attr_f64(w->g_traj, "ring_length_m", sc->road.length_m, err))
+            return setup_failed(w, ts_bytes, traj_bytes, end_bytes, NULL, err);
+    }
+    /* From here on the structure changes only when trajectory chunks are added, after reserving the space. */
+    if (wf_h5_flush(w->file, err)) return setup_failed(w, ts_bytes, traj_bytes, end_bytes, NULL, err);
+    return 0;
+}
+
+/* A write error in the run: the file keeps what was written before it (its row counts say how much). */
+static int write_failed(WfH5Out *w, int *group_failed, WfError *err)
+{
+    *group_failed = 1;
+    return wf_err_prefix(err, "%s: ", w->file->partial);
+}
+
+static int h5_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
+{
+    (void)sim;
+    WfH5Out *w = ctx;
+    double *dst = w->buf + w->n_buf * (WF_TS_N_COLS + w->n_classes);
+    memcpy(dst, row->v, WF_TS_N_COLS * sizeof(double));
+    memcpy(dst + WF_TS_N_COLS, row->class_fuel_rate_gps, w->n_classes * sizeof(double));
+    if (++w->n_buf == TS_BUF && flush_ts(w, err)) return write_failed(w, &w->ts_failed, err);
+    return 0;
+}
+
+static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
+{
+    WfH5Out *w = ctx;
+    const WfFleet *f = wf_sim_fleet(sim);
+    size_t n = f->n, r = (size_t)w->tb_rows;
+    memcpy(w->tb[0] + r * n, f->x_m, n * sizeof(double));
+    memcpy(w->tb[1] + r * n, f->v_mps, n * sizeof(double));
+    memcpy(w->tb[2] + r * n, f->a_mps2, n * sizeof(double));
+    memcpy(w->tb[3] + r * n, f->fuel_rate_gps, n * sizeof(double));
+    w->tb[4][r] = t;
+    if (++w->tb_rows == w->tb_cap && flush_traj(w, err)) return write_failed(w, &w->traj_failed, err);
+    return 0;
+}
+
+static void close_objects(WfH5Out *w)
+{
+    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
+    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
+    for (size_t i = 0; i < 6; i++) wf_h5_series_close(all[i]);
+    /* Open groups would keep the file open past H5Fclose (weak close degree): close them too. */
+    hid_t *gs[] = {&w->g_meta, &w->g_ts, &w->g_traj};
+    for (size_t i = 0; i < 3; i++) {
+        if (*gs[i] >= 0) H5Gclose(*gs[i]);
+        *gs[i] = H5I_INVALID_HID;
+    }
 }
 
 static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err)
@@ -378,30 +502,49 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     WfH5Out *w = ctx;
     w->ended = 1;
     hid_t fid = w->file->fid;
-    int rc = flush_ts(w, err);
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
-    wf_h5_series_close(&w->ts_class);
-    WfH5Series *tr[] = {&w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 5; i++) wf_h5_series_close(tr[i]);
-    if (!rc) rc = write_vehicles(fid, sim, err);
-    if (!rc) rc = write_summary(fid, sim, err);
-    if (!rc) rc = write_solver(fid, sim, err);
-    if (!rc) rc = write_meta(fid, sim, completed, reason, w->started, err);
-    /* Open groups would keep the file open past H5Fclose (weak close degree): close them first. */
-    if (w->g_ts >= 0) H5Gclose(w->g_ts);
-    if (w->g_traj >= 0) H5Gclose(w->g_traj);
-    w->g_ts = w->g_traj = H5I_INVALID_HID;
+    /* The buffered records, unless writing the time series failed before (the counts stay true); the end-of-run
+     * results and the status are written whatever happened: in place, they cannot damage the file, and they may
+     * well succeed. Only the first error is reported. */
+    int rc = w->ts_failed ? 0 : flush_ts(w, err);
+    if (!rc && !w->traj_failed && w->tr_t.dset >= 0) {
+        /* The buffered frames, then /trajectories cut to the frames written (longer only when a resumed run was
+         * interrupted before rewriting all the frames of the run it resumed). */
+        rc = flush_traj(w, err) || wf_h5_series_trim(w->file, w->traj, 5, err);
+    }
+    WfError later = {0};
+    WfError *e = rc ? &later : err;
+    if (write_vehicles(fid, sim, WF_H5_FILL, e) || write_summary(fid, sim, WF_H5_FILL, e) ||
+        write_solver(fid, sim, WF_H5_FILL, e)) {
+        if (!rc) rc = WF_ESYS;
+        e = &later;
+    }
+    /* A run that was to complete but could not be written is incomplete, for this reason; an interrupted or
+     * failed run keeps its first cause. */
+    if (rc && completed) completed = 0, reason = err->msg;
+    if (meta_status(w->g_meta, WF_H5_FILL, sim, completed, reason, e)) {
+        if (!rc) rc = WF_ESYS;
+        /* The status itself failed: say so in the file if the device still lets us. */
+        if (completed) meta_status(w->g_meta, WF_H5_FILL, sim, 0, err->msg, &later);
+    }
+    close_objects(w);
     if (rc || !completed) {
+        if (rc) wf_err_prefix(err, "%s: ", w->file->partial);
         snprintf(w->final_path, sizeof w->final_path, "%s", w->file->partial);
         wf_h5_abandon(&w->file, 0);
         return rc;
     }
-    snprintf(w->final_path, sizeof w->final_path, "%s", w->file->path);
-    char ck[1200];
+    char ck[1200], partial[sizeof w->file->partial];
     ckpt_path_of(w->file->path, ck, sizeof ck);
+    snprintf(partial, sizeof partial, "%s", w->file->partial);
+    snprintf(w->final_path, sizeof w->final_path, "%s", w->file->path);
     rc = wf_h5_commit(&w->file, err);
-    if (!rc) unlink(ck); /* the result is complete: its checkpoint is of no further use */
-    return rc;
+    if (rc) {
+        snprintf(w->final_path, sizeof w->final_path, "%s", partial);
+        wf_h5_mark_incomplete(partial, err->msg);
+        return wf_err_prefix(err, "%s: ", partial);
+    }
+    unlink(ck); /* the result is complete: its checkpoint is of no further use */
+    return 0;
 }
 
 /* ---- checkpoints (FILE.h5.ckpt) and resumption ---- */
@@ -410,10 +553,10 @@ static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
 {
     WfH5Out *w = ctx;
     const WfScenario *sc = wf_sim_scenario(sim);
-    int rc = flush_ts(w, err);
-    if (rc) return rc;
     /* The result file must hold every row the checkpoint counts before the checkpoint exists. */
-    if (H5Fflush(w->file->fid, H5F_SCOPE_GLOBAL) < 0) return wf_err(err, WF_ESYS, "HDF5: flush %s", w->file->partial);
+    if (flush_ts(w, err)) return write_failed(w, &w->ts_failed, err);
+    if (flush_traj(w, err)) return write_failed(w, &w->traj_failed, err);
+    if (wf_h5_flush(w->file, err)) return w->traj_failed = 1, write_failed(w, &w->ts_failed, err);
     char ck[1200], tmp[1210];
     ckpt_path_of(w->file->path, ck, sizeof ck);
     snprintf(tmp, sizeof tmp, "%s.tmp", ck);
@@ -421,12 +564,12 @@ static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
     if (f < 0) return wf_err(err, WF_ESYS, "%s: cannot create the checkpoint", tmp);
     WfStateVar vars[64];
     size_t nv = wf_sim_state((WfSim *)sim, vars, 64);
-    rc = wf_h5_attr_str(f, "scenario_path", sc->path, err) ||
-         wf_h5_attr_i64(f, "ts_rows", (int64_t)w->ts[0].rows, err) ||
-         wf_h5_attr_i64(f, "traj_rows", (int64_t)w->tr_t.rows, err) ||
-         wf_h5_attr_i64(f, "steps_done", wf_sim_steps_done(sim), err) ||
-         wf_h5_scalar_str(f, "scenario_text", sc->text, "scenario file verbatim", err) ||
-         wf_h5_scalar_str(f, "overrides", sc->overrides, "--set assignments, one per line", err);
+    int rc = wf_h5_attr_str(f, "scenario_path", sc->path, err) ||
+             wf_h5_attr_i64(f, "ts_rows", (int64_t)w->ts[0].rows, err) ||
+             wf_h5_attr_i64(f, "traj_rows", (int64_t)w->tr_t.rows, err) ||
+             wf_h5_attr_i64(f, "steps_done", wf_sim_steps_done(sim), err) ||
+             wf_h5_scalar_str(f, "scenario_text", sc->text, "scenario file verbatim", err) ||
+             wf_h5_scalar_str(f, "overrides", sc->overrides, "--set assignments, one per line", err);
     hid_t g = rc ? H5I_INVALID_HID : wf_h5_group(f, "state", err);
     if (!rc && g < 0) rc = WF_ESYS;
     for (size_t i = 0; !rc && i < nv && i < 64; i++) {
@@ -436,7 +579,10 @@ static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
     if (g >= 0) H5Gclose(g);
     if (H5Fclose(f) < 0 && !rc) rc = wf_err(err, WF_ESYS, "%s: close failed", tmp);
     if (!rc && rename(tmp, ck) != 0) rc = wf_err(err, WF_ESYS, "rename %s -> %s: %s", tmp, ck, strerror(errno));
-    if (rc) unlink(tmp);
+    if (rc) {
+        unlink(tmp);
+        wf_err_prefix(err, "checkpoint %s: ", ck);
+    }
     return rc;
 }
 
@@ -532,26 +678,13 @@ int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops
     wf_sim_restored(sim);
 
     WfH5Out *w = calloc(1, sizeof *w);
-    WfH5File *hf = calloc(1, sizeof *hf);
-    if (!w || !hf) {
+    if (!w) return wf_err(err, WF_ESYS, "out of memory");
+    init_writer(w);
+    rc = wf_h5_reopen(result, &w->file, err);
+    if (rc) {
         free(w);
-        free(hf);
-        return wf_err(err, WF_ESYS, "out of memory");
+        return wf_err_prefix(err, "resume: ");
     }
-    snprintf(hf->path, sizeof hf->path, "%s", result);
-    snprintf(hf->partial, sizeof hf->partial, "%s.partial", result);
-    hf->fid = H5Fopen(hf->partial, H5F_ACC_RDWR, H5P_DEFAULT);
-    if (hf->fid < 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: cannot reopen the partial result (damaged by a hard kill?)", hf->partial);
-        free(w);
-        free(hf);
-        return rc;
-    }
-    w->file = hf;
-    w->g_ts = w->g_traj = H5I_INVALID_HID;
-    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 6; i++) all[i]->dset = H5I_INVALID_HID;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) w->ts[c].dset = H5I_INVALID_HID;
     w->resume = 1;
     w->resume_ts_rows = (hsize_t)ts_rows;
     w->resume_traj_rows = (hsize_t)traj_rows;
@@ -561,32 +694,48 @@ int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops
     return 0;
 }
 
+/* Reopen the series of the interrupted run at the checkpoint's rows: nothing is created, so resuming never grows
+ * the file; rows written after the checkpoint are overwritten by the same values. */
 static int h5_begin_resume(WfH5Out *w, const WfSim *sim, WfError *err)
 {
     const WfScenario *sc = wf_sim_scenario(sim);
     hid_t fid = w->file->fid;
     w->n_classes = sc->n_classes;
     w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
-    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
-    /* What the interrupted run wrote at its end is rewritten at the end of this one. */
-    const char *stale[] = {"vehicles", "summary", "solver"};
-    for (int i = 0; i < 3; i++)
-        if (H5Lexists(fid, stale[i], H5P_DEFAULT) > 0 && H5Ldelete(fid, stale[i], H5P_DEFAULT) < 0)
-            return wf_err(err, WF_ESYS, "HDF5: cannot remove /%s from %s", stale[i], w->file->partial);
-    w->g_ts = H5Gopen2(fid, "timeseries", H5P_DEFAULT);
-    if (w->g_ts < 0) return wf_err(err, WF_EINPUT, "%s: no /timeseries", w->file->partial);
+    w->cls = malloc(TS_BUF * (w->n_classes ? w->n_classes : 1) * sizeof *w->cls);
+    if (!w->buf || !w->cls) return wf_err(err, WF_ESYS, "out of memory");
+    hsize_t ts_rows = (hsize_t)wf_scenario_records(sc, wf_scenario_output_every(sc));
+    hsize_t frames = sc->trajectories ? (hsize_t)wf_scenario_records(sc, wf_scenario_trajectory_every(sc)) : 0;
+    w->g_meta = H5Gopen2(fid, "meta", H5P_DEFAULT);
+    w->g_ts = w->g_meta < 0 ? H5I_INVALID_HID : H5Gopen2(fid, "timeseries", H5P_DEFAULT);
+    if (w->g_ts < 0 || H5Lexists(w->g_meta, "timeseries_rows", H5P_DEFAULT) <= 0)
+        return wf_err(err, WF_EINPUT, "%s: no /meta/timeseries_rows or /timeseries (written by an older wavefuel?): "
+                      "cannot resume it", w->file->partial);
     for (size_t c = 0; c < WF_TS_N_COLS; c++)
         if (wf_h5_series_open(w->g_ts, wf_ts_columns[c].name, w->resume_ts_rows, &w->ts[c], err)) return WF_EINPUT;
     if (wf_h5_series_open(w->g_ts, "class_fuel_rate", w->resume_ts_rows, &w->ts_class, err)) return WF_EINPUT;
+    if (w->ts[0].cap != ts_rows)
+        return wf_err(err, WF_EINPUT, "%s: /timeseries has %llu rows, the scenario makes %llu (written by another "
+                      "version of wavefuel?)", w->file->partial, (unsigned long long)w->ts[0].cap,
+                      (unsigned long long)ts_rows);
     if (sc->trajectories) {
-        w->tbuf = malloc(wf_sim_fleet(sim)->n * sizeof *w->tbuf);
         w->g_traj = H5Gopen2(fid, "trajectories", H5P_DEFAULT);
-        if (!w->tbuf || w->g_traj < 0) return wf_err(err, WF_EINPUT, "%s: no /trajectories", w->file->partial);
+        if (w->g_traj < 0) return wf_err(err, WF_EINPUT, "%s: no /trajectories", w->file->partial);
         const char *names[] = {"t", "x", "v", "a", "fuel_rate"};
         WfH5Series *tr[] = {&w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
         for (int i = 0; i < 5; i++)
             if (wf_h5_series_open(w->g_traj, names[i], w->resume_traj_rows, tr[i], err)) return WF_EINPUT;
+        if (w->tr_t.cap > frames || !w->tr_x.chunk_rows || w->tr_x.cols != wf_sim_fleet(sim)->n)
+            return wf_err(err, WF_EINPUT, "%s: /trajectories has %llu frames of %llu vehicles, the scenario makes %llu "
+                          "of %zu (written by another version of wavefuel?)", w->file->partial,
+                          (unsigned long long)w->tr_t.cap, (unsigned long long)w->tr_x.cols,
+                          (unsigned long long)frames, wf_sim_fleet(sim)->n);
+        if (alloc_traj(w, w->tr_x.chunk_rows, w->tr_x.cols)) return wf_err(err, WF_ESYS, "out of memory");
     }
+    /* Back to "running", counting only the rows the checkpoint vouches for. */
+    if (meta_status(w->g_meta, WF_H5_FILL, sim, 0, "running", err) || write_counts(w, WF_H5_FILL, err) ||
+        wf_h5_flush(w->file, err))
+        return wf_err_prefix(err, "%s: ", w->file->partial);
     return 0;
 }
 
@@ -595,10 +744,7 @@ int wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, W
     *out = NULL;
     WfH5Out *w = calloc(1, sizeof *w);
     if (!w) return wf_err(err, WF_ESYS, "out of memory");
-    w->g_ts = w->g_traj = H5I_INVALID_HID;
-    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 6; i++) all[i]->dset = H5I_INVALID_HID;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) w->ts[c].dset = H5I_INVALID_HID;
+    init_writer(w);
     int rc = wf_h5_create(path, force, &w->file, err);
     if (rc) {
         free(w);
@@ -614,17 +760,13 @@ void wf_h5out_destroy(WfH5Out **pw)
 {
     if (!pw || !*pw) return;
     WfH5Out *w = *pw;
-    if (w->file) {
-        for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
-        WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-        for (size_t i = 0; i < 6; i++) wf_h5_series_close(all[i]);
-    }
-    if (w->g_ts >= 0) H5Gclose(w->g_ts);
-    if (w->g_traj >= 0) H5Gclose(w->g_traj);
-    /* A run that never started writing removes its empty file; a resumed one never deletes what it reopened. */
+    if (w->file) close_objects(w);
+    /* A run that never started writing removes its file (nothing was simulated); a resumed one never deletes
+     * what it reopened. */
     if (w->file) wf_h5_abandon(&w->file, !w->ended && !w->resume);
     free(w->buf);
-    free(w->tbuf);
+    free(w->cls);
+    for (int k = 0; k < 5; k++) free(w->tb[k]);
     free(w);
     *pw = NULL;
 }
@@ -674,6 +816,17 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
         if (H5Tis_variable_str(t) > 0 && H5Dread(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) >= 0 && s) {
             if (!strchr(s, '\n')) fprintf(c->out, "  %-24s %s\n", name, s);
             H5free_memory(s);
+        } else if (H5Tis_variable_str(t) == 0 && H5Tget_size(t) <= 4096) {
+            /* Fixed-length text (/meta/reason, rewritten in place): read with a terminating NUL added. */
+            char fixed[4097];
+            size_t sz = H5Tget_size(t);
+            hid_t ft = H5Tcopy(H5T_C_S1);
+            if (ft >= 0 && H5Tset_size(ft, sz + 1) >= 0 && H5Tset_cset(ft, H5T_CSET_UTF8) >= 0 &&
+                H5Dread(d, ft, H5S_ALL, H5S_ALL, H5P_DEFAULT, fixed) >= 0) {
+                fixed[sz] = '\0';
+                if (!strchr(fixed, '\n')) fprintf(c->out, "  %-24s %s\n", name, fixed);
+            }
+            if (ft >= 0) H5Tclose(ft);
         }
         H5Tclose(mt);
     } else if ((H5Tget_class(t) == H5T_FLOAT || H5Tget_class(t) == H5T_INTEGER) && n >= 1 && n <= 16) {

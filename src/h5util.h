@@ -1,7 +1,9 @@
 /* Thin, checked helpers over the HDF5 C API used by every writer (simulation results, drive cycles,
  * tables): files written as NAME.partial and renamed on success, datasets that always carry a `units` and a
- * `description` attribute, and extendible datasets for time series. Every HDF5 call is checked; a failure
- * returns WF_ESYS with the HDF5 object name in the message. Internal to wavefuel (not installed). */
+ * `description` attribute, result datasets allocated in full when the file is created and overwritten in place,
+ * and series that grow only after the disk space for them is reserved (docs/output.md, "Write errors"). Every
+ * HDF5 call is checked; a failure returns WF_ESYS with the object's path and, when HDF5 saw one, the system
+ * error ("No space left on device", "File too large"). Internal to wavefuel (not installed). */
 #ifndef WAVEFUEL_H5UTIL_H
 #define WAVEFUEL_H5UTIL_H
 
@@ -22,19 +24,30 @@ typedef struct WfH5File {
 void wf_h5_library_init(void);
 
 /* Create PATH.partial for writing. Fails (WF_EINPUT) if PATH exists and force is 0, or if PATH.partial
- * exists (another run may be writing it) and force is 0. Silences HDF5's own error printing. */
+ * exists (another run may be writing it) and force is 0; WF_ESYS with the system error if it cannot be created.
+ * Raw data is written straight to the file (no sieve buffer), in the order of the calls. */
 int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err);
+/* Reopen PATH.partial (an interrupted run's) for writing in place, with the same settings. WF_EINPUT if it is
+ * missing or not HDF5. */
+int wf_h5_reopen(const char *path, WfH5File **out, WfError *err);
+/* Write everything HDF5 holds in memory to the file. */
+int wf_h5_flush(WfH5File *f, WfError *err);
 /* Flush, close and rename PATH.partial to PATH. Frees *f. */
 int wf_h5_commit(WfH5File **f, WfError *err);
 /* Close without renaming: the .partial file stays for inspection (interrupted or failed run). If
  * remove_file is set the partial file is deleted instead (nothing useful was written). Frees *f. */
 void wf_h5_abandon(WfH5File **f, int remove_file);
 
+/* For result files with /meta/completed and /meta/reason (runs): when committing a complete result failed (its last
+ * flush, close or rename), reopen PATH.partial and mark it incomplete with the reason, if the device lets us. */
+void wf_h5_mark_incomplete(const char *partial, const char *reason);
+
 /* Create a group (and missing parents). Returns a handle to close with H5Gclose, or H5I_INVALID_HID. */
 hid_t wf_h5_group(hid_t loc, const char *name, WfError *err);
 
 /* Write a complete dataset (rank 1 or 2), contiguous or compressed when large. units is mandatory ("1"
- * for dimensionless), desc a one-line description. */
+ * for dimensionless), desc a one-line description. For data known when the file is created (it is never
+ * rewritten). */
 int wf_h5_write_f64(hid_t loc, const char *name, int rank, const hsize_t *dims, const double *data,
                     const char *units, const char *desc, WfError *err);
 int wf_h5_write_i64(hid_t loc, const char *name, int rank, const hsize_t *dims, const int64_t *data,
@@ -53,18 +66,66 @@ int wf_h5_attr_str(hid_t obj, const char *name, const char *value, WfError *err)
 int wf_h5_attr_f64(hid_t obj, const char *name, double value, WfError *err);
 int wf_h5_attr_i64(hid_t obj, const char *name, int64_t value, WfError *err);
 
-/* Extendible float64 datasets of shape [rows x cols] (cols = 0 for 1-D), appended a block of rows at a time.
- * Chunked (chunk_rows rows) and deflate-compressed when compress is set. */
+/* ---- Results written in place ----
+ * A writer calls the same function twice: with WF_H5_ALLOCATE when the file is created (the dataset is made at
+ * its final size, contiguous, its space allocated and filled: NaN for float64, -1 for int64, "" for text; data
+ * is not read), then with WF_H5_FILL when the values are known (the existing dataset is overwritten in place:
+ * no metadata changes and the file does not grow, so a failure there cannot damage the file's structure).
+ * FILL fails if the dataset does not exist with exactly the given size. */
+typedef enum { WF_H5_ALLOCATE, WF_H5_FILL } WfH5Pass;
+enum { WF_H5_TEXT_LEN = 1024 }; /* bytes of a fixed-length text dataset, the terminating NUL included */
+/* ALLOCATE: create the group (wf_h5_group); FILL: open it. H5I_INVALID_HID on failure. */
+hid_t wf_h5_group_pass(hid_t loc, const char *name, WfH5Pass pass, WfError *err);
+int wf_h5_put_f64(hid_t loc, const char *name, WfH5Pass pass, int rank, const hsize_t *dims, const double *data,
+                  const char *units, const char *desc, WfError *err);
+int wf_h5_put_i64(hid_t loc, const char *name, WfH5Pass pass, int rank, const hsize_t *dims, const int64_t *data,
+                  const char *units, const char *desc, WfError *err);
+int wf_h5_put_scalar_f64(hid_t loc, const char *name, WfH5Pass pass, double v, const char *units, const char *desc,
+                         WfError *err);
+int wf_h5_put_scalar_i64(hid_t loc, const char *name, WfH5Pass pass, int64_t v, const char *units,
+                         const char *desc, WfError *err);
+/* Fixed-length UTF-8 text of WF_H5_TEXT_LEN bytes; longer text is cut (at a character boundary). */
+int wf_h5_put_text(hid_t loc, const char *name, WfH5Pass pass, const char *s, const char *desc, WfError *err);
+
+/* ---- Series of rows ----
+ * Float64 datasets of shape [rows x cols] (cols = 0 for 1-D), of two kinds:
+ * - fixed (chunk_rows = 0): contiguous, fixed_rows rows allocated and filled with NaN when created (the size is
+ *   known), written a block at a time in place with wf_h5_series_write; rows past `rows` hold NaN;
+ * - appended (chunk_rows > 0): chunked, optionally compressed (shuffle + deflate 1), empty when created; rows are
+ *   added with wf_h5_series_append, which reserves the disk space first, so the dataset's extent is the rows
+ *   written. A writer buffers rows and appends whole chunks (a chunk is then compressed and written once).
+ * Writes go straight to the file (no chunk cache), in call order. */
 typedef struct WfH5Series {
     hid_t   dset;
-    hsize_t rows, cols;
-    char    name[128];
+    hsize_t rows;       /* rows written */
+    hsize_t cap;        /* rows of the dataset's extent */
+    hsize_t cols, chunk_rows;
+    char    name[128];  /* HDF5 path, for messages */
 } WfH5Series;
-int  wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t chunk_rows, int compress,
-                         const char *units, const char *desc, WfH5Series *s, WfError *err);
-/* Reopen an extendible dataset of an existing file, keeping its first keep_rows rows. */
+void wf_h5_series_init(WfH5Series *s); /* an unopened series: dset = H5I_INVALID_HID */
+int  wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t fixed_rows, hsize_t chunk_rows,
+                         int compress, const char *units, const char *desc, WfH5Series *s, WfError *err);
+/* Reopen a series of an existing file; writing continues at row keep_rows (later rows are overwritten). */
 int  wf_h5_series_open(hid_t loc, const char *name, hsize_t keep_rows, WfH5Series *s, WfError *err);
-int  wf_h5_series_append(WfH5Series *s, hsize_t n_rows, const double *rows, WfError *err);
+/* Fixed series: write n rows at row s->rows. WF_ESYS if they do not fit. */
+int  wf_h5_series_write(WfH5Series *s, hsize_t n_rows, const double *rows, WfError *err);
 void wf_h5_series_close(WfH5Series *s);
+/* Appended series s[0..n) (which hold the same number of rows): add n_rows rows to each (data[i]: n_rows x cols
+ * values). First the disk space the touched chunks and their index can take is reserved (posix_fallocate past
+ * the end of the file): if that fails (disk full, file size limit, quota) nothing in the file has changed and the
+ * error names `what` and the size. Then the rows are written and the file flushed, so what is on disk always has
+ * a consistent structure. */
+int  wf_h5_series_append(WfH5File *f, WfH5Series *const *s, size_t n, hsize_t n_rows, const double *const *data,
+                         const char *what, WfError *err);
+/* Cut the appended series s[0..n) to their rows written (after a resumed run overwrote fewer), with the same
+ * reservation. */
+int  wf_h5_series_trim(WfH5File *f, WfH5Series *const *s, size_t n, WfError *err);
+
+/* A byte count as text: "812 kB", "41.3 MB", "2.10 GB". Returns buf. */
+const char *wf_h5_size_text(double bytes, char *buf, size_t len);
+
+/* Before creating a file's datasets: can `bytes` more be written to it? Fails (-1, with the reason in `why`) when
+ * the file size limit (RLIMIT_FSIZE, ulimit -f) or the space free on its file system is smaller. */
+int wf_h5_check_room(const WfH5File *f, double bytes, char *why, size_t len);
 
 #endif

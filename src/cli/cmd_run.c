@@ -5,6 +5,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 #ifdef _OPENMP
@@ -199,11 +200,14 @@ int wf_cmd_run(int argc, char **argv)
     int status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
+        char ck[1100];
+        struct stat st;
+        snprintf(ck, sizeof ck, "%s.ckpt", sc->output_path);
+        int resumable = stat(ck, &st) == 0;
         if (wf_h5out_path(h5)[0])
-            fprintf(stderr, err.code == WF_ESYS && strstr(err.msg, "HDF5")
-                                ? "wavefuel: %s is incomplete and may be unreadable after this write error\n"
-                                : "wavefuel: partial result kept in %s (resume with --resume)\n",
-                    wf_h5out_path(h5));
+            fprintf(stderr, "wavefuel: partial result kept in %s (/meta/reason says why; /meta/timeseries_rows and "
+                            "trajectory_rows count the rows written)%s\n",
+                    wf_h5out_path(h5), resumable ? "; resume with --resume" : "");
     } else if (!quiet) {
         print_summary(sim, wf_h5out_path(h5));
     }

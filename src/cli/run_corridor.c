@@ -92,7 +92,10 @@ int wf_cli_run_corridor(const WfScenario *sc, int force, int quiet)
     int status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
-        if (wf_h5corridor_path(h5)[0]) fprintf(stderr, "wavefuel: partial result kept in %s\n", wf_h5corridor_path(h5));
+        if (wf_h5corridor_path(h5)[0])
+            fprintf(stderr, "wavefuel: partial result kept in %s (/meta/reason says why; /meta/timeseries_rows, "
+                            "trip_rows and trajectory_rows count the rows written)\n",
+                    wf_h5corridor_path(h5));
     } else if (!quiet) {
         print_summary(c, wf_h5corridor_path(h5));
     }
