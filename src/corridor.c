@@ -262,8 +262,7 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
 
     c->n_steps = wf_scenario_n_steps(sc);
     c->out_every = wf_scenario_output_every(sc);
-    c->traj_every = lround(sc->trajectory_interval_s / sc->dt_s);
-    if (c->traj_every < 1) c->traj_every = 1;
+    c->traj_every = wf_scenario_trajectory_every(sc);
     c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
 #ifdef _OPENMP
     c->nthreads = omp_get_max_threads();

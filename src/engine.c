@@ -117,8 +117,7 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     }
     s->n_steps = wf_scenario_n_steps(sc);
     s->out_every = wf_scenario_output_every(sc);
-    s->traj_every = lround(sc->trajectory_interval_s / sc->dt_s);
-    if (s->traj_every < 1) s->traj_every = 1;
+    s->traj_every = wf_scenario_trajectory_every(sc);
     s->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
     s->fault_vehicle = -1;
 #ifdef _OPENMP

@@ -1,7 +1,7 @@
 /* Checkpoint files (FILE.h5.ckpt) shared by the ring and corridor result writers: atomic replacement (write a
  * temporary file, rename it), the checksum that tells a damaged checkpoint from a good one, the checks that a
- * checkpoint and a partial result belong to the run being resumed, and the appended datasets' rows: counted by
- * cursors, kept in memory for compressed datasets, truncated on resumption. Layout: src/h5ckpt.h. */
+ * checkpoint and a partial result belong to the run being resumed, and the series' rows: counted by cursors,
+ * the pending rows of appended datasets saved with the state. Layout: src/h5ckpt.h. */
 #include "h5ckpt.h"
 
 #include <errno.h>
@@ -66,8 +66,8 @@ int wf_ckpt_series_create(hid_t fid, const WfCkptSeries *sp, size_t n, WfError *
     for (size_t i = 0; !rc && i < n; i++) {
         hid_t g = H5Gopen2(fid, sp[i].group, H5P_DEFAULT);
         if (g < 0) return wf_err(err, WF_ESYS, "HDF5: no group '%s'", sp[i].group);
-        rc = wf_h5_series_create(g, sp[i].col->name, sp[i].cols, sp[i].chunk_rows, sp[i].compress, sp[i].col->units,
-                                 sp[i].col->desc, sp[i].s, err);
+        rc = wf_h5_series_create(g, sp[i].col->name, sp[i].cols, sp[i].fixed_rows, sp[i].chunk_rows, sp[i].compress,
+                                 sp[i].col->units, sp[i].col->desc, sp[i].s, err);
         H5Gclose(g);
     }
     return rc;
@@ -205,7 +205,7 @@ int wf_ckpt_restore(const char *result, const char *kind, const WfScenario *sc, 
             rc = wf_err(err, WF_ESYS, "dataset path too long: %s/%s", sp[i].group, sp[i].col->name);
             break;
         }
-        rc = wf_h5_series_resume(sp[i].s, path, sp[i].cols, sp[i].chunk_rows, sp[i].compress,
+        rc = wf_h5_series_resume(sp[i].s, path, sp[i].cols, sp[i].fixed_rows, sp[i].chunk_rows, sp[i].compress,
                                  (hsize_t)cur[sp[i].cursor].rows, err);
     }
     if (!rc) rc = pending_blocks(sp, ns, vars, &n_vars, err);
@@ -244,19 +244,17 @@ static int reopen_partial(const char *result, const WfScenario *sc, WfH5File **o
     return 0;
 }
 
-int wf_ckpt_reopen(const char *result, const WfScenario *sc, const WfCkptSeries *sp, size_t ns,
-                   const char *const *stale, size_t n_stale, WfH5File **out, WfError *err)
+int wf_ckpt_reopen(const char *result, const WfScenario *sc, const WfCkptSeries *sp, size_t ns, WfH5File **out,
+                   WfError *err)
 {
     WfH5File *hf = NULL;
     int rc = reopen_partial(result, sc, &hf, err);
-    if (rc) return rc;
-    for (size_t i = 0; !rc && i < n_stale; i++)
-        if (H5Lexists(hf->fid, stale[i], H5P_DEFAULT) > 0 && H5Ldelete(hf->fid, stale[i], H5P_DEFAULT) < 0)
-            rc = wf_err(err, WF_ESYS, "HDF5: cannot remove /%s", stale[i]);
     for (size_t i = 0; !rc && i < ns; i++) rc = wf_h5_series_reopen(hf->fid, sp[i].s, err);
     if (rc) {
-        wf_err_prefix(err, "%s: ", hf->partial);
-        wf_h5_abandon(&hf, 0);
+        if (hf) {
+            wf_err_prefix(err, "%s: ", hf->partial);
+            wf_h5_abandon(&hf, 0);
+        }
         return rc;
     }
     *out = hf;

@@ -1,10 +1,10 @@
 /* Checkpoints FILE.h5.ckpt of the ring (src/h5out.c) and corridor (src/h5corridor.c) result writers, and the
  * resumption of the partial result FILE.h5.partial they belong to. A checkpoint has the attributes `kind` (ring
- * or corridor), `scenario_path`, `steps_done`, `rows_NAME` (the cursor of each group of appended datasets: rows
- * appended when it was taken) and `checksum` (FNV-1a over everything restored), and the datasets `scenario_text`,
- * `overrides` and `state/NAME`: each engine state block, and the rows of compressed datasets still in memory
- * (`pending:PATH`, h5util.h), as raw bytes. It is written to FILE.h5.ckpt.tmp and renamed, so a kill at any moment
- * leaves either the previous checkpoint or the new one. Internal to wavefuel. */
+ * or corridor), `scenario_path`, `steps_done`, `rows_NAME` (the cursor of each group of series: rows written,
+ * those still in memory included, when it was taken) and `checksum` (FNV-1a over everything restored), and the
+ * datasets `scenario_text`, `overrides` and `state/NAME`: each engine state block, and the rows of appended
+ * datasets still in memory (`pending:PATH`, h5util.h), as raw bytes. It is written to FILE.h5.ckpt.tmp and
+ * renamed, so a kill at any moment leaves either the previous checkpoint or the new one. Internal to wavefuel. */
 #ifndef WAVEFUEL_H5CKPT_H
 #define WAVEFUEL_H5CKPT_H
 
@@ -15,13 +15,15 @@
 #include "wavefuel/engine.h"
 #include "wavefuel/scenario.h"
 
-/* One appended dataset of a result: its group and name, how it was created, and which cursor (index into the
- * writer's cursor names) counts its rows. The datasets of one cursor always have the same number of rows. */
+/* One series of a result (src/h5util.h): its group and name, how it was created (fixed_rows rows of a fixed
+ * series, or chunk_rows per chunk of an appended one) and which cursor (index into the writer's cursor names)
+ * counts its rows. The series of one cursor always hold the same number of rows; the appended ones among them
+ * are appended together (wf_h5_series_append). */
 typedef struct WfCkptSeries {
     WfH5Series     *s;
     const char     *group;
     const WfColumn *col;   /* name, units, description */
-    hsize_t         cols, chunk_rows;
+    hsize_t         cols, fixed_rows, chunk_rows;
     int             compress;
     size_t          cursor;
 } WfCkptSeries;
@@ -46,11 +48,13 @@ int wf_ckpt_restore(const char *result, const char *kind, const WfScenario *sc, 
                     size_t n_cur, const WfCkptSeries *sp, size_t ns, WfStateVar *vars, size_t n_vars, WfError *err);
 
 /* Resume, step 2 (after the engine accepted the restored state): reopen FILE.h5.partial of `result` for writing
- * after checking that it is the result of the run `sc` (its /meta/scenario_text and /meta/overrides), remove the
- * groups stale[0..n_stale) that the interrupted run wrote at its end, and reopen the series, truncated to the
- * checkpoint's rows. WF_EINPUT when the file is missing, unreadable, of another run or shorter. */
-int wf_ckpt_reopen(const char *result, const WfScenario *sc, const WfCkptSeries *sp, size_t ns,
-                   const char *const *stale, size_t n_stale, WfH5File **out, WfError *err);
+ * after checking that it is the result of the run `sc` (its /meta/scenario_text and /meta/overrides), and reopen
+ * the series, checking their layout and that they hold the checkpoint's rows. Nothing in the file is changed:
+ * the writer then sets its row counters back to the checkpoint's and cuts the appended series to their rows in
+ * the file (wf_h5_series_trim); what the interrupted run wrote at its end (allocated in place) is overwritten at
+ * the end of the resumed one. WF_EINPUT when the file is missing, unreadable, of another run or shorter. */
+int wf_ckpt_reopen(const char *result, const WfScenario *sc, const WfCkptSeries *sp, size_t ns, WfH5File **out,
+                   WfError *err);
 
 /* Remove the checkpoint of `result` (the run completed). */
 void wf_ckpt_remove(const char *result);

@@ -1,6 +1,9 @@
 /* HDF5 result files of corridor runs (docs/corridors.md): provenance, classes and drivers, the road, time series,
- * trips and trajectories appended as the run goes, detectors, Edie fields and the summary at the end. Every HDF5
- * call goes through src/h5util.h (checked, units on every dataset, .partial until the run completes). */
+ * trips and trajectories appended as the run goes, detectors, Edie fields and the summary at the end. Everything
+ * whose size is known is created at that size before the first step and overwritten in place; trips and
+ * trajectories, whose number is not known, grow a compressed chunk at a time after its disk space is reserved,
+ * the rows of the incomplete chunk waiting in memory and in checkpoints (src/h5util.h, src/h5ckpt.h), so a write
+ * error at any point leaves a file whose structure is intact (docs/output.md, "Write errors"). */
 #include "wavefuel/h5corridor.h"
 
 #include <math.h>
@@ -14,10 +17,9 @@
 #include "wavefuel/version.h"
 
 #define TS_BUF     256
-#define TS_CHUNK   1024  /* rows per chunk of the time series (uncompressed) */
-#define TRIP_CHUNK 4096  /* ... of /trips (compressed) */
-#define TRAJ_CHUNK 65536 /* ... of /trajectories (compressed) */
-#define N_SERIES   (WF_CTS_N_COLS + 1 + TR_N + 6)
+#define TRIP_CHUNK 4096  /* rows per chunk of /trips (32 kB per column, compressed) */
+#define TRAJ_CHUNK 65536 /* ... of /trajectories (512 kB per column, compressed) */
+#define N_SERIES   (WF_CTS_N_COLS + 1 + TR_N + N_TRAJ)
 
 /* Columns of /trips, in the order of WfTrip's fields as written (float64; integers are exact below 2^53). */
 enum { TR_SERIAL, TR_CLASS, TR_GROUP, TR_COMPLETED, TR_ARRIVAL, TR_ENTRY, TR_EXIT, TR_TRAVEL, TR_DELAY, TR_VENTRY,
@@ -42,7 +44,8 @@ static const WfColumn trip_cols[TR_N] = {
 };
 
 /* Columns of /trajectories, one row per vehicle on the road per frame. */
-static const WfColumn traj_cols[6] = {
+enum { N_TRAJ = 6 };
+static const WfColumn traj_cols[N_TRAJ] = {
     {"t", "s", "time of each point"},
     {"serial", "1", "vehicle (trips/serial) of each point"},
     {"x", "m", "front-bumper position from the entrance"},
@@ -51,54 +54,109 @@ static const WfColumn traj_cols[6] = {
     {"fuel_rate", "g/s", "fuel rate"},
 };
 
+/* The series whose rows a checkpoint counts (src/h5ckpt.h), and /meta's counter of each. */
+enum { CUR_TS, CUR_TRIPS, CUR_TRAJ, N_CUR };
+static const char *const cursor_names[N_CUR] = {"timeseries", "trips", "trajectories"};
+
 struct WfH5Corridor {
     WfH5File  *file;
     int        ended;
+    int        resume;     /* reopened .partial of an interrupted run */
+    /* A write to the group failed: nothing more is written to it (its count stays true); the others go on. */
+    int        ts_failed, trips_failed, traj_failed;
     char       final_path[1100];
     char       started[64];
-    hid_t      g_ts, g_trips, g_traj;
-    WfH5Series ts[WF_CTS_N_COLS], ts_class, trips[TR_N];
-    WfH5Series tr_t, tr_id, tr_x, tr_v, tr_a, tr_f;
-    double    *buf, *tbuf; /* TS_BUF time-series rows; one trajectory column of up to cap vehicles */
+    hid_t      g_meta;
+    WfH5Series ts[WF_CTS_N_COLS], ts_class, trips[TR_N], tr[N_TRAJ];
+    WfH5Series *trip_s[TR_N], *traj_s[N_TRAJ]; /* the groups appended together */
+    int64_t    counted[N_CUR]; /* the row counters as last written (-1: not yet) */
+    double    *buf, *cls;  /* TS_BUF time-series rows, their class block */
+    double    *frame;      /* one trajectory frame: N_TRAJ columns of up to tcap points */
     size_t     n_buf, n_classes, tcap;
-    int        resume;     /* reopened .partial of an interrupted run */
 };
 
-/* The appended datasets whose rows a checkpoint counts (src/h5ckpt.h). */
-enum { CUR_TS, CUR_TRIPS, CUR_TRAJ, N_CUR };
-static const char *const cursor_names[N_CUR] = {"timeseries", "trips", "trajectories"};
+static void init_writer(WfH5Corridor *w)
+{
+    w->g_meta = H5I_INVALID_HID;
+    for (size_t k = 0; k < WF_CTS_N_COLS; k++) wf_h5_series_init(&w->ts[k]);
+    wf_h5_series_init(&w->ts_class);
+    for (size_t k = 0; k < TR_N; k++) wf_h5_series_init(&w->trips[k]), w->trip_s[k] = &w->trips[k];
+    for (size_t k = 0; k < N_TRAJ; k++) wf_h5_series_init(&w->tr[k]), w->traj_s[k] = &w->tr[k];
+    for (size_t k = 0; k < N_CUR; k++) w->counted[k] = -1;
+}
+
+/* Every series: its group, shape and layout, and the cursor that counts its rows. The time series are fixed (every
+ * record allocated at the start), trips and trajectories appended and compressed. */
+static size_t series_specs(WfH5Corridor *w, const WfScenario *sc, WfCkptSeries *sp)
+{
+    static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class on the road [time x class]"};
+    hsize_t ts_rows = (hsize_t)wf_scenario_records(sc, wf_scenario_output_every(sc));
+    size_t n = 0;
+    for (size_t k = 0; k < WF_CTS_N_COLS; k++)
+        sp[n++] = (WfCkptSeries){.s = &w->ts[k], .group = "timeseries", .col = &wf_corridor_columns[k],
+                                 .fixed_rows = ts_rows, .cursor = CUR_TS};
+    sp[n++] = (WfCkptSeries){.s = &w->ts_class, .group = "timeseries", .col = &class_col, .cols = sc->n_classes,
+                             .fixed_rows = ts_rows, .cursor = CUR_TS};
+    for (size_t k = 0; k < TR_N; k++)
+        sp[n++] = (WfCkptSeries){.s = &w->trips[k], .group = "trips", .col = &trip_cols[k], .chunk_rows = TRIP_CHUNK,
+                                 .compress = 1, .cursor = CUR_TRIPS};
+    for (size_t k = 0; sc->trajectories && k < N_TRAJ; k++)
+        sp[n++] = (WfCkptSeries){.s = &w->tr[k], .group = "trajectories", .col = &traj_cols[k],
+                                 .chunk_rows = TRAJ_CHUNK, .compress = 1, .cursor = CUR_TRAJ};
+    return n;
+}
+
+/* /meta/timeseries_rows, trip_rows, trajectory_rows: the rows of each group in the file, written in place after
+ * them when they changed (so they never count a row that is not there). */
+static int write_counts(WfH5Corridor *w, WfH5Pass pass, WfError *err)
+{
+    int64_t n[N_CUR] = {(int64_t)w->ts[0].rows, (int64_t)w->trips[0].rows, (int64_t)w->tr[0].rows};
+    if (pass == WF_H5_FILL && !memcmp(n, w->counted, sizeof n)) return 0;
+    if (wf_h5_put_scalar_i64(w->g_meta, "timeseries_rows", pass, n[CUR_TS], "1",
+                             "rows of /timeseries that hold data (the others are NaN until written)", err) ||
+        wf_h5_put_scalar_i64(w->g_meta, "trip_rows", pass, n[CUR_TRIPS], "1", "rows of /trips that hold data", err) ||
+        wf_h5_put_scalar_i64(w->g_meta, "trajectory_rows", pass, n[CUR_TRAJ], "1",
+                             "points of /trajectories that hold data (0 without trajectories)", err))
+        return WF_ESYS;
+    if (pass == WF_H5_FILL) memcpy(w->counted, n, sizeof n);
+    return 0;
+}
 
 static int flush_ts(WfH5Corridor *w, WfError *err)
 {
     if (!w->n_buf) return 0;
     size_t stride = WF_CTS_N_COLS + w->n_classes;
-    double col[TS_BUF], cls[TS_BUF * WF_MAX_CLASSES];
+    double col[TS_BUF];
     for (size_t c = 0; c < WF_CTS_N_COLS; c++) {
         for (size_t r = 0; r < w->n_buf; r++) col[r] = w->buf[r * stride + c];
-        if (wf_h5_series_append(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
+        if (wf_h5_series_write(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
     }
     for (size_t r = 0; r < w->n_buf; r++)
-        for (size_t c = 0; c < w->n_classes; c++) cls[r * w->n_classes + c] = w->buf[r * stride + WF_CTS_N_COLS + c];
-    int rc = wf_h5_series_append(&w->ts_class, w->n_buf, cls, err);
+        for (size_t c = 0; c < w->n_classes; c++) w->cls[r * w->n_classes + c] = w->buf[r * stride + WF_CTS_N_COLS + c];
+    if (wf_h5_series_write(&w->ts_class, w->n_buf, w->cls, err)) return WF_ESYS;
     w->n_buf = 0;
-    return rc;
+    return write_counts(w, WF_H5_FILL, err);
 }
 
-static int write_meta(hid_t fid, const WfCorridor *c, int completed, const char *reason, const char *started,
-                      WfError *err)
+/* What /meta says about the run's progress, written in place. */
+static int meta_status(hid_t g, WfH5Pass pass, const WfCorridor *c, int completed, const char *reason, WfError *err)
+{
+    int rc = wf_h5_put_text(g, "reason", pass, reason,
+                            "why the run stopped early: running while it runs, empty when completed", err) ||
+             wf_h5_put_scalar_f64(g, "wall_time_s", pass, wf_corridor_wall_s(c), "s", "wall time of the step loop",
+                                  err) ||
+             wf_h5_put_scalar_i64(g, "steps_done", pass, wf_corridor_steps_done(c), "1", "time steps completed", err) ||
+             /* Last: a file says completed only once everything else is written. */
+             wf_h5_put_scalar_i64(g, "completed", pass, completed, "1", "1 when the run reached its end", err);
+    return rc ? WF_ESYS : 0;
+}
+
+static int write_meta(WfH5Corridor *w, const WfCorridor *c, WfError *err)
 {
     const WfScenario *sc = wf_corridor_scenario(c);
-    hid_t g = H5Gopen2(fid, "/meta", H5P_DEFAULT);
-    int fresh = g < 0, rc = 0;
-    if (fresh) g = wf_h5_group(fid, "meta", err);
+    hid_t g = w->g_meta = wf_h5_group(w->file->fid, "meta", err);
     if (g < 0) return WF_ESYS;
-    if (!fresh) {
-        /* Rewritten at the end of the run: drop the provisional values. */
-        const char *names[] = {"completed", "reason", "wall_time_s", "steps_done"};
-        for (int i = 0; i < 4; i++)
-            if (H5Lexists(g, names[i], H5P_DEFAULT) > 0) H5Ldelete(g, names[i], H5P_DEFAULT);
-    } else {
-        rc = wf_h5_scalar_str(g, "scenario_text", sc->text, "the scenario file, verbatim", err) ||
+    int rc = wf_h5_scalar_str(g, "scenario_text", sc->text, "the scenario file, verbatim", err) ||
              wf_h5_scalar_str(g, "scenario_path", sc->path, "scenario file as given", err) ||
              wf_h5_scalar_str(g, "overrides", sc->overrides, "--set assignments applied, one per line", err) ||
              wf_h5_scalar_str(g, "version", WF_VERSION, "wavefuel version", err) ||
@@ -106,19 +164,14 @@ static int write_meta(hid_t fid, const WfCorridor *c, int completed, const char 
              wf_h5_scalar_str(g, "road_type", "corridor", "ring or corridor", err) ||
              wf_h5_scalar_i64(g, "seed", (int64_t)sc->seed, "1", "random seed", err) ||
              wf_h5_scalar_i64(g, "threads", wf_corridor_threads(c), "1", "OpenMP threads available to the run", err) ||
-             wf_h5_scalar_str(g, "start_time", started, "wall-clock start, UTC ISO 8601", err) ||
+             wf_h5_scalar_str(g, "start_time", w->started, "wall-clock start, UTC ISO 8601", err) ||
              wf_h5_scalar_str(g, "integrator", sc->integrator, "time integrator", err) ||
              wf_h5_scalar_f64(g, "dt", sc->dt_s, "s", "time step", err) ||
              wf_h5_scalar_f64(g, "duration", sc->duration_s, "s", "simulated duration", err) ||
              wf_h5_scalar_f64(g, "warmup", sc->warmup_s, "s", "warm-up excluded from the window statistics", err) ||
-             wf_h5_scalar_f64(g, "road_length", sc->road.length_m, "m", "corridor length L", err);
-    }
-    if (!rc)
-        rc = wf_h5_scalar_i64(g, "completed", completed, "1", "1 when the run reached its end", err) ||
-             wf_h5_scalar_str(g, "reason", reason, "why the run stopped early (empty when completed)", err) ||
-             wf_h5_scalar_f64(g, "wall_time_s", wf_corridor_wall_s(c), "s", "wall time of the step loop", err) ||
-             wf_h5_scalar_i64(g, "steps_done", wf_corridor_steps_done(c), "1", "time steps completed", err);
-    H5Gclose(g);
+             wf_h5_scalar_f64(g, "road_length", sc->road.length_m, "m", "corridor length L", err) ||
+             meta_status(g, WF_H5_ALLOCATE, c, 0, "", err) || meta_status(g, WF_H5_FILL, c, 0, "running", err) ||
+             write_counts(w, WF_H5_ALLOCATE, err) || write_counts(w, WF_H5_FILL, err);
     return rc ? WF_ESYS : 0;
 }
 
@@ -209,137 +262,13 @@ static int write_road(hid_t fid, const WfCorridor *c, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-/* Every appended dataset: its group, shape, chunking and compression, and the cursor that counts its rows. */
-static size_t series_specs(WfH5Corridor *w, const WfScenario *sc, WfCkptSeries *sp)
-{
-    static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class on the road [time x class]"};
-    size_t n = 0;
-    for (size_t k = 0; k < WF_CTS_N_COLS; k++)
-        sp[n++] = (WfCkptSeries){&w->ts[k], "timeseries", &wf_corridor_columns[k], 0, TS_CHUNK, 0, CUR_TS};
-    sp[n++] = (WfCkptSeries){&w->ts_class, "timeseries", &class_col, sc->n_classes, TS_CHUNK, 0, CUR_TS};
-    for (size_t k = 0; k < TR_N; k++)
-        sp[n++] = (WfCkptSeries){&w->trips[k], "trips", &trip_cols[k], 0, TRIP_CHUNK, 1, CUR_TRIPS};
-    WfH5Series *tr[6] = {&w->tr_t, &w->tr_id, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t k = 0; sc->trajectories && k < 6; k++)
-        sp[n++] = (WfCkptSeries){tr[k], "trajectories", &traj_cols[k], 0, TRAJ_CHUNK, 1, CUR_TRAJ};
-    return n;
-}
-
-/* The time-series rows and one trajectory column, buffered (a resumed run reopened its file already). */
-static int alloc_buffers(WfH5Corridor *w, const WfCorridor *c, WfError *err)
-{
-    w->n_classes = wf_corridor_scenario(c)->n_classes;
-    w->buf = malloc(TS_BUF * (WF_CTS_N_COLS + w->n_classes) * sizeof *w->buf);
-    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
-    if (wf_corridor_scenario(c)->trajectories) {
-        w->tcap = wf_corridor_vehicles(c)->cap;
-        w->tbuf = malloc(w->tcap * sizeof *w->tbuf);
-        if (!w->tbuf) return wf_err(err, WF_ESYS, "out of memory for trajectories");
-    }
-    return 0;
-}
-
-static int h5_begin(void *ctx, const WfCorridor *c, WfError *err)
-{
-    WfH5Corridor *w = ctx;
-    int rc = alloc_buffers(w, c, err);
-    if (rc || w->resume) return rc;
-    const WfScenario *sc = wf_corridor_scenario(c);
-    hid_t fid = w->file->fid;
-    time_t now = time(NULL);
-    struct tm tmv;
-    gmtime_r(&now, &tmv);
-    strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
-    if (write_meta(fid, c, 0, "running", w->started, err) || write_classes_drivers(fid, c, err) ||
-        write_road(fid, c, err))
-        return WF_ESYS;
-    WfCkptSeries sp[N_SERIES];
-    size_t ns = series_specs(w, sc, sp);
-    w->g_ts = wf_h5_group(fid, "timeseries", err);
-    w->g_trips = w->g_ts < 0 ? H5I_INVALID_HID : wf_h5_group(fid, "trips", err);
-    w->g_traj = w->g_trips < 0 || !sc->trajectories ? H5I_INVALID_HID : wf_h5_group(fid, "trajectories", err);
-    if (w->g_ts < 0 || w->g_trips < 0 || (sc->trajectories && w->g_traj < 0) ||
-        wf_ckpt_series_create(fid, sp, ns, err))
-        return WF_ESYS;
-    if (sc->trajectories && wf_h5_attr_str(w->g_traj, "layout", "one row per vehicle on the road per frame, road "
-                                           "order within a frame (front first)", err))
-        return WF_ESYS;
-    H5Fflush(fid, H5F_SCOPE_GLOBAL);
-    return 0;
-}
-
-static int h5_record(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
-{
-    (void)c;
-    WfH5Corridor *w = ctx;
-    double *dst = w->buf + w->n_buf * (WF_CTS_N_COLS + w->n_classes);
-    memcpy(dst, row->v, WF_CTS_N_COLS * sizeof(double));
-    memcpy(dst + WF_CTS_N_COLS, row->class_fuel_rate_gps, w->n_classes * sizeof(double));
-    return ++w->n_buf == TS_BUF ? flush_ts(w, err) : 0;
-}
-
-/* One trajectory frame: a column at a time through the frame buffer (road order). */
-static int h5_trajectory(void *ctx, const WfCorridor *c, double t, WfError *err)
-{
-    WfH5Corridor *w = ctx;
-    const WfCorridorVehicles *vh = wf_corridor_vehicles(c);
-    size_t n = vh->n;
-    const double *src[] = {NULL, NULL, vh->x_m, vh->v_mps, vh->a_mps2, vh->fuel_rate_gps};
-    WfH5Series *dst[] = {&w->tr_t, &w->tr_id, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (int col = 0; col < 6; col++) {
-        for (size_t k = 0; k < n; k++) {
-            size_t s = wf_corridor_slot(vh, k);
-            w->tbuf[k] = col == 0 ? t : col == 1 ? (double)vh->serial[s] : src[col][s];
-        }
-        if (wf_h5_series_append(dst[col], n, w->tbuf, err)) return WF_ESYS;
-    }
-    return 0;
-}
-
-static int h5_trips(void *ctx, const WfCorridor *c, const WfTrip *tr, size_t n, WfError *err)
-{
-    (void)c;
-    WfH5Corridor *w = ctx;
-    double *col = malloc((n ? n : 1) * sizeof *col);
-    if (!col) return wf_err(err, WF_ESYS, "out of memory");
-    int rc = 0;
-    for (size_t k = 0; !rc && k < TR_N; k++) {
-        for (size_t i = 0; i < n; i++) {
-            const WfTrip *t = &tr[i];
-            double v;
-            switch (k) {
-            case TR_SERIAL: v = (double)t->serial; break;
-            case TR_CLASS: v = t->class_id; break;
-            case TR_GROUP: v = t->group_id; break;
-            case TR_COMPLETED: v = t->completed; break;
-            case TR_ARRIVAL: v = t->t_arrival_s; break;
-            case TR_ENTRY: v = t->t_entry_s; break;
-            case TR_EXIT: v = t->t_exit_s; break;
-            case TR_TRAVEL: v = t->t_exit_s - t->t_entry_s; break;
-            case TR_DELAY: v = t->t_entry_s - t->t_arrival_s; break;
-            case TR_VENTRY: v = t->v_entry_mps; break;
-            case TR_FUEL: v = t->fuel_g; break;
-            case TR_DIST: v = t->dist_m; break;
-            case TR_STOPS: v = t->stops; break;
-            case TR_STOPPED: v = t->time_stopped_s; break;
-            case TR_HARD: v = t->hard_brakes; break;
-            default: v = t->infeasible_steps; break;
-            }
-            col[i] = v;
-        }
-        rc = wf_h5_series_append(&w->trips[k], n, col, err);
-    }
-    free(col);
-    return rc ? WF_ESYS : 0;
-}
-
-static int write_detectors(hid_t fid, const WfCorridor *c, WfError *err)
+static int write_detectors(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
 {
     const WfDetectors *d = wf_corridor_detectors(c);
     const WfScenario *sc = wf_corridor_scenario(c);
     if (!d->n_det) return 0;
     size_t ni = d->n_int, nd = d->n_det, n = ni * nd;
-    hid_t g = wf_h5_group(fid, "detectors", err);
+    hid_t g = wf_h5_group_pass(fid, "detectors", pass, err);
     if (g < 0) return WF_ESYS;
     double *buf = malloc((n + ni + 1) * 5 * sizeof *buf);
     if (!buf) {
@@ -361,30 +290,34 @@ static int write_detectors(hid_t fid, const WfCorridor *c, WfError *err)
             occ[i] = d->occupied_s[i] / len;
         }
     hsize_t dims[2] = {ni, nd}, dn = nd, dt = ni;
-    int rc = wf_h5_write_f64(g, "x", 1, &dn, d->x_m, "m", "detector positions", err) ||
-             wf_h5_write_f64(g, "t_start", 1, &dt, t0, "s", "start of each interval", err) ||
-             wf_h5_write_f64(g, "t_end", 1, &dt, t1, "s", "end of each interval", err) ||
-             wf_h5_write_i64(g, "count", 2, dims, d->count, "1",
-                             "front-bumper passages [interval x detector] (a passage: x_before <= x_d < x_after)", err) ||
-             wf_h5_write_f64(g, "flow", 2, dims, flow, "1/h", "passages per hour [interval x detector]", err) ||
-             wf_h5_write_f64(g, "speed_time_mean", 2, dims, vt, "m/s",
-                             "arithmetic mean speed of the passages (NaN without passages)", err) ||
-             wf_h5_write_f64(g, "speed_harmonic_mean", 2, dims, vh, "m/s",
-                             "harmonic mean speed of the passages (space-mean estimate; NaN without passages)", err) ||
-             wf_h5_write_f64(g, "occupancy", 2, dims, occ, "1",
-                             "share of the interval during which a vehicle body covered the detector point", err);
+    int fill = pass == WF_H5_FILL;
+    /* Positions and intervals are known from the start; the counts and what derives from them at the end. */
+    int rc = fill ? 0
+                  : wf_h5_write_f64(g, "x", 1, &dn, d->x_m, "m", "detector positions", err) ||
+                        wf_h5_write_f64(g, "t_start", 1, &dt, t0, "s", "start of each interval", err) ||
+                        wf_h5_write_f64(g, "t_end", 1, &dt, t1, "s", "end of each interval", err);
+    rc = rc ||
+         wf_h5_put_i64(g, "count", pass, 2, dims, d->count, "1",
+                       "front-bumper passages [interval x detector] (a passage: x_before <= x_d < x_after)", err) ||
+         wf_h5_put_f64(g, "flow", pass, 2, dims, flow, "1/h", "passages per hour [interval x detector]", err) ||
+         wf_h5_put_f64(g, "speed_time_mean", pass, 2, dims, vt, "m/s",
+                       "arithmetic mean speed of the passages (NaN without passages)", err) ||
+         wf_h5_put_f64(g, "speed_harmonic_mean", pass, 2, dims, vh, "m/s",
+                       "harmonic mean speed of the passages (space-mean estimate; NaN without passages)", err) ||
+         wf_h5_put_f64(g, "occupancy", pass, 2, dims, occ, "1",
+                       "share of the interval during which a vehicle body covered the detector point", err);
     free(buf);
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
 }
 
-static int write_edie(hid_t fid, const WfCorridor *c, WfError *err)
+static int write_edie(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
 {
     const WfEdie *e = wf_corridor_edie(c);
     const WfScenario *sc = wf_corridor_scenario(c);
     size_t nx = e->nx, nt = e->nt, n = nx * nt, nc = sc->n_classes;
     double L = sc->road.length_m;
-    hid_t g = wf_h5_group(fid, "edie", err);
+    hid_t g = wf_h5_group_pass(fid, "edie", pass, err);
     if (g < 0) return WF_ESYS;
     double *buf = malloc((4 * n + 2 * (nx + 1) + 2 * (nt + 1) + nc * nx + 1) * sizeof *buf);
     if (!buf) {
@@ -410,82 +343,89 @@ static int write_edie(hid_t fid, const WfCorridor *c, WfError *err)
     for (size_t a = 0; a < nc * nx; a++)
         cpk[a] = e->class_dist_m[a] > 0 ? e->class_fuel_g[a] / (e->class_dist_m[a] / 1000.0) : NAN;
     hsize_t d2[2] = {nt, nx}, dc[2] = {nc, nx}, dxe = nx + 1, dte = nt + 1, dx = nx, dt = nt;
-    int rc = wf_h5_write_f64(g, "x_edges", 1, &dxe, xe, "m", "cell edges along the road", err) ||
-             wf_h5_write_f64(g, "t_edges", 1, &dte, te, "s", "cell edges in time", err) ||
-             wf_h5_write_f64(g, "x", 1, &dx, xc, "m", "cell centres along the road", err) ||
-             wf_h5_write_f64(g, "t", 1, &dt, tc, "s", "cell centres in time", err) ||
-             wf_h5_write_f64(g, "flow", 2, d2, q, "1/h", "Edie flow q = sum of distances / |A| [t x x]", err) ||
-             wf_h5_write_f64(g, "density", 2, d2, k, "1/km", "Edie density k = sum of times / |A| [t x x]", err) ||
-             wf_h5_write_f64(g, "speed", 2, d2, v, "m/s", "Edie speed v = q / k [t x x] (NaN where k = 0)", err) ||
-             wf_h5_write_f64(g, "fuel", 2, d2, f, "g/(km h)",
-                             "fuel burnt in the cell per km of road per hour [t x x]", err) ||
-             wf_h5_write_f64(g, "distance", 2, d2, e->dist_m, "m", "sum of distances travelled in the cell", err) ||
-             wf_h5_write_f64(g, "time", 2, d2, e->time_s, "s", "sum of times spent in the cell", err) ||
-             wf_h5_write_f64(g, "fuel_mass", 2, d2, e->fuel_g, "g", "fuel burnt in the cell", err) ||
-             wf_h5_write_f64(g, "grade", 1, &dx, e->grade_mean_rad, "rad", "mean grade of each cell column", err) ||
-             wf_h5_write_f64(g, "class_fuel", 2, dc, e->class_fuel_g, "g",
-                             "fuel burnt per class and cell column in the statistics window [class x x]", err) ||
-             wf_h5_write_f64(g, "class_distance", 2, dc, e->class_dist_m, "m",
-                             "distance per class and cell column in the statistics window [class x x]", err) ||
-             wf_h5_write_f64(g, "class_fuel_per_km", 2, dc, cpk, "g/km",
-                             "fuel per vehicle-km per class and cell column in the window (NaN: no distance)", err);
+    /* The grid and the grade are known from the start; the fields at the end. */
+    int fill = pass == WF_H5_FILL;
+    int rc = fill ? 0
+                  : wf_h5_write_f64(g, "x_edges", 1, &dxe, xe, "m", "cell edges along the road", err) ||
+                        wf_h5_write_f64(g, "t_edges", 1, &dte, te, "s", "cell edges in time", err) ||
+                        wf_h5_write_f64(g, "x", 1, &dx, xc, "m", "cell centres along the road", err) ||
+                        wf_h5_write_f64(g, "t", 1, &dt, tc, "s", "cell centres in time", err) ||
+                        wf_h5_write_f64(g, "grade", 1, &dx, e->grade_mean_rad, "rad", "mean grade of each cell column",
+                                        err) ||
+                        wf_h5_attr_f64(g, "dx_m", e->dx_m, err) || wf_h5_attr_f64(g, "dt_s", e->dt_s, err);
+    rc = rc ||
+         wf_h5_put_f64(g, "flow", pass, 2, d2, q, "1/h", "Edie flow q = sum of distances / |A| [t x x]", err) ||
+         wf_h5_put_f64(g, "density", pass, 2, d2, k, "1/km", "Edie density k = sum of times / |A| [t x x]", err) ||
+         wf_h5_put_f64(g, "speed", pass, 2, d2, v, "m/s", "Edie speed v = q / k [t x x] (NaN where k = 0)", err) ||
+         wf_h5_put_f64(g, "fuel", pass, 2, d2, f, "g/(km h)", "fuel burnt in the cell per km of road per hour [t x x]",
+                       err) ||
+         wf_h5_put_f64(g, "distance", pass, 2, d2, e->dist_m, "m", "sum of distances travelled in the cell", err) ||
+         wf_h5_put_f64(g, "time", pass, 2, d2, e->time_s, "s", "sum of times spent in the cell", err) ||
+         wf_h5_put_f64(g, "fuel_mass", pass, 2, d2, e->fuel_g, "g", "fuel burnt in the cell", err) ||
+         wf_h5_put_f64(g, "class_fuel", pass, 2, dc, e->class_fuel_g, "g",
+                       "fuel burnt per class and cell column in the statistics window [class x x]", err) ||
+         wf_h5_put_f64(g, "class_distance", pass, 2, dc, e->class_dist_m, "m",
+                       "distance per class and cell column in the statistics window [class x x]", err) ||
+         wf_h5_put_f64(g, "class_fuel_per_km", pass, 2, dc, cpk, "g/km",
+                       "fuel per vehicle-km per class and cell column in the window (NaN: no distance)", err);
     const char *fields[] = {"flow", "density", "speed", "fuel", "distance", "time", "fuel_mass"};
-    for (size_t i = 0; !rc && i < sizeof fields / sizeof fields[0]; i++) {
-        hid_t d = H5Dopen2(g, fields[i], H5P_DEFAULT);
-        if (d < 0) rc = wf_err(err, WF_ESYS, "HDF5: cannot reopen /edie/%s", fields[i]);
-        else rc = wf_h5_attr_str(d, "axes", "t_edges, x_edges (rows: time cells; columns: space cells)", err);
-        if (d >= 0) H5Dclose(d);
+    for (size_t i = 0; !rc && !fill && i < sizeof fields / sizeof fields[0]; i++) {
+        hid_t ds = H5Dopen2(g, fields[i], H5P_DEFAULT);
+        if (ds < 0) rc = wf_err(err, WF_ESYS, "HDF5: cannot reopen /edie/%s", fields[i]);
+        else rc = wf_h5_attr_str(ds, "axes", "t_edges, x_edges (rows: time cells; columns: space cells)", err);
+        if (ds >= 0) H5Dclose(ds);
     }
-    if (!rc) rc = wf_h5_attr_f64(g, "dx_m", e->dx_m, err) || wf_h5_attr_f64(g, "dt_s", e->dt_s, err);
     free(buf);
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
 }
 
-static int write_summary(hid_t fid, const WfCorridor *c, WfError *err)
+static int write_summary(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
 {
     const WfCorridorSummary *s = wf_corridor_summary(c);
     const WfScenario *sc = wf_corridor_scenario(c);
     const WfCorridorCounts *n = &s->counts;
-    hid_t g = wf_h5_group(fid, "summary", err);
+    hid_t g = wf_h5_group_pass(fid, "summary", pass, err);
     if (g < 0) return WF_ESYS;
-    int rc = wf_h5_scalar_f64(g, "window", s->window_s, "s", "statistics window (after warm-up)", err) ||
-             wf_h5_scalar_f64(g, "fuel", s->fuel_g, "g", "fuel burnt on the road in the window", err) ||
-             wf_h5_scalar_f64(g, "distance", s->dist_m, "m", "distance travelled on the road in the window", err) ||
-             wf_h5_scalar_f64(g, "vkt", s->vkt_km, "km", "vehicle-kilometres travelled in the window", err) ||
-             wf_h5_scalar_f64(g, "vht", s->vht_h, "h", "vehicle-hours on the road in the window", err) ||
-             wf_h5_scalar_f64(g, "l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy", err) ||
-             wf_h5_scalar_f64(g, "mpg", s->mpg, "mi/gal", "fleet fuel economy", err) ||
-             wf_h5_scalar_f64(g, "stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km", err) ||
-             wf_h5_scalar_f64(g, "hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km",
-                              "hard-braking events per vehicle-km", err) ||
-             wf_h5_scalar_f64(g, "mean_speed", s->mean_speed_mps, "m/s", "distance / vehicle-time in the window", err) ||
-             wf_h5_scalar_f64(g, "sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
-                              "mean over the window's records of the speed s.d. across vehicles", err) ||
-             wf_h5_scalar_f64(g, "inflow", s->inflow_vph, "1/h", "entries per hour in the window", err) ||
-             wf_h5_scalar_f64(g, "outflow", s->outflow_vph, "1/h", "exits per hour in the window", err) ||
-             wf_h5_scalar_f64(g, "infeasible_share", s->infeasible_share, "1",
-                              "share of vehicle-steps with an infeasible acceleration request", err) ||
-             wf_h5_scalar_f64(g, "time_stopped_share", s->time_stopped_share, "1", "share of time stopped", err) ||
-             wf_h5_scalar_i64(g, "trips", s->trips, "1", "completed trips (whole run)", err) ||
-             wf_h5_scalar_f64(g, "mean_travel_time", s->mean_travel_time_s, "s", "mean over completed trips", err) ||
-             wf_h5_scalar_f64(g, "mean_trip_fuel", s->mean_trip_fuel_g, "g", "mean over completed trips", err) ||
-             wf_h5_scalar_f64(g, "mean_queue_delay", s->mean_queue_delay_s, "s", "mean wait of the entered vehicles",
-                              err) ||
-             wf_h5_scalar_i64(g, "arrived", n->arrived, "1", "vehicles that reached the entrance", err) ||
-             wf_h5_scalar_i64(g, "entered", n->entered, "1", "vehicles inserted at x = 0", err) ||
-             wf_h5_scalar_i64(g, "exited", n->exited, "1", "vehicles that left at x = L", err) ||
-             wf_h5_scalar_i64(g, "on_road", n->entered - n->exited, "1", "vehicles on the road at the end", err) ||
-             wf_h5_scalar_i64(g, "queued", n->queued, "1", "vehicles waiting at the entrance at the end", err) ||
-             wf_h5_scalar_i64(g, "delayed", n->delayed, "1", "entries that waited at least one step", err) ||
-             wf_h5_scalar_i64(g, "max_queue", n->max_queue, "1", "longest entrance queue", err) ||
-             wf_h5_scalar_i64(g, "overlaps", n->overlaps, "1", "overlap repairs", err);
+#define F64(name, v, units, desc) wf_h5_put_scalar_f64(g, name, pass, v, units, desc, err)
+#define I64(name, v, desc) wf_h5_put_scalar_i64(g, name, pass, v, "1", desc, err)
+    int rc = F64("window", s->window_s, "s", "statistics window (after warm-up)") ||
+             F64("fuel", s->fuel_g, "g", "fuel burnt on the road in the window") ||
+             F64("distance", s->dist_m, "m", "distance travelled on the road in the window") ||
+             F64("vkt", s->vkt_km, "km", "vehicle-kilometres travelled in the window") ||
+             F64("vht", s->vht_h, "h", "vehicle-hours on the road in the window") ||
+             F64("l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy") ||
+             F64("mpg", s->mpg, "mi/gal", "fleet fuel economy") ||
+             F64("stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km") ||
+             F64("hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km", "hard-braking events per vehicle-km") ||
+             F64("mean_speed", s->mean_speed_mps, "m/s", "distance / vehicle-time in the window") ||
+             F64("sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
+                 "mean over the window's records of the speed s.d. across vehicles") ||
+             F64("inflow", s->inflow_vph, "1/h", "entries per hour in the window") ||
+             F64("outflow", s->outflow_vph, "1/h", "exits per hour in the window") ||
+             F64("infeasible_share", s->infeasible_share, "1",
+                 "share of vehicle-steps with an infeasible acceleration request") ||
+             F64("time_stopped_share", s->time_stopped_share, "1", "share of time stopped") ||
+             I64("trips", s->trips, "completed trips (whole run)") ||
+             F64("mean_travel_time", s->mean_travel_time_s, "s", "mean over completed trips") ||
+             F64("mean_trip_fuel", s->mean_trip_fuel_g, "g", "mean over completed trips") ||
+             F64("mean_queue_delay", s->mean_queue_delay_s, "s", "mean wait of the entered vehicles") ||
+             I64("arrived", n->arrived, "vehicles that reached the entrance") ||
+             I64("entered", n->entered, "vehicles inserted at x = 0") ||
+             I64("exited", n->exited, "vehicles that left at x = L") ||
+             I64("on_road", n->entered - n->exited, "vehicles on the road at the end") ||
+             I64("queued", n->queued, "vehicles waiting at the entrance at the end") ||
+             I64("delayed", n->delayed, "entries that waited at least one step") ||
+             I64("max_queue", n->max_queue, "longest entrance queue") ||
+             I64("overlaps", n->overlaps, "overlap repairs");
+#undef F64
+#undef I64
     hsize_t nc = sc->n_classes;
     double a[WF_MAX_CLASSES];
 #define CLS(name, expr, units, desc)                                  \
     if (!rc) {                                                        \
         for (size_t k = 0; k < nc; k++) a[k] = (double)(s->cls[k].expr); \
-        rc = wf_h5_write_f64(g, name, 1, &nc, a, units, desc, err);   \
+        rc = wf_h5_put_f64(g, name, pass, 1, &nc, a, units, desc, err); \
     }
     CLS("class_entered", entered, "1", "vehicles of the class that entered");
     CLS("class_trips", trips, "1", "completed trips per class");
@@ -505,27 +445,163 @@ static int write_summary(hid_t fid, const WfCorridor *c, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-static void close_series(WfH5Corridor *w)
+
+/* A failure while the file is set up (`why`, or the error in err): what the file needs, and that nothing is kept
+ * (destroy removes a file whose run never started). */
+static int setup_failed(WfH5Corridor *w, double ts, double end, const char *why, WfError *err)
 {
-    for (size_t k = 0; k < WF_CTS_N_COLS; k++) wf_h5_series_close(&w->ts[k]);
-    for (size_t k = 0; k < TR_N; k++) wf_h5_series_close(&w->trips[k]);
-    WfH5Series *o[] = {&w->ts_class, &w->tr_t, &w->tr_id, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t k = 0; k < sizeof o / sizeof o[0]; k++) wf_h5_series_close(o[k]);
-    hid_t *gs[] = {&w->g_ts, &w->g_trips, &w->g_traj};
-    for (size_t k = 0; k < 3; k++) {
-        if (*gs[k] >= 0) H5Gclose(*gs[k]);
-        *gs[k] = H5I_INVALID_HID;
+    char a[32], b[32], d[32], inner[sizeof err->msg];
+    snprintf(inner, sizeof inner, "%s", why ? why : err->msg);
+    return wf_err(err, why || !err->code ? WF_ESYS : err->code,
+                  "%s: cannot create the result file, which needs about %s to start (time series %s, end-of-run "
+                  "results %s) and more as trips and trajectories are added: %s; nothing was simulated and the file "
+                  "is removed",
+                  w->file->partial, wf_h5_size_text(ts + end, a, sizeof a), wf_h5_size_text(ts, b, sizeof b),
+                  wf_h5_size_text(end, d, sizeof d), inner);
+}
+
+static int h5_begin(void *ctx, const WfCorridor *c, WfError *err)
+{
+    WfH5Corridor *w = ctx;
+    const WfScenario *sc = wf_corridor_scenario(c);
+    w->n_classes = sc->n_classes;
+    w->buf = malloc(TS_BUF * (WF_CTS_N_COLS + w->n_classes) * sizeof *w->buf);
+    w->cls = malloc(TS_BUF * (w->n_classes ? w->n_classes : 1) * sizeof *w->cls);
+    if (!w->buf || !w->cls) return wf_err(err, WF_ESYS, "out of memory");
+    if (sc->trajectories) {
+        w->tcap = wf_corridor_vehicles(c)->cap;
+        w->frame = malloc(N_TRAJ * (w->tcap ? w->tcap : 1) * sizeof *w->frame);
+        if (!w->frame) return wf_err(err, WF_ESYS, "out of memory for trajectories");
+    }
+    if (w->resume) return 0; /* wf_h5corridor_resume reopened the file and set it back to the checkpoint */
+    hid_t fid = w->file->fid;
+    time_t now = time(NULL);
+    struct tm tmv;
+    gmtime_r(&now, &tmv);
+    strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sc, sp);
+    const WfDetectors *det = wf_corridor_detectors(c);
+    const WfEdie *e = wf_corridor_edie(c);
+    double ts_bytes = (double)sp[0].fixed_rows * (double)(WF_CTS_N_COLS + w->n_classes) * 8.0;
+    double end_bytes = ((double)det->n_int * (double)det->n_det * 5.0 +
+                        (double)e->nt * (double)e->nx * 7.0 + (double)e->nx * (double)sc->n_classes * 3.0) * 8.0;
+    /* Trips and trajectories cannot be estimated: each chunk is checked as it is added. */
+    char why[200];
+    if (wf_h5_check_room(w->file, ts_bytes + end_bytes, why, sizeof why))
+        return setup_failed(w, ts_bytes, end_bytes, why, err);
+    const char *groups[] = {"timeseries", "trips", "trajectories"};
+    int rc = write_meta(w, c, err) || write_classes_drivers(fid, c, err) || write_road(fid, c, err) ||
+             write_detectors(fid, c, WF_H5_ALLOCATE, err) || write_edie(fid, c, WF_H5_ALLOCATE, err) ||
+             write_summary(fid, c, WF_H5_ALLOCATE, err);
+    for (size_t k = 0; !rc && k < (sc->trajectories ? 3u : 2u); k++) {
+        hid_t g = wf_h5_group(fid, groups[k], err);
+        rc = g < 0 || (k == 2 && wf_h5_attr_str(g, "layout", "one row per vehicle on the road per frame, road order "
+                                                "within a frame (front first)", err));
+        if (g >= 0) H5Gclose(g);
+    }
+    /* From here on the structure changes only when chunks of /trips or /trajectories are added, after reserving
+     * the space. */
+    if (rc || wf_ckpt_series_create(fid, sp, ns, err) || wf_h5_flush(w->file, err))
+        return setup_failed(w, ts_bytes, end_bytes, NULL, err);
+    return 0;
+}
+
+/* A write error in the run: the file keeps what was written before it (its row counters say how much). */
+static int write_failed(WfH5Corridor *w, int *group_failed, WfError *err)
+{
+    *group_failed = 1;
+    return wf_err_prefix(err, "%s: ", w->file->partial);
+}
+
+/* Refuse to write to a group whose write failed before (the run stops at the first error anyway). */
+static int group_failed(const WfH5Corridor *w, int failed, WfError *err)
+{
+    return failed ? wf_err(err, WF_ESYS, "%s: not written after an earlier write error", w->file->partial) : 0;
+}
+
+static int h5_record(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
+{
+    (void)c;
+    WfH5Corridor *w = ctx;
+    if (group_failed(w, w->ts_failed, err)) return WF_ESYS;
+    double *dst = w->buf + w->n_buf * (WF_CTS_N_COLS + w->n_classes);
+    memcpy(dst, row->v, WF_CTS_N_COLS * sizeof(double));
+    memcpy(dst + WF_CTS_N_COLS, row->class_fuel_rate_gps, w->n_classes * sizeof(double));
+    if (++w->n_buf == TS_BUF && flush_ts(w, err)) return write_failed(w, &w->ts_failed, err);
+    return 0;
+}
+
+/* One trajectory frame, in road order, through the frame buffer into the points' chunk; complete chunks are
+ * written (src/h5util.h), then counted. */
+static int h5_trajectory(void *ctx, const WfCorridor *c, double t, WfError *err)
+{
+    WfH5Corridor *w = ctx;
+    if (group_failed(w, w->traj_failed, err)) return WF_ESYS;
+    const WfCorridorVehicles *vh = wf_corridor_vehicles(c);
+    size_t n = vh->n;
+    double *col[N_TRAJ];
+    for (size_t k = 0; k < N_TRAJ; k++) col[k] = w->frame + k * w->tcap;
+    for (size_t k = 0; k < n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        col[0][k] = t, col[1][k] = (double)vh->serial[s], col[2][k] = vh->x_m[s], col[3][k] = vh->v_mps[s];
+        col[4][k] = vh->a_mps2[s], col[5][k] = vh->fuel_rate_gps[s];
+    }
+    const double *const data[N_TRAJ] = {col[0], col[1], col[2], col[3], col[4], col[5]};
+    if (wf_h5_series_append(w->file, w->traj_s, N_TRAJ, n, data, "/trajectories", err) ||
+        write_counts(w, WF_H5_FILL, err))
+        return write_failed(w, &w->traj_failed, err);
+    return 0;
+}
+
+static double trip_value(const WfTrip *t, size_t k)
+{
+    switch (k) {
+    case TR_SERIAL: return (double)t->serial;
+    case TR_CLASS: return t->class_id;
+    case TR_GROUP: return t->group_id;
+    case TR_COMPLETED: return t->completed;
+    case TR_ARRIVAL: return t->t_arrival_s;
+    case TR_ENTRY: return t->t_entry_s;
+    case TR_EXIT: return t->t_exit_s;
+    case TR_TRAVEL: return t->t_exit_s - t->t_entry_s;
+    case TR_DELAY: return t->t_entry_s - t->t_arrival_s;
+    case TR_VENTRY: return t->v_entry_mps;
+    case TR_FUEL: return t->fuel_g;
+    case TR_DIST: return t->dist_m;
+    case TR_STOPS: return t->stops;
+    case TR_STOPPED: return t->time_stopped_s;
+    case TR_HARD: return t->hard_brakes;
+    default: return t->infeasible_steps;
     }
 }
 
-/* The rows still in memory: the time-series buffer and the incomplete chunks of the compressed series. */
-static int flush_all(WfH5Corridor *w, const WfScenario *sc, WfError *err)
+/* Trips, a row at a time, into their chunk; complete chunks are written, then counted. */
+static int h5_trips(void *ctx, const WfCorridor *c, const WfTrip *tr, size_t n, WfError *err)
 {
-    WfCkptSeries sp[N_SERIES];
-    size_t ns = series_specs(w, sc, sp);
-    int rc = flush_ts(w, err);
-    for (size_t i = 0; !rc && i < ns; i++) rc = wf_h5_series_flush(sp[i].s, err);
-    return rc;
+    (void)c;
+    WfH5Corridor *w = ctx;
+    if (group_failed(w, w->trips_failed, err)) return WF_ESYS;
+    for (size_t i = 0; i < n; i++) {
+        double row[TR_N];
+        const double *cols[TR_N];
+        for (size_t k = 0; k < TR_N; k++) row[k] = trip_value(&tr[i], k), cols[k] = &row[k];
+        if (wf_h5_series_append(w->file, w->trip_s, TR_N, 1, cols, "/trips", err))
+            return write_failed(w, &w->trips_failed, err);
+    }
+    if (write_counts(w, WF_H5_FILL, err)) return write_failed(w, &w->trips_failed, err);
+    return 0;
+}
+
+static void close_series(WfH5Corridor *w)
+{
+    for (size_t k = 0; k < WF_CTS_N_COLS; k++) wf_h5_series_close(&w->ts[k]);
+    wf_h5_series_close(&w->ts_class);
+    for (size_t k = 0; k < TR_N; k++) wf_h5_series_close(&w->trips[k]);
+    for (size_t k = 0; k < N_TRAJ; k++) wf_h5_series_close(&w->tr[k]);
+    /* An open group would keep the file open past H5Fclose (weak close degree): close it too. */
+    if (w->g_meta >= 0) H5Gclose(w->g_meta);
+    w->g_meta = H5I_INVALID_HID;
 }
 
 static int h5_end(void *ctx, const WfCorridor *c, int completed, const char *reason, WfError *err)
@@ -533,21 +609,30 @@ static int h5_end(void *ctx, const WfCorridor *c, int completed, const char *rea
     WfH5Corridor *w = ctx;
     w->ended = 1;
     hid_t fid = w->file->fid;
-    int rc = flush_all(w, wf_corridor_scenario(c), err);
-    if (!rc) rc = write_detectors(fid, c, err);
-    if (!rc) rc = write_edie(fid, c, err);
-    if (!rc) rc = write_summary(fid, c, err);
-    if (!rc) rc = write_meta(fid, c, completed, reason, w->started, err);
+    /* The buffered records, trips and points, unless writing their group failed before (its counter stays true);
+     * the end-of-run results and the status are written in place whatever happened before. Only the first error
+     * is reported. */
+    int rc = w->ts_failed ? 0 : flush_ts(w, err);
+    if (!rc && !w->trips_failed && wf_h5_series_flush(w->file, w->trip_s, TR_N, "/trips", err)) rc = WF_ESYS;
+    if (!rc && !w->traj_failed && w->tr[0].dset >= 0 &&
+        wf_h5_series_flush(w->file, w->traj_s, N_TRAJ, "/trajectories", err))
+        rc = WF_ESYS;
+    if (!rc && write_counts(w, WF_H5_FILL, err)) rc = WF_ESYS;
+    WfError later = {0};
+    WfError *e = rc ? &later : err;
+    if (write_detectors(fid, c, WF_H5_FILL, e) || write_edie(fid, c, WF_H5_FILL, e) ||
+        write_summary(fid, c, WF_H5_FILL, e)) {
+        if (!rc) rc = WF_ESYS;
+        e = &later;
+    }
+    if (rc && completed) completed = 0, reason = err->msg;
+    if (meta_status(w->g_meta, WF_H5_FILL, c, completed, reason, e) && !rc) rc = WF_ESYS;
     /* Open objects would keep the file open past H5Fclose: close them first. */
     close_series(w);
-    if (rc || !completed) {
-        snprintf(w->final_path, sizeof w->final_path, "%s", w->file->partial);
-        wf_h5_abandon(&w->file, 0);
-        return rc;
-    }
-    snprintf(w->final_path, sizeof w->final_path, "%s", w->file->path);
-    rc = wf_h5_commit(&w->file, err);
-    if (!rc) wf_ckpt_remove(w->final_path); /* the result is complete: its checkpoint is of no further use */
+    if (rc) wf_err_prefix(err, "%s: ", w->file->partial);
+    int done = !rc && completed;
+    if (wf_h5_finish(&w->file, done, w->final_path, sizeof w->final_path, err)) return WF_ESYS;
+    if (done) wf_ckpt_remove(w->final_path); /* the result is complete: its checkpoint is of no further use */
     return rc;
 }
 
@@ -557,9 +642,10 @@ static int h5_checkpoint(void *ctx, const WfCorridor *c, WfError *err)
 {
     WfH5Corridor *w = ctx;
     const WfScenario *sc = wf_corridor_scenario(c);
-    if (flush_ts(w, err)) return wf_err_prefix(err, "%s: ", w->file->partial);
-    /* The result file must hold every row the checkpoint counts (but those it saves) before the checkpoint exists. */
-    if (H5Fflush(w->file->fid, H5F_SCOPE_GLOBAL) < 0) return wf_err(err, WF_ESYS, "HDF5: flush %s", w->file->partial);
+    /* The result file must hold every row the checkpoint counts (but the pending rows it saves) before the
+     * checkpoint exists. */
+    if (flush_ts(w, err)) return write_failed(w, &w->ts_failed, err);
+    if (wf_h5_flush(w->file, err)) return w->trips_failed = w->traj_failed = 1, write_failed(w, &w->ts_failed, err);
     WfStateVar vars[WF_MAX_STATE_VARS];
     WfCkptSeries sp[N_SERIES];
     size_t ns = series_specs(w, sc, sp);
@@ -569,13 +655,24 @@ static int h5_checkpoint(void *ctx, const WfCorridor *c, WfError *err)
                         nv, err);
 }
 
-static void init_handles(WfH5Corridor *w)
+/* The reopened file back at the checkpoint: the counters at its rows (lowering a counter is always safe), trips and
+ * trajectories cut to the whole chunks it counts (later rows are written again), then the status back to "running"
+ * (should the cut fail, the file keeps the interrupted run's reason). */
+static int resume_file(WfH5Corridor *w, const WfCorridor *c, WfError *err)
 {
-    w->g_ts = w->g_trips = w->g_traj = H5I_INVALID_HID;
-    for (size_t k = 0; k < WF_CTS_N_COLS; k++) w->ts[k].dset = H5I_INVALID_HID;
-    for (size_t k = 0; k < TR_N; k++) w->trips[k].dset = H5I_INVALID_HID;
-    WfH5Series *o[] = {&w->ts_class, &w->tr_t, &w->tr_id, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t k = 0; k < sizeof o / sizeof o[0]; k++) o[k]->dset = H5I_INVALID_HID;
+    w->g_meta = H5Gopen2(w->file->fid, "meta", H5P_DEFAULT);
+    int rc = w->g_meta < 0 ? wf_err(err, WF_EINPUT, "no group /meta") : 0;
+    if (!rc && (write_counts(w, WF_H5_FILL, err) || wf_h5_series_trim(w->file, w->trip_s, TR_N, err) ||
+                wf_h5_series_trim(w->file, w->traj_s, wf_corridor_scenario(c)->trajectories ? N_TRAJ : 0, err) ||
+                meta_status(w->g_meta, WF_H5_FILL, c, 0, "running", err) || wf_h5_flush(w->file, err)))
+        rc = WF_ESYS;
+    return rc ? wf_err_prefix(err, "%s: ", w->file->partial) : 0;
+}
+
+static WfCorridorOutput ops_of(WfH5Corridor *w)
+{
+    return (WfCorridorOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
+                              .trips = h5_trips, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
 }
 
 int wf_h5corridor_create(const char *path, int force, WfH5Corridor **out, WfCorridorOutput *ops, WfError *err)
@@ -583,14 +680,13 @@ int wf_h5corridor_create(const char *path, int force, WfH5Corridor **out, WfCorr
     *out = NULL;
     WfH5Corridor *w = calloc(1, sizeof *w);
     if (!w) return wf_err(err, WF_ESYS, "out of memory");
-    init_handles(w);
+    init_writer(w);
     int rc = wf_h5_create(path, force, &w->file, err);
     if (rc) {
         free(w);
         return rc;
     }
-    *ops = (WfCorridorOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
-                              .trips = h5_trips, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
+    *ops = ops_of(w);
     *out = w;
     return 0;
 }
@@ -602,24 +698,22 @@ int wf_h5corridor_resume(const char *result, WfCorridor *c, WfH5Corridor **out, 
     const WfScenario *sc = wf_corridor_scenario(c);
     WfH5Corridor *w = calloc(1, sizeof *w);
     if (!w) return wf_err(err, WF_ESYS, "out of memory");
-    init_handles(w);
+    init_writer(w);
     w->resume = 1;
     WfCkptSeries sp[N_SERIES];
     size_t ns = series_specs(w, sc, sp);
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = wf_corridor_state(c, vars, WF_MAX_STATE_VARS);
-    /* What the interrupted run wrote at its end (detectors, Edie fields, summary) is written again at the end. */
-    static const char *const stale[] = {"detectors", "edie", "summary"};
-    /* The checkpoint is read and verified completely before the partial file is touched. */
+    /* The checkpoint and the partial file are read and verified completely before the file is changed. */
     int rc = wf_ckpt_restore(result, "corridor", sc, cursor_names, N_CUR, sp, ns, vars, nv, err);
     if (!rc) rc = wf_corridor_restored(c, err);
-    if (!rc) rc = wf_ckpt_reopen(result, sc, sp, ns, stale, 3, &w->file, err);
+    if (!rc) rc = wf_ckpt_reopen(result, sc, sp, ns, &w->file, err);
+    if (!rc) rc = resume_file(w, c, err);
     if (rc) {
         wf_h5corridor_destroy(&w);
         return rc;
     }
-    *ops = (WfCorridorOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
-                              .trips = h5_trips, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
+    *ops = ops_of(w);
     *out = w;
     return 0;
 }
@@ -632,7 +726,8 @@ void wf_h5corridor_destroy(WfH5Corridor **pw)
     /* A run that never reached end() produced nothing useful; a resumed one never deletes what it reopened. */
     if (w->file) wf_h5_abandon(&w->file, !w->ended && !w->resume);
     free(w->buf);
-    free(w->tbuf);
+    free(w->cls);
+    free(w->frame);
     free(w);
     *pw = NULL;
 }

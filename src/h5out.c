@@ -1,5 +1,9 @@
 /* HDF5 result files of simulation runs: /meta, /classes, /drivers, /vehicles, /timeseries, /summary and
- * optional /trajectories (docs/output.md). Time series are buffered and appended in blocks of rows. */
+ * optional /trajectories (docs/output.md). Every dataset whose size is known is created at that size before the
+ * first step and then only overwritten in place (time series in blocks of rows, the row counters, the end-of-run
+ * results and the status); trajectory frames are added a compressed chunk at a time after the disk space is
+ * reserved, the frames of the incomplete chunk waiting in memory and in checkpoints (src/h5util.h, src/h5ckpt.h).
+ * A write error at any point leaves a file whose structure is intact (docs/output.md, "Write errors"). */
 #include "wavefuel/h5out.h"
 
 #include <math.h>
@@ -14,48 +18,91 @@
 
 #define TS_BUF 256
 
-/* Columns of /trajectories. */
-static const WfColumn traj_cols[5] = {
-    {"t", "s", "time of each frame"},
+/* Columns of /trajectories, in the order of the group appended together: the arrays, then the frame times. */
+enum { N_TRAJ = 5 };
+static const WfColumn traj_cols[N_TRAJ] = {
     {"x", "m", "unwrapped front-bumper position [time x vehicle]"},
     {"v", "m/s", "speed [time x vehicle]"},
     {"a", "m/s^2", "acceleration applied from this instant"},
     {"fuel_rate", "g/s", "fuel rate [time x vehicle]"},
+    {"t", "s", "time of each frame"},
 };
 
-/* The appended datasets whose rows a checkpoint counts (src/h5ckpt.h). */
+/* The series whose rows a checkpoint counts (src/h5ckpt.h), and /meta's counter of each. */
 enum { CUR_TS, CUR_TRAJ, N_CUR };
 static const char *const cursor_names[N_CUR] = {"timeseries", "trajectories"};
-#define N_SERIES (WF_TS_N_COLS + 1 + 5)
+#define N_SERIES (WF_TS_N_COLS + 1 + N_TRAJ)
 
 struct WfH5Out {
     WfH5File  *file;
     int        ended;
+    int        resume;                  /* reopened .partial of an interrupted run */
+    /* A write to the group failed: nothing more is written to it (its count stays true); the others go on. */
+    int        ts_failed, traj_failed;
     char       final_path[1100];
-    hid_t      g_ts, g_traj;
+    hid_t      g_meta;
     WfH5Series ts[WF_TS_N_COLS], ts_class;
-    WfH5Series tr_t, tr_x, tr_v, tr_a, tr_f;
+    WfH5Series tr[N_TRAJ];              /* x, v, a, fuel_rate, t (traj_cols) */
+    WfH5Series *traj[N_TRAJ];           /* the same, as the group appended together */
+    int64_t    counted[N_CUR];          /* the row counters as last written (-1: not yet) */
     double    *buf;      /* TS_BUF x (WF_TS_N_COLS + n_classes) */
+    double    *cls;      /* TS_BUF x n_classes: the class block of buf, row-major */
     size_t     n_buf, n_classes;
     char       started[64];
-    int        resume;                  /* reopened .partial of an interrupted run */
 };
 
-/* Every appended dataset: group, shape, chunking, compression and the cursor that counts its rows. Time series
- * and frame times are uncompressed; the [time x vehicle] arrays compressed, in chunks of up to 16 frames. */
+static void init_writer(WfH5Out *w)
+{
+    w->g_meta = H5I_INVALID_HID;
+    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_init(&w->ts[c]);
+    wf_h5_series_init(&w->ts_class);
+    for (size_t i = 0; i < N_TRAJ; i++) wf_h5_series_init(&w->tr[i]), w->traj[i] = &w->tr[i];
+    for (size_t i = 0; i < N_CUR; i++) w->counted[i] = -1;
+}
+
+/* Records the run writes: at the steps 0, out_every, ... n_steps; frames likewise every trajectory interval. */
+static hsize_t ts_rows_of(const WfScenario *sc) { return (hsize_t)wf_scenario_records(sc, wf_scenario_output_every(sc)); }
+static hsize_t frames_of(const WfScenario *sc)
+{
+    return sc->trajectories ? (hsize_t)wf_scenario_records(sc, wf_scenario_trajectory_every(sc)) : 0;
+}
+
+/* Every series: group, shape, layout and the cursor that counts its rows. The time series are fixed (every record
+ * allocated at the start), the trajectories appended in chunks of 16 frames, fewer when that exceeds 4 MiB
+ * (measured: deflate is a third slower on 1 MiB chunks than on 16 frames of 3000 vehicles, 384 kB) or the run has
+ * fewer frames; the arrays compressed, the frame times not. */
 static size_t series_specs(WfH5Out *w, const WfSim *sim, WfCkptSeries *sp)
 {
     static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class [time x class]"};
     const WfScenario *sc = wf_sim_scenario(sim);
-    hsize_t n = wf_sim_fleet(sim)->n;
+    hsize_t n = wf_sim_fleet(sim)->n, ts_rows = ts_rows_of(sc), frames = frames_of(sc);
     size_t k = 0;
     for (size_t c = 0; c < WF_TS_N_COLS; c++)
-        sp[k++] = (WfCkptSeries){&w->ts[c], "timeseries", &wf_ts_columns[c], 0, 1024, 0, CUR_TS};
-    sp[k++] = (WfCkptSeries){&w->ts_class, "timeseries", &class_col, sc->n_classes, 1024, 0, CUR_TS};
-    WfH5Series *tr[5] = {&w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; sc->trajectories && i < 5; i++)
-        sp[k++] = (WfCkptSeries){tr[i], "trajectories", &traj_cols[i], i ? n : 0, i ? 16 : 1024, i > 0, CUR_TRAJ};
+        sp[k++] = (WfCkptSeries){.s = &w->ts[c], .group = "timeseries", .col = &wf_ts_columns[c],
+                                 .fixed_rows = ts_rows, .cursor = CUR_TS};
+    sp[k++] = (WfCkptSeries){.s = &w->ts_class, .group = "timeseries", .col = &class_col, .cols = sc->n_classes,
+                             .fixed_rows = ts_rows, .cursor = CUR_TS};
+    hsize_t cr = wf_h5_series_chunk_rows(n, frames < 16 ? frames : 16);
+    for (size_t i = 0; sc->trajectories && i < N_TRAJ; i++)
+        sp[k++] = (WfCkptSeries){.s = w->traj[i], .group = "trajectories", .col = &traj_cols[i],
+                                 .cols = i < 4 ? n : 0, .chunk_rows = cr, .compress = i < 4, .cursor = CUR_TRAJ};
     return k;
+}
+
+/* /meta/timeseries_rows and /meta/trajectory_rows: how many rows of each group are in the file, written in place
+ * when they changed. Raw data reaches the file in call order (src/h5util.c), and the counters are written after
+ * their rows, so they never count a row that is not there. */
+static int write_counts(WfH5Out *w, WfH5Pass pass, WfError *err)
+{
+    int64_t n[N_CUR] = {(int64_t)w->ts[0].rows, (int64_t)w->tr[4].rows};
+    if (pass == WF_H5_FILL && !memcmp(n, w->counted, sizeof n)) return 0;
+    if (wf_h5_put_scalar_i64(w->g_meta, "timeseries_rows", pass, n[CUR_TS], "1",
+                             "rows of /timeseries that hold data (the others are NaN until written)", err) ||
+        wf_h5_put_scalar_i64(w->g_meta, "trajectory_rows", pass, n[CUR_TRAJ], "1",
+                             "frames of /trajectories that hold data (0 without trajectories)", err))
+        return WF_ESYS;
+    if (pass == WF_H5_FILL) memcpy(w->counted, n, sizeof n);
+    return 0;
 }
 
 static int flush_ts(WfH5Out *w, WfError *err)
@@ -65,64 +112,57 @@ static int flush_ts(WfH5Out *w, WfError *err)
     double col[TS_BUF];
     for (size_t c = 0; c < WF_TS_N_COLS; c++) {
         for (size_t r = 0; r < w->n_buf; r++) col[r] = w->buf[r * stride + c];
-        if (wf_h5_series_append(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
+        if (wf_h5_series_write(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
     }
-    double *cls = malloc(w->n_buf * (w->n_classes ? w->n_classes : 1) * sizeof *cls);
-    if (!cls) return wf_err(err, WF_ESYS, "out of memory");
     for (size_t r = 0; r < w->n_buf; r++)
-        for (size_t c = 0; c < w->n_classes; c++) cls[r * w->n_classes + c] = w->buf[r * stride + WF_TS_N_COLS + c];
-    int rc = wf_h5_series_append(&w->ts_class, w->n_buf, cls, err);
-    free(cls);
+        for (size_t c = 0; c < w->n_classes; c++) w->cls[r * w->n_classes + c] = w->buf[r * stride + WF_TS_N_COLS + c];
+    if (wf_h5_series_write(&w->ts_class, w->n_buf, w->cls, err)) return WF_ESYS;
     w->n_buf = 0;
-    return rc;
+    return write_counts(w, WF_H5_FILL, err);
 }
 
-static int write_meta(hid_t fid, const WfSim *sim, int completed, const char *reason, const char *started,
-                      WfError *err)
+/* What /meta says about the run's progress: written in place (ALLOCATE when the file is created, FILL when the
+ * run ends or resumes). */
+static int meta_status(hid_t g, WfH5Pass pass, const WfSim *sim, int completed, const char *reason, WfError *err)
+{
+    hsize_t np = WF_N_PHASES;
+    int rc = wf_h5_put_text(g, "reason", pass, reason,
+                            "why the run stopped early: running while it runs, empty when completed", err) ||
+             wf_h5_put_scalar_f64(g, "wall_time_s", pass, wf_sim_wall_s(sim), "s", "wall time of the step loop",
+                                  err) ||
+             wf_h5_put_scalar_i64(g, "steps_done", pass, wf_sim_steps_done(sim), "1", "time steps completed", err) ||
+             wf_h5_put_f64(g, "phase_time", pass, 1, &np, wf_sim_phase_times(sim), "s",
+                           "wall time per phase of the step loop, in the order of phase_name", err) ||
+             /* Last: a file says completed only once everything else is written. */
+             wf_h5_put_scalar_i64(g, "completed", pass, completed, "1", "1 when the run reached its end", err);
+    return rc ? WF_ESYS : 0;
+}
+
+/* /meta at creation: provenance (final), the status (completed = 0, reason "running") and the row counters. */
+static int write_meta(WfH5Out *w, const WfSim *sim, WfError *err)
 {
     const WfScenario *sc = wf_sim_scenario(sim);
-    hid_t g = H5Gopen2(fid, "/meta", H5P_DEFAULT);
-    int fresh = g < 0;
-    if (fresh) g = wf_h5_group(fid, "meta", err);
+    hid_t g = w->g_meta = wf_h5_group(w->file->fid, "meta", err);
     if (g < 0) return WF_ESYS;
-    int rc = 0;
-    if (!fresh) {
-        /* Rewritten at the end of the run: drop the provisional values. */
-        const char *names[] = {"completed", "reason", "wall_time_s", "steps_done"};
-        for (int i = 0; i < 4; i++)
-            if (H5Lexists(g, names[i], H5P_DEFAULT) > 0) H5Ldelete(g, names[i], H5P_DEFAULT);
-    }
-    if (fresh) {
-        rc = wf_h5_scalar_str(g, "scenario_text", sc->text, "the scenario file, verbatim", err) ||
+    hsize_t np = WF_N_PHASES;
+    int rc = wf_h5_scalar_str(g, "scenario_text", sc->text, "the scenario file, verbatim", err) ||
              wf_h5_scalar_str(g, "scenario_path", sc->path, "scenario file as given", err) ||
              wf_h5_scalar_str(g, "overrides", sc->overrides, "--set assignments applied, one per line", err) ||
              wf_h5_scalar_str(g, "version", WF_VERSION, "wavefuel version", err) ||
              wf_h5_scalar_str(g, "git_hash", WF_GIT_HASH, "git describe of the source tree", err) ||
              wf_h5_scalar_i64(g, "seed", (int64_t)sc->seed, "1", "random seed", err) ||
              wf_h5_scalar_i64(g, "threads", wf_sim_threads(sim), "1", "OpenMP threads available to the run", err) ||
-             wf_h5_scalar_str(g, "start_time", started, "wall-clock start, UTC ISO 8601", err) ||
+             wf_h5_scalar_str(g, "start_time", w->started, "wall-clock start, UTC ISO 8601", err) ||
              wf_h5_scalar_str(g, "integrator", sc->integrator, "time integrator", err) ||
              wf_h5_scalar_f64(g, "dt", sc->dt_s, "s", "time step", err) ||
              wf_h5_scalar_f64(g, "duration", sc->duration_s, "s", "simulated duration", err) ||
              wf_h5_scalar_f64(g, "warmup", sc->warmup_s, "s", "warm-up excluded from statistics", err) ||
              wf_h5_scalar_f64(g, "road_length", sc->road.length_m, "m", "ring length", err) ||
              wf_h5_scalar_f64(g, "initial_speed", wf_sim_fleet(sim)->v_init_mps, "m/s",
-                              "common speed of the initial equilibrium (0 when starting at rest)", err);
-    }
-    if (!rc)
-        rc = wf_h5_scalar_i64(g, "completed", completed, "1", "1 when the run reached its end", err) ||
-             wf_h5_scalar_str(g, "reason", reason, "why the run stopped early (empty when completed)", err) ||
-             wf_h5_scalar_f64(g, "wall_time_s", wf_sim_wall_s(sim), "s", "wall time of the step loop", err) ||
-             wf_h5_scalar_i64(g, "steps_done", wf_sim_steps_done(sim), "1", "time steps completed", err);
-    if (!rc) {
-        hsize_t np = WF_N_PHASES;
-        if (H5Lexists(g, "phase_time", H5P_DEFAULT) > 0) H5Ldelete(g, "phase_time", H5P_DEFAULT);
-        if (H5Lexists(g, "phase_name", H5P_DEFAULT) > 0) H5Ldelete(g, "phase_name", H5P_DEFAULT);
-        rc = wf_h5_write_f64(g, "phase_time", 1, &np, wf_sim_phase_times(sim), "s",
-                             "wall time per phase of the step loop, in the order of phase_name", err) ||
-             wf_h5_write_strings(g, "phase_name", np, wf_phase_names, "phases of phase_time", err);
-    }
-    H5Gclose(g);
+                              "common speed of the initial equilibrium (0 when starting at rest)", err) ||
+             wf_h5_write_strings(g, "phase_name", np, wf_phase_names, "phases of phase_time", err) ||
+             meta_status(g, WF_H5_ALLOCATE, sim, 0, "", err) || meta_status(g, WF_H5_FILL, sim, 0, "running", err) ||
+             write_counts(w, WF_H5_ALLOCATE, err) || write_counts(w, WF_H5_FILL, err);
     return rc ? WF_ESYS : 0;
 }
 
@@ -189,54 +229,9 @@ static int write_classes_drivers(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
-{
-    WfH5Out *w = ctx;
-    const WfScenario *sc = wf_sim_scenario(sim);
-    w->n_classes = sc->n_classes;
-    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
-    if (!w->buf) return wf_err(err, WF_ESYS, "out of memory");
-    if (w->resume) return 0; /* wf_h5out_resume reopened the file and its datasets */
-    hid_t fid = w->file->fid;
-    time_t now = time(NULL);
-    struct tm tmv;
-    gmtime_r(&now, &tmv);
-    strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
-    if (write_meta(fid, sim, 0, "running", w->started, err) || write_classes_drivers(fid, sim, err)) return WF_ESYS;
-    WfCkptSeries sp[N_SERIES];
-    size_t ns = series_specs(w, sim, sp);
-    w->g_ts = wf_h5_group(fid, "timeseries", err);
-    w->g_traj = w->g_ts < 0 || !sc->trajectories ? H5I_INVALID_HID : wf_h5_group(fid, "trajectories", err);
-    if (w->g_ts < 0 || (sc->trajectories && w->g_traj < 0) || wf_ckpt_series_create(fid, sp, ns, err))
-        return WF_ESYS;
-    if (sc->trajectories && wf_h5_attr_f64(w->g_traj, "ring_length_m", sc->road.length_m, err)) return WF_ESYS;
-    H5Fflush(fid, H5F_SCOPE_GLOBAL);
-    return 0;
-}
-
-static int h5_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
-{
-    (void)sim;
-    WfH5Out *w = ctx;
-    double *dst = w->buf + w->n_buf * (WF_TS_N_COLS + w->n_classes);
-    memcpy(dst, row->v, WF_TS_N_COLS * sizeof(double));
-    memcpy(dst + WF_TS_N_COLS, row->class_fuel_rate_gps, w->n_classes * sizeof(double));
-    if (++w->n_buf == TS_BUF && flush_ts(w, err)) return wf_err_prefix(err, "%s: ", w->file->partial);
-    return 0;
-}
-
-static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
-{
-    WfH5Out *w = ctx;
-    const WfFleet *f = wf_sim_fleet(sim);
-    if (wf_h5_series_append(&w->tr_t, 1, &t, err) || wf_h5_series_append(&w->tr_x, 1, f->x_m, err) ||
-        wf_h5_series_append(&w->tr_v, 1, f->v_mps, err) || wf_h5_series_append(&w->tr_a, 1, f->a_mps2, err) ||
-        wf_h5_series_append(&w->tr_f, 1, f->fuel_rate_gps, err))
-        return wf_err_prefix(err, "%s: ", w->file->partial);
-    return 0;
-}
-
-static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
+/* /vehicles. ALLOCATE writes what is fixed from the start (class, group, length, drawn driver parameters) and
+ * allocates the end-of-run statistics; FILL writes those. */
+static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     const WfScenario *sc = wf_sim_scenario(sim);
     const WfFleet *f = wf_sim_fleet(sim);
@@ -244,25 +239,36 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
     size_t n = f->n;
     hsize_t dn = n;
     double win_steps = s->window_s / sc->dt_s;
-    hid_t g = wf_h5_group(fid, "vehicles", err);
+    int fill = pass == WF_H5_FILL;
+    hid_t g = wf_h5_group_pass(fid, "vehicles", pass, err);
     if (g < 0) return WF_ESYS;
     /* One buffer for both element types (8 bytes each): at 10^7 vehicles a second one would be 80 MB more peak. */
-    double *d = malloc(n * sizeof *d);
+    double *d = malloc((n ? n : 1) * sizeof *d);
     int64_t *k = (int64_t *)d;
     int rc = !d ? wf_err(err, WF_ESYS, "out of memory") : 0;
-#define I64(name, expr, units, desc)                                                   \
-    if (!rc) {                                                                         \
+#define FIXED_I64(name, expr, units, desc)                                             \
+    if (!rc && !fill) {                                                                \
         for (size_t i = 0; i < n; i++) k[i] = (int64_t)(expr);                         \
         rc = wf_h5_write_i64(g, name, 1, &dn, k, units, desc, err);                    \
     }
-#define F64(name, expr, units, desc)                                                   \
-    if (!rc) {                                                                         \
+#define FIXED_F64(name, expr, units, desc)                                             \
+    if (!rc && !fill) {                                                                \
         for (size_t i = 0; i < n; i++) d[i] = (expr);                                  \
         rc = wf_h5_write_f64(g, name, 1, &dn, d, units, desc, err);                    \
     }
-    I64("class_id", f->class_id[i], "1", "index into /classes");
-    I64("group_id", f->group_id[i], "1", "index into /drivers");
-    F64("length", wf_fleet_length(f, i), "m", "vehicle length");
+#define I64(name, expr, units, desc)                                                   \
+    if (!rc) {                                                                         \
+        for (size_t i = 0; fill && i < n; i++) k[i] = (int64_t)(expr);                 \
+        rc = wf_h5_put_i64(g, name, pass, 1, &dn, k, units, desc, err);                \
+    }
+#define F64(name, expr, units, desc)                                                   \
+    if (!rc) {                                                                         \
+        for (size_t i = 0; fill && i < n; i++) d[i] = (expr);                          \
+        rc = wf_h5_put_f64(g, name, pass, 1, &dn, d, units, desc, err);                \
+    }
+    FIXED_I64("class_id", f->class_id[i], "1", "index into /classes");
+    FIXED_I64("group_id", f->group_id[i], "1", "index into /drivers");
+    FIXED_F64("length", wf_fleet_length(f, i), "m", "vehicle length");
     F64("distance", wf_fleet_distance(f, i), "m", "distance travelled in the statistics window");
     F64("fuel", f->fuel_g[i], "g", "fuel burnt in the statistics window");
     F64("l_per_100km", wf_l_per_100km(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], wf_fleet_distance(f, i)), "L/100km",
@@ -284,8 +290,9 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
     I64("infeasible_steps", f->infeasible_steps[i], "1", "steps whose acceleration exceeded the class a_max");
     F64("final_x", f->x_m[i], "m", "unwrapped position at the end");
     F64("final_v", f->v_mps[i], "m/s", "speed at the end");
-    /* Every driver-model parameter drawn for each vehicle; NaN for vehicles whose model lacks the key. */
-    for (size_t gi = 0; !rc && gi < sc->n_groups; gi++) {
+    /* Every driver-model parameter drawn for each vehicle (fixed from the start); NaN for vehicles whose model
+     * lacks the key. A key shared by several groups' models is written once. */
+    for (size_t gi = 0; !rc && !fill && gi < sc->n_groups; gi++) {
         const WfCfModel *m = sc->groups[gi].model;
         for (size_t p = 0; !rc && p < m->n_spec; p++) {
             char name[160];
@@ -299,6 +306,8 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
             rc = wf_h5_write_f64(g, name, 1, &dn, d, m->spec[p].unit, m->spec[p].doc, err);
         }
     }
+#undef FIXED_I64
+#undef FIXED_F64
 #undef I64
 #undef F64
     free(d);
@@ -306,35 +315,36 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-static int write_summary(hid_t fid, const WfSim *sim, WfError *err)
+static int write_summary(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     const WfSummary *s = wf_sim_summary(sim);
     const WfScenario *sc = wf_sim_scenario(sim);
-    hid_t g = wf_h5_group(fid, "summary", err);
+    hid_t g = wf_h5_group_pass(fid, "summary", pass, err);
     if (g < 0) return WF_ESYS;
-    int rc = wf_h5_scalar_f64(g, "window", s->window_s, "s", "statistics window (after warm-up)", err) ||
-             wf_h5_scalar_f64(g, "fuel", s->fuel_g, "g", "fleet fuel in the window", err) ||
-             wf_h5_scalar_f64(g, "distance", s->dist_m, "m", "fleet distance in the window", err) ||
-             wf_h5_scalar_f64(g, "vkt", s->vkt_km, "km", "vehicle-kilometres travelled", err) ||
-             wf_h5_scalar_f64(g, "l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy", err) ||
-             wf_h5_scalar_f64(g, "mpg", s->mpg, "mi/gal", "fleet fuel economy", err) ||
-             wf_h5_scalar_f64(g, "stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km", err) ||
-             wf_h5_scalar_f64(g, "hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km",
-                              "hard-braking events per vehicle-km", err) ||
-             wf_h5_scalar_f64(g, "mean_speed", s->mean_speed_mps, "m/s", "fleet mean speed", err) ||
-             wf_h5_scalar_f64(g, "sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
-                              "time average of the spatial speed standard deviation", err) ||
-             wf_h5_scalar_f64(g, "throughput", s->throughput_vph, "1/h", "passages of x = 0 per hour", err) ||
-             wf_h5_scalar_f64(g, "infeasible_share", s->infeasible_share, "1",
-                              "share of vehicle-steps with an infeasible acceleration request", err) ||
-             wf_h5_scalar_f64(g, "time_stopped_share", s->time_stopped_share, "1", "share of time stopped", err) ||
-             wf_h5_scalar_i64(g, "overlaps", s->overlaps, "1", "overlap events repaired", err);
+#define SCALAR(name, v, units, desc) wf_h5_put_scalar_f64(g, name, pass, v, units, desc, err)
+    int rc = SCALAR("window", s->window_s, "s", "statistics window (after warm-up)") ||
+             SCALAR("fuel", s->fuel_g, "g", "fleet fuel in the window") ||
+             SCALAR("distance", s->dist_m, "m", "fleet distance in the window") ||
+             SCALAR("vkt", s->vkt_km, "km", "vehicle-kilometres travelled") ||
+             SCALAR("l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy") ||
+             SCALAR("mpg", s->mpg, "mi/gal", "fleet fuel economy") ||
+             SCALAR("stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km") ||
+             SCALAR("hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km", "hard-braking events per vehicle-km") ||
+             SCALAR("mean_speed", s->mean_speed_mps, "m/s", "fleet mean speed") ||
+             SCALAR("sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
+                    "time average of the spatial speed standard deviation") ||
+             SCALAR("throughput", s->throughput_vph, "1/h", "passages of x = 0 per hour") ||
+             SCALAR("infeasible_share", s->infeasible_share, "1",
+                    "share of vehicle-steps with an infeasible acceleration request") ||
+             SCALAR("time_stopped_share", s->time_stopped_share, "1", "share of time stopped") ||
+             wf_h5_put_scalar_i64(g, "overlaps", pass, s->overlaps, "1", "overlap events repaired", err);
+#undef SCALAR
     hsize_t nc = sc->n_classes;
     double a[WF_MAX_CLASSES];
 #define CLS(name, field, units, desc)                                              \
     if (!rc) {                                                                     \
         for (size_t c = 0; c < nc; c++) a[c] = s->cls[c].field;                     \
-        rc = wf_h5_write_f64(g, name, 1, &nc, a, units, desc, err);                \
+        rc = wf_h5_put_f64(g, name, pass, 1, &nc, a, units, desc, err);            \
     }
     CLS("class_fuel", fuel_g, "g", "fuel per class in the window");
     CLS("class_distance", dist_m, "m", "distance per class in the window");
@@ -347,34 +357,130 @@ static int write_summary(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-/* Solver statistics of a SUNDIALS run (absent for the fixed-step schemes). */
-static int write_solver(hid_t fid, const WfSim *sim, WfError *err)
+/* Solver statistics of a SUNDIALS run (absent for the fixed-step schemes): the settings are written when the file
+ * is created, the counters at the end. */
+static int write_solver(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     WfOdeStats st;
     if (!wf_sim_ode_stats(sim, &st)) return 0;
     const WfOdeConfig *c = &wf_sim_scenario(sim)->solver;
-    hid_t g = wf_h5_group(fid, "solver", err);
+    hid_t g = wf_h5_group_pass(fid, "solver", pass, err);
     if (g < 0) return WF_ESYS;
     const char *method = c->kind == WF_ODE_CVODE ? (c->bdf ? "bdf" : "adams") : c->kind == WF_ODE_ARKODE ? c->erk_table
                                                                                                           : "classic RK4";
-    int rc = wf_h5_scalar_str(g, "integrator", wf_ode_kind_name(c->kind), "SUNDIALS package used", err) ||
+    int rc = 0;
+    if (pass == WF_H5_ALLOCATE)
+        rc = wf_h5_scalar_str(g, "integrator", wf_ode_kind_name(c->kind), "SUNDIALS package used", err) ||
              wf_h5_scalar_str(g, "method", method, "method or Butcher table", err) ||
              wf_h5_scalar_f64(g, "rtol", c->rtol, "1", "relative tolerance", err) ||
              wf_h5_scalar_f64(g, "atol_x", c->atol_x_m, "m", "absolute tolerance of positions", err) ||
              wf_h5_scalar_f64(g, "atol_v", c->atol_v_mps, "m/s", "absolute tolerance of speeds", err) ||
-             wf_h5_scalar_i64(g, "fuel_error_control", c->fuel_errcon, "1", "fuel integrals in error control", err) ||
-             wf_h5_scalar_i64(g, "steps", st.steps, "1", "internal solver steps", err) ||
-             wf_h5_scalar_i64(g, "rhs_evals", st.rhs_evals, "1", "right-hand-side evaluations (with quadratures)",
-                              err) ||
-             wf_h5_scalar_i64(g, "err_test_fails", st.err_test_fails, "1", "local error test failures", err) ||
-             wf_h5_scalar_i64(g, "nonlin_iters", st.nonlin_iters, "1", "nonlinear solver iterations (CVODES)", err) ||
-             wf_h5_scalar_i64(g, "nonlin_conv_fails", st.nonlin_conv_fails, "1",
-                              "nonlinear convergence failures (CVODES)", err) ||
-             wf_h5_scalar_i64(g, "reinits", st.reinits, "1",
-                              "restarts at discontinuities (noise changes, controller memory, overlap repairs)", err) ||
-             wf_h5_scalar_f64(g, "last_step", st.last_step_s, "s", "last internal step size", err);
+             wf_h5_scalar_i64(g, "fuel_error_control", c->fuel_errcon, "1", "fuel integrals in error control", err);
+#define COUNT(name, v, desc) wf_h5_put_scalar_i64(g, name, pass, v, "1", desc, err)
+    rc = rc || COUNT("steps", st.steps, "internal solver steps") ||
+         COUNT("rhs_evals", st.rhs_evals, "right-hand-side evaluations (with quadratures)") ||
+         COUNT("err_test_fails", st.err_test_fails, "local error test failures") ||
+         COUNT("nonlin_iters", st.nonlin_iters, "nonlinear solver iterations (CVODES)") ||
+         COUNT("nonlin_conv_fails", st.nonlin_conv_fails, "nonlinear convergence failures (CVODES)") ||
+         COUNT("reinits", st.reinits,
+               "restarts at discontinuities (noise changes, controller memory, overlap repairs)") ||
+         wf_h5_put_scalar_f64(g, "last_step", pass, st.last_step_s, "s", "last internal step size", err);
+#undef COUNT
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
+}
+
+/* A failure while the file is set up (`why`, or the error in err): the message says what the file needs and that
+ * nothing is kept (the writer's destroy removes a file whose run never started). */
+static int setup_failed(WfH5Out *w, double ts, double traj, double end, const char *why, WfError *err)
+{
+    char a[32], b[32], c[32], d[32], inner[sizeof err->msg];
+    snprintf(inner, sizeof inner, "%s", why ? why : err->msg);
+    return wf_err(err, why || !err->code ? WF_ESYS : err->code,
+                  "%s: cannot create the result file, which needs up to about %s (time series %s, trajectories %s "
+                  "before compression, end-of-run results %s): %s; nothing was simulated and the file is removed",
+                  w->file->partial, wf_h5_size_text(ts + traj + end, a, sizeof a), wf_h5_size_text(ts, b, sizeof b),
+                  wf_h5_size_text(traj, c, sizeof c), wf_h5_size_text(end, d, sizeof d), inner);
+}
+
+static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
+{
+    WfH5Out *w = ctx;
+    const WfScenario *sc = wf_sim_scenario(sim);
+    w->n_classes = sc->n_classes;
+    w->buf = malloc(TS_BUF * (WF_TS_N_COLS + w->n_classes) * sizeof *w->buf);
+    w->cls = malloc(TS_BUF * (w->n_classes ? w->n_classes : 1) * sizeof *w->cls);
+    if (!w->buf || !w->cls) return wf_err(err, WF_ESYS, "out of memory");
+    if (w->resume) return 0; /* wf_h5out_resume reopened the file and set it back to the checkpoint */
+    hid_t fid = w->file->fid;
+    time_t now = time(NULL);
+    struct tm tmv;
+    gmtime_r(&now, &tmv);
+    strftime(w->started, sizeof w->started, "%Y-%m-%dT%H:%M:%SZ", &tmv);
+    double n = (double)wf_sim_fleet(sim)->n;
+    double ts_bytes = (double)ts_rows_of(sc) * (double)(WF_TS_N_COLS + w->n_classes) * 8.0;
+    double traj_bytes = (double)frames_of(sc) * (1.0 + 4.0 * n) * 8.0;
+    double end_bytes = n * 16.0 * 8.0;
+    /* Refuse a run whose result cannot fit before simulating it (trajectories are allocated as they grow, so this
+     * is the only early warning for them). */
+    char why[200];
+    if (wf_h5_check_room(w->file, ts_bytes + traj_bytes + end_bytes, why, sizeof why))
+        return setup_failed(w, ts_bytes, traj_bytes, end_bytes, why, err);
+    WfCkptSeries sp[N_SERIES];
+    size_t ns = series_specs(w, sim, sp);
+    hid_t g_ts = H5I_INVALID_HID, g_traj = H5I_INVALID_HID;
+    int rc = write_meta(w, sim, err) || write_classes_drivers(fid, sim, err) ||
+             write_vehicles(fid, sim, WF_H5_ALLOCATE, err) || write_summary(fid, sim, WF_H5_ALLOCATE, err) ||
+             write_solver(fid, sim, WF_H5_ALLOCATE, err) || (g_ts = wf_h5_group(fid, "timeseries", err)) < 0 ||
+             (sc->trajectories && ((g_traj = wf_h5_group(fid, "trajectories", err)) < 0 ||
+                                   wf_h5_attr_f64(g_traj, "ring_length_m", sc->road.length_m, err))) ||
+             wf_ckpt_series_create(fid, sp, ns, err) ||
+             /* From here on the structure changes only when trajectory chunks are added, after reserving space. */
+             wf_h5_flush(w->file, err);
+    if (g_ts >= 0) H5Gclose(g_ts);
+    if (g_traj >= 0) H5Gclose(g_traj);
+    return rc ? setup_failed(w, ts_bytes, traj_bytes, end_bytes, NULL, err) : 0;
+}
+
+/* A write error in the run: the file keeps what was written before it (its row counters say how much). */
+static int write_failed(WfH5Out *w, int *group_failed, WfError *err)
+{
+    *group_failed = 1;
+    return wf_err_prefix(err, "%s: ", w->file->partial);
+}
+
+static int h5_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
+{
+    (void)sim;
+    WfH5Out *w = ctx;
+    double *dst = w->buf + w->n_buf * (WF_TS_N_COLS + w->n_classes);
+    memcpy(dst, row->v, WF_TS_N_COLS * sizeof(double));
+    memcpy(dst + WF_TS_N_COLS, row->class_fuel_rate_gps, w->n_classes * sizeof(double));
+    if (++w->n_buf == TS_BUF && flush_ts(w, err)) return write_failed(w, &w->ts_failed, err);
+    return 0;
+}
+
+/* One frame into the trajectories' chunk; a complete chunk is written (src/h5util.h), then counted. The per-step
+ * arrays exist at trajectory steps (the engine takes its multi-pass path then). */
+static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
+{
+    WfH5Out *w = ctx;
+    const WfFleet *f = wf_sim_fleet(sim);
+    const double *const frame[N_TRAJ] = {f->x_m, f->v_mps, f->a_mps2, f->fuel_rate_gps, &t};
+    if (wf_h5_series_append(w->file, w->traj, N_TRAJ, 1, frame, "/trajectories", err) ||
+        write_counts(w, WF_H5_FILL, err))
+        return write_failed(w, &w->traj_failed, err);
+    return 0;
+}
+
+static void close_objects(WfH5Out *w)
+{
+    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
+    wf_h5_series_close(&w->ts_class);
+    for (size_t i = 0; i < N_TRAJ; i++) wf_h5_series_close(&w->tr[i]);
+    /* An open group would keep the file open past H5Fclose (weak close degree): close it too. */
+    if (w->g_meta >= 0) H5Gclose(w->g_meta);
+    w->g_meta = H5I_INVALID_HID;
 }
 
 static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err)
@@ -382,28 +488,33 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     WfH5Out *w = ctx;
     w->ended = 1;
     hid_t fid = w->file->fid;
-    WfCkptSeries sp[N_SERIES];
-    size_t ns = series_specs(w, sim, sp);
-    int rc = flush_ts(w, err);
-    for (size_t i = 0; !rc && i < ns; i++) rc = wf_h5_series_flush(sp[i].s, err);
-    if (rc) wf_err_prefix(err, "%s: ", w->file->partial);
-    for (size_t i = 0; i < ns; i++) wf_h5_series_close(sp[i].s);
-    if (!rc) rc = write_vehicles(fid, sim, err);
-    if (!rc) rc = write_summary(fid, sim, err);
-    if (!rc) rc = write_solver(fid, sim, err);
-    if (!rc) rc = write_meta(fid, sim, completed, reason, w->started, err);
-    /* Open groups would keep the file open past H5Fclose (weak close degree): close them first. */
-    if (w->g_ts >= 0) H5Gclose(w->g_ts);
-    if (w->g_traj >= 0) H5Gclose(w->g_traj);
-    w->g_ts = w->g_traj = H5I_INVALID_HID;
-    if (rc || !completed) {
-        snprintf(w->final_path, sizeof w->final_path, "%s", w->file->partial);
-        wf_h5_abandon(&w->file, 0);
-        return rc;
+    /* The buffered records and frames, unless writing their group failed before (its counter stays true); the
+     * end-of-run results and the status are written whatever happened: in place, they cannot damage the file,
+     * and they may well succeed. Only the first error is reported. */
+    int rc = w->ts_failed ? 0 : flush_ts(w, err);
+    if (!rc && !w->traj_failed && w->tr[0].dset >= 0 &&
+        (wf_h5_series_flush(w->file, w->traj, N_TRAJ, "/trajectories", err) || write_counts(w, WF_H5_FILL, err)))
+        rc = WF_ESYS;
+    WfError later = {0};
+    WfError *e = rc ? &later : err;
+    if (write_vehicles(fid, sim, WF_H5_FILL, e) || write_summary(fid, sim, WF_H5_FILL, e) ||
+        write_solver(fid, sim, WF_H5_FILL, e)) {
+        if (!rc) rc = WF_ESYS;
+        e = &later;
     }
-    snprintf(w->final_path, sizeof w->final_path, "%s", w->file->path);
-    rc = wf_h5_commit(&w->file, err);
-    if (!rc) wf_ckpt_remove(w->final_path); /* the result is complete: its checkpoint is of no further use */
+    /* A run that was to complete but could not be written is incomplete, for this reason; an interrupted or
+     * failed run keeps its first cause. */
+    if (rc && completed) completed = 0, reason = err->msg;
+    if (meta_status(w->g_meta, WF_H5_FILL, sim, completed, reason, e)) {
+        if (!rc) rc = WF_ESYS;
+        /* The status itself failed: say so in the file if the device still lets us. */
+        if (completed) meta_status(w->g_meta, WF_H5_FILL, sim, 0, err->msg, &later);
+    }
+    close_objects(w);
+    if (rc) wf_err_prefix(err, "%s: ", w->file->partial);
+    int done = !rc && completed;
+    if (wf_h5_finish(&w->file, done, w->final_path, sizeof w->final_path, err)) return WF_ESYS;
+    if (done) wf_ckpt_remove(w->final_path); /* the result is complete: its checkpoint is of no further use */
     return rc;
 }
 
@@ -412,10 +523,10 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
 static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
 {
     WfH5Out *w = ctx;
-    int rc = flush_ts(w, err);
-    if (rc) return wf_err_prefix(err, "%s: ", w->file->partial);
-    /* The result file must hold every row the checkpoint counts (but those it saves) before the checkpoint exists. */
-    if (H5Fflush(w->file->fid, H5F_SCOPE_GLOBAL) < 0) return wf_err(err, WF_ESYS, "HDF5: flush %s", w->file->partial);
+    /* The result file must hold every row the checkpoint counts (but the pending frames it saves) before the
+     * checkpoint exists. */
+    if (flush_ts(w, err)) return write_failed(w, &w->ts_failed, err);
+    if (wf_h5_flush(w->file, err)) return w->traj_failed = 1, write_failed(w, &w->ts_failed, err);
     WfStateVar vars[WF_MAX_STATE_VARS];
     WfCkptSeries sp[N_SERIES];
     size_t ns = series_specs(w, sim, sp);
@@ -425,12 +536,24 @@ static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
                         ns, vars, nv, err);
 }
 
-static void init_handles(WfH5Out *w)
+/* The reopened file back at the checkpoint: the counters at its rows (lowering a counter is always safe), the
+ * trajectories cut to the whole chunks it counts (their later frames are written again), then the status back to
+ * "running" (should the cut fail, the file keeps the interrupted run's reason). */
+static int resume_file(WfH5Out *w, const WfSim *sim, WfError *err)
 {
-    w->g_ts = w->g_traj = H5I_INVALID_HID;
-    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 6; i++) all[i]->dset = H5I_INVALID_HID;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) w->ts[c].dset = H5I_INVALID_HID;
+    w->g_meta = H5Gopen2(w->file->fid, "meta", H5P_DEFAULT);
+    int rc = w->g_meta < 0 ? wf_err(err, WF_EINPUT, "no group /meta") : 0;
+    if (!rc && (write_counts(w, WF_H5_FILL, err) ||
+                wf_h5_series_trim(w->file, w->traj, wf_sim_scenario(sim)->trajectories ? N_TRAJ : 0, err) ||
+                meta_status(w->g_meta, WF_H5_FILL, sim, 0, "running", err) || wf_h5_flush(w->file, err)))
+        rc = WF_ESYS;
+    return rc ? wf_err_prefix(err, "%s: ", w->file->partial) : 0;
+}
+
+static WfOutput ops_of(WfH5Out *w)
+{
+    return (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
+                      .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
 }
 
 int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err)
@@ -439,26 +562,24 @@ int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops
     const WfScenario *sc = wf_sim_scenario(sim);
     WfH5Out *w = calloc(1, sizeof *w);
     if (!w) return wf_err(err, WF_ESYS, "out of memory");
-    init_handles(w);
+    init_writer(w);
     w->resume = 1;
     WfCkptSeries sp[N_SERIES];
     size_t ns = series_specs(w, sim, sp);
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS);
-    /* What the interrupted run wrote at its end is written again at the end of this one. */
-    static const char *const stale[] = {"vehicles", "summary", "solver"};
-    /* The checkpoint is read and verified completely before the partial file is touched. */
+    /* The checkpoint and the partial file are read and verified completely before the file is changed. */
     int rc = wf_ckpt_restore(result, "ring", sc, cursor_names, N_CUR, sp, ns, vars, nv, err);
     if (!rc) {
         wf_sim_restored(sim);
-        rc = wf_ckpt_reopen(result, sc, sp, ns, stale, 3, &w->file, err);
+        rc = wf_ckpt_reopen(result, sc, sp, ns, &w->file, err);
     }
+    if (!rc) rc = resume_file(w, sim, err);
     if (rc) {
         wf_h5out_destroy(&w);
         return rc;
     }
-    *ops = (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
-                      .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
+    *ops = ops_of(w);
     *out = w;
     return 0;
 }
@@ -468,14 +589,13 @@ int wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, W
     *out = NULL;
     WfH5Out *w = calloc(1, sizeof *w);
     if (!w) return wf_err(err, WF_ESYS, "out of memory");
-    init_handles(w);
+    init_writer(w);
     int rc = wf_h5_create(path, force, &w->file, err);
     if (rc) {
         free(w);
         return rc;
     }
-    *ops = (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
-                      .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
+    *ops = ops_of(w);
     *out = w;
     return 0;
 }
@@ -484,14 +604,12 @@ void wf_h5out_destroy(WfH5Out **pw)
 {
     if (!pw || !*pw) return;
     WfH5Out *w = *pw;
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) wf_h5_series_close(&w->ts[c]);
-    WfH5Series *all[] = {&w->ts_class, &w->tr_t, &w->tr_x, &w->tr_v, &w->tr_a, &w->tr_f};
-    for (size_t i = 0; i < 6; i++) wf_h5_series_close(all[i]);
-    if (w->g_ts >= 0) H5Gclose(w->g_ts);
-    if (w->g_traj >= 0) H5Gclose(w->g_traj);
-    /* A run that never started writing removes its empty file; a resumed one never deletes what it reopened. */
+    close_objects(w);
+    /* A run that never started writing removes its file (nothing was simulated); a resumed one never deletes
+     * what it reopened. */
     if (w->file) wf_h5_abandon(&w->file, !w->ended && !w->resume);
     free(w->buf);
+    free(w->cls);
     free(w);
     *pw = NULL;
 }
@@ -541,6 +659,17 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
         if (H5Tis_variable_str(t) > 0 && H5Dread(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) >= 0 && s) {
             if (!strchr(s, '\n')) fprintf(c->out, "  %-24s %s\n", name, s);
             H5free_memory(s);
+        } else if (H5Tis_variable_str(t) == 0 && H5Tget_size(t) <= 4096) {
+            /* Fixed-length text (/meta/reason, rewritten in place): read with a terminating NUL added. */
+            char fixed[4097];
+            size_t sz = H5Tget_size(t);
+            hid_t ft = H5Tcopy(H5T_C_S1);
+            if (ft >= 0 && H5Tset_size(ft, sz + 1) >= 0 && H5Tset_cset(ft, H5T_CSET_UTF8) >= 0 &&
+                H5Dread(d, ft, H5S_ALL, H5S_ALL, H5P_DEFAULT, fixed) >= 0) {
+                fixed[sz] = '\0';
+                if (!strchr(fixed, '\n')) fprintf(c->out, "  %-24s %s\n", name, fixed);
+            }
+            if (ft >= 0) H5Tclose(ft);
         }
         H5Tclose(mt);
     } else if ((H5Tget_class(t) == H5T_FLOAT || H5Tget_class(t) == H5T_INTEGER) && n >= 1 && n <= 16) {

@@ -1,16 +1,78 @@
-/* Checked HDF5 helpers: partial-file protocol, datasets with units, extendible series. */
+/* Checked HDF5 helpers: partial-file protocol, datasets with units, results written in place, series grown a
+ * whole chunk at a time after their disk space is reserved, and what resuming an interrupted run needs. */
 #include "h5util.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
+#include <sys/statvfs.h>
 #include <unistd.h>
+
+/* The system error behind the HDF5 error now on this thread's stack: HDF5's file drivers put "errno = N" in
+ * their messages. 0 when there is none. Must run before any other HDF5 API call, which would clear the stack. */
+static herr_t find_errno(unsigned n, const H5E_error2_t *e, void *data)
+{
+    (void)n;
+    const char *p = e->desc ? strstr(e->desc, "errno = ") : NULL;
+    if (!p) return 0;
+    long v = strtol(p + 8, NULL, 10);
+    *(int *)data = v > 0 && v < 4096 ? (int)v : 0;
+    return *(int *)data ? 1 : 0; /* positive: stop walking */
+}
+
+static int stack_errno(void)
+{
+    int e = 0;
+    H5Ewalk2(H5E_DEFAULT, H5E_WALK_UPWARD, find_errno, &e);
+    return e;
+}
+
+/* strerror, with the usual cause spelt out for the errors a full disk or a limit gives. */
+static void errno_text(int e, char *buf, size_t len)
+{
+    const char *hint = e == ENOSPC   ? " (disk full)"
+                       : e == EFBIG  ? " (the file size limit, ulimit -f, was reached)"
+                                     : "";
+    snprintf(buf, len, "%s%s", strerror(e), hint);
+}
+
+/* The HDF5 path of object `name` under loc ("/timeseries/t"), for messages. */
+static void obj_path(hid_t loc, const char *name, char *out, size_t len)
+{
+    char base[256] = "";
+    ssize_t n = loc >= 0 ? H5Iget_name(loc, base, sizeof base) : -1;
+    if (n <= 0 || (size_t)n >= sizeof base) base[0] = '\0';
+    int slash = base[0] && base[strlen(base) - 1] != '/';
+    snprintf(out, len, "%s%s%s", base, slash ? "/" : "", name);
+}
+
+/* Record the failure of `what` on `name` under loc. Call it right after the failing HDF5 call. */
+static int h5fail_at(WfError *err, const char *what, hid_t loc, const char *name)
+{
+    int e = stack_errno();
+    char path[512], why[200];
+    obj_path(loc, name, path, sizeof path);
+    if (!e) return wf_err(err, WF_ESYS, "HDF5: %s '%s' failed (disk full, permission or a damaged file?)", what, path);
+    errno_text(e, why, sizeof why);
+    return wf_err(err, WF_ESYS, "HDF5: %s '%s' failed: %s", what, path, why);
+}
 
 static int h5fail(WfError *err, const char *what, const char *name)
 {
-    return wf_err(err, WF_ESYS, "HDF5: %s '%s' failed (disk full, permission or a damaged file?)", what, name);
+    return h5fail_at(err, what, H5I_INVALID_HID, name);
+}
+
+const char *wf_h5_size_text(double bytes, char *buf, size_t len)
+{
+    if (bytes < 1e6) snprintf(buf, len, "%.0f kB", ceil(bytes / 1e3));
+    else if (bytes < 1e9) snprintf(buf, len, "%.1f MB", bytes / 1e6);
+    else snprintf(buf, len, "%.2f GB", bytes / 1e9);
+    return buf;
 }
 
 void wf_h5_library_init(void)
@@ -21,6 +83,18 @@ void wf_h5_library_init(void)
     H5dont_atexit();
     /* Per thread in HDF5 (each sweep worker calls this): wavefuel reports errors itself, naming the object. */
     H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
+}
+
+/* File access: no sieve buffer, so every H5Dwrite reaches the file at once and in call order (a row count
+ * written after its rows is never on disk before them). */
+static hid_t file_access(void)
+{
+    hid_t fapl = H5Pcreate(H5P_FILE_ACCESS);
+    if (fapl >= 0 && H5Pset_sieve_buf_size(fapl, 0) < 0) {
+        H5Pclose(fapl);
+        return H5I_INVALID_HID;
+    }
+    return fapl;
 }
 
 /* A new WfH5File for PATH and PATH.partial, not yet open. */
@@ -36,24 +110,6 @@ static int file_new(const char *path, WfH5File **out, WfError *err)
         return wf_err(err, WF_EINPUT, "output path too long: %s", path);
     }
     f->fid = H5I_INVALID_HID;
-    *out = f;
-    return 0;
-}
-
-int wf_h5_reopen(const char *path, WfH5File **out, WfError *err)
-{
-    wf_h5_library_init();
-    *out = NULL;
-    WfH5File *f = NULL;
-    int rc = file_new(path, &f, err);
-    if (rc) return rc;
-    f->fid = H5Fopen(f->partial, H5F_ACC_RDWR, H5P_DEFAULT);
-    if (f->fid < 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: cannot reopen the partial result (missing, or damaged by a hard kill?)",
-                    f->partial);
-        free(f);
-        return rc;
-    }
     *out = f;
     return 0;
 }
@@ -76,15 +132,47 @@ int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
         return wf_err(err, WF_EINPUT, "%s.partial exists (an interrupted or running job?): remove it or use --force",
                       path);
     }
-    f->fid = H5Fcreate(f->partial, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
+    hid_t fapl = file_access();
+    errno = 0;
+    f->fid = fapl < 0 ? H5I_INVALID_HID : H5Fcreate(f->partial, H5F_ACC_TRUNC, H5P_DEFAULT, fapl);
     if (f->fid < 0) {
-        int e = errno;
-        int rc = wf_err(err, WF_ESYS, "%s: cannot create (%s)", f->partial, e ? strerror(e) : "HDF5 error");
+        int e = stack_errno();
+        if (!e) e = errno;
+        char why[200] = "HDF5 error";
+        if (e) errno_text(e, why, sizeof why);
+        int rc = wf_err(err, WF_ESYS, "%s: cannot create (%s)", f->partial, why);
+        if (fapl >= 0) H5Pclose(fapl);
+        free(f);
+        return rc;
+    }
+    H5Pclose(fapl);
+    *out = f;
+    return 0;
+}
+
+int wf_h5_reopen(const char *path, WfH5File **out, WfError *err)
+{
+    wf_h5_library_init();
+    *out = NULL;
+    WfH5File *f = NULL;
+    int rc0 = file_new(path, &f, err);
+    if (rc0) return rc0;
+    hid_t fapl = file_access();
+    f->fid = fapl < 0 ? H5I_INVALID_HID : H5Fopen(f->partial, H5F_ACC_RDWR, fapl);
+    if (fapl >= 0) H5Pclose(fapl);
+    if (f->fid < 0) {
+        int rc = wf_err(err, WF_EINPUT, "%s: cannot reopen the partial result (missing, or not an HDF5 file)",
+                        f->partial);
         free(f);
         return rc;
     }
     *out = f;
     return 0;
+}
+
+int wf_h5_flush(WfH5File *f, WfError *err)
+{
+    return H5Fflush(f->fid, H5F_SCOPE_GLOBAL) < 0 ? h5fail(err, "flush", f->partial) : 0;
 }
 
 int wf_h5_commit(WfH5File **pf, WfError *err)
@@ -112,6 +200,37 @@ void wf_h5_abandon(WfH5File **pf, int remove_file)
     free(f);
 }
 
+void wf_h5_mark_incomplete(const char *partial, const char *reason)
+{
+    hid_t fapl = file_access();
+    hid_t f = fapl < 0 ? H5I_INVALID_HID : H5Fopen(partial, H5F_ACC_RDWR, fapl);
+    if (fapl >= 0) H5Pclose(fapl);
+    if (f < 0) return;
+    hid_t g = H5Gopen2(f, "meta", H5P_DEFAULT);
+    if (g >= 0) {
+        if (!wf_h5_put_text(g, "reason", WF_H5_FILL, reason, NULL, NULL))
+            wf_h5_put_scalar_i64(g, "completed", WF_H5_FILL, 0, NULL, NULL, NULL);
+        H5Gclose(g);
+    }
+    H5Fclose(f);
+}
+
+int wf_h5_finish(WfH5File **pf, int complete, char *final_path, size_t len, WfError *err)
+{
+    WfH5File *f = *pf;
+    char partial[sizeof f->partial];
+    snprintf(partial, sizeof partial, "%s", f->partial);
+    snprintf(final_path, len, "%s", complete ? f->path : partial);
+    if (!complete) {
+        wf_h5_abandon(pf, 0);
+        return 0;
+    }
+    if (!wf_h5_commit(pf, err)) return 0;
+    snprintf(final_path, len, "%s", partial);
+    wf_h5_mark_incomplete(partial, err->msg);
+    return wf_err_prefix(err, "%s: ", partial);
+}
+
 hid_t wf_h5_group(hid_t loc, const char *name, WfError *err)
 {
     hid_t lcpl = H5Pcreate(H5P_LINK_CREATE);
@@ -121,8 +240,16 @@ hid_t wf_h5_group(hid_t loc, const char *name, WfError *err)
     }
     H5Pset_create_intermediate_group(lcpl, 1);
     hid_t g = H5Gcreate2(loc, name, lcpl, H5P_DEFAULT, H5P_DEFAULT);
+    if (g < 0) h5fail_at(err, "create group", loc, name);
     H5Pclose(lcpl);
-    if (g < 0) h5fail(err, "create group", name);
+    return g;
+}
+
+hid_t wf_h5_group_pass(hid_t loc, const char *name, WfH5Pass pass, WfError *err)
+{
+    if (pass == WF_H5_ALLOCATE) return wf_h5_group(loc, name, err);
+    hid_t g = H5Gopen2(loc, name, H5P_DEFAULT);
+    if (g < 0) h5fail_at(err, "open group", loc, name);
     return g;
 }
 
@@ -133,10 +260,11 @@ int wf_h5_attr_str(hid_t obj, const char *name, const char *value, WfError *err)
     if (t < 0 || sp < 0 || H5Tset_size(t, strlen(value) + 1) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0) rc = 1;
     if (!rc && (a = H5Acreate2(obj, name, t, sp, H5P_DEFAULT, H5P_DEFAULT)) < 0) rc = 1;
     if (!rc && H5Awrite(a, t, value) < 0) rc = 1;
+    if (rc) rc = h5fail_at(err, "write attribute", obj, name);
     if (a >= 0) H5Aclose(a);
     if (sp >= 0) H5Sclose(sp);
     if (t >= 0) H5Tclose(t);
-    return rc ? h5fail(err, "write attribute", name) : 0;
+    return rc;
 }
 
 static int attr_scalar(hid_t obj, const char *name, hid_t type, const void *v, WfError *err)
@@ -145,9 +273,10 @@ static int attr_scalar(hid_t obj, const char *name, hid_t type, const void *v, W
     int rc = sp < 0;
     if (!rc && (a = H5Acreate2(obj, name, type, sp, H5P_DEFAULT, H5P_DEFAULT)) < 0) rc = 1;
     if (!rc && H5Awrite(a, type, v) < 0) rc = 1;
+    if (rc) rc = h5fail_at(err, "write attribute", obj, name);
     if (a >= 0) H5Aclose(a);
     if (sp >= 0) H5Sclose(sp);
-    return rc ? h5fail(err, "write attribute", name) : 0;
+    return rc;
 }
 
 int wf_h5_attr_f64(hid_t obj, const char *name, double value, WfError *err)
@@ -215,11 +344,10 @@ int wf_h5_read_scalar_str(hid_t loc, const char *file, const char *name, char **
     return rc;
 }
 
-static int label(hid_t d, const char *name, const char *units, const char *desc, WfError *err)
+static int label(hid_t d, const char *units, const char *desc, WfError *err)
 {
     if (units && wf_h5_attr_str(d, "units", units, err)) return WF_ESYS;
     if (desc && wf_h5_attr_str(d, "description", desc, err)) return WF_ESYS;
-    (void)name;
     return 0;
 }
 
@@ -242,8 +370,8 @@ static int write_any(hid_t loc, const char *name, int rank, const hsize_t *dims,
     }
     if (!rc && (d = H5Dcreate2(loc, name, file_type, sp, H5P_DEFAULT, dcpl, H5P_DEFAULT)) < 0) rc = 1;
     if (!rc && total && H5Dwrite(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) rc = 1;
-    if (rc) rc = h5fail(err, "write dataset", name);
-    if (!rc) rc = label(d, name, units, desc, err);
+    if (rc) rc = h5fail_at(err, "write dataset", loc, name);
+    if (!rc) rc = label(d, units, desc, err);
     if (d >= 0) H5Dclose(d);
     if (dcpl >= 0) H5Pclose(dcpl);
     if (sp >= 0) H5Sclose(sp);
@@ -276,8 +404,8 @@ int wf_h5_write_strings(hid_t loc, const char *name, size_t n, const char *const
     int rc = (t < 0 || sp < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0);
     if (!rc && (d = H5Dcreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT)) < 0) rc = 1;
     if (!rc && n && H5Dwrite(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, s) < 0) rc = 1;
-    if (rc) rc = h5fail(err, "write dataset", name);
-    if (!rc) rc = label(d, name, "1", desc, err);
+    if (rc) rc = h5fail_at(err, "write dataset", loc, name);
+    if (!rc) rc = label(d, "1", desc, err);
     if (d >= 0) H5Dclose(d);
     if (sp >= 0) H5Sclose(sp);
     if (t >= 0) H5Tclose(t);
@@ -291,8 +419,8 @@ static int scalar_any(hid_t loc, const char *name, hid_t mem, hid_t file, const 
     int rc = sp < 0;
     if (!rc && (d = H5Dcreate2(loc, name, file, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT)) < 0) rc = 1;
     if (!rc && H5Dwrite(d, mem, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) < 0) rc = 1;
-    if (rc) rc = h5fail(err, "write dataset", name);
-    if (!rc) rc = label(d, name, units, desc, err);
+    if (rc) rc = h5fail_at(err, "write dataset", loc, name);
+    if (!rc) rc = label(d, units, desc, err);
     if (d >= 0) H5Dclose(d);
     if (sp >= 0) H5Sclose(sp);
     return rc;
@@ -312,20 +440,128 @@ int wf_h5_scalar_str(hid_t loc, const char *name, const char *s, const char *des
 {
     hid_t t = H5Tcopy(H5T_C_S1);
     if (t < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0) {
+        int rc = h5fail_at(err, "string type for", loc, name);
         if (t >= 0) H5Tclose(t);
-        return h5fail(err, "string type for", name);
+        return rc;
     }
     int rc = scalar_any(loc, name, t, t, &s, "1", desc, err);
     H5Tclose(t);
     return rc;
 }
 
-hsize_t wf_h5_series_chunk_rows(hsize_t cols, hsize_t chunk_rows)
+/* ---- Results written in place ---- */
+
+/* Contiguous, allocated when created and filled with `fill` then (so the blocks exist on disk: a full disk shows
+ * up now, and unwritten values read as the fill value rather than as zeros). */
+static hid_t allocated_plist(hid_t type, const void *fill)
 {
-    hsize_t r = chunk_rows ? chunk_rows : 1;
-    /* Keep a chunk near 4 MiB whatever the row width. */
-    if (cols && r * cols * 8 > (4u << 20)) r = (4u << 20) / (cols * 8) + 1;
-    return r;
+    hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE);
+    if (dcpl < 0) return dcpl;
+    if (H5Pset_layout(dcpl, H5D_CONTIGUOUS) < 0 || H5Pset_alloc_time(dcpl, H5D_ALLOC_TIME_EARLY) < 0 ||
+        H5Pset_fill_time(dcpl, H5D_FILL_TIME_ALLOC) < 0 || H5Pset_fill_value(dcpl, type, fill) < 0) {
+        H5Pclose(dcpl);
+        return H5I_INVALID_HID;
+    }
+    return dcpl;
+}
+
+static int put_any(hid_t loc, const char *name, WfH5Pass pass, int rank, const hsize_t *dims, hid_t mem_type,
+                   hid_t file_type, const void *fill, const void *data, const char *units, const char *desc,
+                   WfError *err)
+{
+    hsize_t total = 1;
+    for (int i = 0; i < rank; i++) total *= dims[i];
+    hid_t d = H5I_INVALID_HID;
+    int rc = 0;
+    if (pass == WF_H5_ALLOCATE) {
+        hid_t sp = rank ? H5Screate_simple(rank, dims, NULL) : H5Screate(H5S_SCALAR);
+        hid_t dcpl = allocated_plist(mem_type, fill);
+        if (sp < 0 || dcpl < 0 || (d = H5Dcreate2(loc, name, file_type, sp, H5P_DEFAULT, dcpl, H5P_DEFAULT)) < 0)
+            rc = h5fail_at(err, "allocate dataset", loc, name);
+        if (dcpl >= 0) H5Pclose(dcpl);
+        if (sp >= 0) H5Sclose(sp);
+        if (!rc) rc = label(d, units, desc, err);
+    } else {
+        d = H5Dopen2(loc, name, H5P_DEFAULT);
+        if (d < 0) return h5fail_at(err, "open dataset", loc, name);
+        hid_t sp = H5Dget_space(d);
+        hssize_t np = sp >= 0 ? H5Sget_simple_extent_npoints(sp) : -1;
+        if (sp >= 0) H5Sclose(sp);
+        if (np != (hssize_t)total) {
+            char path[512];
+            obj_path(loc, name, path, sizeof path);
+            rc = wf_err(err, WF_ESYS, "HDF5: dataset '%s' has %lld values, %llu expected (written by another "
+                        "version of wavefuel?)", path, (long long)np, (unsigned long long)total);
+        } else if (total && H5Dwrite(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) {
+            rc = h5fail_at(err, "write dataset", loc, name);
+        }
+    }
+    if (d >= 0) H5Dclose(d);
+    return rc;
+}
+
+int wf_h5_put_f64(hid_t loc, const char *name, WfH5Pass pass, int rank, const hsize_t *dims, const double *data,
+                  const char *units, const char *desc, WfError *err)
+{
+    const double nan = NAN;
+    return put_any(loc, name, pass, rank, dims, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, &nan, data, units, desc, err);
+}
+
+int wf_h5_put_i64(hid_t loc, const char *name, WfH5Pass pass, int rank, const hsize_t *dims, const int64_t *data,
+                  const char *units, const char *desc, WfError *err)
+{
+    const int64_t none = -1;
+    return put_any(loc, name, pass, rank, dims, H5T_NATIVE_INT64, H5T_STD_I64LE, &none, data, units, desc, err);
+}
+
+int wf_h5_put_scalar_f64(hid_t loc, const char *name, WfH5Pass pass, double v, const char *units, const char *desc,
+                         WfError *err)
+{
+    return wf_h5_put_f64(loc, name, pass, 0, NULL, &v, units, desc, err);
+}
+
+int wf_h5_put_scalar_i64(hid_t loc, const char *name, WfH5Pass pass, int64_t v, const char *units,
+                         const char *desc, WfError *err)
+{
+    return wf_h5_put_i64(loc, name, pass, 0, NULL, &v, units, desc, err);
+}
+
+int wf_h5_put_text(hid_t loc, const char *name, WfH5Pass pass, const char *s, const char *desc, WfError *err)
+{
+    char buf[WF_H5_TEXT_LEN];
+    memset(buf, 0, sizeof buf);
+    size_t n = strlen(s);
+    if (n >= sizeof buf) {
+        n = sizeof buf - 1;
+        while (n > 0 && ((unsigned char)s[n] & 0xC0) == 0x80) n--; /* not inside a UTF-8 sequence */
+    }
+    memcpy(buf, s, n);
+    hid_t t = H5Tcopy(H5T_C_S1);
+    if (t < 0 || H5Tset_size(t, sizeof buf) < 0 || H5Tset_strpad(t, H5T_STR_NULLTERM) < 0 ||
+        H5Tset_cset(t, H5T_CSET_UTF8) < 0) {
+        int rc = h5fail_at(err, "text type for", loc, name);
+        if (t >= 0) H5Tclose(t);
+        return rc;
+    }
+    static const char empty[WF_H5_TEXT_LEN];
+    int rc = put_any(loc, name, pass, 0, NULL, t, t, empty, buf, "1", desc, err);
+    H5Tclose(t);
+    return rc;
+}
+
+/* ---- Series ---- */
+
+void wf_h5_series_init(WfH5Series *s)
+{
+    memset(s, 0, sizeof *s);
+    s->dset = H5I_INVALID_HID;
+}
+
+hsize_t wf_h5_series_chunk_rows(hsize_t cols, hsize_t want)
+{
+    hsize_t r = want ? want : 1, max = cols ? (4u << 20) / (8 * cols) : r;
+    if (max < 1) max = 1;
+    return r < max ? r : max;
 }
 
 /* "pending:" + the path with '.' for '/' (a checkpoint keeps its blocks as datasets of one group). */
@@ -336,89 +572,96 @@ static void series_block_name(WfH5Series *s)
         if (*p == '/') *p = '.';
 }
 
-/* The identity of a series in messages and checkpoints (its path in the file), and the pending buffer of a
- * compressed one. */
-static int series_setup(WfH5Series *s, const char *path, hsize_t cols, hsize_t chunk_rows, int compress,
-                        WfError *err)
+/* The identity of a series in messages and checkpoints (its path in the file), its shape, and the pending buffer
+ * of an appended one. */
+static int series_setup(WfH5Series *s, const char *path, hsize_t cols, hsize_t fixed_rows, hsize_t chunk_rows,
+                        int compress, WfError *err)
 {
-    memset(s, 0, sizeof *s);
-    s->dset = H5I_INVALID_HID;
+    wf_h5_series_init(s);
     snprintf(s->name, sizeof s->name, "%s", path[0] == '/' ? path + 1 : path);
     series_block_name(s);
-    s->cols = cols;
-    s->compress = compress != 0;
-    s->chunk_rows = wf_h5_series_chunk_rows(cols, chunk_rows);
-    /* A one-row chunk is complete at every append: nothing waits. */
-    if (compress && s->chunk_rows > 1) {
-        s->pend = malloc(s->chunk_rows * (cols ? cols : 1) * sizeof *s->pend);
-        if (!s->pend) return wf_err(err, WF_ESYS, "out of memory for the rows of dataset '%s'", s->name);
+    s->cols = cols, s->chunk_rows = chunk_rows, s->compress = compress != 0;
+    s->cap = chunk_rows ? 0 : fixed_rows;
+    if (chunk_rows) {
+        s->pend = malloc((size_t)(chunk_rows * (cols ? cols : 1)) * sizeof *s->pend);
+        if (!s->pend) return wf_err(err, WF_ESYS, "out of memory for the rows of dataset '/%s'", s->name);
     }
     return 0;
 }
 
-int wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t chunk_rows, int compress,
-                        const char *units, const char *desc, WfH5Series *s, WfError *err)
+/* A failed HDF5 call on the series (call it right after). */
+static int series_fail(WfError *err, const char *what, const WfH5Series *s)
 {
-    int rc = series_setup(s, name, cols, chunk_rows, compress, err);
-    if (rc) return rc;
-    int rank = cols ? 2 : 1;
-    hsize_t dims[2] = {0, cols}, maxd[2] = {H5S_UNLIMITED, cols}, chunk[2] = {s->chunk_rows, cols};
-    hid_t sp = H5Screate_simple(rank, dims, maxd), dcpl = H5Pcreate(H5P_DATASET_CREATE);
-    rc = (sp < 0 || dcpl < 0 || H5Pset_chunk(dcpl, rank, chunk) < 0);
-    if (!rc && compress && (H5Pset_shuffle(dcpl) < 0 || H5Pset_deflate(dcpl, 1) < 0)) rc = 1;
-    if (!rc && (s->dset = H5Dcreate2(loc, name, H5T_IEEE_F64LE, sp, H5P_DEFAULT, dcpl, H5P_DEFAULT)) < 0) rc = 1;
-    if (dcpl >= 0) H5Pclose(dcpl);
-    if (sp >= 0) H5Sclose(sp);
-    if (rc) return h5fail(err, "create dataset", name);
-    /* From here on the series is named by its path in the file ("trips/serial"). */
-    char path[sizeof s->name];
-    ssize_t len = H5Iget_name(s->dset, path, sizeof path);
-    if (len > 0 && (size_t)len < sizeof path) {
-        snprintf(s->name, sizeof s->name, "%s", path[0] == '/' ? path + 1 : path);
-        series_block_name(s);
-    }
-    return label(s->dset, name, units, desc, err);
+    char path[sizeof s->name + 1];
+    snprintf(path, sizeof path, "/%s", s->name);
+    return h5fail(err, what, path);
 }
 
-/* Rows written to the file, extending it. */
-static int series_write(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
+/* Dataset access without a chunk cache: rows reach the file when written, not when a chunk is evicted. */
+static hid_t series_access(void)
+{
+    hid_t dapl = H5Pcreate(H5P_DATASET_ACCESS);
+    if (dapl >= 0 && H5Pset_chunk_cache(dapl, 0, 0, 1.0) < 0) {
+        H5Pclose(dapl);
+        return H5I_INVALID_HID;
+    }
+    return dapl;
+}
+
+int wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t fixed_rows, hsize_t chunk_rows,
+                        int compress, const char *units, const char *desc, WfH5Series *s, WfError *err)
+{
+    char path[sizeof s->name];
+    obj_path(loc, name, path, sizeof path);
+    int rc = series_setup(s, path, cols, fixed_rows, chunk_rows, compress, err);
+    if (rc) return rc;
+    int rank = cols ? 2 : 1;
+    hsize_t dims[2] = {s->cap, cols}, maxd[2] = {chunk_rows ? H5S_UNLIMITED : fixed_rows, cols};
+    const double nan = NAN;
+    hid_t sp = H5Screate_simple(rank, dims, maxd), dcpl = H5I_INVALID_HID, dapl = series_access();
+    if (chunk_rows) {
+        /* Appended: chunks are allocated as rows are appended (wf_h5_series_append), compressed if asked. */
+        hsize_t chunk[2] = {chunk_rows, cols};
+        dcpl = H5Pcreate(H5P_DATASET_CREATE);
+        if (dcpl >= 0 && (H5Pset_chunk(dcpl, rank, chunk) < 0 || H5Pset_fill_value(dcpl, H5T_NATIVE_DOUBLE, &nan) < 0 ||
+                          (compress && (H5Pset_shuffle(dcpl) < 0 || H5Pset_deflate(dcpl, 1) < 0)))) {
+            H5Pclose(dcpl);
+            dcpl = H5I_INVALID_HID;
+        }
+    } else {
+        dcpl = allocated_plist(H5T_NATIVE_DOUBLE, &nan);
+    }
+    rc = sp < 0 || dcpl < 0 || dapl < 0 ||
+         (s->dset = H5Dcreate2(loc, name, H5T_IEEE_F64LE, sp, H5P_DEFAULT, dcpl, dapl)) < 0;
+    if (rc) rc = h5fail_at(err, "allocate dataset", loc, name);
+    if (dapl >= 0) H5Pclose(dapl);
+    if (dcpl >= 0) H5Pclose(dcpl);
+    if (sp >= 0) H5Sclose(sp);
+    return rc ? rc : label(s->dset, units, desc, err);
+}
+
+/* Write n rows at row s->rows, inside the current extent. */
+static int write_rows(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
 {
     int rank = s->cols ? 2 : 1;
-    hsize_t newdims[2] = {s->rows + n, s->cols}, start[2] = {s->rows, 0}, count[2] = {n, s->cols};
-    if (H5Dset_extent(s->dset, newdims) < 0) return h5fail(err, "extend dataset", s->name);
+    hsize_t start[2] = {s->rows, 0}, count[2] = {n, s->cols};
     hid_t fsp = H5Dget_space(s->dset), msp = H5Screate_simple(rank, count, NULL);
     int rc = (fsp < 0 || msp < 0 || H5Sselect_hyperslab(fsp, H5S_SELECT_SET, start, NULL, count, NULL) < 0 ||
               H5Dwrite(s->dset, H5T_NATIVE_DOUBLE, msp, fsp, H5P_DEFAULT, rows) < 0);
+    if (rc) rc = series_fail(err, "write to dataset", s);
     if (msp >= 0) H5Sclose(msp);
     if (fsp >= 0) H5Sclose(fsp);
-    if (rc) return h5fail(err, "append to dataset", s->name);
-    s->rows += n;
-    return 0;
-}
-
-int wf_h5_series_append(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
-{
-    if (!s->pend) return n ? series_write(s, n, rows, err) : 0;
-    size_t width = s->cols ? s->cols : 1;
-    while (n > 0) {
-        hsize_t take = s->chunk_rows - s->n_pend < n ? s->chunk_rows - s->n_pend : n;
-        memcpy(s->pend + s->n_pend * width, rows, take * width * sizeof *rows);
-        s->n_pend += take, rows += take * width, n -= take;
-        if (s->n_pend == s->chunk_rows) {
-            int rc = series_write(s, s->n_pend, s->pend, err);
-            if (rc) return rc;
-            s->n_pend = 0;
-        }
-    }
-    return 0;
-}
-
-int wf_h5_series_flush(WfH5Series *s, WfError *err)
-{
-    if (!s->n_pend) return 0;
-    int rc = series_write(s, s->n_pend, s->pend, err);
-    if (!rc) s->n_pend = 0;
+    if (!rc) s->rows += n;
     return rc;
+}
+
+int wf_h5_series_write(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
+{
+    if (n == 0) return 0;
+    if (s->chunk_rows || s->rows + n > s->cap)
+        return wf_err(err, WF_ESYS, "HDF5: dataset '/%s' holds %llu rows, %llu would not fit", s->name,
+                      (unsigned long long)s->cap, (unsigned long long)(s->rows + n));
+    return write_rows(s, n, rows, err);
 }
 
 void wf_h5_series_close(WfH5Series *s)
@@ -430,12 +673,173 @@ void wf_h5_series_close(WfH5Series *s)
     s->n_pend = 0;
 }
 
-int wf_h5_series_resume(WfH5Series *s, const char *path, hsize_t cols, hsize_t chunk_rows, int compress,
-                        hsize_t total_rows, WfError *err)
+/* Make sure `bytes` more bytes can be written past the end of the file: posix_fallocate allocates the blocks
+ * (a full disk or a file size limit fails here, before HDF5 changes anything). On failure the file gets its old
+ * length back and `why` the system error. */
+static int reserve(WfH5File *f, hsize_t bytes, char *why, size_t len)
 {
-    int rc = series_setup(s, path, cols, chunk_rows, compress, err);
+    int *fd = NULL;
+    struct stat st;
+    if (H5Fget_vfd_handle(f->fid, H5P_DEFAULT, (void **)&fd) < 0 || !fd) {
+        snprintf(why, len, "cannot reach the file descriptor");
+        return -1;
+    }
+    if (fstat(*fd, &st) != 0) {
+        errno_text(errno, why, len);
+        return -1;
+    }
+    int e = posix_fallocate(*fd, st.st_size, (off_t)bytes);
+    if (e) {
+        errno_text(e, why, len);
+        /* Give the file its old length back; should that fail too, HDF5 ignores a tail past its end of data. */
+        int t = ftruncate(*fd, st.st_size);
+        (void)t;
+        return -1;
+    }
+    return 0;
+}
+
+/* Give back what a reservation left past HDF5's end of data. HDF5 truncates the file to its end of data when it
+ * flushes only if that differs from the end it last wrote, which a write into the reserved space may match:
+ * without this the reserved tail would stay in the file. Nothing of HDF5's lies past H5Fget_filesize. */
+static void release(WfH5File *f)
+{
+    int *fd = NULL;
+    hsize_t end = 0;
+    struct stat st;
+    if (H5Fget_vfd_handle(f->fid, H5P_DEFAULT, (void **)&fd) < 0 || !fd || H5Fget_filesize(f->fid, &end) < 0 ||
+        fstat(*fd, &st) != 0 || (hsize_t)st.st_size <= end)
+        return;
+    int t = ftruncate(*fd, (off_t)end);
+    (void)t; /* a tail left past the end of data is harmless (HDF5 ignores it), only wasted */
+}
+
+/* Reserve `bytes` (plus room for the chunk index and the object headers HDF5 rewrites), run `change` on the
+ * series, flush so the file on disk has the new shape, and give back the unused reservation. If the change or the
+ * flush fails (an I/O error: the space is there), `undo` puts the series back as they were, so that what HDF5
+ * still holds in memory and writes when the file is closed is the consistent state before the change. */
+static int reserved_change(WfH5File *f, double bytes, const char *what, int (*change)(void *, WfError *),
+                           void (*undo)(void *), void *ctx, WfError *err)
+{
+    char why[200], size[32];
+    double margin = (double)(1u << 20) + bytes / 32;
+    if (reserve(f, (hsize_t)(bytes + margin), why, sizeof why))
+        return bytes > 0 ? wf_err(err, WF_ESYS, "cannot %s (%s): %s", what, wf_h5_size_text(bytes, size, sizeof size),
+                                  why)
+                         : wf_err(err, WF_ESYS, "cannot %s: %s", what, why);
+    if (change(ctx, err) || wf_h5_flush(f, err)) {
+        if (undo) undo(ctx);
+        return WF_ESYS;
+    }
+    release(f);
+    return 0;
+}
+
+enum { GROUP_MAX = 64 }; /* series appended together, at most */
+
+/* The series of one group, appended together: all appended, with the same chunk rows, rows and pending rows. */
+static int check_group(WfH5Series *const *s, size_t n, WfError *err)
+{
+    if (n == 0 || n > GROUP_MAX) return wf_err(err, WF_ESYS, "HDF5: %zu series appended together (1 to %d)", n, GROUP_MAX);
+    for (size_t i = 0; i < n; i++) {
+        if (!s[i]->chunk_rows)
+            return wf_err(err, WF_ESYS, "HDF5: dataset '/%s' has a fixed size (%llu rows)", s[i]->name,
+                          (unsigned long long)s[i]->cap);
+        if (s[i]->chunk_rows != s[0]->chunk_rows || s[i]->rows != s[0]->rows || s[i]->n_pend != s[0]->n_pend)
+            return wf_err(err, WF_ESYS, "HDF5: datasets '/%s' and '/%s' are appended together but differ in chunks "
+                          "or rows", s[0]->name, s[i]->name);
+    }
+    return 0;
+}
+
+typedef struct Append {
+    WfH5Series *const *s;
+    size_t              n;
+    hsize_t             old_rows[GROUP_MAX], old_cap[GROUP_MAX];
+} Append;
+
+/* Every series' pending rows into the file, past its rows. */
+static int do_append(void *ctx, WfError *err)
+{
+    Append *a = ctx;
+    for (size_t i = 0; i < a->n; i++) a->old_rows[i] = a->s[i]->rows, a->old_cap[i] = a->s[i]->cap;
+    for (size_t i = 0; i < a->n; i++) {
+        WfH5Series *s = a->s[i];
+        hsize_t dims[2] = {s->rows + s->n_pend, s->cols};
+        if (dims[0] > s->cap) {
+            if (H5Dset_extent(s->dset, dims) < 0) return series_fail(err, "extend dataset", s);
+            s->cap = dims[0];
+        }
+        if (write_rows(s, s->n_pend, s->pend, err)) return WF_ESYS;
+    }
+    return 0;
+}
+
+/* Back to the extents before the append: the chunks it added leave the index (their space is lost). */
+static void undo_append(void *ctx)
+{
+    const Append *a = ctx;
+    for (size_t i = 0; i < a->n; i++) {
+        WfH5Series *s = a->s[i];
+        hsize_t dims[2] = {a->old_cap[i], s->cols};
+        if (s->cap != a->old_cap[i] && H5Dset_extent(s->dset, dims) >= 0) s->cap = a->old_cap[i];
+        s->rows = a->old_rows[i];
+    }
+}
+
+/* The pending rows of the group s[0..n) into the file, after reserving their space. */
+static int write_pending(WfH5File *f, WfH5Series *const *s, size_t n, const char *what, WfError *err)
+{
+    hsize_t k = s[0]->n_pend;
+    if (!k) return 0;
+    /* The chunks the rows touch are (re)written whole, compressed or not: at most their raw size each. */
+    double bytes = 0;
+    for (size_t i = 0; i < n; i++) {
+        hsize_t c = s[i]->chunk_rows, first = s[i]->rows / c, last = (s[i]->rows + k - 1) / c;
+        bytes += (double)(last - first + 1) * (double)c * (double)(s[i]->cols ? s[i]->cols : 1) * 8.0;
+    }
+    char action[300];
+    snprintf(action, sizeof action, "add %llu rows to %s", (unsigned long long)k, what);
+    Append a = {.s = s, .n = n};
+    int rc = reserved_change(f, bytes, action, do_append, undo_append, &a, err);
+    for (size_t i = 0; !rc && i < n; i++) s[i]->n_pend = 0;
+    return rc;
+}
+
+int wf_h5_series_append(WfH5File *f, WfH5Series *const *s, size_t n, hsize_t n_rows, const double *const *data,
+                        const char *what, WfError *err)
+{
+    int rc = check_group(s, n, err);
+    for (hsize_t done = 0; !rc && done < n_rows;) {
+        hsize_t take = s[0]->chunk_rows - s[0]->n_pend;
+        if (take > n_rows - done) take = n_rows - done;
+        for (size_t i = 0; i < n; i++) {
+            size_t width = s[i]->cols ? (size_t)s[i]->cols : 1;
+            memcpy(s[i]->pend + s[i]->n_pend * width, data[i] + done * width, (size_t)take * width * sizeof(double));
+            s[i]->n_pend += take;
+        }
+        done += take;
+        /* A complete chunk is written at once; should that fail, its rows stay pending. */
+        if (s[0]->n_pend == s[0]->chunk_rows) rc = write_pending(f, s, n, what, err);
+    }
+    return rc;
+}
+
+int wf_h5_series_flush(WfH5File *f, WfH5Series *const *s, size_t n, const char *what, WfError *err)
+{
+    int rc = check_group(s, n, err);
+    return rc ? rc : write_pending(f, s, n, what, err);
+}
+
+int wf_h5_series_resume(WfH5Series *s, const char *path, hsize_t cols, hsize_t fixed_rows, hsize_t chunk_rows,
+                        int compress, hsize_t total_rows, WfError *err)
+{
+    int rc = series_setup(s, path, cols, fixed_rows, chunk_rows, compress, err);
     if (rc) return rc;
-    s->n_pend = s->pend ? total_rows % s->chunk_rows : 0;
+    if (!chunk_rows && total_rows > fixed_rows)
+        return wf_err(err, WF_EINPUT, "the checkpoint counts %llu rows of '/%s', which has %llu",
+                      (unsigned long long)total_rows, s->name, (unsigned long long)fixed_rows);
+    s->n_pend = chunk_rows ? total_rows % chunk_rows : 0;
     s->rows = total_rows - s->n_pend;
     return 0;
 }
@@ -443,25 +847,79 @@ int wf_h5_series_resume(WfH5Series *s, const char *path, hsize_t cols, hsize_t c
 int wf_h5_series_reopen(hid_t fid, WfH5Series *s, WfError *err)
 {
     const char *name = s->name;
-    s->dset = H5Lexists(fid, name, H5P_DEFAULT) > 0 ? H5Dopen2(fid, name, H5P_DEFAULT) : H5I_INVALID_HID;
-    if (s->dset < 0) return wf_err(err, WF_EINPUT, "no dataset '%s'", name);
+    hid_t dapl = series_access();
+    s->dset = dapl >= 0 && H5Lexists(fid, name, H5P_DEFAULT) > 0 ? H5Dopen2(fid, name, dapl) : H5I_INVALID_HID;
+    if (dapl >= 0) H5Pclose(dapl);
+    if (s->dset < 0) return wf_err(err, WF_EINPUT, "no dataset '/%s'", name);
     hid_t sp = H5Dget_space(s->dset), dcpl = H5Dget_create_plist(s->dset);
     hsize_t dims[2] = {0, 0}, chunk[2] = {0, 0};
     int rank = sp >= 0 ? H5Sget_simple_extent_dims(sp, dims, NULL) : -1;
-    int crank = dcpl >= 0 && H5Pget_layout(dcpl) == H5D_CHUNKED ? H5Pget_chunk(dcpl, 2, chunk) : -1;
+    H5D_layout_t layout = dcpl >= 0 ? H5Pget_layout(dcpl) : H5D_LAYOUT_ERROR;
+    int crank = layout == H5D_CHUNKED ? H5Pget_chunk(dcpl, 2, chunk) : 0;
     int nfilt = dcpl >= 0 ? H5Pget_nfilters(dcpl) : -1;
     if (dcpl >= 0) H5Pclose(dcpl);
     if (sp >= 0) H5Sclose(sp);
-    if (rank < 1 || rank > 2 || crank != rank || nfilt < 0) return h5fail(err, "read the layout of", name);
-    /* The resumed run must write the rows the interrupted one would have: same shape, chunks and filters. */
-    if ((rank == 2 ? dims[1] : 0) != s->cols || chunk[0] != s->chunk_rows || (nfilt > 0) != s->compress)
-        return wf_err(err, WF_EINPUT, "dataset '%s' has another shape, chunking or compression than this run writes",
-                      name);
+    if (rank < 1 || rank > 2 || layout == H5D_LAYOUT_ERROR || crank < 0 || nfilt < 0)
+        return series_fail(err, "read the layout of", s);
+    /* The resumed run must write the rows the interrupted one would have: same shape, layout, chunks, filters. */
+    int same = (rank == 2 ? dims[1] : 0) == s->cols && (nfilt > 0) == s->compress &&
+               (s->chunk_rows ? layout == H5D_CHUNKED && crank == rank && chunk[0] == s->chunk_rows
+                              : layout == H5D_CONTIGUOUS && dims[0] == s->cap);
+    if (!same)
+        return wf_err(err, WF_EINPUT, "dataset '/%s' has another shape, layout, chunking or compression than this run "
+                      "writes (written by another version of wavefuel?)", name);
     if (dims[0] < s->rows)
-        return wf_err(err, WF_EINPUT, "dataset '%s' has %llu rows, the checkpoint needs %llu", name,
+        return wf_err(err, WF_EINPUT, "dataset '/%s' has %llu rows, the checkpoint needs %llu", name,
                       (unsigned long long)dims[0], (unsigned long long)s->rows);
-    dims[0] = s->rows;
-    /* Rows written after the checkpoint are dropped: the resumed run writes them again. */
-    if (H5Dset_extent(s->dset, dims) < 0) return h5fail(err, "truncate dataset", name);
+    if (s->chunk_rows) s->cap = dims[0];
+    return 0;
+}
+
+typedef struct Trim {
+    WfH5Series *const *s;
+    size_t              n;
+} Trim;
+
+static int do_trim(void *ctx, WfError *err)
+{
+    const Trim *t = ctx;
+    for (size_t i = 0; i < t->n; i++) {
+        WfH5Series *s = t->s[i];
+        if (!s->chunk_rows || s->cap == s->rows) continue;
+        hsize_t dims[2] = {s->rows, s->cols};
+        if (H5Dset_extent(s->dset, dims) < 0) return series_fail(err, "shrink dataset", s);
+        s->cap = s->rows;
+    }
+    return 0;
+}
+
+int wf_h5_series_trim(WfH5File *f, WfH5Series *const *s, size_t n, WfError *err)
+{
+    int change = 0;
+    for (size_t i = 0; i < n; i++) change |= s[i]->chunk_rows && s[i]->cap != s[i]->rows;
+    if (!change) return 0;
+    Trim t = {s, n};
+    return reserved_change(f, 0, "cut the series to the rows of the checkpoint", do_trim, NULL, &t, err);
+}
+
+int wf_h5_check_room(const WfH5File *f, double bytes, char *why, size_t len)
+{
+    char have[32];
+    struct rlimit rl;
+    if (getrlimit(RLIMIT_FSIZE, &rl) == 0 && rl.rlim_cur != RLIM_INFINITY && (double)rl.rlim_cur < bytes) {
+        snprintf(why, len, "the file size limit (ulimit -f) is %s",
+                 wf_h5_size_text((double)rl.rlim_cur, have, sizeof have));
+        return -1;
+    }
+    int *fd = NULL;
+    struct statvfs vfs;
+    if (H5Fget_vfd_handle(f->fid, H5P_DEFAULT, (void **)&fd) >= 0 && fd && fstatvfs(*fd, &vfs) == 0) {
+        double avail = (double)vfs.f_bavail * (double)vfs.f_frsize;
+        if (avail < bytes) {
+            snprintf(why, len, "only %s free on its file system (disk full)",
+                     wf_h5_size_text(avail, have, sizeof have));
+            return -1;
+        }
+    }
     return 0;
 }

@@ -1,4 +1,5 @@
 /* wavefuel: command-line entry point. Only dispatches to a subcommand; each lives in src/cli/. */
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -26,6 +27,8 @@ static void usage(FILE *out)
 
 int main(int argc, char **argv)
 {
+    /* A file size limit (ulimit -f) must be a write error the writers report (EFBIG), not a silent kill. */
+    signal(SIGXFSZ, SIG_IGN);
     if (argc < 2) {
         usage(stderr);
         return 2;

@@ -42,6 +42,12 @@ void wf_scenario_destroy(WfScenario **psc)
 
 long wf_scenario_n_steps(const WfScenario *sc) { return lround(sc->duration_s / sc->dt_s); }
 long wf_scenario_output_every(const WfScenario *sc) { return lround(sc->output_interval_s / sc->dt_s); }
+long wf_scenario_trajectory_every(const WfScenario *sc)
+{
+    long k = lround(sc->trajectory_interval_s / sc->dt_s);
+    return k < 1 ? 1 : k;
+}
+long wf_scenario_records(const WfScenario *sc, long every) { return wf_scenario_n_steps(sc) / every + 1; }
 
 /* A list of vehicle indices (explicit placement). */
 static int read_indices(WfCfgNode *map, long n_veh, long **out, size_t *n_out, WfError *err)

@@ -14,9 +14,11 @@ typedef struct WfH5Corridor WfH5Corridor;
  * callbacks bound to it. */
 int  wf_h5corridor_create(const char *path, int force, WfH5Corridor **out, WfCorridorOutput *ops, WfError *err);
 /* Load the checkpoint FILE.h5.ckpt (wavefuel/checkpoint.h) of `result` into `c`, built from the scenario it holds,
- * and reopen FILE.h5.partial to continue writing it: rows appended after the checkpoint (time series, trips,
- * trajectories) are dropped, and what the interrupted run wrote at its end is written again at the end. WF_EINPUT
- * when the checkpoint is damaged, of a ring run or of another scenario, or the partial file is not this run's. */
+ * and reopen FILE.h5.partial to continue writing it from the checkpoint's rows: its row counters are set back,
+ * /trips and /trajectories cut to the whole chunks the checkpoint counts; later time-series rows and what the
+ * interrupted run wrote at its end are written again in place. WF_EINPUT (nothing changed) when the checkpoint is
+ * damaged, of a ring run or of another scenario, or the partial file is not this run's or of another layout;
+ * WF_ESYS when setting it back fails (a write error). */
 int  wf_h5corridor_resume(const char *result, WfCorridor *c, WfH5Corridor **out, WfCorridorOutput *ops,
                           WfError *err);
 /* Free the writer; a file whose run never reached end() is removed (nothing was produced). */

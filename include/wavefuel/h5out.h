@@ -20,8 +20,11 @@ void wf_h5out_destroy(WfH5Out **w);
 const char *wf_h5out_path(const WfH5Out *w);
 
 /* Load the checkpoint FILE.h5.ckpt (wavefuel/checkpoint.h) into `sim`, built from the scenario it holds, and
- * reopen FILE.h5.partial to continue writing it, dropping rows written after the checkpoint. WF_EINPUT when the
- * checkpoint is damaged, of a corridor run or of another scenario, or the partial file is not this run's. */
+ * reopen FILE.h5.partial to continue writing it from the checkpoint's rows: its row counters are set back,
+ * /trajectories cut to the whole chunks the checkpoint counts; later time-series rows and the end-of-run results
+ * are written again in place. WF_EINPUT (nothing changed) when the checkpoint is damaged, of a corridor run or of
+ * another scenario, or the partial file is not this run's or of another layout; WF_ESYS when setting it back fails
+ * (a write error). */
 int  wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err);
 /* `wavefuel info`: print a result file's /meta status and every /summary value with its units. Works on
  * .partial files too. WF_EINPUT if the file is not a wavefuel result. */

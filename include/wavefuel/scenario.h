@@ -93,5 +93,8 @@ void wf_scenario_destroy(WfScenario **sc);
 /* Number of steps and output records implied by the time section. */
 long wf_scenario_n_steps(const WfScenario *sc);
 long wf_scenario_output_every(const WfScenario *sc); /* steps between output records */
+long wf_scenario_trajectory_every(const WfScenario *sc); /* steps between trajectory frames (>= 1) */
+/* Records written at the steps 0, every, 2 every, ... up to n_steps: n_steps / every + 1. */
+long wf_scenario_records(const WfScenario *sc, long every);
 
 #endif

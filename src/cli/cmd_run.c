@@ -200,7 +200,8 @@ int wf_cmd_run(int argc, char **argv)
     int status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
-        if (wf_h5out_path(h5)[0]) wf_cli_note_partial(&err, wf_h5out_path(h5));
+        if (wf_h5out_path(h5)[0])
+            wf_cli_note_partial(wf_h5out_path(h5), sc->output_path, "/meta/timeseries_rows and trajectory_rows");
     } else if (!quiet) {
         print_summary(sim, wf_h5out_path(h5));
     }

@@ -21,8 +21,9 @@ int wf_cmd_sweep(int argc, char **argv);
 
 /* Print "wavefuel: <message>" on stderr and return the exit status for the error's code. */
 int wf_cli_fail(const WfError *err);
-/* After a failed or interrupted run that left the partial result `path`: say whether it can be resumed or may be
- * unreadable (an HDF5 write error). */
-void wf_cli_note_partial(const WfError *err, const char *path);
+/* After a failed or interrupted run that left `partial`, the partial file of the result `result`: say where it is,
+ * that /meta/reason says why and that the row counters `counters` (named as in the message) say how much it holds,
+ * and whether a checkpoint (result.ckpt) lets --resume continue it. */
+void wf_cli_note_partial(const char *partial, const char *result, const char *counters);
 
 #endif

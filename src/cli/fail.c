@@ -1,6 +1,6 @@
 /* The one place that turns an error record into a message and an exit status. */
 #include <stdio.h>
-#include <string.h>
+#include <sys/stat.h>
 
 #include "cli/commands.h"
 
@@ -10,10 +10,12 @@ int wf_cli_fail(const WfError *err)
     return err->code == WF_EINPUT ? 2 : err->code == WF_EINTR ? 3 : 1;
 }
 
-void wf_cli_note_partial(const WfError *err, const char *path)
+void wf_cli_note_partial(const char *partial, const char *result, const char *counters)
 {
-    fprintf(stderr, err->code == WF_ESYS && strstr(err->msg, "HDF5")
-                        ? "wavefuel: %s is incomplete and may be unreadable after this write error\n"
-                        : "wavefuel: partial result kept in %s (resume with --resume)\n",
-            path);
+    char ck[1100];
+    struct stat st;
+    int w = snprintf(ck, sizeof ck, "%s.ckpt", result);
+    int resumable = w > 0 && (size_t)w < sizeof ck && stat(ck, &st) == 0;
+    fprintf(stderr, "wavefuel: partial result kept in %s (/meta/reason says why; %s count the rows written)%s\n",
+            partial, counters, resumable ? "; resume with --resume" : "");
 }

@@ -95,7 +95,9 @@ int wf_cli_run_corridor(const WfScenario *sc, const char *resume, double checkpo
     int status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
-        if (wf_h5corridor_path(h5)[0]) wf_cli_note_partial(&err, wf_h5corridor_path(h5));
+        if (wf_h5corridor_path(h5)[0])
+            wf_cli_note_partial(wf_h5corridor_path(h5), sc->output_path,
+                                "/meta/timeseries_rows, trip_rows and trajectory_rows");
     } else if (!quiet) {
         print_summary(c, wf_h5corridor_path(h5));
     }
