@@ -68,9 +68,9 @@ static hsize_t frames_of(const WfScenario *sc)
 }
 
 /* Every series: group, shape, layout and the cursor that counts its rows. The time series are fixed (every record
- * allocated at the start), the trajectories appended in chunks of 16 frames, fewer when that exceeds 4 MiB
- * (measured: deflate is a third slower on 1 MiB chunks than on 16 frames of 3000 vehicles, 384 kB) or the run has
- * fewer frames; the arrays compressed, the frame times not. */
+ * allocated at the start), the trajectories appended in chunks of 16 frames, fewer when that exceeds 4 MiB or the
+ * run has fewer frames, uncompressed: shuffle + deflate 1 saved 24 % of the file but made a run writing a frame
+ * every 10 steps 5x slower (10^6 vehicles, 2 threads: 7.3e6 against 3.7e7 vehicle-steps/s, bench/README.md). */
 static size_t series_specs(WfH5Out *w, const WfSim *sim, WfCkptSeries *sp)
 {
     static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class [time x class]"};
@@ -85,7 +85,7 @@ static size_t series_specs(WfH5Out *w, const WfSim *sim, WfCkptSeries *sp)
     hsize_t cr = wf_h5_series_chunk_rows(n, frames < 16 ? frames : 16);
     for (size_t i = 0; sc->trajectories && i < N_TRAJ; i++)
         sp[k++] = (WfCkptSeries){.s = w->traj[i], .group = "trajectories", .col = &traj_cols[i],
-                                 .cols = i < 4 ? n : 0, .chunk_rows = cr, .compress = i < 4, .cursor = CUR_TRAJ};
+                                 .cols = i < 4 ? n : 0, .chunk_rows = cr, .compress = 0, .cursor = CUR_TRAJ};
     return k;
 }
 
@@ -397,8 +397,8 @@ static int setup_failed(WfH5Out *w, double ts, double traj, double end, const ch
     char a[32], b[32], c[32], d[32], inner[sizeof err->msg];
     snprintf(inner, sizeof inner, "%s", why ? why : err->msg);
     return wf_err(err, why || !err->code ? WF_ESYS : err->code,
-                  "%s: cannot create the result file, which needs up to about %s (time series %s, trajectories %s "
-                  "before compression, end-of-run results %s): %s; nothing was simulated and the file is removed",
+                  "%s: cannot create the result file, which needs up to about %s (time series %s, trajectories %s, "
+                  "end-of-run results %s): %s; nothing was simulated and the file is removed",
                   w->file->partial, wf_h5_size_text(ts + traj + end, a, sizeof a), wf_h5_size_text(ts, b, sizeof b),
                   wf_h5_size_text(traj, c, sizeof c), wf_h5_size_text(end, d, sizeof d), inner);
 }
