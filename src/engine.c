@@ -19,6 +19,8 @@
 #define EBLOCK  512  /* energy evaluation gather block */
 #define IBLOCK  1024 /* integration block */
 #define FBLOCK  256  /* fused-step block, and the noise block (changing it changes the draws) */
+/* A record taken by the fused step sums the same blocks as one taken by the multi-pass step (src/stats.c). */
+_Static_assert(FBLOCK == WF_STATS_BLOCK, "fused blocks and statistics blocks must coincide");
 
 struct WfSim {
     const WfScenario   *sc; /* borrowed */
