@@ -125,15 +125,8 @@ static int write_counts(WfH5Corridor *w, WfH5Pass pass, WfError *err)
 static int flush_ts(WfH5Corridor *w, WfError *err)
 {
     if (!w->n_buf) return 0;
-    size_t stride = WF_CTS_N_COLS + w->n_classes;
-    double col[TS_BUF];
-    for (size_t c = 0; c < WF_CTS_N_COLS; c++) {
-        for (size_t r = 0; r < w->n_buf; r++) col[r] = w->buf[r * stride + c];
-        if (wf_h5_series_write(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
-    }
-    for (size_t r = 0; r < w->n_buf; r++)
-        for (size_t c = 0; c < w->n_classes; c++) w->cls[r * w->n_classes + c] = w->buf[r * stride + WF_CTS_N_COLS + c];
-    if (wf_h5_series_write(&w->ts_class, w->n_buf, w->cls, err)) return WF_ESYS;
+    if (wf_h5_series_write_records(w->ts, WF_CTS_N_COLS, &w->ts_class, w->n_classes, w->buf, w->n_buf, w->cls, err))
+        return WF_ESYS;
     w->n_buf = 0;
     return write_counts(w, WF_H5_FILL, err);
 }

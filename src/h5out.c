@@ -46,7 +46,7 @@ struct WfH5Out {
     WfH5Series *traj[N_TRAJ];           /* the same, as the group appended together */
     int64_t    counted[N_CUR];          /* the row counters as last written (-1: not yet) */
     double    *buf;      /* TS_BUF x (WF_TS_N_COLS + n_classes) */
-    double    *cls;      /* TS_BUF x n_classes: the class block of buf, row-major */
+    double    *cls;      /* TS_BUF x max(n_classes, 1): scratch of wf_h5_series_write_records */
     size_t     n_buf, n_classes;
     char       started[64];
 };
@@ -108,15 +108,8 @@ static int write_counts(WfH5Out *w, WfH5Pass pass, WfError *err)
 static int flush_ts(WfH5Out *w, WfError *err)
 {
     if (!w->n_buf) return 0;
-    size_t stride = WF_TS_N_COLS + w->n_classes;
-    double col[TS_BUF];
-    for (size_t c = 0; c < WF_TS_N_COLS; c++) {
-        for (size_t r = 0; r < w->n_buf; r++) col[r] = w->buf[r * stride + c];
-        if (wf_h5_series_write(&w->ts[c], w->n_buf, col, err)) return WF_ESYS;
-    }
-    for (size_t r = 0; r < w->n_buf; r++)
-        for (size_t c = 0; c < w->n_classes; c++) w->cls[r * w->n_classes + c] = w->buf[r * stride + WF_TS_N_COLS + c];
-    if (wf_h5_series_write(&w->ts_class, w->n_buf, w->cls, err)) return WF_ESYS;
+    if (wf_h5_series_write_records(w->ts, WF_TS_N_COLS, &w->ts_class, w->n_classes, w->buf, w->n_buf, w->cls, err))
+        return WF_ESYS;
     w->n_buf = 0;
     return write_counts(w, WF_H5_FILL, err);
 }

@@ -655,6 +655,19 @@ static int write_rows(WfH5Series *s, hsize_t n, const double *rows, WfError *err
     return rc;
 }
 
+int wf_h5_series_write_records(WfH5Series *col, size_t n_cols, WfH5Series *cls, size_t n_classes,
+                                const double *records, size_t n_rows, double *scratch, WfError *err)
+{
+    size_t stride = n_cols + n_classes;
+    for (size_t c = 0; c < n_cols; c++) {
+        for (size_t r = 0; r < n_rows; r++) scratch[r] = records[r * stride + c];
+        if (wf_h5_series_write(&col[c], n_rows, scratch, err)) return WF_ESYS;
+    }
+    for (size_t r = 0; r < n_rows; r++)
+        for (size_t c = 0; c < n_classes; c++) scratch[r * n_classes + c] = records[r * stride + n_cols + c];
+    return wf_h5_series_write(cls, n_rows, scratch, err) ? WF_ESYS : 0;
+}
+
 int wf_h5_series_write(WfH5Series *s, hsize_t n, const double *rows, WfError *err)
 {
     if (n == 0) return 0;

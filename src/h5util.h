@@ -133,6 +133,11 @@ int  wf_h5_series_create(hid_t loc, const char *name, hsize_t cols, hsize_t fixe
                          int compress, const char *units, const char *desc, WfH5Series *s, WfError *err);
 /* Fixed series: write n rows at row s->rows. WF_ESYS if they do not fit. */
 int  wf_h5_series_write(WfH5Series *s, hsize_t n_rows, const double *rows, WfError *err);
+/* Buffered time-series records (n_rows rows of n_cols scalars then n_classes per-class values, row-major) into
+ * the fixed series col[0..n_cols) (one column each) and the n_classes-wide series cls; scratch holds
+ * n_rows * max(n_classes, 1) doubles. */
+int  wf_h5_series_write_records(WfH5Series *col, size_t n_cols, WfH5Series *cls, size_t n_classes,
+                                const double *records, size_t n_rows, double *scratch, WfError *err);
 /* Appended series s[0..n) of one group (same chunk rows, same rows so far): add n_rows rows to each (data[i]:
  * n_rows x cols values, row-major). Every chunk completed is written as described above; when its reservation
  * fails (disk full, file size limit, quota) nothing in the file has changed and the error names `what` and the
