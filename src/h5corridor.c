@@ -70,7 +70,7 @@ struct WfH5Corridor {
     WfH5Series ts[WF_CTS_N_COLS], ts_class, trips[TR_N], tr[N_TRAJ];
     WfH5Series *trip_s[TR_N], *traj_s[N_TRAJ]; /* the groups appended together */
     int64_t    counted[N_CUR]; /* the row counters as last written (-1: not yet) */
-    double    *buf, *cls;  /* TS_BUF time-series rows, their class block */
+    double    *buf, *cls;  /* TS_BUF time-series rows; scratch of wf_h5_series_write_records */
     double    *frame;      /* one trajectory frame: N_TRAJ columns of up to tcap points */
     size_t     n_buf, n_classes, tcap;
 };
