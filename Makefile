@@ -36,9 +36,9 @@ LDLIBS   += $(HDF5_LIBS) -lsundials_cvodes -lsundials_arkode -lsundials_nvecseri
             -lsundials_sunlinsolspgmr -lsundials_sunnonlinsolfixedpoint -lsundials_sunnonlinsolnewton \
             -lsundials_generic -lyaml -llapacke -llapack -lgsl -lgslcblas -lsleef -lm
 
-LIB_SRC  := $(sort $(wildcard src/*.c src/*/*.c))
-LIB_SRC  := $(filter-out src/main.c src/cli/% src/mpi/%,$(LIB_SRC))
-CLI_SRC  := src/main.c $(sort $(wildcard src/cli/*.c))
+LIB_SRC  := $(sort $(wildcard src/*/*.c src/*/*/*.c))
+LIB_SRC  := $(filter-out src/cli/% src/mpi/%,$(LIB_SRC))
+CLI_SRC  := $(sort $(wildcard src/cli/*.c))
 TEST_SRC := $(sort $(wildcard tests/test_*.c))
 BENCH_SRC:= $(sort $(wildcard bench/*.c))
 LIB_OBJ  := $(LIB_SRC:%.c=$(BUILD)/%.o)
@@ -65,9 +65,9 @@ $(BUILD)/%.o: %.c Makefile
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -c $< -o $@
 
-# The 4-lane noise kernel: AVX instructions, called only on CPUs that have them (src/rng.c checks at run time).
+# The 4-lane noise kernel: AVX instructions, called only on CPUs that have them (src/core/rng.c checks at run time).
 ifneq ($(filter x86_64%,$(shell $(CC) -dumpmachine)),)
-$(BUILD)/src/noise_avx.o: override CFLAGS += -mavx
+$(BUILD)/src/core/noise_avx.o: override CFLAGS += -mavx
 endif
 
 $(LIBA): $(LIB_OBJ)

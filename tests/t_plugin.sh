@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Plug-in controllers end to end (`model: plugin`, src/cf/plugin.c): the example plugin run through
+# Plug-in controllers end to end (`model: plugin`, src/models/cf/plugin.c): the example plugin run through
 # `wavefuel run` from a scenario that names it by a relative path gives the same per-vehicle results, bit for
 # bit, as the built-in follower_stopper, and records its own name; broken plugins (compiled here from small
 # sources) are refused before any result file exists, with exit status 2 and a message that names the

@@ -1,4 +1,4 @@
-/* Car-following models (src/cf/idm.c, ovm.c, gipps.c) against references computed here: closed-form
+/* Car-following models (src/models/cf/idm.c, ovm.c, gipps.c) against references computed here: closed-form
  * equilibria re-derived from each paper's equation, free-road limits, hand-computed accelerations, property
  * sweeps over gaps [0, 500] m and speeds [0, 40] m/s, and the registry/spec contract. Parameters are set
  * through the spec tables only, so the tests do not depend on the models' private structs. */

@@ -1,5 +1,5 @@
-/* Automated-vehicle controllers (src/cf/follower_stopper.c, pi_saturation.c, acc.c), per-group placement
- * (src/fleet.c) and plug-in controllers (src/cf/plugin.c) against references worked out here: commanded
+/* Automated-vehicle controllers (src/models/cf/follower_stopper.c, pi_saturation.c, acc.c), per-group placement
+ * (src/core/fleet.c) and plug-in controllers (src/models/cf/plugin.c) against references worked out here: commanded
  * speeds at hand-computed points of every region and boundary (the issue's check: at dv = -3 m/s the
  * FollowerStopper boundaries are 7.5, 9.75 and 15 m), PI-with-saturation steps with the arithmetic written
  * out, the ACC's string-stability claim by evaluating its transfer function, the wave damping of one

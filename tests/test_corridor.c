@@ -1,4 +1,4 @@
-/* Open corridors (src/corridor.c, src/scenario_corridor.c) against references derived here: conservation of
+/* Open corridors (src/core/corridor.c, src/scenario/scenario_corridor.c) against references derived here: conservation of
  * vehicles at every record and in the trips, detectors and Edie sums; the free-flow stationary state of IDM solved
  * in closed form with the CIRCLES fuel rate re-typed from issue 3; Edie flow and density on the model's
  * equilibrium Q(k) (free branch, a headway zone, and a congested branch behind a prescribed downstream speed);

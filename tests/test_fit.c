@@ -1,4 +1,4 @@
-/* Tests of the model reduction (src/fit.c, src/nnls.c; docs/fit.md):
+/* Tests of the model reduction (src/analysis/fit.c, src/analysis/nnls.c; docs/fit.md):
  * - least squares and NNLS against an independent solver (normal equations by Gaussian elimination, every
  *   active set enumerated) and the KKT conditions;
  * - the release's grid and CSV format against the release's own 63-row sample;

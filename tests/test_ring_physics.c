@@ -1,4 +1,4 @@
-/* Ring physics of the engine (src/engine.c with src/fleet.c, src/stats.c, src/integ/, src/cf/) against
+/* Ring physics of the engine (src/core/engine.c with src/core/fleet.c, src/observe/stats.c, src/integ/, src/models/cf/) against
  * references derived here: the uniform equilibrium of IDM solved in closed form with the CIRCLES fuel rate
  * re-typed from issue 3, the linear stability of the ring (exact per-mode 2x2 map of the ballistic update,
  * with the model derivatives derived analytically), invariants at every output record, and bitwise

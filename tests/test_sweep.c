@@ -1,4 +1,4 @@
-/* Sweeps (src/sweep.c, src/h5sweep.c): the expansion of a sweep file into runs against the product written out by
+/* Sweeps (src/sweep/sweep.c, src/io/h5sweep.c): the expansion of a sweep file into runs against the product written out by
  * hand in the test, range values, `with` and `points`, explicit runs, error messages, shell quoting of the printed
  * command; each run's summary against the same scenario loaded and simulated directly (bitwise); a failed run
  * recorded while the others complete; the table written and read back bit for bit; resume matching. */

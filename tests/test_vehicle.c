@@ -1,4 +1,4 @@
-/* Tests of vehicle class files (src/vehicle.c): the shipped classes load, a class written back out with
+/* Tests of vehicle class files (src/models/energy/vehicle.c): the shipped classes load, a class written back out with
  * %.17g loads to identical parameters, every malformed file is a WF_EINPUT error whose message names the
  * problem, and the search path ($WAVEFUEL_VEHICLES, then the repository's vehicles/) finds classes. */
 #include <errno.h>

@@ -20,7 +20,7 @@ row per configuration); the Markdown tables are printed at the end and by --tabl
 Usage: /usr/bin/python3 bench/scaling/run.py [--repeats 3] [--repeats-large R] [--sizes 22,1000,...]
            [--bin bin/wavefuel] [--out bench/scaling] [--no-triad] [--no-weak] [--no-memory] [--table [results.json]]
 The roofline columns use BYTES_PER_VSTEP below, counted in bench/README.md ("STREAM triad and roofline") from
-src/engine.c; recount it when the step loop changes.
+src/core/engine.c; recount it when the step loop changes.
 """
 import argparse
 import csv
@@ -48,7 +48,7 @@ SIZES = [22, 1000, 10_000, 100_000, 1_000_000, 10_000_000]
 STEPS = {22: 100_000, 1000: 20_000, 10_000: 5_000, 100_000: 1_000, 1_000_000: 200, 10_000_000: 50}
 WEAK_PER_THREAD = [100_000, 1_000_000]
 TRAJ_SIZES = [1_000_000, 10_000_000]
-# DRAM traffic of one vehicle-step of the step loop at large N, as counted in bench/README.md from src/engine.c:
+# DRAM traffic of one vehicle-step of the step loop at large N, as counted in bench/README.md from src/core/engine.c:
 # loads + stores of the fleet arrays the fused step touches (every step, records included; no array is only
 # written, so no write-allocate reads). It divides the triad bandwidth counted the same way (32 B per element).
 BYTES_PER_VSTEP = 148

@@ -174,7 +174,7 @@ int wf_cmd_run(int argc, char **argv)
         if (!rc && outpath) snprintf(sc->output_path, sizeof sc->output_path, "%s", outpath);
     }
     if (!rc && sc->corridor) {
-        /* Open corridors have their own engine and writer (src/corridor.c, src/h5corridor.c). */
+        /* Open corridors have their own engine and writer (src/core/corridor.c, src/io/h5corridor.c). */
         int st = wf_cli_run_corridor(sc, resume, ckpt_s, force, quiet);
         wf_scenario_destroy(&sc);
         return st;

@@ -1,7 +1,7 @@
 /* Ballistic update (Treiber & Kanagaraj 2015): x += v dt + a dt^2/2, v += a dt; a vehicle that would reach
  * v < 0 within the step stops where it reaches v = 0 (x += -v^2/(2a)) and stays there. */
 #include "wavefuel/integrator.h"
-#include "../simd.h"
+#include "core/simd.h"
 
 WF_SIMD_CLONES
 static void ballistic_step(size_t n, double dt, double *restrict x, double *restrict v, const double *restrict a)

@@ -10,7 +10,7 @@
 int main(int argc, char **argv)
 {
     int provided = 0;
-    /* As in src/main.c: a file size limit is a write error the writers report, not a silent kill. */
+    /* As in src/cli/main.c: a file size limit is a write error the writers report, not a silent kill. */
     signal(SIGXFSZ, SIG_IGN);
     if (MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
         fprintf(stderr, "wavefuel-mpi: MPI_Init_thread failed\n");

@@ -1,7 +1,7 @@
 /* Master/worker distribution of a sweep's runs over MPI ranks (see sweep_mpi.h). Messages: rank 0 sends a run
  * index (int64; -1 = stop) with TAG_RUN; a worker answers with the index and its WfSweepResult as raw bytes with
  * TAG_RESULT, so every rank must be the same build on the same architecture (a homogeneous cluster). */
-#include "sweep_mpi.h"
+#include "mpi/sweep_mpi.h"
 
 #include <mpi.h>
 #include <stdint.h>

@@ -112,7 +112,7 @@ int wf_h5_put_text(hid_t loc, const char *name, WfH5Pass pass, const char *s, co
  *   reserved (posix_fallocate past the end of the file), the chunks written and the file flushed. So the extent of
  *   an appended dataset is the rows in the file, a chunk is compressed and written once (rewriting a compressed
  *   chunk moves it in the file, HDF5 may reuse its old place at once, and a process killed before the next flush
- *   would leave a file whose index still points there), and a checkpoint saves the pending rows (src/h5ckpt.h).
+ *   would leave a file whose index still points there), and a checkpoint saves the pending rows (src/io/h5ckpt.h).
  * Writes go straight to the file (no chunk cache), in call order. */
 typedef struct WfH5Series {
     hid_t   dset;

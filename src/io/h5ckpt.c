@@ -1,8 +1,8 @@
 /* Checkpoint files (FILE.h5.ckpt) shared by the ring and corridor result writers: atomic replacement (write a
  * temporary file, rename it), the checksum that tells a damaged checkpoint from a good one, the checks that a
  * checkpoint and a partial result belong to the run being resumed, and the series' rows: counted by cursors,
- * the pending rows of appended datasets saved with the state. Layout: src/h5ckpt.h. */
-#include "h5ckpt.h"
+ * the pending rows of appended datasets saved with the state. Layout: src/io/h5ckpt.h. */
+#include "io/h5ckpt.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -11,7 +11,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-#include "hash.h"
+#include "util/hash.h"
 
 #define CKPT_PATH_MAX 1100
 

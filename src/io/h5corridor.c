@@ -2,7 +2,7 @@
  * trips and trajectories appended as the run goes, detectors, Edie fields and the summary at the end. Everything
  * whose size is known is created at that size before the first step and overwritten in place; trips and
  * trajectories, whose number is not known, grow a compressed chunk at a time after its disk space is reserved,
- * the rows of the incomplete chunk waiting in memory and in checkpoints (src/h5util.h, src/h5ckpt.h), so a write
+ * the rows of the incomplete chunk waiting in memory and in checkpoints (src/io/h5util.h, src/io/h5ckpt.h), so a write
  * error at any point leaves a file whose structure is intact (docs/output.md, "Write errors"). */
 #include "wavefuel/h5corridor.h"
 
@@ -12,8 +12,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "h5ckpt.h"
-#include "h5util.h"
+#include "io/h5ckpt.h"
+#include "io/h5util.h"
 #include "wavefuel/version.h"
 
 #define TS_BUF     256
@@ -54,7 +54,7 @@ static const WfColumn traj_cols[N_TRAJ] = {
     {"fuel_rate", "g/s", "fuel rate"},
 };
 
-/* The series whose rows a checkpoint counts (src/h5ckpt.h), and /meta's counter of each. */
+/* The series whose rows a checkpoint counts (src/io/h5ckpt.h), and /meta's counter of each. */
 enum { CUR_TS, CUR_TRIPS, CUR_TRAJ, N_CUR };
 static const char *const cursor_names[N_CUR] = {"timeseries", "trips", "trajectories"};
 
@@ -526,7 +526,7 @@ static int h5_record(void *ctx, const WfCorridor *c, const WfCorridorRow *row, W
 }
 
 /* One trajectory frame, in road order, through the frame buffer into the points' chunk; complete chunks are
- * written (src/h5util.h), then counted. */
+ * written (src/io/h5util.h), then counted. */
 static int h5_trajectory(void *ctx, const WfCorridor *c, double t, WfError *err)
 {
     WfH5Corridor *w = ctx;

@@ -2,7 +2,7 @@
  * optional /trajectories (docs/output.md). Every dataset whose size is known is created at that size before the
  * first step and then only overwritten in place (time series in blocks of rows, the row counters, the end-of-run
  * results and the status); trajectory frames are added a compressed chunk at a time after the disk space is
- * reserved, the frames of the incomplete chunk waiting in memory and in checkpoints (src/h5util.h, src/h5ckpt.h).
+ * reserved, the frames of the incomplete chunk waiting in memory and in checkpoints (src/io/h5util.h, src/io/h5ckpt.h).
  * A write error at any point leaves a file whose structure is intact (docs/output.md, "Write errors"). */
 #include "wavefuel/h5out.h"
 
@@ -12,8 +12,8 @@
 #include <string.h>
 #include <time.h>
 
-#include "h5ckpt.h"
-#include "h5util.h"
+#include "io/h5ckpt.h"
+#include "io/h5util.h"
 #include "wavefuel/version.h"
 
 #define TS_BUF 256
@@ -28,7 +28,7 @@ static const WfColumn traj_cols[N_TRAJ] = {
     {"t", "s", "time of each frame"},
 };
 
-/* The series whose rows a checkpoint counts (src/h5ckpt.h), and /meta's counter of each. */
+/* The series whose rows a checkpoint counts (src/io/h5ckpt.h), and /meta's counter of each. */
 enum { CUR_TS, CUR_TRAJ, N_CUR };
 static const char *const cursor_names[N_CUR] = {"timeseries", "trajectories"};
 #define N_SERIES (WF_TS_N_COLS + 1 + N_TRAJ)
@@ -90,7 +90,7 @@ static size_t series_specs(WfH5Out *w, const WfSim *sim, WfCkptSeries *sp)
 }
 
 /* /meta/timeseries_rows and /meta/trajectory_rows: how many rows of each group are in the file, written in place
- * when they changed. Raw data reaches the file in call order (src/h5util.c), and the counters are written after
+ * when they changed. Raw data reaches the file in call order (src/io/h5util.c), and the counters are written after
  * their rows, so they never count a row that is not there. */
 static int write_counts(WfH5Out *w, WfH5Pass pass, WfError *err)
 {
@@ -453,7 +453,7 @@ static int h5_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *e
     return 0;
 }
 
-/* One frame into the trajectories' chunk; a complete chunk is written (src/h5util.h), then counted. The per-step
+/* One frame into the trajectories' chunk; a complete chunk is written (src/io/h5util.h), then counted. The per-step
  * arrays exist at trajectory steps (the engine takes its multi-pass path then). */
 static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
 {
@@ -511,7 +511,7 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     return rc;
 }
 
-/* ---- checkpoints (FILE.h5.ckpt, src/h5ckpt.h) and resumption ---- */
+/* ---- checkpoints (FILE.h5.ckpt, src/io/h5ckpt.h) and resumption ---- */
 
 static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
 {

@@ -5,7 +5,7 @@
 #include <stddef.h>
 
 #include "wavefuel/cf.h"
-#include "../simd.h"
+#include "core/simd.h"
 
 typedef struct IdmParams {
     double v0_mps; /* desired speed */

@@ -12,8 +12,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "h5util.h"
-#include "hash.h"
+#include "io/h5util.h"
+#include "util/hash.h"
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/version.h"

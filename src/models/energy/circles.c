@@ -112,7 +112,7 @@ double wf_circles_a_max(const WfCirclesParams *p, double v, double theta)
  * Both give the scalar formula's bits (tests/test_energy.c checks each width against circles_eval1). */
 #define WF_LANES  2
 #define WF_KERNEL circles_kernel2
-#include "circles_kernel.h"
+#include "models/energy/circles_kernel.h"
 #undef WF_LANES
 #undef WF_KERNEL
 
@@ -122,7 +122,7 @@ double wf_circles_a_max(const WfCirclesParams *p, double v, double theta)
 #pragma GCC target("avx2")
 #define WF_LANES  4
 #define WF_KERNEL circles_kernel4
-#include "circles_kernel.h"
+#include "models/energy/circles_kernel.h"
 #undef WF_LANES
 #undef WF_KERNEL
 #pragma GCC pop_options

@@ -1,6 +1,6 @@
 /* Scenario keys of open corridors (`road.type: corridor`): the non-periodic grade or elevation profile, zones,
  * and the `corridor` section (inflow, outflow, detectors, Edie grid), read into a WfCorridorSpec. The ring loader
- * (src/scenario.c) reads everything else and calls wf_corridor_spec_load() before it rejects unread keys.
+ * (src/scenario/scenario.c) reads everything else and calls wf_corridor_spec_load() before it rejects unread keys.
  * Keys, units and defaults: docs/corridors.md. */
 #include "wavefuel/corridor.h"
 

@@ -1,5 +1,5 @@
-/* Box-Muller over arrays of uniforms, written once for a SIMD width: src/noise_sse2.c (2 lanes) and
- * src/noise_avx.c (4 lanes, compiled with -mavx) include it with the vector type and SLEEF's functions defined.
+/* Box-Muller over arrays of uniforms, written once for a SIMD width: src/core/noise_sse2.c (2 lanes) and
+ * src/core/noise_avx.c (4 lanes, compiled with -mavx) include it with the vector type and SLEEF's functions defined.
  * SLEEF's "cinz" functions (consistent, no FMA) return the same bits for every vector extension, and the rest
  * is IEEE arithmetic (sqrt, products), so both widths give the same deviates. */
 #include <stddef.h>

@@ -5,7 +5,7 @@
 #include <stdint.h>
 #include <sleef.h>
 
-#include "noise.h"
+#include "core/noise.h"
 
 #define NK_NAME       wf_noise_box_muller_avx
 #define NK_LANES      4
@@ -16,7 +16,7 @@
 #define NK_SQRT       _mm256_sqrt_pd
 #define NK_LOG        Sleef_cinz_logd4_u35avx
 #define NK_SINCOSPI   Sleef_cinz_sincospid4_u35avx
-#include "noise_kernel.h"
+#include "core/noise_kernel.h"
 
 void wf_noise_avx(size_t pairs, const double *u1, const double *u2, double *z)
 {

@@ -9,7 +9,7 @@
 #include <string.h>
 #include <time.h>
 
-#include "h5util.h"
+#include "io/h5util.h"
 #include "wavefuel/version.h"
 
 void wf_sweep_h5_quiet_thread(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }

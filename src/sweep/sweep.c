@@ -12,7 +12,7 @@
 #include <omp.h>
 #endif
 
-#include "hash.h"
+#include "util/hash.h"
 #include "wavefuel/config.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"

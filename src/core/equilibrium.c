@@ -1,6 +1,6 @@
 /* Equilibria for initial conditions: Illinois regula falsi on brackets of monotone functions. */
 #include "wavefuel/equilibrium.h"
-#include "par.h"
+#include "core/par.h"
 
 #include <math.h>
 #include <stdlib.h>

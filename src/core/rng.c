@@ -8,8 +8,8 @@
 #include <string.h>
 #include <Random123/philox.h>
 
-#include "noise.h"
-#include "simd.h"
+#include "core/noise.h"
+#include "core/simd.h"
 
 static void draw(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, double u[2])
 {

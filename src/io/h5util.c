@@ -1,6 +1,6 @@
 /* Checked HDF5 helpers: partial-file protocol, datasets with units, results written in place, series grown a
  * whole chunk at a time after their disk space is reserved, and what resuming an interrupted run needs. */
-#include "h5util.h"
+#include "io/h5util.h"
 
 #include <errno.h>
 #include <fcntl.h>

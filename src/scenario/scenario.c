@@ -533,7 +533,7 @@ static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
     if (wf_cfg_double(road, "length_m", 1, 1e10, "m", &sc->road.length_m, err)) return WF_EINPUT;
     sc->road.speed_limit_mps = INFINITY;
     if (wf_cfg_double_opt(road, "speed_limit_mps", 0.1, 100, "m/s", &sc->road.speed_limit_mps, err)) return WF_EINPUT;
-    /* A corridor's grade profile is not periodic: src/scenario_corridor.c reads it. */
+    /* A corridor's grade profile is not periodic: src/scenario/scenario_corridor.c reads it. */
     if (rtype == 0 && load_grade(sc, road, err)) return WF_EINPUT;
 
     if (wf_cfg_map_opt(root, "time", &time, err)) return WF_EINPUT;

@@ -1,11 +1,11 @@
 /* HDF5 output of drive-cycle runs (`wavefuel cycle -o`): one group per class / cycle / grade / model with the
  * time series and totals, and a per-class summary for the protocol. Written as PATH.partial and renamed on
- * success (src/h5util.h). Units in every dataset's `units` attribute. */
+ * success (src/io/h5util.h). Units in every dataset's `units` attribute. */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "h5util.h"
+#include "io/h5util.h"
 #include "wavefuel/cycle.h"
 #include "wavefuel/tabulated.h"
 #include "wavefuel/version.h"

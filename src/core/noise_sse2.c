@@ -4,7 +4,7 @@
 #include <stdint.h>
 #include <sleef.h>
 
-#include "noise.h"
+#include "core/noise.h"
 
 #define NK_NAME       wf_noise_box_muller_sse2
 #define NK_LANES      2
@@ -15,7 +15,7 @@
 #define NK_SQRT       _mm_sqrt_pd
 #define NK_LOG        Sleef_cinz_logd2_u35sse2
 #define NK_SINCOSPI   Sleef_cinz_sincospid2_u35sse2
-#include "noise_kernel.h"
+#include "core/noise_kernel.h"
 
 void wf_noise_sse2(size_t pairs, const double *u1, const double *u2, double *z)
 {

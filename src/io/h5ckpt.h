@@ -1,4 +1,4 @@
-/* Checkpoints FILE.h5.ckpt of the ring (src/h5out.c) and corridor (src/h5corridor.c) result writers, and the
+/* Checkpoints FILE.h5.ckpt of the ring (src/io/h5out.c) and corridor (src/io/h5corridor.c) result writers, and the
  * resumption of the partial result FILE.h5.partial they belong to. A checkpoint has the attributes `kind` (ring
  * or corridor), `scenario_path`, `steps_done`, `rows_NAME` (the cursor of each group of series: rows written,
  * those still in memory included, when it was taken) and `checksum` (FNV-1a over everything restored), and the
@@ -10,12 +10,12 @@
 
 #include <stdint.h>
 
-#include "h5util.h"
+#include "io/h5util.h"
 #include "wavefuel/checkpoint.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/scenario.h"
 
-/* One series of a result (src/h5util.h): its group and name, how it was created (fixed_rows rows of a fixed
+/* One series of a result (src/io/h5util.h): its group and name, how it was created (fixed_rows rows of a fixed
  * series, or chunk_rows per chunk of an appended one) and which cursor (index into the writer's cursor names)
  * counts its rows. The series of one cursor always hold the same number of rows; the appended ones among them
  * are appended together (wf_h5_series_append). */

@@ -12,14 +12,14 @@
 #endif
 
 #include "wavefuel/rng.h"
-#include "par.h"
-#include "simd.h"
+#include "core/par.h"
+#include "core/simd.h"
 
 #define PAR_MIN 4096 /* vehicles below which loops run on one thread */
 #define EBLOCK  512  /* energy evaluation gather block */
 #define IBLOCK  1024 /* integration block */
 #define FBLOCK  256  /* fused-step block, and the noise block (changing it changes the draws) */
-/* A record taken by the fused step sums the same blocks as one taken by the multi-pass step (src/stats.c). */
+/* A record taken by the fused step sums the same blocks as one taken by the multi-pass step (src/observe/stats.c). */
 _Static_assert(FBLOCK == WF_STATS_BLOCK, "fused blocks and statistics blocks must coincide");
 
 struct WfSim {
@@ -104,9 +104,9 @@ void wf_sim_destroy(WfSim **ps)
 int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 {
     *out = NULL;
-    /* Corridors have their own engine (src/corridor.c): refuse rather than simulate a ring of nominal vehicles. */
+    /* Corridors have their own engine (src/core/corridor.c): refuse rather than simulate a ring of nominal vehicles. */
     if (sc->corridor)
-        return wf_err(err, WF_EINPUT, "%s: road.type corridor runs with `wavefuel run` (src/corridor.c); the ring "
+        return wf_err(err, WF_EINPUT, "%s: road.type corridor runs with `wavefuel run` (src/core/corridor.c); the ring "
                       "engine, and so `wavefuel sweep`, does not take corridors yet", sc->path);
     WfSim *s = calloc(1, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");

@@ -6,7 +6,7 @@
 #include <string.h>
 
 #include "wavefuel/vehicle.h"
-#include "par.h"
+#include "core/par.h"
 
 const WfColumn wf_ts_columns[WF_TS_N_COLS] = {
     {"t", "s", "simulated time of the record"},
