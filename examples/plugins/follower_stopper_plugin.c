@@ -1,5 +1,5 @@
 /* Example wavefuel controller plugin: FollowerStopper (Stern et al. 2018, Transp. Res. C 89, 205), the same
- * law as the built-in `follower_stopper` (src/cf/follower_stopper.c), written against the plugin ABI alone.
+ * law as the built-in `follower_stopper` (src/models/cf/follower_stopper.c), written against the plugin ABI alone.
  * tests/t_plugin.sh checks that both give bit-identical runs. Build (as `make tests` does):
  *
  *     cc -std=c11 -O2 -ffp-contract=off -fPIC -shared -Iinclude \

@@ -1,4 +1,4 @@
-/* Car-following models and automated-vehicle controllers: one WfCfModel per file in src/cf/, behind this
+/* Car-following models and automated-vehicle controllers: one WfCfModel per file in src/models/cf/, behind this
  * interface. The engine calls accel() for every vehicle at every step (and every right-hand-side evaluation
  * of an adaptive solver), so accel() must be pure in (params, state, gap, v, v_lead); controllers with memory
  * keep it in a per-vehicle state block that update_state() advances once per completed step. */

@@ -75,7 +75,7 @@ typedef struct WfCfPlugin {
 typedef int (*WfCfPluginEntry)(const WfCfPluginHost *host, const WfCfPlugin **out, struct WfError *err);
 
 /* ------------------------------------------------------------------------------------------------------
- * wavefuel's side (src/cf/plugin.c); plugins do not call these. */
+ * wavefuel's side (src/models/cf/plugin.c); plugins do not call these. */
 struct WfCfModel;
 typedef struct WfCfPluginLib WfCfPluginLib;
 

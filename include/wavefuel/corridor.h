@@ -81,7 +81,7 @@ typedef struct WfCorridorSpec {
     double     edie_dx_m, edie_dt_s;
 } WfCorridorSpec;
 
-/* Called by the scenario loader (src/scenario.c) for `road.type: corridor` after the fleet is read: reads
+/* Called by the scenario loader (src/scenario/scenario.c) for `road.type: corridor` after the fleet is read: reads
  * road.grade / road.elevation / road.zones and the `corridor` section into a new WfCorridorSpec stored in
  * sc->corridor, and checks what the ring loader read against corridor semantics (fractions, no `initial`,
  * fixed-step integrator). Errors name file, line and key. */
@@ -201,7 +201,7 @@ typedef struct WfCorridorSummary {
     WfCorridorClassSummary cls[WF_MAX_CLASSES];
 } WfCorridorSummary;
 
-/* Output sink (HDF5 in src/h5corridor.c; tests use their own). Each callback may be NULL and returns 0 or an
+/* Output sink (HDF5 in src/io/h5corridor.c; tests use their own). Each callback may be NULL and returns 0 or an
  * error code. trips() receives completed trips in blocks as they happen and, at the end, the unfinished ones. */
 typedef struct WfCorridorOutput {
     int (*begin)(void *ctx, const WfCorridor *c, WfError *err);

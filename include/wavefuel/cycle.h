@@ -70,7 +70,7 @@ void wf_cycle_run_free(WfCycleRun *r);
 const char *const *wf_protocol_cycles(WfDuty duty, size_t *n);
 size_t wf_protocol_grades(WfDuty duty, double *theta_rad, size_t cap);
 
-/* HDF5 output of cycle runs (src/cycle_out.c): PATH.partial renamed on commit, refuses to overwrite an
+/* HDF5 output of cycle runs (src/io/cycle_out.c): PATH.partial renamed on commit, refuses to overwrite an
  * existing file unless force. Each run goes to the group /CLASS/CYCLE/theta_<+0.0000>/MODEL with the time
  * series (t, v, a, fuel, power, flag) and the totals as scalars; see docs/cycles.md. */
 typedef struct WfCycleOut WfCycleOut;

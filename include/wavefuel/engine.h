@@ -25,7 +25,7 @@ enum { WF_PHASE_CAR_FOLLOWING, WF_PHASE_ENERGY, WF_PHASE_INTEGRATION, WF_PHASE_S
        WF_PHASE_FUSED, WF_N_PHASES };
 extern const char *const wf_phase_names[WF_N_PHASES];
 
-/* Output sink (HDF5 in src/h5out.c; tests use their own). Each callback returns 0 or an error code. */
+/* Output sink (HDF5 in src/io/h5out.c; tests use their own). Each callback returns 0 or an error code. */
 typedef struct WfOutput {
     int (*begin)(void *ctx, const WfSim *sim, WfError *err);
     /* row describes the instant row->v[WF_TS_T]; the fleet may already be one step further (the fused step takes

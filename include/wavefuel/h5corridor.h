@@ -1,6 +1,6 @@
 /* The HDF5 result file of a corridor run (layout in docs/corridors.md): /meta, /classes, /drivers, /road,
  * /timeseries, /trips, /detectors, /edie, /summary and optional /trajectories. Written as PATH.partial while the
- * run goes and renamed to PATH when it completes (src/h5util.h); every dataset carries `units` and
+ * run goes and renamed to PATH when it completes (src/io/h5util.h); every dataset carries `units` and
  * `description`. Checkpoints (FILE.h5.ckpt) as for rings (docs/output.md). */
 #ifndef WAVEFUEL_H5CORRIDOR_H
 #define WAVEFUEL_H5CORRIDOR_H

@@ -1,6 +1,6 @@
 /* Adaptive and high-order integration of the ring with SUNDIALS: CVODES (Adams or BDF, fuel as quadrature
  * variables) and ARKODE's explicit Runge-Kutta (adaptive with a selectable Butcher table, or fixed-step
- * classic RK4). Every SUNDIALS call lives in src/ode.c. The state is y = (x_1..x_N, v_1..v_N); the caller
+ * classic RK4). Every SUNDIALS call lives in src/integ/ode.c. The state is y = (x_1..x_N, v_1..v_N); the caller
  * supplies the right-hand side, a pure function of (t, x, v) for the duration of one advance. */
 #ifndef WAVEFUEL_ODE_H
 #define WAVEFUEL_ODE_H

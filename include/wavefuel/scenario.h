@@ -43,7 +43,7 @@ typedef struct WfDriverGroup {
     long            *indices;            /* owned; explicit placement only */
     size_t           n_indices;
     /* Placement of this group alone (automated vehicles): -1 = with the other groups by fleet.placement;
-     * otherwise a WfPlacement, applied before the groups placed by fleet.placement (src/fleet.c). */
+     * otherwise a WfPlacement, applied before the groups placed by fleet.placement (src/core/fleet.c). */
     int              placement;
     int              class_index;        /* -1: any; else index into classes[]: all its vehicles are that class */
     struct WfCfPluginLib *plugin;        /* owned: the library of a `model: plugin` group (model points into

@@ -9,7 +9,7 @@
 #include "wavefuel/fleet.h"
 #include "wavefuel/scenario.h"
 
-/* Vehicles per statistics block; the fused step's block (src/engine.c) is the same size, so a record taken by
+/* Vehicles per statistics block; the fused step's block (src/core/engine.c) is the same size, so a record taken by
  * the fused and by the multi-pass step sums the same blocks in the same order. */
 #define WF_STATS_BLOCK 256
 

@@ -105,7 +105,7 @@ extern const size_t        wf_sweep_n_metrics;
 extern const WfSweepMetric wf_sweep_class_metrics[]; /* doubles of WfClassSummary; `count` (long) is extra */
 extern const size_t        wf_sweep_n_class_metrics;
 
-/* ---- The result table file (src/h5sweep.c; layout in docs/sweeps.md) ---- */
+/* ---- The result table file (src/io/h5sweep.c; layout in docs/sweeps.md) ---- */
 typedef struct WfSweepTiming {
     const char *mode;          /* "threads" or "mpi" */
     int         workers;       /* runs executing at once */
