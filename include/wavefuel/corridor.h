@@ -123,16 +123,7 @@ static inline size_t wf_corridor_slot(const WfCorridorVehicles *v, size_t k)
     return s >= v->cap ? s - v->cap : s;
 }
 
-typedef struct WfCorridorCounts {
-    int64_t arrived;      /* vehicles that reached the entrance (the demand) */
-    int64_t entered;      /* inserted at x = 0 */
-    int64_t exited;       /* left at x = L */
-    int64_t queued;       /* waiting at the entrance: arrived - entered */
-    int64_t delayed;      /* entries that waited at least one step */
-    int64_t max_queue;    /* longest queue seen */
-    double  queue_delay_s;/* total waiting time of the entered vehicles */
-    int64_t overlaps;     /* overlap repairs (docs/metrics.md) */
-} WfCorridorCounts;
+/* WfCorridorCounts: the vehicle counts of an open road, in wavefuel/summary.h (part of the summary). */
 
 /* One trip. Unfinished trips (vehicles still on the road at the end) have completed = 0 and t_exit_s = NaN. */
 typedef struct WfTrip {
@@ -180,26 +171,9 @@ typedef struct WfEdie {
     double *class_dist_m, *class_fuel_g;
 } WfEdie;
 
-typedef struct WfCorridorClassSummary {
-    int64_t entered, trips;
-    double  fuel_g, dist_m, l_per_100km, mpg, stops_per_vkm, infeasible_share;
-    /* fuel per vehicle-km on cells climbing (mean grade > 1e-4 rad), descending (< -1e-4) and flat, g/km (NaN
-     * when the class drove no distance there) */
-    double  g_per_km_up, g_per_km_down, g_per_km_flat;
-    double  trip_fuel_mean_g, trip_time_mean_s; /* over the completed trips */
-} WfCorridorClassSummary;
-
-typedef struct WfCorridorSummary {
-    double window_s;
-    double fuel_g, dist_m, vkt_km, vht_h, l_per_100km, mpg;
-    double stops_per_vkm, hard_brakes_per_vkm, mean_speed_mps, sd_speed_time_avg_mps;
-    double inflow_vph, outflow_vph;        /* entries and exits per hour in the window */
-    double infeasible_share, time_stopped_share;
-    int64_t trips;                         /* completed trips (whole run) */
-    double mean_travel_time_s, mean_trip_fuel_g, mean_queue_delay_s;
-    WfCorridorCounts counts;               /* at the end of the run */
-    WfCorridorClassSummary cls[WF_MAX_CLASSES];
-} WfCorridorSummary;
+/* A corridor's summary is the common WfSummary (wavefuel/summary.h): the fields a ring does not have stay 0. */
+typedef WfClassSummary WfCorridorClassSummary;
+typedef WfSummary WfCorridorSummary;
 
 /* Output sink (HDF5 in src/io/h5corridor.c; tests use their own). Each callback may be NULL and returns 0 or an
  * error code. trips() receives completed trips in blocks as they happen and, at the end, the unfinished ones. */

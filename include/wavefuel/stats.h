@@ -8,6 +8,7 @@
 #include <stdint.h>
 #include "wavefuel/fleet.h"
 #include "wavefuel/scenario.h"
+#include "wavefuel/summary.h"
 
 /* Vehicles per statistics block; the fused step's block (src/core/engine.c) is the same size, so a record taken by
  * the fused and by the multi-pass step sums the same blocks in the same order. */
@@ -48,25 +49,7 @@ void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t
                      WfTsRow *row);
 size_t wf_stats_scratch_blocks(size_t n);
 
-/* Aggregates over the statistics window. */
-typedef struct WfClassSummary {
-    long    count;
-    double  fuel_g, dist_m, l_per_100km, mpg, infeasible_share, stops_per_vkm;
-} WfClassSummary;
-
-typedef struct WfSummary {
-    double window_s;                  /* length of the statistics window */
-    double fuel_g, dist_m, vkt_km;
-    double l_per_100km, mpg;          /* fleet: volume summed over classes with their own densities */
-    double stops_per_vkm, hard_brakes_per_vkm;
-    double mean_speed_mps;            /* total distance / (vehicles x window) */
-    double sd_speed_time_avg_mps;     /* mean over records in the window of the spatial speed s.d. */
-    double throughput_vph;            /* passages of x = 0 per hour */
-    double infeasible_share;          /* steps with an infeasible acceleration request / vehicle-steps */
-    double time_stopped_share;
-    int64_t overlaps;
-    WfClassSummary cls[WF_MAX_CLASSES];
-} WfSummary;
+/* Aggregates over the statistics window: WfSummary (wavefuel/summary.h). */
 
 /* Compute the summary from the accumulators. sd_sum / n_sd is the sum / number of the spatial speed s.d.
  * of the records inside the window; window_steps the number of steps in the window. */

@@ -95,15 +95,8 @@ typedef struct WfSweepRunOpts {
 void wf_sweep_run(const WfSweep *sw, size_t run, const WfSweepRunOpts *o, volatile sig_atomic_t *stop,
                   WfSweepResult *res);
 
-/* ---- The metrics of the table: every WfSummary field, with the names and units of a run file's /summary ---- */
-typedef struct WfSweepMetric {
-    const char *name, *units, *desc;
-    size_t      offset; /* of a double in WfSummary (metrics) or in WfClassSummary (class metrics) */
-} WfSweepMetric;
-extern const WfSweepMetric wf_sweep_metrics[];       /* doubles of WfSummary; `overlaps` (int64) is extra */
-extern const size_t        wf_sweep_n_metrics;
-extern const WfSweepMetric wf_sweep_class_metrics[]; /* doubles of WfClassSummary; `count` (long) is extra */
-extern const size_t        wf_sweep_n_class_metrics;
+/* The metrics of the table are the ring summary's fields: wf_summary_fields and wf_summary_class_fields with a
+ * ring description (wavefuel/summary.h), under the names and units of a run file's /summary. */
 
 /* ---- The result table file (src/io/h5sweep.c; layout in docs/sweeps.md) ---- */
 typedef struct WfSweepTiming {

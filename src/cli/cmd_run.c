@@ -81,19 +81,9 @@ static void print_summary(const WfSim *sim, const char *path)
            sc->name, f->n, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wf_sim_wall_s(sim),
            wf_sim_wall_s(sim) > 0 ? (double)f->n * (double)wf_sim_steps_done(sim) / wf_sim_wall_s(sim) : 0.0);
     printf("statistics window: %.6g s after %.6g s warm-up\n\n", s->window_s, sc->warmup_s);
-    printf("%-16s %6s %12s %10s %11s %8s %10s %11s\n", "class", "count", "fuel_g", "dist_km", "L/100km", "mpg",
-           "stops/vkm", "infeasible");
-    for (size_t c = 0; c < sc->n_classes; c++) {
-        const WfClassSummary *cs = &s->cls[c];
-        printf("%-16s %6ld %12.2f %10.3f %11.3f %8.2f %10.3f %10.2f%%\n", sc->classes[c].vc.name, cs->count, cs->fuel_g,
-               cs->dist_m / 1000, cs->l_per_100km, cs->mpg, cs->stops_per_vkm, 100 * cs->infeasible_share);
-    }
-    printf("%-16s %6zu %12.2f %10.3f %11.3f %8.2f %10.3f %10.2f%%\n\n", "fleet", f->n, s->fuel_g, s->vkt_km,
-           s->l_per_100km, s->mpg, s->stops_per_vkm, 100 * s->infeasible_share);
-    printf("mean speed %.3f m/s | time-avg speed s.d. %.3f m/s | throughput %.1f veh/h | hard brakes %.3f /vkm | "
-           "overlaps %lld\n",
-           s->mean_speed_mps, s->sd_speed_time_avg_mps, s->throughput_vph, s->hard_brakes_per_vkm,
-           (long long)s->overlaps);
+    const char *names[WF_MAX_CLASSES];
+    for (size_t c = 0; c < sc->n_classes; c++) names[c] = sc->classes[c].vc.name;
+    wf_summary_print(stdout, s, WF_SUMMARY_RING, names, sc->n_classes);
     printf("result: %s\n", path);
 }
 

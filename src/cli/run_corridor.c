@@ -48,22 +48,9 @@ static void print_summary(const WfCorridor *c, const char *path)
            (long long)n->arrived, (long long)n->entered, (long long)n->exited, (long long)(n->entered - n->exited),
            (long long)n->queued, (long long)n->delayed, s->mean_queue_delay_s, (long long)n->max_queue);
     printf("statistics window: %.6g s after %.6g s warm-up\n\n", s->window_s, sc->warmup_s);
-    printf("%-16s %7s %6s %11s %9s %9s %9s %9s %9s %9s %9s %9s\n", "class", "entered", "trips", "fuel_g", "dist_km",
-           "L/100km", "stops/vkm", "trip_g", "trip_s", "g/km_up", "g/km_dn", "g/km_flat");
-    for (size_t k = 0; k < sc->n_classes; k++) {
-        const WfCorridorClassSummary *cs = &s->cls[k];
-        printf("%-16s %7lld %6lld %11.2f %9.3f %9.3f %9.3f %9.2f %9.1f %9.2f %9.2f %9.2f\n", sc->classes[k].vc.name,
-               (long long)cs->entered, (long long)cs->trips, cs->fuel_g, cs->dist_m / 1000, cs->l_per_100km,
-               cs->stops_per_vkm, cs->trip_fuel_mean_g, cs->trip_time_mean_s, cs->g_per_km_up, cs->g_per_km_down,
-               cs->g_per_km_flat);
-    }
-    printf("%-16s %7lld %6lld %11.2f %9.3f %9.3f %9.3f %9.2f %9.1f\n\n", "fleet", (long long)n->entered,
-           (long long)s->trips, s->fuel_g, s->vkt_km, s->l_per_100km, s->stops_per_vkm, s->mean_trip_fuel_g,
-           s->mean_travel_time_s);
-    printf("mean speed %.3f m/s | time-avg speed s.d. %.3f m/s | inflow %.1f veh/h | outflow %.1f veh/h | hard brakes "
-           "%.3f /vkm | overlaps %lld\n",
-           s->mean_speed_mps, s->sd_speed_time_avg_mps, s->inflow_vph, s->outflow_vph, s->hard_brakes_per_vkm,
-           (long long)n->overlaps);
+    const char *names[WF_MAX_CLASSES];
+    for (size_t k = 0; k < sc->n_classes; k++) names[k] = sc->classes[k].vc.name;
+    wf_summary_print(stdout, s, WF_SUMMARY_CORRIDOR, names, sc->n_classes);
     printf("result: %s\n", path);
 }
 

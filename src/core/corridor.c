@@ -907,6 +907,7 @@ static void summarize(WfCorridor *c)
     s->mean_trip_fuel_g = c->st.trips_done ? c->st.sum_trip_fuel / (double)c->st.trips_done : NAN;
     s->mean_queue_delay_s = c->st.counts.entered ? c->st.counts.queue_delay_s / (double)c->st.counts.entered : NAN;
     s->counts = c->st.counts;
+    s->on_road = c->st.counts.entered - c->st.counts.exited;
 }
 
 static int numerical_fault(const WfCorridor *c, long step, WfError *err)

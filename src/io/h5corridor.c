@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "io/h5ckpt.h"
+#include "io/h5summary.h"
 #include "io/h5util.h"
 #include "wavefuel/version.h"
 
@@ -375,69 +376,9 @@ static int write_edie(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *er
 
 static int write_summary(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
 {
-    const WfCorridorSummary *s = wf_corridor_summary(c);
-    const WfScenario *sc = wf_corridor_scenario(c);
-    const WfCorridorCounts *n = &s->counts;
-    hid_t g = wf_h5_group_pass(fid, "summary", pass, err);
-    if (g < 0) return WF_ESYS;
-#define F64(name, v, units, desc) wf_h5_put_scalar_f64(g, name, pass, v, units, desc, err)
-#define I64(name, v, desc) wf_h5_put_scalar_i64(g, name, pass, v, "1", desc, err)
-    int rc = F64("window", s->window_s, "s", "statistics window (after warm-up)") ||
-             F64("fuel", s->fuel_g, "g", "fuel burnt on the road in the window") ||
-             F64("distance", s->dist_m, "m", "distance travelled on the road in the window") ||
-             F64("vkt", s->vkt_km, "km", "vehicle-kilometres travelled in the window") ||
-             F64("vht", s->vht_h, "h", "vehicle-hours on the road in the window") ||
-             F64("l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy") ||
-             F64("mpg", s->mpg, "mi/gal", "fleet fuel economy") ||
-             F64("stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km") ||
-             F64("hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km", "hard-braking events per vehicle-km") ||
-             F64("mean_speed", s->mean_speed_mps, "m/s", "distance / vehicle-time in the window") ||
-             F64("sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
-                 "mean over the window's records of the speed s.d. across vehicles") ||
-             F64("inflow", s->inflow_vph, "1/h", "entries per hour in the window") ||
-             F64("outflow", s->outflow_vph, "1/h", "exits per hour in the window") ||
-             F64("infeasible_share", s->infeasible_share, "1",
-                 "share of vehicle-steps with an infeasible acceleration request") ||
-             F64("time_stopped_share", s->time_stopped_share, "1", "share of time stopped") ||
-             I64("trips", s->trips, "completed trips (whole run)") ||
-             F64("mean_travel_time", s->mean_travel_time_s, "s", "mean over completed trips") ||
-             F64("mean_trip_fuel", s->mean_trip_fuel_g, "g", "mean over completed trips") ||
-             F64("mean_queue_delay", s->mean_queue_delay_s, "s", "mean wait of the entered vehicles") ||
-             I64("arrived", n->arrived, "vehicles that reached the entrance") ||
-             I64("entered", n->entered, "vehicles inserted at x = 0") ||
-             I64("exited", n->exited, "vehicles that left at x = L") ||
-             I64("on_road", n->entered - n->exited, "vehicles on the road at the end") ||
-             I64("queued", n->queued, "vehicles waiting at the entrance at the end") ||
-             I64("delayed", n->delayed, "entries that waited at least one step") ||
-             I64("max_queue", n->max_queue, "longest entrance queue") ||
-             I64("overlaps", n->overlaps, "overlap repairs");
-#undef F64
-#undef I64
-    hsize_t nc = sc->n_classes;
-    double a[WF_MAX_CLASSES];
-#define CLS(name, expr, units, desc)                                  \
-    if (!rc) {                                                        \
-        for (size_t k = 0; k < nc; k++) a[k] = (double)(s->cls[k].expr); \
-        rc = wf_h5_put_f64(g, name, pass, 1, &nc, a, units, desc, err); \
-    }
-    CLS("class_entered", entered, "1", "vehicles of the class that entered");
-    CLS("class_trips", trips, "1", "completed trips per class");
-    CLS("class_fuel", fuel_g, "g", "fuel per class in the window");
-    CLS("class_distance", dist_m, "m", "distance per class in the window");
-    CLS("class_l_per_100km", l_per_100km, "L/100km", "fuel economy per class");
-    CLS("class_mpg", mpg, "mi/gal", "fuel economy per class");
-    CLS("class_stops_per_vkm", stops_per_vkm, "1/km", "stops per vehicle-km per class");
-    CLS("class_infeasible_share", infeasible_share, "1", "infeasible acceleration share per class");
-    CLS("class_g_per_km_up", g_per_km_up, "g/km", "fuel per vehicle-km on climbing cells (mean grade > 1e-4 rad)");
-    CLS("class_g_per_km_down", g_per_km_down, "g/km", "fuel per vehicle-km on descending cells (< -1e-4 rad)");
-    CLS("class_g_per_km_flat", g_per_km_flat, "g/km", "fuel per vehicle-km on the other cells");
-    CLS("class_trip_fuel_mean", trip_fuel_mean_g, "g", "mean fuel of the class's completed trips");
-    CLS("class_trip_time_mean", trip_time_mean_s, "s", "mean travel time of the class's completed trips");
-#undef CLS
-    H5Gclose(g);
-    return rc ? WF_ESYS : 0;
+    return wf_h5_summary_write(fid, wf_corridor_summary(c), wf_corridor_scenario(c)->n_classes, WF_SUMMARY_CORRIDOR,
+                               pass, err);
 }
-
 
 /* A failure while the file is set up (`why`, or the error in err): what the file needs, and that nothing is kept
  * (destroy removes a file whose run never started). */

@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "io/h5ckpt.h"
+#include "io/h5summary.h"
 #include "io/h5util.h"
 #include "wavefuel/version.h"
 
@@ -310,44 +311,7 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
 
 static int write_summary(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
-    const WfSummary *s = wf_sim_summary(sim);
-    const WfScenario *sc = wf_sim_scenario(sim);
-    hid_t g = wf_h5_group_pass(fid, "summary", pass, err);
-    if (g < 0) return WF_ESYS;
-#define SCALAR(name, v, units, desc) wf_h5_put_scalar_f64(g, name, pass, v, units, desc, err)
-    int rc = SCALAR("window", s->window_s, "s", "statistics window (after warm-up)") ||
-             SCALAR("fuel", s->fuel_g, "g", "fleet fuel in the window") ||
-             SCALAR("distance", s->dist_m, "m", "fleet distance in the window") ||
-             SCALAR("vkt", s->vkt_km, "km", "vehicle-kilometres travelled") ||
-             SCALAR("l_per_100km", s->l_per_100km, "L/100km", "fleet fuel economy") ||
-             SCALAR("mpg", s->mpg, "mi/gal", "fleet fuel economy") ||
-             SCALAR("stops_per_vkm", s->stops_per_vkm, "1/km", "stops per vehicle-km") ||
-             SCALAR("hard_brakes_per_vkm", s->hard_brakes_per_vkm, "1/km", "hard-braking events per vehicle-km") ||
-             SCALAR("mean_speed", s->mean_speed_mps, "m/s", "fleet mean speed") ||
-             SCALAR("sd_speed_time_avg", s->sd_speed_time_avg_mps, "m/s",
-                    "time average of the spatial speed standard deviation") ||
-             SCALAR("throughput", s->throughput_vph, "1/h", "passages of x = 0 per hour") ||
-             SCALAR("infeasible_share", s->infeasible_share, "1",
-                    "share of vehicle-steps with an infeasible acceleration request") ||
-             SCALAR("time_stopped_share", s->time_stopped_share, "1", "share of time stopped") ||
-             wf_h5_put_scalar_i64(g, "overlaps", pass, s->overlaps, "1", "overlap events repaired", err);
-#undef SCALAR
-    hsize_t nc = sc->n_classes;
-    double a[WF_MAX_CLASSES];
-#define CLS(name, field, units, desc)                                              \
-    if (!rc) {                                                                     \
-        for (size_t c = 0; c < nc; c++) a[c] = s->cls[c].field;                     \
-        rc = wf_h5_put_f64(g, name, pass, 1, &nc, a, units, desc, err);            \
-    }
-    CLS("class_fuel", fuel_g, "g", "fuel per class in the window");
-    CLS("class_distance", dist_m, "m", "distance per class in the window");
-    CLS("class_l_per_100km", l_per_100km, "L/100km", "fuel economy per class");
-    CLS("class_mpg", mpg, "mi/gal", "fuel economy per class");
-    CLS("class_infeasible_share", infeasible_share, "1", "infeasible acceleration share per class");
-    CLS("class_stops_per_vkm", stops_per_vkm, "1/km", "stops per vehicle-km per class");
-#undef CLS
-    H5Gclose(g);
-    return rc ? WF_ESYS : 0;
+    return wf_h5_summary_write(fid, wf_sim_summary(sim), wf_sim_scenario(sim)->n_classes, WF_SUMMARY_RING, pass, err);
 }
 
 /* Solver statistics of a SUNDIALS run (absent for the fixed-step schemes): the settings are written when the file
@@ -679,6 +643,12 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
     return 0;
 }
 
+static void print_summary_field(const char *name, void *vctx)
+{
+    InfoCtx *c = vctx;
+    if (H5Lexists(c->grp, name, H5P_DEFAULT) > 0) print_dataset(c->grp, name, NULL, c);
+}
+
 int wf_h5out_info(const char *path, FILE *out, WfError *err)
 {
     wf_h5_library_init();
@@ -696,7 +666,9 @@ int wf_h5out_info(const char *path, FILE *out, WfError *err)
         if (g < 0) continue;
         fprintf(out, "%s:\n", titles[k]);
         InfoCtx c = {.out = out, .grp = g};
-        H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, print_dataset, &c);
+        /* The summary in the order of its table (fleet values, then per class); the other groups by name. */
+        if (!strcmp(groups[k], "summary")) wf_h5_summary_each(print_summary_field, &c);
+        else H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, print_dataset, &c);
         H5Gclose(g);
     }
     H5Fclose(f);

@@ -14,16 +14,6 @@
 
 void wf_sweep_h5_quiet_thread(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }
 
-static double metric_of(const WfSweepResult *r, const WfSweepMetric *m)
-{
-    return *(const double *)((const char *)&r->summary + m->offset);
-}
-
-static double class_metric_of(const WfSweepResult *r, size_t c, const WfSweepMetric *m)
-{
-    return *(const double *)((const char *)&r->summary.cls[c] + m->offset);
-}
-
 static int write_meta(hid_t fid, const WfSweep *sw, const WfSweepResult *res, WfError *err)
 {
     int64_t n_ok = 0, n_failed = 0, n_pending = 0;
@@ -144,44 +134,46 @@ static int write_runs(hid_t fid, const WfSweep *sw, const WfSweepResult *res, Wf
     return rc ? WF_ESYS : 0;
 }
 
+/* The sweep table's metrics are the ring's summary fields (wavefuel/summary.h), one column each; a class field is a
+ * [run x class] array. Rows that are not ok hold NaN (and -1 in the integer columns): no value was measured. */
+static int write_metric(hid_t g, const WfSummaryField *f, int per_class, size_t n, size_t nc, const WfSweepResult *res,
+                        double *d, int64_t *k, WfError *err)
+{
+    hsize_t dims[2] = {n, per_class ? nc : 1};
+    size_t w = per_class ? nc : 1;
+    int integer = f->type != WF_SUMMARY_F64;
+    for (size_t i = 0; i < n; i++)
+        for (size_t c = 0; c < w; c++) {
+            int ok = res[i].status == WF_RUN_OK && (!per_class || c < res[i].n_classes);
+            double v = ok ? wf_summary_value(per_class ? (const void *)&res[i].summary.cls[c] : &res[i].summary, f) : NAN;
+            if (integer) k[i * w + c] = ok ? (int64_t)v : -1;
+            else d[i * w + c] = v;
+        }
+    char desc[300];
+    snprintf(desc, sizeof desc, "%s%s%s", f->desc[WF_SUMMARY_RING],
+             per_class ? (integer ? " [run x class]" : " [run x class, classes named in /runs/classes]") : "",
+             integer ? " (-1: no value)" : "");
+    return integer ? wf_h5_write_i64(g, f->name, per_class ? 2 : 1, dims, k, f->units, desc, err)
+                   : wf_h5_write_f64(g, f->name, per_class ? 2 : 1, dims, d, f->units, desc, err);
+}
+
 static int write_metrics(hid_t fid, const WfSweep *sw, const WfSweepResult *res, WfError *err)
 {
     size_t n = sw->n_runs, nc = 1;
     for (size_t i = 0; i < n; i++)
         if (res[i].status == WF_RUN_OK && res[i].n_classes > nc) nc = res[i].n_classes;
-    hsize_t dn = n, d2[2] = {n, nc};
     hid_t g = wf_h5_group(fid, "metrics", err), gc = H5I_INVALID_HID;
     if (g < 0) return WF_ESYS;
     gc = wf_h5_group(fid, "class_metrics", err);
     double *d = malloc(n * nc * sizeof *d);
     int64_t *k = malloc(n * nc * sizeof *k);
     int rc = (gc < 0) ? WF_ESYS : (!d || !k) ? wf_err(err, WF_ESYS, "out of memory") : 0;
-    /* Rows that are not ok hold NaN (and -1 in the integer columns): no value was measured. */
-    for (size_t m = 0; !rc && m < wf_sweep_n_metrics; m++) {
-        for (size_t i = 0; i < n; i++) d[i] = res[i].status == WF_RUN_OK ? metric_of(&res[i], &wf_sweep_metrics[m]) : NAN;
-        rc = wf_h5_write_f64(g, wf_sweep_metrics[m].name, 1, &dn, d, wf_sweep_metrics[m].units,
-                             wf_sweep_metrics[m].desc, err);
-    }
-    if (!rc) {
-        for (size_t i = 0; i < n; i++) k[i] = res[i].status == WF_RUN_OK ? res[i].summary.overlaps : -1;
-        rc = wf_h5_write_i64(g, "overlaps", 1, &dn, k, "1", "overlap events repaired (-1: no value)", err);
-    }
-    for (size_t m = 0; !rc && m < wf_sweep_n_class_metrics; m++) {
-        for (size_t i = 0; i < n; i++)
-            for (size_t c = 0; c < nc; c++)
-                d[i * nc + c] = res[i].status == WF_RUN_OK && c < res[i].n_classes
-                                    ? class_metric_of(&res[i], c, &wf_sweep_class_metrics[m])
-                                    : NAN;
-        char desc[300];
-        snprintf(desc, sizeof desc, "%s [run x class, classes named in /runs/classes]", wf_sweep_class_metrics[m].desc);
-        rc = wf_h5_write_f64(gc, wf_sweep_class_metrics[m].name, 2, d2, d, wf_sweep_class_metrics[m].units, desc, err);
-    }
-    if (!rc) {
-        for (size_t i = 0; i < n; i++)
-            for (size_t c = 0; c < nc; c++)
-                k[i * nc + c] = res[i].status == WF_RUN_OK && c < res[i].n_classes ? res[i].summary.cls[c].count : -1;
-        rc = wf_h5_write_i64(gc, "class_count", 2, d2, k, "1", "vehicles per class [run x class] (-1: no value)", err);
-    }
+    for (size_t m = 0; !rc && m < wf_summary_n_fields; m++)
+        if (wf_summary_fields[m].desc[WF_SUMMARY_RING])
+            rc = write_metric(g, &wf_summary_fields[m], 0, n, nc, res, d, k, err);
+    for (size_t m = 0; !rc && m < wf_summary_n_class_fields; m++)
+        if (wf_summary_class_fields[m].desc[WF_SUMMARY_RING])
+            rc = write_metric(gc, &wf_summary_class_fields[m], 1, n, nc, res, d, k, err);
     free(d);
     free(k);
     if (gc >= 0) H5Gclose(gc);
@@ -317,6 +309,30 @@ static void *read_numeric(hid_t loc, const char *name, hid_t type, size_t size, 
     return buf;
 }
 
+/* One metric column back into the rows' summaries; per_class: a [run x class] array of width *wc (learnt from
+ * the first class column read). */
+static int read_metric(hid_t g, const WfSummaryField *f, int per_class, WfSweepSaved *sv, size_t *wc, const char *path,
+                       WfError *err)
+{
+    size_t w = per_class ? *wc : 1;
+    int integer = f->type != WF_SUMMARY_F64;
+    void *buf = read_numeric(g, f->name, integer ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, 8, sv->n, &w);
+    if (!buf || w > WF_MAX_CLASSES) {
+        free(buf);
+        return bad(err, path, f->name);
+    }
+    if (per_class) *wc = w;
+    for (size_t i = 0; i < sv->n; i++)
+        for (size_t c = 0; c < w; c++) {
+            void *base = per_class ? (void *)&sv->res[i].summary.cls[c] : (void *)&sv->res[i].summary;
+            if (!integer) *(double *)((char *)base + f->offset) = ((const double *)buf)[i * w + c];
+            else if (f->type == WF_SUMMARY_LONG) *(long *)((char *)base + f->offset) = (long)((const int64_t *)buf)[i * w + c];
+            else *(int64_t *)((char *)base + f->offset) = ((const int64_t *)buf)[i * w + c];
+        }
+    free(buf);
+    return 0;
+}
+
 static void put_overrides(WfSweepSaved *sv, size_t i, const char *s) { sv->overrides[i] = strdup(s); }
 static void put_error(WfSweepSaved *sv, size_t i, const char *s)
 {
@@ -388,7 +404,7 @@ int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
         if (!sv->overrides[i]) rc = wf_err(err, WF_ESYS, "out of memory");
         else if (sv->res[i].status < 0) rc = bad(err, path, "/runs/status");
     }
-    size_t w1 = 1, wc = 0, wc2;
+    size_t w1 = 1, wc = 0;
     int64_t *k = NULL;
     double *d = NULL;
     if (!rc) {
@@ -396,39 +412,11 @@ int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
         for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].seed = k[i];
         free(k);
     }
-    for (size_t m = 0; !rc && m < wf_sweep_n_metrics; m++) {
-        w1 = 1;
-        if (!(d = read_numeric(met, wf_sweep_metrics[m].name, H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
-            rc = bad(err, path, wf_sweep_metrics[m].name);
-        for (size_t i = 0; !rc && i < sv->n; i++)
-            *(double *)((char *)&sv->res[i].summary + wf_sweep_metrics[m].offset) = d[i];
-        free(d);
-    }
-    if (!rc) {
-        w1 = 1;
-        if (!(k = read_numeric(met, "overlaps", H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, "overlaps");
-        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].summary.overlaps = k[i];
-        free(k);
-    }
-    for (size_t m = 0; !rc && m < wf_sweep_n_class_metrics; m++) {
-        wc2 = wc;
-        if (!(d = read_numeric(cm, wf_sweep_class_metrics[m].name, H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &wc2)) ||
-            wc2 > WF_MAX_CLASSES)
-            rc = bad(err, path, wf_sweep_class_metrics[m].name);
-        wc = wc2;
-        for (size_t i = 0; !rc && i < sv->n; i++)
-            for (size_t c = 0; c < wc; c++)
-                *(double *)((char *)&sv->res[i].summary.cls[c] + wf_sweep_class_metrics[m].offset) = d[i * wc + c];
-        free(d);
-    }
-    if (!rc) {
-        wc2 = wc;
-        if (!(k = read_numeric(cm, "class_count", H5T_NATIVE_INT64, sizeof *k, sv->n, &wc2)))
-            rc = bad(err, path, "class_count");
-        for (size_t i = 0; !rc && i < sv->n; i++)
-            for (size_t c = 0; c < wc; c++) sv->res[i].summary.cls[c].count = (long)k[i * wc + c];
-        free(k);
-    }
+    for (size_t m = 0; !rc && m < wf_summary_n_fields; m++)
+        if (wf_summary_fields[m].desc[WF_SUMMARY_RING]) rc = read_metric(met, &wf_summary_fields[m], 0, sv, &wc, path, err);
+    for (size_t m = 0; !rc && m < wf_summary_n_class_fields; m++)
+        if (wf_summary_class_fields[m].desc[WF_SUMMARY_RING])
+            rc = read_metric(cm, &wf_summary_class_fields[m], 1, sv, &wc, path, err);
     if (!rc) {
         w1 = 1;
         if (!(d = read_numeric(tim, "wall_time", H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))

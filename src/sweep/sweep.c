@@ -20,36 +20,6 @@
 
 const char *const wf_run_status_names[3] = {"pending", "ok", "failed"};
 
-#define M(field, name, units, desc) {name, units, desc, offsetof(WfSummary, field)}
-const WfSweepMetric wf_sweep_metrics[] = {
-    M(window_s, "window", "s", "statistics window (after warm-up)"),
-    M(fuel_g, "fuel", "g", "fleet fuel in the window"),
-    M(dist_m, "distance", "m", "fleet distance in the window"),
-    M(vkt_km, "vkt", "km", "vehicle-kilometres travelled"),
-    M(l_per_100km, "l_per_100km", "L/100km", "fleet fuel economy"),
-    M(mpg, "mpg", "mi/gal", "fleet fuel economy"),
-    M(stops_per_vkm, "stops_per_vkm", "1/km", "stops per vehicle-km"),
-    M(hard_brakes_per_vkm, "hard_brakes_per_vkm", "1/km", "hard-braking events per vehicle-km"),
-    M(mean_speed_mps, "mean_speed", "m/s", "fleet mean speed"),
-    M(sd_speed_time_avg_mps, "sd_speed_time_avg", "m/s", "time average of the spatial speed standard deviation"),
-    M(throughput_vph, "throughput", "1/h", "passages of x = 0 per hour"),
-    M(infeasible_share, "infeasible_share", "1", "share of vehicle-steps with an infeasible acceleration request"),
-    M(time_stopped_share, "time_stopped_share", "1", "share of time stopped"),
-};
-#undef M
-const size_t wf_sweep_n_metrics = sizeof wf_sweep_metrics / sizeof wf_sweep_metrics[0];
-
-#define C(field, name, units, desc) {name, units, desc, offsetof(WfClassSummary, field)}
-const WfSweepMetric wf_sweep_class_metrics[] = {
-    C(fuel_g, "class_fuel", "g", "fuel per class in the window"),
-    C(dist_m, "class_distance", "m", "distance per class in the window"),
-    C(l_per_100km, "class_l_per_100km", "L/100km", "fuel economy per class"),
-    C(mpg, "class_mpg", "mi/gal", "fuel economy per class"),
-    C(infeasible_share, "class_infeasible_share", "1", "infeasible acceleration share per class"),
-    C(stops_per_vkm, "class_stops_per_vkm", "1/km", "stops per vehicle-km per class"),
-};
-#undef C
-const size_t wf_sweep_n_class_metrics = sizeof wf_sweep_class_metrics / sizeof wf_sweep_class_metrics[0];
 
 /* ---- String storage: every string of a sweep lives until wf_sweep_destroy ---- */
 struct WfSweepPool {
