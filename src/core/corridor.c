@@ -1,10 +1,11 @@
-/* The corridor engine: an open single-lane road [0, L]. Per step: arrivals join the entrance queue, the queue's
- * head is inserted at x = 0 when the gap allows (docs/corridors.md: insertion rule), accelerations from the
- * car-following models with the road features at each vehicle's position, fuel rates from the class energy
- * models, statistics, integration, overlap repair, Edie/detector accumulation, exits at x = L. Vehicles live in a
- * circular buffer in road order and never move in memory, so entries and exits touch no other vehicle's data.
- * Per-vehicle loops write only their own slot (race-free, thread-count independent); every sum that is written
- * out runs serially in road order. Units: m, s, m/s, m/s^2, g. */
+/* The corridor: the open boundary of the block kernel (src/core/block.c) on a single-lane road [0, L]. Per step:
+ * arrivals join the entrance queue, the queue's head is inserted at x = 0 when the gap allows (docs/corridors.md:
+ * insertion rule), the kernel steps the vehicles with the road features at each vehicle's position (grade, speed
+ * limit and zone anticipation as a per-vehicle cap, headway zones as per-vehicle parameters), then overlap repair,
+ * Edie/detector accumulation and exits at x = L. Vehicles live in a circular buffer of slots in road order (the
+ * back at `first`, leaders at higher slots) and never move in memory, so entries and exits touch no other
+ * vehicle's data and the kernel sees at most two contiguous runs. Every sum that is written out runs serially in
+ * road order. Units: m, s, m/s, m/s^2, g. */
 #include "wavefuel/corridor.h"
 
 #include <math.h>
@@ -18,12 +19,9 @@
 #include "wavefuel/fleet.h"
 #include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
+#include "core/block.h"
 
-#define PAR_MIN  4096 /* vehicles below which loops run on one thread (as the ring engine) */
-#define EBLOCK   256  /* energy evaluation gather block */
 #define TRIP_BUF 1024 /* trips handed to the output per call */
-
-enum { MODE_MOVING = 1, MODE_BRAKING = 2, MODE_FAULT = 4 };
 
 const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
     {"t", "s", "simulated time of the record"},
@@ -114,19 +112,14 @@ struct WfCorridor {
     double   wall_s, checkpoint_every_s;
     int      nthreads;
     long     fault_slot;
+    /* the vehicles as the kernel sees them */
+    WfLane   lane;
+    WfRoadOps ops;
+    double  *bound_x, *bound_v;
+    int     *chunk_flags;
+    int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
     WfCorridorSummary summary;
 };
-
-static double wall_now(void)
-{
-#ifdef _OPENMP
-    return omp_get_wtime();
-#else
-    struct timespec ts;
-    timespec_get(&ts, TIME_UTC);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-#endif
-}
 
 void wf_corridor_destroy(WfCorridor **pc)
 {
@@ -139,7 +132,8 @@ void wf_corridor_destroy(WfCorridor **pc)
                       c->trip_stops, c->trip_hard, c->trip_infeas, c->w_fuel, c->w_dist, c->w_stopped, c->w_steps,
                       c->w_stops, c->w_hard, c->w_infeas, c->queue_t, c->det.count, c->det.sum_v_mps,
                       c->det.sum_inv_v_spm, c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g,
-                      c->edie.grade_mean_rad, c->edie.class_dist_m, c->edie.class_fuel_g};
+                      c->edie.grade_mean_rad, c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x,
+                      c->bound_v, c->chunk_flags};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     free(c);
     *pc = NULL;
@@ -176,35 +170,6 @@ static const double *params_at(const WfCorridor *c, size_t group, const double *
     return p;
 }
 
-/* Applied acceleration of a vehicle: model + noise, clipped to the group's limits and optionally the class's
- * a_max (as the ring's accel_one), then to the speed limit at x (never past it within the step) and to the
- * braking that meets a lower zone limit ahead at the zone's start: once the deceleration needed,
- * (v^2 - v_zone^2) / (2 d), reaches corridor.zone_decel_mps2, the vehicle brakes at least that hard. */
-static double accel_vehicle(const WfCorridor *c, const WfDriverGroup *grp, const double *params, const void *state,
-                            const WfVehicleClass *vc, double x, double gap, double v, double vl, double th, double z)
-{
-    double dmax = grp->decel_max_mps2, dt = c->sc->dt_s;
-    double a = grp->model->accel(params, state, gap, v, vl);
-    if (grp->noise_mps2 > 0.0) a += grp->noise_mps2 * z;
-    a = a > grp->accel_max_mps2 ? grp->accel_max_mps2 : a;
-    a = a < -dmax ? -dmax : a;
-    if (grp->clip_feasible) {
-        double am = vc->model->a_max(vc->params, v, th);
-        a = a > am ? am : a;
-    }
-    double cap = INFINITY, vlim = limit_at(c, x);
-    if (isfinite(vlim)) cap = (vlim - v) / dt;
-    for (size_t k = 0; k < c->cs->n_zones; k++) {
-        const WfCorridorZone *zn = &c->cs->zones[k];
-        if (zn->type != WF_ZONE_SPEED_LIMIT || zn->from_m <= x || zn->value >= v) continue;
-        /* d > 0 here (from > x), so the division is safe. */
-        double need = (v * v - zn->value * zn->value) / (2.0 * (zn->from_m - x));
-        if (need >= c->cs->zone_decel_mps2 && -need < cap) cap = -need;
-    }
-    if (a > cap) a = cap > -dmax ? cap : -dmax;
-    return a;
-}
-
 /* ------------------------------------------------------------------------------------------ setup */
 
 #define ALLOC(ptr, count)                                                        \
@@ -215,6 +180,8 @@ static double accel_vehicle(const WfCorridor *c, const WfDriverGroup *grp, const
             return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", cap); \
         }                                                                        \
     } while (0)
+
+static int lane_init(WfCorridor *c, WfError *err);
 
 int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
 {
@@ -242,7 +209,8 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         return wf_err(err, WF_EINPUT, "%s: road.length_m %.6g m holds up to %.3g vehicles: too many", sc->path,
                       sc->road.length_m, capd);
     }
-    size_t cap = (size_t)capd;
+    /* A multiple of the kernel's block, so that no block wraps around the buffer's end. */
+    size_t cap = ((size_t)capd + WF_BLOCK - 1) / WF_BLOCK * WF_BLOCK;
     size_t ssz = 0;
     for (size_t g = 0; g < sc->n_groups; g++)
         if (sc->groups[g].model->state_size > ssz) ssz = sc->groups[g].model->state_size;
@@ -341,6 +309,10 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         c->st.vl_iref = 0.0;
         c->st.vl_x = c->st.vl_xref;
         c->st.vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &c->st.vl_seg);
+    }
+    if ((rc = lane_init(c, err))) {
+        wf_corridor_destroy(&c);
+        return rc;
     }
     *out = c;
     return 0;
@@ -478,8 +450,10 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     if (free_road) vl = vin;
     if (!(grp->model->accel(p, NULL, gap, vin, vl) >= -c->cs->insert_decel_mps2)) return 0;
 
-    size_t s = wf_corridor_slot(vh, vh->n);
+    /* The new back vehicle: the slot behind the back one. */
+    vh->first = vh->first ? vh->first - 1 : vh->cap - 1;
     vh->n++;
+    size_t s = vh->first;
     vh->x_m[s] = 0.0;
     vh->v_mps[s] = vin;
     vh->a_mps2[s] = 0.0;
@@ -489,7 +463,7 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     vh->group_id[s] = c->st.cand_group;
     memcpy(vh->params + s * c->pstride, c->st.cand_params, grp->model->param_size);
     c->grade_seg[s] = 0;
-    c->mode[s] = vin > sc->v_go_mps ? MODE_MOVING : 0;
+    c->mode[s] = vin > sc->v_go_mps ? WF_MODE_MOVING : 0;
     double ta = c->queue_t[c->st.q_head];
     c->st.q_head = (c->st.q_head + 1) % c->q_cap;
     c->st.counts.queued--;
@@ -509,148 +483,121 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     return 0;
 }
 
-/* ------------------------------------------------------------------------------------- step phases */
+/* ------------------------------------------------------------------------------------- the open road */
 
-/* Gap and speed of vehicle k's leader: the vehicle ahead, the virtual leader, or a far leader at its own speed. */
-static inline void leader_of(const WfCorridor *c, size_t k, size_t s, double *gap, double *vl)
+static void corridor_grade(const void *ctx, size_t lo, size_t m, const double *x, double *th)
 {
-    const WfCorridorVehicles *vh = &c->veh;
-    if (k > 0) {
-        size_t p = wf_corridor_slot(vh, k - 1);
-        *gap = vh->x_m[p] - vh->length_m[p] - vh->x_m[s];
-        *vl = vh->v_mps[p];
-    } else if (c->has_vl) {
-        *gap = c->st.vl_x - vh->x_m[s];
-        *vl = c->st.vl_v;
-    } else {
-        *gap = WF_CORRIDOR_FREE_GAP_M;
-        *vl = vh->v_mps[s];
+    const WfCorridor *c = ctx;
+    for (size_t k = 0; k < m; k++) th[k] = wf_corridor_grade(c->cs, x[k], &c->grade_seg[lo + k]);
+}
+
+/* The cap of the acceleration at x: never past the speed limit at x within the step, and at least the braking
+ * that meets a lower zone limit ahead at the zone's start: once the deceleration needed, (v^2 - v_zone^2) / (2 d),
+ * reaches corridor.zone_decel_mps2, the vehicle brakes at least that hard. */
+static int corridor_cap(const void *ctx, size_t m, const double *x, const double *v, double *cap)
+{
+    const WfCorridor *c = ctx;
+    double dt = c->sc->dt_s;
+    for (size_t k = 0; k < m; k++) {
+        double cp = INFINITY, vlim = limit_at(c, x[k]);
+        if (isfinite(vlim)) cp = (vlim - v[k]) / dt;
+        for (size_t z = 0; z < c->cs->n_zones; z++) {
+            const WfCorridorZone *zn = &c->cs->zones[z];
+            if (zn->type != WF_ZONE_SPEED_LIMIT || zn->from_m <= x[k] || zn->value >= v[k]) continue;
+            /* d > 0 here (from > x), so the division is safe. */
+            double need = (v[k] * v[k] - zn->value * zn->value) / (2.0 * (zn->from_m - x[k]));
+            if (need >= c->cs->zone_decel_mps2 && -need < cp) cp = -need;
+        }
+        cap[k] = cp;
+    }
+    return 1;
+}
+
+/* Each vehicle's draw keyed by its serial number and the step. */
+static void corridor_noise(const void *ctx, size_t lo, size_t m, long step, double *z)
+{
+    const WfCorridor *c = ctx;
+    for (size_t k = 0; k < m; k++) {
+        double r[2];
+        wf_rng_normal2(c->sc->seed, WF_RNG_NOISE, c->veh.serial[lo + k], (uint64_t)step, r);
+        z[k] = r[0];
     }
 }
 
-static void phase_accel(WfCorridor *c, long step)
+static const double *corridor_params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
 {
-    WfCorridorVehicles *vh = &c->veh;
-    size_t n = vh->n;
+    return params_at(ctx, group, own, x, buf);
+}
+
+/* The vehicle buffer as the kernel sees it. A group without heterogeneity drives with the group's parameters
+ * (every vehicle's copy equals them): one shared block, so the model's block form applies across the block. */
+static int lane_init(WfCorridor *c, WfError *err)
+{
     const WfScenario *sc = c->sc;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, n, sc, step)
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double gap, vl, buf[WF_MAX_MODEL_PARAMS], z = 0.0;
-        leader_of(c, k, s, &gap, &vl);
-        size_t g = vh->group_id[s];
+    WfCorridorVehicles *vh = &c->veh;
+    size_t nt = (size_t)c->nthreads + 1;
+    c->bound_x = calloc(nt, sizeof(double));
+    c->bound_v = calloc(nt, sizeof(double));
+    c->chunk_flags = calloc(nt, sizeof(int));
+    if (!c->bound_x || !c->bound_v || !c->chunk_flags) return wf_err(err, WF_ESYS, "out of memory");
+    c->has_cap = isfinite(sc->road.speed_limit_mps);
+    for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
+    c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
+                         .noise = corridor_noise, .params_at = corridor_params_at};
+    WfLane *ln = &c->lane;
+    *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = c, .cap = vh->cap, .x_m = vh->x_m, .v_mps = vh->v_mps,
+                   .class_id = vh->class_id, .group_id = vh->group_id, .grade_seg = c->grade_seg, .mode = c->mode,
+                   .x_old_m = c->xold, .nthreads = c->nthreads, .bound_x = c->bound_x, .bound_v = c->bound_v,
+                   .chunk_flags = c->chunk_flags};
+    for (size_t g = 0; g < sc->n_groups; g++) {
         const WfDriverGroup *grp = &sc->groups[g];
-        double x = vh->x_m[s], th = wf_corridor_grade(c->cs, x, &c->grade_seg[s]);
-        if (grp->noise_mps2 > 0.0) {
-            double r[2];
-            wf_rng_normal2(sc->seed, WF_RNG_NOISE, vh->serial[s], (uint64_t)step, r);
-            z = r[0];
-        }
-        const double *p = params_at(c, g, vh->params + s * c->pstride, x, buf);
-        const void *st = grp->model->state_size ? vh->state + s * c->sstride : NULL;
-        vh->gap_m[s] = gap, vh->v_lead_mps[s] = vl, vh->theta_rad[s] = th;
-        vh->a_mps2[s] = accel_vehicle(c, grp, p, st, &sc->classes[vh->class_id[s]].vc, x, gap, vh->v_mps[s], vl, th, z);
+        int het = 0;
+        for (size_t k = 0; k < grp->model->n_spec; k++) het |= grp->spread[k] > 0.0;
+        ln->params[g] = het ? (const unsigned char *)vh->params : (const unsigned char *)grp->params;
+        ln->pstride[g] = het ? c->pstride * sizeof(double) : 0;
+        ln->state[g] = vh->state;
+        ln->sstride[g] = c->sstride;
+        for (size_t z = 0; z < c->cs->n_zones; z++) ln->zoned[g] |= c->hw_off[g][z] >= 0;
+        ln->noisy |= grp->noise_mps2 > 0.0;
+        ln->stateful |= grp->model->state_size > 0;
     }
+    ln->always = (WfAccum){.fuel_g = c->trip_fuel, .stopped_s = c->trip_stopped, .dist_m = c->trip_dist,
+                           .stops = c->trip_stops, .hard_brakes = c->trip_hard, .infeasible = c->trip_infeas};
+    ln->window = (WfAccum){.fuel_g = c->w_fuel, .stopped_s = c->w_stopped, .dist_m = c->w_dist, .steps = c->w_steps,
+                           .stops = c->w_stops, .hard_brakes = c->w_hard, .infeasible = c->w_infeas};
+    return 0;
 }
 
-/* Fuel rate and flag of every vehicle: blocks of road order, gathered class by class for the array kernels. */
-static void phase_energy(WfCorridor *c)
+/* The step's values go to the per-slot arrays (steps with a record or trajectory, which read them before the
+ * vehicles move) or stay in the kernel's blocks; the fuel rate is always kept (Edie and detectors read it). */
+static void lane_exports(WfCorridor *c, int on)
 {
     WfCorridorVehicles *vh = &c->veh;
-    size_t n = vh->n, nblk = (n + EBLOCK - 1) / EBLOCK;
-    const WfScenario *sc = c->sc;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(vh, n, nblk, sc)
-    for (size_t b = 0; b < nblk; b++) {
-        double bv[EBLOCK], ba[EBLOCK], bt[EBLOCK], bf[EBLOCK];
-        uint8_t bfl[EBLOCK];
-        size_t idx[EBLOCK];
-        size_t lo = b * EBLOCK, m = n - lo < EBLOCK ? n - lo : EBLOCK;
-        for (size_t cl = 0; cl < sc->n_classes; cl++) {
-            size_t cnt = 0;
-            for (size_t k = 0; k < m; k++) {
-                size_t s = wf_corridor_slot(vh, lo + k);
-                if (vh->class_id[s] != cl) continue;
-                idx[cnt] = s;
-                bv[cnt] = vh->v_mps[s], ba[cnt] = vh->a_mps2[s], bt[cnt] = vh->theta_rad[s];
-                cnt++;
-            }
-            if (!cnt) continue;
-            const WfVehicleClass *vc = &sc->classes[cl].vc;
-            vc->model->eval(vc->params, cnt, bv, ba, bt, 0, bf, bfl);
-            for (size_t k = 0; k < cnt; k++) vh->fuel_rate_gps[idx[k]] = bf[k], vh->flag[idx[k]] = bfl[k];
-        }
-    }
+    WfLane *ln = &c->lane;
+    ln->a_mps2 = on ? vh->a_mps2 : NULL;
+    ln->gap_m = on ? vh->gap_m : NULL;
+    ln->v_lead_mps = on ? vh->v_lead_mps : NULL;
+    ln->theta_rad = on ? vh->theta_rad : NULL;
+    ln->flag = on ? vh->flag : NULL;
+    ln->fuel_rate_gps = vh->fuel_rate_gps;
 }
 
-/* Statistics of the step that use its start (left-point rule, as the ring: docs/metrics.md), controller memory,
- * integration, then the statistics that need the new state. */
-static void phase_advance(WfCorridor *c, int in_window)
+/* The front vehicle's leader: the virtual leader, or a far one at the vehicle's own speed. */
+static WfLead front_leader(const WfCorridor *c)
 {
-    WfCorridorVehicles *vh = &c->veh;
-    const WfScenario *sc = c->sc;
-    size_t n = vh->n;
-    double dt = sc->dt_s;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, sc, n, dt, in_window)
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double v = vh->v_mps[s], a = vh->a_mps2[s], fr = vh->fuel_rate_gps[s];
-        uint8_t mode = c->mode[s];
-        int braking = a < -sc->hard_brake_mps2, stopped = v < sc->v_stop_mps;
-        int new_brake = braking && !(mode & MODE_BRAKING), infeas = vh->flag[s] == WF_INFEASIBLE_ACCEL;
-        c->trip_fuel[s] += fr * dt;
-        c->trip_stopped[s] += stopped ? dt : 0.0;
-        c->trip_hard[s] += (uint32_t)new_brake;
-        c->trip_infeas[s] += (uint32_t)infeas;
-        if (in_window) {
-            c->w_fuel[s] += fr * dt;
-            c->w_stopped[s] += stopped ? dt : 0.0;
-            c->w_hard[s] += (uint32_t)new_brake;
-            c->w_infeas[s] += (uint32_t)infeas;
-            c->w_steps[s]++;
-        }
-        /* A non-finite acceleration or fuel rate would be laundered by the integrator: flag it (as the ring). */
-        int fault = !isfinite(a) || !isfinite(fr);
-        c->mode[s] = (uint8_t)((mode & ~MODE_BRAKING) | (braking ? MODE_BRAKING : 0) | (fault ? MODE_FAULT : 0));
-        c->xold[s] = vh->x_m[s];
-        size_t g = vh->group_id[s];
-        const WfCfModel *m = sc->groups[g].model;
-        if (m->state_size && m->update_state) {
-            double buf[WF_MAX_MODEL_PARAMS];
-            const double *p = params_at(c, g, vh->params + s * c->pstride, vh->x_m[s], buf);
-            m->update_state(p, vh->state + s * c->sstride, vh->gap_m[s], v, vh->v_lead_mps[s], dt);
-        }
-    }
-    /* The logical range is at most two contiguous runs of slots. */
-    size_t first = vh->first, run = vh->cap - first < n ? vh->cap - first : n;
-    c->ig->step(run, dt, vh->x_m + first, vh->v_mps + first, vh->a_mps2 + first);
-    if (n > run) c->ig->step(n - run, dt, vh->x_m, vh->v_mps, vh->a_mps2);
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, sc, n, in_window)
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double v = vh->v_mps[s], d = vh->x_m[s] - c->xold[s];
-        uint8_t mode = c->mode[s];
-        if ((mode & MODE_MOVING) && v < sc->v_stop_mps) {
-            mode &= (uint8_t)~MODE_MOVING;
-            c->trip_stops[s]++;
-            if (in_window) c->w_stops[s]++;
-        } else if (!(mode & MODE_MOVING) && v > sc->v_go_mps) {
-            mode |= MODE_MOVING;
-        }
-        c->mode[s] = mode;
-        c->trip_dist[s] += d;
-        if (in_window) c->w_dist[s] += d;
-    }
+    return c->has_vl ? (WfLead){c->st.vl_x, c->st.vl_v, 0.0} : (WfLead){0.0, 0.0, WF_CORRIDOR_FREE_GAP_M};
 }
 
 /* No gap may be negative: a vehicle that would overlap its leader (or pass the virtual leader) is put at gap 0
  * behind it and stopped, front to back so a repaired leader is seen by its follower; each event is counted. A
- * non-finite state is a numerical fault (the run stops). */
-static void phase_overlaps(WfCorridor *c, int in_window)
+ * non-finite state is a numerical fault (the run stops). Checks the `upto` front vehicles (the kernel flags
+ * overlaps and faults behind the front). */
+static void phase_overlaps(WfCorridor *c, int in_window, size_t upto)
 {
     WfCorridorVehicles *vh = &c->veh;
-    for (size_t k = 0; k < vh->n; k++) {
+    for (size_t k = 0; k < vh->n && k < upto; k++) {
         size_t s = wf_corridor_slot(vh, k);
-        if (!isfinite(vh->x_m[s]) || !isfinite(vh->v_mps[s]) || (c->mode[s] & MODE_FAULT)) {
+        if (!isfinite(vh->x_m[s]) || !isfinite(vh->v_mps[s]) || (c->mode[s] & WF_MODE_FAULT)) {
             c->fault_slot = (long)s;
             return;
         }
@@ -777,8 +724,8 @@ static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed,
 static int phase_exits(WfCorridor *c, double t_end, int in_window, const WfCorridorOutput *out, WfError *err)
 {
     WfCorridorVehicles *vh = &c->veh;
-    while (vh->n > 0 && vh->x_m[vh->first] >= c->L) {
-        size_t s = vh->first;
+    while (vh->n > 0 && vh->x_m[wf_corridor_slot(vh, 0)] >= c->L) {
+        size_t s = wf_corridor_slot(vh, 0);
         int rc = finish_vehicle(c, s, t_end, 1, out, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
             size_t seg = c->st.vl_seg;
@@ -786,7 +733,6 @@ static int phase_exits(WfCorridor *c, double t_end, int in_window, const WfCorri
             c->st.vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
             c->st.vl_x = c->st.vl_xref;
         }
-        vh->first = vh->first + 1 == vh->cap ? 0 : vh->first + 1;
         vh->n--;
         c->st.counts.exited++;
         if (in_window) c->st.w_exits++;
@@ -928,62 +874,49 @@ static int checkpoint(WfCorridor *c, const WfCorridorOutput *out, WfError *err)
     return rc ? rc : out->checkpoint(out->ctx, c, err);
 }
 
-int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
-                    volatile sig_atomic_t *stop, WfError *err)
+/* One step: the kernel's pass that computes the step's values (fused with the advance unless a record or a
+ * trajectory must see them first), then the open boundary: the virtual leader, overlap repair, Edie and detectors,
+ * exits. Returns SIM_END after the final instant (recorded without a step), 0 after a step, or an error code. */
+enum { SIM_END = -1 };
+static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, WfError *err)
 {
     const WfScenario *sc = c->sc;
-    int rc = out && out->begin ? out->begin(out->ctx, c, err) : 0;
-    if (rc) return rc;
-    double t0 = wall_now(), last_progress = t0, last_ckpt = t0;
-    const char *reason = NULL;
-    WfCorridorRow row;
-    for (long step = c->st.steps_done; step <= c->n_steps; step++) {
-        double t = (double)step * sc->dt_s;
-        int in_window = step >= c->warm_steps;
-        if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, t, step, err))) break;
-        phase_accel(c, step);
-        phase_energy(c);
-        if (step % c->out_every == 0) {
+    WfCorridorVehicles *vh = &c->veh;
+    double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
+    int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
+    int traj = sc->trajectories && step % c->traj_every == 0, rc;
+    if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, t, step, err))) return rc;
+    WfLead front = front_leader(c);
+    int two_pass = records || traj || last, flags;
+    lane_exports(c, two_pass);
+    if (two_pass) {
+        wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ACCEL | WF_PASS_ENERGY, in_window, NULL);
+        if (records) {
+            WfCorridorRow row;
             record(c, t, &row);
-            if (in_window && c->veh.n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
-            if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) break;
+            if (in_window && vh->n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
+            if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) return rc;
         }
-        if (sc->trajectories && step % c->traj_every == 0 && out && out->trajectory &&
-            (rc = out->trajectory(out->ctx, c, t, err)))
-            break;
-        if (step == c->n_steps) break;
-        double t_next = (double)(step + 1) * sc->dt_s;
-        phase_advance(c, in_window);
-        advance_leader(c, t_next);
-        phase_overlaps(c, in_window);
-        if (c->fault_slot >= 0) {
-            rc = numerical_fault(c, step, err);
-            break;
-        }
-        phase_measure(c, step, in_window);
-        if ((rc = phase_exits(c, t_next, in_window, out, err))) break;
-        c->st.steps_done = step + 1;
-        if (stop && *stop) {
-            reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
-            break;
-        }
-        if (c->checkpoint_every_s > 0 && out && out->checkpoint && wall_now() - last_ckpt >= c->checkpoint_every_s) {
-            if ((rc = checkpoint(c, out, err))) break;
-            last_ckpt = wall_now();
-        }
-        if (progress && (step & 63) == 0) {
-            double now = wall_now();
-            if (now - last_progress >= 0.2) {
-                progress(pctx, t_next, sc->duration_s, step + 1, c->n_steps);
-                last_progress = now;
-            }
-        }
+        if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c, t, err))) return rc;
+        if (last) return SIM_END;
+        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ADVANCE, in_window, NULL);
+    } else {
+        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_FUSED, in_window, NULL);
     }
-    c->wall_s = wall_now() - t0;
+    advance_leader(c, t_next);
+    phase_overlaps(c, in_window, flags ? vh->n : c->has_vl ? 1 : 0);
+    if (c->fault_slot >= 0) return numerical_fault(c, step, err);
+    phase_measure(c, step, in_window);
+    return phase_exits(c, t_next, in_window, out, err);
+}
+
+/* The end of a run: an interrupted run's checkpoint, the vehicles still on the road (their window totals count,
+ * their trips are reported as unfinished), the summary and the writer's end. */
+static int corridor_finish(WfCorridor *c, const WfCorridorOutput *out, int rc, const char *reason, WfError *err)
+{
     /* An interrupted run can always be resumed: its checkpoint is taken before the vehicles still on the road
      * are closed below (which changes the totals and appends unfinished trips that a resumed run drops). */
     if (!rc && reason && out && out->checkpoint) rc = checkpoint(c, out, err);
-    /* Vehicles still on the road: their window totals count, their trips are reported as unfinished. */
     WfError e2 = {0};
     int rc2 = flush_trips(c, out, rc ? &e2 : err);
     for (size_t k = 0; !rc2 && k < c->veh.n; k++)
@@ -999,8 +932,37 @@ int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn pro
     if (out && out->end && (rc = out->end(out->ctx, c, completed, reason ? reason : "", err))) return rc;
     if (!completed)
         return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
-                      (double)c->st.steps_done * sc->dt_s);
+                      (double)c->st.steps_done * c->sc->dt_s);
     return 0;
+}
+
+int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
+                    volatile sig_atomic_t *stop, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    int rc = out && out->begin ? out->begin(out->ctx, c, err) : 0;
+    if (rc) return rc;
+    double t0 = wf_wall_now(), last_progress = t0, last_ckpt = t0;
+    const char *reason = NULL;
+    for (long step = c->st.steps_done; step <= c->n_steps; step++) {
+        if ((rc = corridor_step(c, step, out, err))) break;
+        c->st.steps_done = step + 1;
+        if (stop && *stop) {
+            reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+            break;
+        }
+        if (c->checkpoint_every_s > 0 && out && out->checkpoint && wf_wall_now() - last_ckpt >= c->checkpoint_every_s) {
+            if ((rc = checkpoint(c, out, err))) break;
+            last_ckpt = wf_wall_now();
+        }
+        if (progress && (step & 63) == 0 && wf_wall_now() - last_progress >= 0.2) {
+            progress(pctx, (double)(step + 1) * sc->dt_s, sc->duration_s, step + 1, c->n_steps);
+            last_progress = wf_wall_now();
+        }
+    }
+    if (rc == SIM_END) rc = 0;
+    c->wall_s = wf_wall_now() - t0;
+    return corridor_finish(c, out, rc, reason, err);
 }
 
 const WfScenario *wf_corridor_scenario(const WfCorridor *c) { return c->sc; }

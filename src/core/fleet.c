@@ -19,11 +19,9 @@ void wf_fleet_destroy(WfFleet **pf)
                       f->infeasible_steps, f->mode};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
-        free(f->group_member[g]);
         free(f->group_params[g]);
         free(f->group_state[g]);
     }
-    for (size_t c = 0; c < WF_MAX_CLASSES; c++) free(f->class_member[c]);
     free(f);
     *pf = NULL;
 }
@@ -239,17 +237,13 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
 
     if ((rc = place_all(sc, f, err))) goto fail;
 
-    for (size_t c = 0; c < sc->n_classes; c++) {
-        f->class_length_m[c] = sc->classes[c].length_m;
-        if (f->multipass) ALLOC(f->class_member[c], (size_t)sc->classes[c].count);
-    }
+    for (size_t c = 0; c < sc->n_classes; c++) f->class_length_m[c] = sc->classes[c].length_m;
     for (size_t g = 0; g < sc->n_groups; g++) {
         const WfCfModel *m = sc->groups[g].model;
         int het = 0;
         for (size_t k = 0; k < m->n_spec; k++) het |= sc->groups[g].spread[k] > 0.0;
         /* Without heterogeneity every member has the group's parameters: one copy, stride 0. */
         f->group_param_stride[g] = het ? m->param_size : 0;
-        if (f->multipass) ALLOC(f->group_member[g], (size_t)sc->groups[g].count);
         f->group_params[g] = calloc(het ? (size_t)sc->groups[g].count + 1 : 1, m->param_size);
         f->group_state[g] = m->state_size ? calloc((size_t)sc->groups[g].count + 1, m->state_size) : NULL;
         if (!f->group_params[g] || (m->state_size && !f->group_state[g])) {
@@ -260,10 +254,6 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     }
     for (size_t i = 0; i < n; i++) {
         size_t c = f->class_id[i], g = f->group_id[i];
-        if (f->multipass) {
-            f->class_member[c][f->class_n[c]] = (uint32_t)i;
-            f->group_member[g][f->group_n[g]] = (uint32_t)i;
-        }
         f->class_n[c]++;
         size_t slot = f->group_n[g]++;
         if (f->slot) f->slot[i] = (uint32_t)slot;
