@@ -100,7 +100,7 @@ AI void accel_group(const WfLane *ln, size_t g, size_t lo, const uint32_t *k, si
     post_rule(ln->sc, grp, cnt, v, th, z, cap, cls, a);
 }
 
-void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
+AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
                     double *fr, uint8_t *fl)
 {
     const WfScenario *sc = ln->sc;
@@ -126,6 +126,12 @@ void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, cons
             for (size_t j = 0; j < cnt; j++) fr[idx[j]] = gf[j], fl[idx[j]] = gfl[j];
         }
     }
+}
+
+void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
+                    double *fr, uint8_t *fl)
+{
+    energy_block(ln, lo, n, v, a, th, fr, fl);
 }
 
 /* Accelerations of a block, group by group (gathered when the block mixes groups). */
@@ -168,7 +174,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     double z[B], cap[B];
     if (ln->noisy) ln->ops->noise(ln->ctx, lo, m, step, z);
     for (size_t k = 0; k + 1 < m; k++) {
-        b->gap[k] = x[k + 1] - sc->classes[cid[k + 1]].length_m - x[k];
+        b->gap[k] = x[k + 1] - ln->class_length_m[cid[k + 1]] - x[k];
         b->vl[k] = v[k + 1];
     }
     if (ld->free_gap_m > 0.0) {
@@ -185,7 +191,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     int capped = ln->ops->cap && ln->ops->cap(ln->ctx, m, x, v, cap);
     accel_block(ln, lo, m, x, v, z, capped ? cap : NULL, b);
     if (pass & WF_PASS_ENERGY) {
-        wf_lane_energy(ln, lo, m, v, b->a, b->th, b->fr, b->fl);
+        energy_block(ln, lo, m, v, b->a, b->th, b->fr, b->fl);
         if (rec) wf_stats_block(m, v, b->gap, b->fr, cid, sc->n_classes, sc, rec);
     }
 }
@@ -286,7 +292,7 @@ AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, i
     if (in_window) accum_after(&ln->window, lo, m, x, xo, stop);
     /* integer OR reductions vectorise without reassociating any floating-point sum */
     for (size_t k = 0; k < m; k++) bad |= (x[k] - x[k] != 0.0) | (v[k] - v[k] != 0.0);
-    for (size_t k = 0; k + 1 < m; k++) ll[k] = sc->classes[cid[k + 1]].length_m;
+    for (size_t k = 0; k + 1 < m; k++) ll[k] = ln->class_length_m[cid[k + 1]];
     for (size_t k = 0; k + 1 < m; k++) over |= x[k + 1] - ll[k] - x[k] < 0.0;
     return (over ? WF_STEP_OVERLAP : 0) | (bad ? WF_STEP_FAULT : 0);
 }
@@ -391,14 +397,14 @@ static size_t block_at(const WfLane *ln, size_t first, size_t n, size_t j, size_
 static WfLead front_lead(const WfLane *ln, size_t first, double x0, double v0, const WfLead *front)
 {
     if (!(ln->period_m > 0.0)) return *front;
-    return (WfLead){(x0 + ln->period_m) - ln->sc->classes[ln->class_id[first]].length_m, v0, 0.0};
+    return (WfLead){(x0 + ln->period_m) - ln->class_length_m[ln->class_id[first]], v0, 0.0};
 }
 
 /* Overlap of the vehicle in slot i with the one in slot l (both moved); shift: l's position offset (a period). */
 static int edge_overlap(const WfLane *ln, size_t i, size_t l, double shift)
 {
     double xl = ln->x_m[l] + shift;
-    return xl - ln->sc->classes[ln->class_id[l]].length_m - ln->x_m[i] < 0.0 ? WF_STEP_OVERLAP : 0;
+    return xl - ln->class_length_m[ln->class_id[l]] - ln->x_m[i] < 0.0 ? WF_STEP_OVERLAP : 0;
 }
 
 /* Blocks [b0, b1) of one chunk, in order; (xs, vs): the chunk's last leader, saved before any update. */
@@ -413,9 +419,9 @@ static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, s
         if (b + 1 == nb)
             ld = front_lead(ln, first, xs, vs, front);
         else if (b + 1 == b1)
-            ld = (WfLead){xs - ln->sc->classes[ln->class_id[nx]].length_m, vs, 0.0};
+            ld = (WfLead){xs - ln->class_length_m[ln->class_id[nx]], vs, 0.0};
         else
-            ld = (WfLead){ln->x_m[nx] - ln->sc->classes[ln->class_id[nx]].length_m, ln->v_mps[nx], 0.0};
+            ld = (WfLead){ln->x_m[nx] - ln->class_length_m[ln->class_id[nx]], ln->v_mps[nx], 0.0};
         fl |= run_block(ln, lo, m, &ld, step, pass, in_window, rec ? rec + b : NULL);
         /* The previous block's edge, while both blocks are in cache. */
         if ((pass & WF_PASS_ADVANCE) && b > b0) fl |= edge_overlap(ln, prev_last, lo, 0.0);

@@ -62,6 +62,7 @@ typedef struct WfLane {
     double    period_m;             /* > 0: periodic, the front's leader is the back vehicle one period ahead */
     double   *x_m, *v_mps;
     const uint16_t *class_id, *group_id;
+    double    class_length_m[WF_MAX_CLASSES];
     /* each group's parameters and controller memory: vehicle in slot i at base + idx * stride with idx = slot[i]
      * (slot NULL: idx = i); stride 0: one shared block */
     const uint32_t *slot;

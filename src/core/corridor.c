@@ -549,6 +549,7 @@ static int lane_init(WfCorridor *c, WfError *err)
                    .class_id = vh->class_id, .group_id = vh->group_id, .grade_seg = c->grade_seg, .mode = c->mode,
                    .x_old_m = c->xold, .nthreads = c->nthreads, .bound_x = c->bound_x, .bound_v = c->bound_v,
                    .chunk_flags = c->chunk_flags};
+    for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
     for (size_t g = 0; g < sc->n_groups; g++) {
         const WfDriverGroup *grp = &sc->groups[g];
         int het = 0;

@@ -103,6 +103,7 @@ static void lane_init(WfSim *s)
                    .slot = f->slot, .grade_seg = f->grade_seg, .mode = f->mode, .x_old_m = s->xold,
                    .noisy = s->noisy, .stateful = s->stateful, .nthreads = s->nthreads, .bound_x = s->bound_x,
                    .bound_v = s->bound_v, .chunk_flags = s->chunk_flags};
+    for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
     for (size_t g = 0; g < f->n_groups; g++) {
         ln->params[g] = f->group_params[g];
         ln->pstride[g] = f->group_param_stride[g];
