@@ -194,6 +194,9 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
     c->cs = cs;
     c->L = sc->road.length_m;
     c->fault_slot = -1;
+    /* The back of an empty road is slot 64 (any slot would do): entries then reach the buffer's end after 65
+     * vehicles, so every run longer than that steps a range wrapping around it, as long runs do. */
+    c->veh.first = 64;
     int rc = wf_integrator_find(sc->integrator, &c->ig, err);
     if (rc) {
         free(c);
@@ -513,15 +516,12 @@ static int corridor_cap(const void *ctx, size_t m, const double *x, const double
     return 1;
 }
 
-/* Each vehicle's draw keyed by its serial number and the step. */
+/* The ring's vectorised draws, keyed by slot block and step: a vehicle keeps its slot, so its draws depend only on
+ * the state, never on the thread count. */
 static void corridor_noise(const void *ctx, size_t lo, size_t m, long step, double *z)
 {
     const WfCorridor *c = ctx;
-    for (size_t k = 0; k < m; k++) {
-        double r[2];
-        wf_rng_normal2(c->sc->seed, WF_RNG_NOISE, c->veh.serial[lo + k], (uint64_t)step, r);
-        z[k] = r[0];
-    }
+    wf_lane_noise(c->sc->seed, lo, m, step, z);
 }
 
 static const double *corridor_params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
