@@ -29,6 +29,46 @@ double wf_wall_now(void)
 #endif
 }
 
+int wf_loop_run(const WfLoop *lp, WfError *err)
+{
+    double t0 = wf_wall_now(), last_progress = t0, last_ckpt = t0;
+    const char *reason = NULL;
+    int rc = 0;
+    for (long step = *lp->steps_done; step <= lp->n_steps; step++) {
+        if ((rc = lp->step(lp->ctx, step, err))) break;
+        *lp->steps_done = step + 1;
+        if (lp->stop && *lp->stop) {
+            reason = *lp->stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+            break;
+        }
+        if (lp->checkpoint_every_s > 0 && lp->checkpoint && wf_wall_now() - last_ckpt >= lp->checkpoint_every_s) {
+            if ((rc = lp->checkpoint(lp->ctx, err))) break;
+            last_ckpt = wf_wall_now();
+        }
+        if (lp->progress && (step & 63) == 0 && wf_wall_now() - last_progress >= 0.2) {
+            lp->progress(lp->pctx, (double)(step + 1) * lp->dt_s, lp->duration_s, step + 1, lp->n_steps);
+            last_progress = wf_wall_now();
+        }
+    }
+    *lp->wall_s = wf_wall_now() - t0;
+    if (rc == WF_LOOP_END) rc = 0;
+    /* The checkpoint comes before the close, which may change the totals (a corridor closes the trips of the
+     * vehicles still on the road, which a resumed run drops). */
+    if (!rc && reason && lp->checkpoint) rc = lp->checkpoint(lp->ctx, err);
+    WfError e2 = {0};
+    int rc2 = lp->close(lp->ctx, rc ? &e2 : err);
+    if (!rc && rc2) rc = rc2;
+    if (rc) {
+        if (lp->end) lp->end(lp->ctx, 0, err->msg, &e2);
+        return rc;
+    }
+    if (lp->end && (rc = lp->end(lp->ctx, reason == NULL, reason ? reason : "", err))) return rc;
+    if (reason)
+        return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
+                      (double)*lp->steps_done * lp->dt_s);
+    return 0;
+}
+
 static inline size_t idx_of(const WfLane *ln, size_t i) { return ln->slot ? ln->slot[i] : i; }
 
 /* A block's values of the step, kept locally by the fused step. */

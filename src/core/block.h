@@ -8,8 +8,11 @@
 #ifndef WAVEFUEL_CORE_BLOCK_H
 #define WAVEFUEL_CORE_BLOCK_H
 
+#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
+
+#include "wavefuel/engine.h"
 
 #include "wavefuel/integrator.h"
 #include "wavefuel/scenario.h"
@@ -103,5 +106,26 @@ void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window);
 void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v);
 /* Wall-clock seconds (for phase timers and progress). */
 double wf_wall_now(void);
+
+/* A run, shared by the boundaries: steps from *steps_done to n_steps; after each step, the stop flag, the checkpoint
+ * every checkpoint_every_s of wall time and the progress (about 5 times a second); then, when a signal stopped the
+ * run, a checkpoint (an interrupted run can always be resumed), the boundary's close and the output's end. */
+enum { WF_LOOP_END = -1 };
+typedef struct WfLoop {
+    void  *ctx;
+    int  (*step)(void *ctx, long step, WfError *err); /* 0, WF_LOOP_END after the final instant, or an error */
+    int  (*checkpoint)(void *ctx, WfError *err);       /* NULL: none */
+    int  (*close)(void *ctx, WfError *err);            /* summaries of the run (also after an error) */
+    int  (*end)(void *ctx, int completed, const char *reason, WfError *err); /* NULL: none */
+    long  *steps_done;
+    double *wall_s;                                    /* wall time of the step loop */
+    long   n_steps;
+    double dt_s, duration_s, checkpoint_every_s;
+    WfProgressFn progress;                             /* may be NULL */
+    void  *pctx;
+    volatile sig_atomic_t *stop;                       /* may be NULL */
+} WfLoop;
+/* 0 when the run reached its end; WF_EINTR when a signal stopped it; else the first error. */
+int wf_loop_run(const WfLoop *lp, WfError *err);
 
 #endif

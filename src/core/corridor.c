@@ -81,6 +81,7 @@ struct WfCorridor {
     const WfScenario     *sc; /* borrowed */
     const WfCorridorSpec *cs; /* borrowed: sc->corridor */
     const WfIntegrator   *ig;
+    const WfCorridorOutput *out; /* borrowed, during wf_corridor_run */
     WfCorridorVehicles    veh;
     size_t   pstride, sstride; /* doubles of parameters, bytes of controller state, per slot */
     double   L;
@@ -88,10 +89,8 @@ struct WfCorridor {
     double   *xold;
     uint32_t *grade_seg;
     uint8_t  *mode;
-    double   *t_arr, *t_ent, *v_ent, *trip_fuel, *trip_dist, *trip_stopped;
-    uint32_t *trip_stops, *trip_hard, *trip_infeas;
-    double   *w_fuel, *w_dist, *w_stopped;
-    uint32_t *w_steps, *w_stops, *w_hard, *w_infeas;
+    double   *t_arr, *t_ent, *v_ent;
+    WfAccum   trip, win;    /* accumulators over the trip and over the statistics window */
     CorridorRunState st;
     /* trips not yet handed to the output (none at a checkpoint) */
     WfTrip   trips[TRIP_BUF];
@@ -121,19 +120,30 @@ struct WfCorridor {
     WfCorridorSummary summary;
 };
 
+/* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names; the others
+ * (acceleration, gap, leader speed, grade, fuel rate, flag, xold) every step recomputes before reading them. */
+#define SAVED_SLOT_ARRAYS(X)                                                                                       \
+    X("x", veh.x_m) X("v", veh.v_mps) X("length", veh.length_m) X("serial", veh.serial) X("class_id", veh.class_id) \
+    X("group_id", veh.group_id) X("grade_seg", grade_seg) X("mode", mode) X("t_arrival", t_arr)                    \
+    X("t_entry", t_ent) X("v_entry", v_ent) X("trip_fuel", trip.fuel_g) X("trip_dist", trip.dist_m)                \
+    X("trip_stopped", trip.stopped_s) X("trip_stops", trip.stops) X("trip_hard", trip.hard_brakes)                 \
+    X("trip_infeasible", trip.infeasible) X("w_fuel", win.fuel_g) X("w_dist", win.dist_m)                          \
+    X("w_stopped", win.stopped_s) X("w_steps", win.steps) X("w_stops", win.stops) X("w_hard", win.hard_brakes)     \
+    X("w_infeasible", win.infeasible)
+#define STEP_SLOT_ARRAYS(X)                                                                                          \
+    X("", veh.a_mps2) X("", veh.gap_m) X("", veh.v_lead_mps) X("", veh.theta_rad) X("", veh.fuel_rate_gps)          \
+    X("", veh.flag) X("", xold)
+
 void wf_corridor_destroy(WfCorridor **pc)
 {
     if (!pc || !*pc) return;
     WfCorridor *c = *pc;
-    WfCorridorVehicles *v = &c->veh;
-    void *arrays[] = {v->x_m, v->v_mps, v->a_mps2, v->gap_m, v->v_lead_mps, v->theta_rad, v->fuel_rate_gps, v->flag,
-                      v->length_m, v->serial, v->class_id, v->group_id, v->params, v->state, c->xold, c->grade_seg,
-                      c->mode, c->t_arr, c->t_ent, c->v_ent, c->trip_fuel, c->trip_dist, c->trip_stopped,
-                      c->trip_stops, c->trip_hard, c->trip_infeas, c->w_fuel, c->w_dist, c->w_stopped, c->w_steps,
-                      c->w_stops, c->w_hard, c->w_infeas, c->queue_t, c->det.count, c->det.sum_v_mps,
-                      c->det.sum_inv_v_spm, c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g,
-                      c->edie.grade_mean_rad, c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x,
-                      c->bound_v, c->chunk_flags};
+#define FREE(nm, field) free(c->field);
+    SAVED_SLOT_ARRAYS(FREE) STEP_SLOT_ARRAYS(FREE)
+#undef FREE
+    void *arrays[] = {c->veh.params, c->veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
+                      c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g, c->edie.grade_mean_rad,
+                      c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunk_flags};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     free(c);
     *pc = NULL;
@@ -172,90 +182,63 @@ static const double *params_at(const WfCorridor *c, size_t group, const double *
 
 /* ------------------------------------------------------------------------------------------ setup */
 
-#define ALLOC(ptr, count)                                                        \
-    do {                                                                         \
-        (ptr) = calloc((size_t)(count) + 1, sizeof *(ptr)); /* +1: never a 0-byte request */ \
-        if (!(ptr)) {                                                            \
-            wf_corridor_destroy(&c);                                             \
-            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", cap); \
-        }                                                                        \
+#define ALLOC(ptr, count)                                                                            \
+    do {                                                                                             \
+        /* +1: never a 0-byte request */                                                             \
+        if (!((ptr) = calloc((size_t)(count) + 1, sizeof *(ptr))))                                   \
+            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", c->veh.cap); \
     } while (0)
 
-static int lane_init(WfCorridor *c, WfError *err);
-
-int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
+/* The vehicle buffer. Capacity: fronts on the road lie in [0, L) and bodies do not overlap, so consecutive fronts
+ * are at least the shortest length apart: n <= floor(L / shortest) + 1; one more slot keeps a margin, and the
+ * capacity is a multiple of the kernel's block, so that no block wraps around the buffer's end. */
+static int alloc_vehicles(WfCorridor *c, WfError *err)
 {
-    *out = NULL;
-    if (!sc->corridor) return wf_err(err, WF_EINPUT, "%s: not a corridor scenario (road.type: corridor)", sc->path);
-    const WfCorridorSpec *cs = sc->corridor;
-    WfCorridor *c = calloc(1, sizeof *c);
-    if (!c) return wf_err(err, WF_ESYS, "out of memory");
-    c->sc = sc;
-    c->cs = cs;
-    c->L = sc->road.length_m;
-    c->fault_slot = -1;
-    /* The back of an empty road is slot 64 (any slot would do): entries then reach the buffer's end after 65
-     * vehicles, so every run longer than that steps a range wrapping around it, as long runs do. */
-    c->veh.first = 64;
-    int rc = wf_integrator_find(sc->integrator, &c->ig, err);
-    if (rc) {
-        free(c);
-        return rc;
-    }
-    /* Capacity: fronts on the road lie in [0, L) and bodies do not overlap, so consecutive fronts are at least
-     * the shortest length apart: n <= floor(L / shortest) + 1. One more slot keeps a margin. */
+    const WfScenario *sc = c->sc;
     double len_min = INFINITY;
     for (size_t k = 0; k < sc->n_classes; k++) len_min = fmin(len_min, sc->classes[k].length_m);
     double capd = floor(c->L / len_min) + 2.0;
-    if (capd > 1e8) {
-        free(c);
+    if (capd > 1e8)
         return wf_err(err, WF_EINPUT, "%s: road.length_m %.6g m holds up to %.3g vehicles: too many", sc->path,
                       sc->road.length_m, capd);
-    }
-    /* A multiple of the kernel's block, so that no block wraps around the buffer's end. */
-    size_t cap = ((size_t)capd + WF_BLOCK - 1) / WF_BLOCK * WF_BLOCK;
-    size_t ssz = 0;
+    size_t cap = ((size_t)capd + WF_BLOCK - 1) / WF_BLOCK * WF_BLOCK, ssz = 0;
     for (size_t g = 0; g < sc->n_groups; g++)
         if (sc->groups[g].model->state_size > ssz) ssz = sc->groups[g].model->state_size;
     c->pstride = WF_MAX_MODEL_PARAMS;
     c->sstride = (ssz + 15) / 16 * 16;
     WfCorridorVehicles *v = &c->veh;
     v->cap = cap;
-    ALLOC(v->x_m, cap); ALLOC(v->v_mps, cap); ALLOC(v->a_mps2, cap); ALLOC(v->gap_m, cap); ALLOC(v->v_lead_mps, cap);
-    ALLOC(v->theta_rad, cap); ALLOC(v->fuel_rate_gps, cap); ALLOC(v->flag, cap); ALLOC(v->length_m, cap);
-    ALLOC(v->serial, cap); ALLOC(v->class_id, cap); ALLOC(v->group_id, cap); ALLOC(v->params, cap * c->pstride);
+#define ALLOC_SLOTS(nm, field) ALLOC(c->field, cap);
+    SAVED_SLOT_ARRAYS(ALLOC_SLOTS) STEP_SLOT_ARRAYS(ALLOC_SLOTS)
+#undef ALLOC_SLOTS
+    ALLOC(v->params, cap * c->pstride);
     ALLOC(v->state, cap * (c->sstride ? c->sstride : 1));
-    ALLOC(c->xold, cap); ALLOC(c->grade_seg, cap); ALLOC(c->mode, cap); ALLOC(c->t_arr, cap); ALLOC(c->t_ent, cap);
-    ALLOC(c->v_ent, cap); ALLOC(c->trip_fuel, cap); ALLOC(c->trip_dist, cap); ALLOC(c->trip_stopped, cap);
-    ALLOC(c->trip_stops, cap); ALLOC(c->trip_hard, cap); ALLOC(c->trip_infeas, cap); ALLOC(c->w_fuel, cap);
-    ALLOC(c->w_dist, cap); ALLOC(c->w_stopped, cap); ALLOC(c->w_steps, cap); ALLOC(c->w_stops, cap);
-    ALLOC(c->w_hard, cap); ALLOC(c->w_infeas, cap);
+    return 0;
+}
 
-    c->n_steps = wf_scenario_n_steps(sc);
-    c->out_every = wf_scenario_output_every(sc);
-    c->traj_every = wf_scenario_trajectory_every(sc);
-    c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
-#ifdef _OPENMP
-    c->nthreads = omp_get_max_threads();
-#else
-    c->nthreads = 1;
-#endif
-
-    /* Entrance queue: it never holds more vehicles than arrive in the whole run. Deterministic arrivals: the
-     * cumulative demand, plus one; Poisson: its mean plus 12 standard deviations (the chance of more is below
-     * 1e-30; should it happen the run stops with an error rather than overwrite the queue). */
+/* Entrance queue: it never holds more vehicles than arrive in the whole run. Deterministic arrivals: the
+ * cumulative demand, plus one; Poisson: its mean plus 12 standard deviations (the chance of more is below 1e-30;
+ * should it happen the run stops with an error rather than overwrite the queue). */
+static int alloc_entrance(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    const WfCorridorSpec *cs = c->cs;
     size_t seg = 0;
     double lam = wf_profile_integral(&cs->inflow_vph, sc->duration_s, &seg) / 3600.0;
     double qcap = cs->arrivals == WF_ARRIVALS_POISSON ? lam + 12.0 * sqrt(lam) + 32.0 : floor(lam) + 2.0;
     if (cs->max_arrivals >= 0 && (double)cs->max_arrivals + 1.0 < qcap) qcap = (double)cs->max_arrivals + 1.0;
-    if (qcap > 2e8) {
-        wf_corridor_destroy(&c);
+    if (qcap > 2e8)
         return wf_err(err, WF_EINPUT, "%s: corridor.inflow brings %.3g vehicles over the run: too many", sc->path, lam);
-    }
     c->q_cap = (size_t)qcap;
     ALLOC(c->queue_t, c->q_cap);
+    return 0;
+}
 
-    /* Detectors and Edie grid. Time cells are whole steps; the last cell in x (and in t) may be shorter. */
+/* Detectors and Edie grid. Time cells are whole steps; the last cell in x (and in t) may be shorter. */
+static int alloc_measure(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    const WfCorridorSpec *cs = c->cs;
     c->det.n_det = cs->n_det;
     c->det.x_m = cs->det_x_m;
     c->det.interval_s = cs->det_interval_s;
@@ -278,17 +261,23 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         double a = (double)i * e->dx_m, b = i + 1 == e->nx ? c->L : (double)(i + 1) * e->dx_m;
         e->grade_mean_rad[i] = wf_corridor_grade_mean(cs, a, b);
     }
+    return 0;
+}
 
-    /* Headway zones: where each group's model keeps the zone's key. */
+/* Headway zones (where each group's model keeps the zone's key), the class shares of vehicles whose group fixes no
+ * class (so that the overall mix is the classes' fractions), the first arrival (deterministic at cumulative demand
+ * 1, Poisson after an exponential draw) and the virtual leader. */
+static void init_boundary(WfCorridor *c)
+{
+    const WfScenario *sc = c->sc;
+    const WfCorridorSpec *cs = c->cs;
     for (size_t g = 0; g < sc->n_groups; g++)
         for (size_t z = 0; z < cs->n_zones; z++) {
-            const WfParamSpec *sp = cs->zones[z].type == WF_ZONE_HEADWAY
-                                        ? wf_param_find(sc->groups[g].model->spec, sc->groups[g].model->n_spec,
-                                                        cs->zones[z].key)
-                                        : NULL;
+            const WfCfModel *m = sc->groups[g].model;
+            const WfParamSpec *sp =
+                cs->zones[z].type == WF_ZONE_HEADWAY ? wf_param_find(m->spec, m->n_spec, cs->zones[z].key) : NULL;
             c->hw_off[g][z] = sp ? (int)(sp->offset / sizeof(double)) : -1;
         }
-    /* Class shares of the vehicles whose group fixes no class, so that the overall mix is the classes' fractions. */
     double tot = 0.0;
     for (size_t k = 0; k < sc->n_classes; k++) {
         double r = sc->classes[k].fraction;
@@ -297,14 +286,11 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         tot += c->free_share[k];
     }
     for (size_t k = 0; k < sc->n_classes; k++) c->free_share[k] = tot > 0.0 ? c->free_share[k] / tot : 0.0;
-
-    /* The first arrival: deterministic at cumulative demand 1, Poisson after an exponential draw. */
+    c->st.next_target = 1.0;
     if (cs->arrivals == WF_ARRIVALS_POISSON) {
         double u[2];
         wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ARRIVAL, 0, 0, u);
         c->st.next_target = -log(u[0]);
-    } else {
-        c->st.next_target = 1.0;
     }
     c->has_vl = cs->outflow != WF_OUTFLOW_FREE;
     if (c->has_vl) {
@@ -313,7 +299,39 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         c->st.vl_x = c->st.vl_xref;
         c->st.vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &c->st.vl_seg);
     }
-    if ((rc = lane_init(c, err))) {
+}
+
+static int lane_init(WfCorridor *c, WfError *err);
+
+int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
+{
+    *out = NULL;
+    if (!sc->corridor) return wf_err(err, WF_EINPUT, "%s: not a corridor scenario (road.type: corridor)", sc->path);
+    WfCorridor *c = calloc(1, sizeof *c);
+    if (!c) return wf_err(err, WF_ESYS, "out of memory");
+    c->sc = sc;
+    c->cs = sc->corridor;
+    c->L = sc->road.length_m;
+    c->fault_slot = -1;
+    /* The back of an empty road is slot 64 (any slot would do): entries then reach the buffer's end after 65
+     * vehicles, so every run longer than that steps a range wrapping around it, as long runs do. */
+    c->veh.first = 64;
+    c->n_steps = wf_scenario_n_steps(sc);
+    c->out_every = wf_scenario_output_every(sc);
+    c->traj_every = wf_scenario_trajectory_every(sc);
+    c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
+#ifdef _OPENMP
+    c->nthreads = omp_get_max_threads();
+#else
+    c->nthreads = 1;
+#endif
+    int rc = wf_integrator_find(sc->integrator, &c->ig, err);
+    if (!rc) rc = alloc_vehicles(c, err);
+    if (!rc) rc = alloc_entrance(c, err);
+    if (!rc) rc = alloc_measure(c, err);
+    if (!rc) init_boundary(c);
+    if (!rc) rc = lane_init(c, err);
+    if (rc) {
         wf_corridor_destroy(&c);
         return rc;
     }
@@ -476,10 +494,10 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     c->st.cls_entered[c->st.cand_class]++;
     if (step >= c->warm_steps) c->st.w_entries++;
     c->t_arr[s] = ta, c->t_ent[s] = t, c->v_ent[s] = vin;
-    c->trip_fuel[s] = c->trip_dist[s] = c->trip_stopped[s] = 0.0;
-    c->trip_stops[s] = c->trip_hard[s] = c->trip_infeas[s] = 0;
-    c->w_fuel[s] = c->w_dist[s] = c->w_stopped[s] = 0.0;
-    c->w_steps[s] = c->w_stops[s] = c->w_hard[s] = c->w_infeas[s] = 0;
+    c->trip.fuel_g[s] = c->trip.dist_m[s] = c->trip.stopped_s[s] = 0.0;
+    c->trip.stops[s] = c->trip.hard_brakes[s] = c->trip.infeasible[s] = 0;
+    c->win.fuel_g[s] = c->win.dist_m[s] = c->win.stopped_s[s] = 0.0;
+    c->win.steps[s] = c->win.stops[s] = c->win.hard_brakes[s] = c->win.infeasible[s] = 0;
     if (grp->model->state_size && grp->model->init_state)
         grp->model->init_state(vh->params + s * c->pstride, vh->state + s * c->sstride, gap, vin, vl);
     c->st.have_cand = 0;
@@ -562,10 +580,8 @@ static int lane_init(WfCorridor *c, WfError *err)
         ln->noisy |= grp->noise_mps2 > 0.0;
         ln->stateful |= grp->model->state_size > 0;
     }
-    ln->always = (WfAccum){.fuel_g = c->trip_fuel, .stopped_s = c->trip_stopped, .dist_m = c->trip_dist,
-                           .stops = c->trip_stops, .hard_brakes = c->trip_hard, .infeasible = c->trip_infeas};
-    ln->window = (WfAccum){.fuel_g = c->w_fuel, .stopped_s = c->w_stopped, .dist_m = c->w_dist, .steps = c->w_steps,
-                           .stops = c->w_stops, .hard_brakes = c->w_hard, .infeasible = c->w_infeas};
+    ln->always = c->trip;
+    ln->window = c->win;
     return 0;
 }
 
@@ -613,8 +629,8 @@ static void phase_overlaps(WfCorridor *c, int in_window, size_t upto)
         }
         if (vh->x_m[s] > limit) {
             double d = limit - vh->x_m[s];
-            c->trip_dist[s] += d;
-            if (in_window) c->w_dist[s] += d;
+            c->trip.dist_m[s] += d;
+            if (in_window) c->win.dist_m[s] += d;
             vh->x_m[s] = limit;
             vh->v_mps[s] = 0.0;
             c->st.counts.overlaps++;
@@ -622,63 +638,98 @@ static void phase_overlaps(WfCorridor *c, int in_window, size_t upto)
     }
 }
 
-/* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Within a step
- * the vehicle is taken to move at constant speed, so time and fuel split between cells in proportion to distance.
- * Serial in road order: several vehicles add to one cell, and the sums must not depend on threads. */
-static void phase_measure(WfCorridor *c, long step, int in_window)
+/* A vehicle's step in Edie's cells [i_lo, i_hi) of row j: distance, time and fuel split in proportion to distance
+ * (constant speed within the step). Cells before i_lo are skipped exactly as the full loop would leave them: the
+ * loop reaches cell i > the first only through the left edge i dx. */
+static inline void edie_vehicle(WfCorridor *c, size_t j, size_t cl, double xa, double xb, double fuel, int in_window,
+                                size_t i_lo, size_t i_hi)
 {
-    WfCorridorVehicles *vh = &c->veh;
-    const WfScenario *sc = c->sc;
     WfEdie *e = &c->edie;
-    WfDetectors *dt_ = &c->det;
-    double dt = sc->dt_s, L = c->L;
-    size_t j = (size_t)(step / c->edie_every), nx = e->nx;
+    size_t nx = e->nx;
+    double dt = c->sc->dt_s, L = c->L, *cd = e->class_dist_m + cl * nx, *cf = e->class_fuel_g + cl * nx;
     double *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx, *erow_f = e->fuel_g + j * nx;
-    size_t jd = dt_->n_det ? (size_t)(step / c->det_every) : 0;
+    if (xb > xa) {
+        double span = xb - xa, lo = xa > 0.0 ? xa : 0.0, hi = xb < L ? xb : L;
+        size_t i = (size_t)(lo / e->dx_m);
+        if (i >= nx) i = nx - 1; /* round-off at the far end */
+        if (i < i_lo) {
+            if (!((double)i_lo * e->dx_m < hi)) return;
+            i = i_lo, lo = (double)i_lo * e->dx_m;
+        }
+        for (; i < i_hi && lo < hi; i++) {
+            /* The last cell ends at L (it may be shorter than dx). */
+            double edge = i + 1 == nx ? L : (double)(i + 1) * e->dx_m;
+            double b = edge < hi ? edge : hi, d = b - lo, w = d / span;
+            erow_d[i] += d, erow_t[i] += dt * w, erow_f[i] += fuel * w;
+            if (in_window) cd[i] += d, cf[i] += fuel * w;
+            lo = b;
+        }
+    } else if (xa >= 0.0 && xa < L) {
+        size_t i = (size_t)(xa / e->dx_m);
+        if (i >= nx) i = nx - 1;
+        if (i < i_lo || i >= i_hi) return;
+        erow_t[i] += dt, erow_f[i] += fuel;
+        if (in_window) cf[i] += fuel;
+    }
+}
+
+/* A vehicle's step at detector q: a passage, and the time within the step when the body [x - len, x] covers x_d
+ * (x moving linearly from xa to xb). Pairs that add nothing (+0 to a sum >= +0) are skipped. */
+static inline void detector_vehicle(WfCorridor *c, size_t jd, size_t q, double xa, double xb, double len)
+{
+    WfDetectors *dt_ = &c->det;
+    double dt = c->sc->dt_s, xd = dt_->x_m[q];
+    size_t cell = jd * dt_->n_det + q;
+    if (xa <= xd && xd < xb) {
+        double v = (xb - xa) / dt; /* > 0: xb > xa */
+        dt_->count[cell]++;
+        dt_->sum_v_mps[cell] += v;
+        dt_->sum_inv_v_spm[cell] += 1.0 / v;
+    }
+    if (xb > xa) {
+        if (!(xd + len - xa > 0.0) || xd - xa >= xb - xa) return; /* t1 <= 0 or t0 >= dt: occupancy 0 */
+        double t0 = (xd - xa) / (xb - xa) * dt, t1 = (xd + len - xa) / (xb - xa) * dt;
+        t0 = t0 > 0.0 ? t0 : 0.0;
+        t1 = t1 < dt ? t1 : dt;
+        dt_->occupied_s[cell] += t1 > t0 ? t1 - t0 : 0.0;
+    } else if (xa >= xd && xa - len <= xd) {
+        dt_->occupied_s[cell] += dt;
+    }
+}
+
+/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. */
+static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
+                          size_t q_hi)
+{
+    const WfCorridorVehicles *vh = &c->veh;
+    size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0;
     for (size_t k = 0; k < vh->n; k++) {
         size_t s = wf_corridor_slot(vh, k);
-        double xa = c->xold[s], xb = vh->x_m[s], fuel = vh->fuel_rate_gps[s] * dt, len = vh->length_m[s];
-        size_t cl = vh->class_id[s];
-        double *cd = e->class_dist_m + cl * nx, *cf = e->class_fuel_g + cl * nx;
-        if (xb > xa) {
-            double span = xb - xa, lo = xa > 0.0 ? xa : 0.0, hi = xb < L ? xb : L;
-            size_t i = (size_t)(lo / e->dx_m);
-            if (i >= nx) i = nx - 1; /* round-off at the far end */
-            for (; i < nx && lo < hi; i++) {
-                /* The last cell ends at L (it may be shorter than dx). */
-                double edge = i + 1 == nx ? L : (double)(i + 1) * e->dx_m;
-                double b = edge < hi ? edge : hi, d = b - lo, w = d / span;
-                erow_d[i] += d, erow_t[i] += dt * w, erow_f[i] += fuel * w;
-                if (in_window) cd[i] += d, cf[i] += fuel * w;
-                lo = b;
-            }
-        } else if (xa >= 0.0 && xa < L) {
-            size_t i = (size_t)(xa / e->dx_m);
-            if (i >= nx) i = nx - 1;
-            erow_t[i] += dt, erow_f[i] += fuel;
-            if (in_window) cf[i] += fuel;
-        }
-        for (size_t q = 0; q < dt_->n_det; q++) {
-            double xd = dt_->x_m[q];
-            size_t cell = jd * dt_->n_det + q;
-            if (xa <= xd && xd < xb) {
-                double v = (xb - xa) / dt; /* > 0: xb > xa */
-                dt_->count[cell]++;
-                dt_->sum_v_mps[cell] += v;
-                dt_->sum_inv_v_spm[cell] += 1.0 / v;
-            }
-            /* Time within the step when the body [x - len, x] covers xd, x moving linearly from xa to xb. */
-            double occ;
-            if (xb > xa) {
-                double t0 = (xd - xa) / (xb - xa) * dt, t1 = (xd + len - xa) / (xb - xa) * dt;
-                t0 = t0 > 0.0 ? t0 : 0.0;
-                t1 = t1 < dt ? t1 : dt;
-                occ = t1 > t0 ? t1 - t0 : 0.0;
-            } else {
-                occ = (xa >= xd && xa - len <= xd) ? dt : 0.0;
-            }
-            dt_->occupied_s[cell] += occ;
-        }
+        double xa = c->xold[s], xb = vh->x_m[s];
+        edie_vehicle(c, j, vh->class_id[s], xa, xb, vh->fuel_rate_gps[s] * c->sc->dt_s, in_window, i_lo, i_hi);
+        for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
+    }
+}
+
+/* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
+ * add to one cell, so each cell's sum runs in road order whatever the thread count: on a large road each thread
+ * owns a range of cells and of detectors and visits every vehicle in road order. */
+static void phase_measure(WfCorridor *c, long step, int in_window)
+{
+    size_t nx = c->edie.nx, nd = c->det.n_det;
+    int nth = c->veh.n >= WF_PAR_MIN ? c->nthreads : 1;
+    if (nth <= 1) {
+        measure_range(c, step, in_window, 0, nx, 0, nd);
+        return;
+    }
+#pragma omp parallel num_threads(nth) default(none) shared(c, step, in_window, nx, nd)
+    {
+#ifdef _OPENMP
+        size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads();
+#else
+        size_t t = 0, nt = 1;
+#endif
+        measure_range(c, step, in_window, nx * t / nt, nx * (t + 1) / nt, nd * t / nt, nd * (t + 1) / nt);
     }
 }
 
@@ -696,27 +747,27 @@ static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed,
 {
     const WfCorridorVehicles *vh = &c->veh;
     size_t cl = vh->class_id[s];
-    c->st.cls_fuel[cl] += c->w_fuel[s];
-    c->st.cls_dist[cl] += c->w_dist[s];
-    c->st.cls_stops[cl] += c->w_stops[s];
-    c->st.cls_infeas[cl] += c->w_infeas[s];
-    c->st.cls_steps[cl] += c->w_steps[s];
-    c->st.tot_hard += c->w_hard[s];
-    c->st.tot_stopped_s += c->w_stopped[s];
+    c->st.cls_fuel[cl] += c->win.fuel_g[s];
+    c->st.cls_dist[cl] += c->win.dist_m[s];
+    c->st.cls_stops[cl] += c->win.stops[s];
+    c->st.cls_infeas[cl] += c->win.infeasible[s];
+    c->st.cls_steps[cl] += c->win.steps[s];
+    c->st.tot_hard += c->win.hard_brakes[s];
+    c->st.tot_stopped_s += c->win.stopped_s[s];
     if (completed) {
         c->st.trips_done++;
         c->st.sum_trip_time += t_exit - c->t_ent[s];
-        c->st.sum_trip_fuel += c->trip_fuel[s];
+        c->st.sum_trip_fuel += c->trip.fuel_g[s];
         c->st.cls_trips[cl]++;
         c->st.cls_trip_time[cl] += t_exit - c->t_ent[s];
-        c->st.cls_trip_fuel[cl] += c->trip_fuel[s];
+        c->st.cls_trip_fuel[cl] += c->trip.fuel_g[s];
     }
     WfTrip *tr = &c->trips[c->n_trips++];
     *tr = (WfTrip){.serial = vh->serial[s], .class_id = vh->class_id[s], .group_id = vh->group_id[s],
                    .completed = (uint8_t)completed, .t_arrival_s = c->t_arr[s], .t_entry_s = c->t_ent[s],
-                   .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = c->v_ent[s], .fuel_g = c->trip_fuel[s],
-                   .dist_m = c->trip_dist[s], .time_stopped_s = c->trip_stopped[s], .stops = c->trip_stops[s],
-                   .hard_brakes = c->trip_hard[s], .infeasible_steps = c->trip_infeas[s]};
+                   .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = c->v_ent[s], .fuel_g = c->trip.fuel_g[s],
+                   .dist_m = c->trip.dist_m[s], .time_stopped_s = c->trip.stopped_s[s], .stops = c->trip.stops[s],
+                   .hard_brakes = c->trip.hard_brakes[s], .infeasible_steps = c->trip.infeasible[s]};
     return c->n_trips == TRIP_BUF ? flush_trips(c, out, err) : 0;
 }
 
@@ -877,8 +928,7 @@ static int checkpoint(WfCorridor *c, const WfCorridorOutput *out, WfError *err)
 
 /* One step: the kernel's pass that computes the step's values (fused with the advance unless a record or a
  * trajectory must see them first), then the open boundary: the virtual leader, overlap repair, Edie and detectors,
- * exits. Returns SIM_END after the final instant (recorded without a step), 0 after a step, or an error code. */
-enum { SIM_END = -1 };
+ * exits. Returns WF_LOOP_END after the final instant (recorded without a step), 0 after a step, or an error code. */
 static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, WfError *err)
 {
     const WfScenario *sc = c->sc;
@@ -899,7 +949,7 @@ static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, 
             if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) return rc;
         }
         if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c, t, err))) return rc;
-        if (last) return SIM_END;
+        if (last) return WF_LOOP_END;
         flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ADVANCE, in_window, NULL);
     } else {
         flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_FUSED, in_window, NULL);
@@ -911,30 +961,33 @@ static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, 
     return phase_exits(c, t_next, in_window, out, err);
 }
 
-/* The end of a run: an interrupted run's checkpoint, the vehicles still on the road (their window totals count,
- * their trips are reported as unfinished), the summary and the writer's end. */
-static int corridor_finish(WfCorridor *c, const WfCorridorOutput *out, int rc, const char *reason, WfError *err)
+static int corridor_step_cb(void *ctx, long step, WfError *err)
 {
-    /* An interrupted run can always be resumed: its checkpoint is taken before the vehicles still on the road
-     * are closed below (which changes the totals and appends unfinished trips that a resumed run drops). */
-    if (!rc && reason && out && out->checkpoint) rc = checkpoint(c, out, err);
-    WfError e2 = {0};
-    int rc2 = flush_trips(c, out, rc ? &e2 : err);
-    for (size_t k = 0; !rc2 && k < c->veh.n; k++)
-        rc2 = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, out, rc ? &e2 : err);
-    if (!rc2) rc2 = flush_trips(c, out, rc ? &e2 : err);
+    WfCorridor *c = ctx;
+    return corridor_step(c, step, c->out, err);
+}
+
+static int corridor_checkpoint_cb(void *ctx, WfError *err)
+{
+    WfCorridor *c = ctx;
+    return checkpoint(c, c->out, err);
+}
+
+/* The vehicles still on the road: their window totals count, their trips are reported as unfinished. */
+static int corridor_close_cb(void *ctx, WfError *err)
+{
+    WfCorridor *c = ctx;
+    int rc = flush_trips(c, c->out, err);
+    for (size_t k = 0; !rc && k < c->veh.n; k++) rc = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, c->out, err);
+    if (!rc) rc = flush_trips(c, c->out, err);
     summarize(c);
-    if (!rc && rc2) rc = rc2;
-    if (rc) {
-        if (out && out->end) out->end(out->ctx, c, 0, err->msg, &e2);
-        return rc;
-    }
-    int completed = reason == NULL;
-    if (out && out->end && (rc = out->end(out->ctx, c, completed, reason ? reason : "", err))) return rc;
-    if (!completed)
-        return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
-                      (double)c->st.steps_done * c->sc->dt_s);
-    return 0;
+    return rc;
+}
+
+static int corridor_end_cb(void *ctx, int completed, const char *reason, WfError *err)
+{
+    WfCorridor *c = ctx;
+    return c->out->end(c->out->ctx, c, completed, reason, err);
 }
 
 int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
@@ -943,27 +996,13 @@ int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn pro
     const WfScenario *sc = c->sc;
     int rc = out && out->begin ? out->begin(out->ctx, c, err) : 0;
     if (rc) return rc;
-    double t0 = wf_wall_now(), last_progress = t0, last_ckpt = t0;
-    const char *reason = NULL;
-    for (long step = c->st.steps_done; step <= c->n_steps; step++) {
-        if ((rc = corridor_step(c, step, out, err))) break;
-        c->st.steps_done = step + 1;
-        if (stop && *stop) {
-            reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
-            break;
-        }
-        if (c->checkpoint_every_s > 0 && out && out->checkpoint && wf_wall_now() - last_ckpt >= c->checkpoint_every_s) {
-            if ((rc = checkpoint(c, out, err))) break;
-            last_ckpt = wf_wall_now();
-        }
-        if (progress && (step & 63) == 0 && wf_wall_now() - last_progress >= 0.2) {
-            progress(pctx, (double)(step + 1) * sc->dt_s, sc->duration_s, step + 1, c->n_steps);
-            last_progress = wf_wall_now();
-        }
-    }
-    if (rc == SIM_END) rc = 0;
-    c->wall_s = wf_wall_now() - t0;
-    return corridor_finish(c, out, rc, reason, err);
+    c->out = out;
+    WfLoop lp = {.ctx = c, .step = corridor_step_cb,
+                 .checkpoint = out && out->checkpoint ? corridor_checkpoint_cb : NULL, .close = corridor_close_cb,
+                 .end = out && out->end ? corridor_end_cb : NULL, .steps_done = &c->st.steps_done,
+                 .wall_s = &c->wall_s, .n_steps = c->n_steps, .dt_s = sc->dt_s, .duration_s = sc->duration_s,
+                 .checkpoint_every_s = c->checkpoint_every_s, .progress = progress, .pctx = pctx, .stop = stop};
+    return wf_loop_run(&lp, err);
 }
 
 const WfScenario *wf_corridor_scenario(const WfCorridor *c) { return c->sc; }
@@ -991,34 +1030,11 @@ size_t wf_corridor_state(WfCorridor *c, WfStateVar *vars, size_t max)
     VAR("scalars", &c->st, 1);
     VAR("first", &vh->first, 1);
     VAR("n", &vh->n, 1);
-    /* Per slot, whole buffers (a vehicle keeps its slot). Not saved: gap, leader speed, grade, acceleration, fuel
-     * rate, flag and xold, which every step recomputes from these before reading them. */
-    VAR("x", vh->x_m, cap);
-    VAR("v", vh->v_mps, cap);
-    VAR("length", vh->length_m, cap);
-    VAR("serial", vh->serial, cap);
-    VAR("class_id", vh->class_id, cap);
-    VAR("group_id", vh->group_id, cap);
+#define SAVE_SLOTS(nm, field) VAR(nm, c->field, cap);
+    SAVED_SLOT_ARRAYS(SAVE_SLOTS)
+#undef SAVE_SLOTS
     VAR("params", vh->params, cap * c->pstride);
     if (c->sstride) VAR("controller_state", vh->state, cap * c->sstride);
-    VAR("grade_seg", c->grade_seg, cap);
-    VAR("mode", c->mode, cap);
-    VAR("t_arrival", c->t_arr, cap);
-    VAR("t_entry", c->t_ent, cap);
-    VAR("v_entry", c->v_ent, cap);
-    VAR("trip_fuel", c->trip_fuel, cap);
-    VAR("trip_dist", c->trip_dist, cap);
-    VAR("trip_stopped", c->trip_stopped, cap);
-    VAR("trip_stops", c->trip_stops, cap);
-    VAR("trip_hard", c->trip_hard, cap);
-    VAR("trip_infeasible", c->trip_infeas, cap);
-    VAR("w_fuel", c->w_fuel, cap);
-    VAR("w_dist", c->w_dist, cap);
-    VAR("w_stopped", c->w_stopped, cap);
-    VAR("w_steps", c->w_steps, cap);
-    VAR("w_stops", c->w_stops, cap);
-    VAR("w_hard", c->w_hard, cap);
-    VAR("w_infeasible", c->w_infeas, cap);
     VAR("queue_t", c->queue_t, c->q_cap);
     if (nd) {
         VAR("det_count", c->det.count, nd);

@@ -19,6 +19,7 @@ struct WfSim {
     const WfScenario   *sc; /* borrowed */
     WfFleet            *f;
     const WfIntegrator *ig;
+    const WfOutput     *out;  /* borrowed, during wf_sim_run */
     WfLane   lane;          /* the fleet as the kernel sees it */
     WfRoadOps ops;
     long     n_steps, out_every, traj_every, warm_steps, steps_done, cur_step;
@@ -320,9 +321,8 @@ static void lap(WfSim *s, int phase, double *tp)
 }
 
 /* One step: the pass that computes the step's values (and, fused, advances), the record and the trajectory at the
- * step's start, then the advance when it is a pass of its own, and the overlap repair. Returns SIM_END after the
- * final instant (recorded without a step), 0 after a step, or an error code. */
-enum { SIM_END = -1 };
+ * step's start, then the advance when it is a pass of its own, and the overlap repair. Returns WF_LOOP_END after
+ * the final instant (recorded without a step), 0 after a step, or an error code. */
 static int sim_step(WfSim *s, long step, const WfOutput *out, WfError *err)
 {
     const WfScenario *sc = s->sc;
@@ -347,7 +347,7 @@ static int sim_step(WfSim *s, long step, const WfOutput *out, WfError *err)
     }
     if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, s, t, err))) return rc;
     lap(s, WF_PHASE_OUTPUT, &tp);
-    if (last) return SIM_END;
+    if (last) return WF_LOOP_END;
     if (s->ode) {
         if ((rc = advance_ode(s, step, in_window, err))) return rc;
         flags = WF_STEP_OVERLAP; /* the solver's state is checked in full */
@@ -360,22 +360,31 @@ static int sim_step(WfSim *s, long step, const WfOutput *out, WfError *err)
     return 0;
 }
 
-/* The end of a run: the writer's end (after a checkpoint when interrupted, so it can be resumed). */
-static int sim_finish(WfSim *s, const WfOutput *out, int rc, const char *reason, WfError *err)
+static int sim_step_cb(void *ctx, long step, WfError *err)
 {
-    if (!rc && reason && out && out->checkpoint) rc = out->checkpoint(out->ctx, s, err);
-    if (rc) {
-        if (out && out->end) {
-            WfError e2 = {0};
-            out->end(out->ctx, s, 0, err->msg, &e2);
-        }
-        return rc;
-    }
-    int completed = reason == NULL;
-    if (out && out->end && (rc = out->end(out->ctx, s, completed, reason ? reason : "", err))) return rc;
-    if (!completed) return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
-                                  (double)s->steps_done * s->sc->dt_s);
+    WfSim *s = ctx;
+    return sim_step(s, step, s->out, err);
+}
+
+static int sim_checkpoint_cb(void *ctx, WfError *err)
+{
+    WfSim *s = ctx;
+    return s->out->checkpoint(s->out->ctx, s, err);
+}
+
+static int sim_close_cb(void *ctx, WfError *err)
+{
+    (void)err;
+    WfSim *s = ctx;
+    long window = s->steps_done - s->warm_steps;
+    wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->summary);
     return 0;
+}
+
+static int sim_end_cb(void *ctx, int completed, const char *reason, WfError *err)
+{
+    WfSim *s = ctx;
+    return s->out->end(s->out->ctx, s, completed, reason, err);
 }
 
 int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
@@ -384,29 +393,12 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
     const WfScenario *sc = s->sc;
     int rc = out && out->begin ? out->begin(out->ctx, s, err) : 0;
     if (rc) return rc;
-    double t0 = wf_wall_now(), last_progress = t0, last_ckpt = t0;
-    const char *reason = NULL;
-    for (long step = s->steps_done; step <= s->n_steps; step++) {
-        if ((rc = sim_step(s, step, out, err))) break;
-        s->steps_done = step + 1;
-        if (stop && *stop) {
-            reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
-            break;
-        }
-        if (s->checkpoint_every_s > 0 && out && out->checkpoint && wf_wall_now() - last_ckpt >= s->checkpoint_every_s) {
-            if ((rc = out->checkpoint(out->ctx, s, err))) break;
-            last_ckpt = wf_wall_now();
-        }
-        if (progress && (step & 63) == 0 && wf_wall_now() - last_progress >= 0.2) {
-            progress(pctx, (double)(step + 1) * sc->dt_s, sc->duration_s, step + 1, s->n_steps);
-            last_progress = wf_wall_now();
-        }
-    }
-    if (rc == SIM_END) rc = 0;
-    s->wall_s = wf_wall_now() - t0;
-    long window = s->steps_done - s->warm_steps;
-    wf_stats_summary(s->f, sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->summary);
-    return sim_finish(s, out, rc, reason, err);
+    s->out = out;
+    WfLoop lp = {.ctx = s, .step = sim_step_cb, .checkpoint = out && out->checkpoint ? sim_checkpoint_cb : NULL,
+                 .close = sim_close_cb, .end = out && out->end ? sim_end_cb : NULL, .steps_done = &s->steps_done,
+                 .wall_s = &s->wall_s, .n_steps = s->n_steps, .dt_s = sc->dt_s, .duration_s = sc->duration_s,
+                 .checkpoint_every_s = s->checkpoint_every_s, .progress = progress, .pctx = pctx, .stop = stop};
+    return wf_loop_run(&lp, err);
 }
 
 const WfScenario *wf_sim_scenario(const WfSim *s) { return s->sc; }
