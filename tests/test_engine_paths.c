@@ -1,8 +1,10 @@
 /* The engine's execution paths give the same bits: the fused one-pass step and the multi-pass step, on 1 and 2
  * threads, final state and every time-series record, with noise, heterogeneous drivers (per-vehicle parameters)
  * beside homogeneous ones (one shared parameter set, IDM's block kernel), three classes, a controller with memory
- * (PI with saturation) and a graded ring. Any difference in arithmetic or ordering between
- * the paths, or a race in the in-place update of the fused step, shows up as a bit difference. */
+ * (PI with saturation) and a graded ring; and a corridor of more than 4096 vehicles (the kernel's parallel path on
+ * the open boundary, a slot range wrapping around the buffer's end, zones) on 1 and 2 threads. Any difference in
+ * arithmetic or ordering between the paths, or a race in the in-place update of the fused step, shows up as a bit
+ * difference. */
 #include <math.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -12,6 +14,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "wavefuel/corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/scenario.h"
 #include "wf_test.h"
@@ -173,9 +176,122 @@ static void test_paths_equal_with_overlaps(void)
     CHECK(edge_overlaps > 10, "only %.0f overlap events at block edges", edge_overlaps);
 }
 
+/* ------------------------------------------------------------------------------------------ corridor */
+
+static const char *corridor_yaml =
+    "seed: 3\n"
+    "road:\n  type: corridor\n  length_m: 90000\n  speed_limit_mps: 32\n"
+    "  zones:\n    - {type: headway, from_m: 80000, to_m: 85000, factor: 1.3}\n"
+    "    - {type: speed_limit, from_m: 86000, to_m: 88000, speed_limit_mps: 25}\n"
+    "time: {duration_s: 3000, dt_s: 0.25, output_interval_s: 5.0, warmup_s: 100}\n"
+    "fleet:\n  placement: random\n"
+    "  classes:\n    - {class: midsize_sedan, fraction: 0.8, length_m: 3}\n"
+    "    - {class: class8_tractor, fraction: 0.2, length_m: 3}\n"
+    "  drivers:\n"
+    "    - {model: idm, fraction: 0.6, noise_mps2: 0.05, feasible_accel: clip,\n"
+    "       params: {v0_mps: 30, T_s: 0.3, s0_m: 1.0}, heterogeneity: {spread: {T_s: 0.1, v0_mps: 0.05}}}\n"
+    "    - {model: idm, fraction: 0.35, params: {v0_mps: 30, T_s: 0.3, s0_m: 1.0}}\n"
+    "    - {model: pi_saturation, fraction: 0.05}\n"
+    "corridor:\n  inflow: {flow_vph: 20000, arrivals: deterministic}\n"
+    "  edie: {dx_m: 500, dt_s: 60}\n  detectors: {x_m: [5000, 82000], interval_s: 60}\n";
+
+typedef struct COut {
+    WfCorridorRow rows[640]; /* 601 records */
+    size_t n_rows;
+    WfTrip *trips;
+    size_t n_trips;
+    unsigned char *state; /* the state blocks a checkpoint saves, at the end, concatenated */
+    size_t state_size;
+    double max_on_road;
+} COut;
+
+static int c_row(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
+{
+    (void)c, (void)err;
+    COut *o = ctx;
+    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) o->rows[o->n_rows++] = *row;
+    if (row->v[WF_CTS_VEHICLES] > o->max_on_road) o->max_on_road = row->v[WF_CTS_VEHICLES];
+    return 0;
+}
+
+/* Trips copied field by field (the struct's padding is not part of the result). */
+static int c_trips(void *ctx, const WfCorridor *c, const WfTrip *t, size_t n, WfError *err)
+{
+    (void)c;
+    COut *o = ctx;
+    WfTrip *p = realloc(o->trips, (o->n_trips + n) * sizeof *p);
+    if (!p) return wf_err(err, WF_ESYS, "test: out of memory");
+    o->trips = p;
+    for (size_t k = 0; k < n; k++) {
+        WfTrip *d = &o->trips[o->n_trips++];
+        memset(d, 0, sizeof *d);
+        *d = (WfTrip){t[k].serial, t[k].class_id, t[k].group_id, t[k].completed, t[k].t_arrival_s, t[k].t_entry_s,
+                      t[k].t_exit_s, t[k].v_entry_mps, t[k].fuel_g, t[k].dist_m, t[k].time_stopped_s, t[k].stops,
+                      t[k].hard_brakes, t[k].infeasible_steps};
+    }
+    return 0;
+}
+
+static int run_corridor(const char *path, int threads, COut *o)
+{
+    WfError err = {0};
+    WfScenario *sc = NULL;
+    WfCorridor *c = NULL;
+#ifdef _OPENMP
+    omp_set_num_threads(threads);
+#else
+    (void)threads;
+#endif
+    int rc = wf_scenario_load(path, NULL, 0, &sc, &err);
+    if (!rc) rc = wf_corridor_create(sc, &c, &err);
+    WfCorridorOutput out = {.record = c_row, .trips = c_trips, .ctx = o};
+    if (!rc) rc = wf_corridor_run(c, &out, NULL, NULL, NULL, &err);
+    if (rc) printf("  %s\n", err.msg);
+    if (!rc) {
+        WfStateVar vars[WF_MAX_STATE_VARS];
+        size_t nv = wf_corridor_state(c, vars, WF_MAX_STATE_VARS);
+        for (size_t k = 0; k < nv; k++) o->state_size += vars[k].size;
+        o->state = malloc(o->state_size);
+        for (size_t k = 0, off = 0; o->state && k < nv; k++) {
+            memcpy(o->state + off, vars[k].data, vars[k].size);
+            off += vars[k].size;
+        }
+    }
+    wf_corridor_destroy(&c);
+    wf_scenario_destroy(&sc);
+    return rc;
+}
+
+static void test_corridor_threads(void)
+{
+    char dir[] = "/tmp/wf_test_paths.XXXXXX", path[128];
+    if (!mkdtemp(dir)) return;
+    snprintf(path, sizeof path, "%s/c.yaml", dir);
+    FILE *f = fopen(path, "w");
+    fputs(corridor_yaml, f);
+    fclose(f);
+    static COut a, b;
+    CHECK(run_corridor(path, 1, &a) == 0 && run_corridor(path, 2, &b) == 0, "corridor runs failed");
+    printf("  corridor: up to %.0f vehicles on the road, %zu trips, %zu records\n", a.max_on_road, a.n_trips,
+           a.n_rows);
+    CHECK(a.max_on_road > 4096, "at most %.0f vehicles: the kernel's parallel path is not exercised", a.max_on_road);
+    CHECK(a.n_rows == 601 && b.n_rows == a.n_rows, "records: %zu and %zu", a.n_rows, b.n_rows);
+    for (size_t r = 0; r < a.n_rows && r < b.n_rows; r++)
+        CHECK(memcmp(&a.rows[r], &b.rows[r], sizeof a.rows[r]) == 0, "record %zu (t = %g s) differs", r,
+              a.rows[r].v[WF_CTS_T]);
+    CHECK(a.n_trips == b.n_trips && a.n_trips && !memcmp(a.trips, b.trips, a.n_trips * sizeof *a.trips),
+          "trips differ (%zu and %zu)", a.n_trips, b.n_trips);
+    CHECK(a.state && b.state && a.state_size == b.state_size && !memcmp(a.state, b.state, a.state_size),
+          "the checkpoint state (vehicles, accumulators, Edie and detector sums) differs");
+    free(a.trips), free(b.trips), free(a.state), free(b.state);
+    unlink(path);
+    rmdir(dir);
+}
+
 int main(void)
 {
     RUN(test_paths_bitwise_equal);
     RUN(test_paths_equal_with_overlaps);
+    RUN(test_corridor_threads);
     TEST_EXIT();
 }

@@ -101,9 +101,10 @@ double wf_corridor_grade_mean(const WfCorridorSpec *cs, double a_m, double b_m);
 
 typedef struct WfCorridor WfCorridor;
 
-/* Vehicles on the road: a circular buffer of fixed capacity, in road order. Logical index k = 0 is the front
- * (most downstream) vehicle, k = n - 1 the last one to enter; vehicle k's leader is k - 1, the front vehicle's
- * the virtual leader. Logical k lives in slot (first + k) mod cap; a vehicle keeps its slot from entry to exit. */
+/* Vehicles on the road: a circular buffer of fixed capacity (a multiple of the kernel's block), in road order.
+ * Logical index k = 0 is the front (most downstream) vehicle, k = n - 1 the last one to enter; vehicle k's leader
+ * is k - 1, the front vehicle's the virtual leader. The back vehicle lives in slot `first` and leaders in the
+ * following slots: logical k in slot (first + n - 1 - k) mod cap. A vehicle keeps its slot from entry to exit. */
 typedef struct WfCorridorVehicles {
     size_t    cap, first, n;
     double   *x_m, *v_mps, *a_mps2;           /* front-bumper position from the entrance, speed, applied accel */
@@ -119,7 +120,7 @@ typedef struct WfCorridorVehicles {
 
 static inline size_t wf_corridor_slot(const WfCorridorVehicles *v, size_t k)
 {
-    size_t s = v->first + k;
+    size_t s = v->first + (v->n - 1 - k);
     return s >= v->cap ? s - v->cap : s;
 }
 

@@ -14,8 +14,8 @@ typedef struct WfFleet {
     /* state: front-bumper position (unwrapped, m), speed (m/s) */
     double *x_m, *v_mps;
     /* per-step values at the step's start: applied acceleration, bumper-to-bumper gap, leader speed, grade,
-     * fuel rate, feasibility flag. Fleet-wide only for the multi-pass step (SUNDIALS integrators, trajectories,
-     * fused_step off: f->multipass); NULL otherwise, where the fused step keeps them per block. */
+     * fuel rate, feasibility flag. Fleet-wide only when a step may run as two passes (SUNDIALS integrators,
+     * trajectories, fused_step off: f->multipass); NULL otherwise, where the fused step keeps them per block. */
     int      multipass;
     double  *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps;
     uint8_t *flag;
@@ -26,16 +26,14 @@ typedef struct WfFleet {
     uint32_t *slot;
     double    class_length_m[WF_MAX_CLASSES];
     /* groups: drawn parameters (param_size bytes each; one block with stride 0 when the group has no
-     * heterogeneity), controller state, members in ring order (multi-pass only, else NULL) */
+     * heterogeneity), controller state, member counts */
     size_t    n_groups;
-    uint32_t *group_member[WF_MAX_GROUPS];
     size_t    group_n[WF_MAX_GROUPS];
     unsigned char *group_params[WF_MAX_GROUPS];
     size_t    group_param_stride[WF_MAX_GROUPS];
     unsigned char *group_state[WF_MAX_GROUPS];
-    /* classes: members in ring order (multi-pass only, else NULL) */
+    /* classes: member counts */
     size_t    n_classes;
-    uint32_t *class_member[WF_MAX_CLASSES];
     size_t    class_n[WF_MAX_CLASSES];
     /* accumulators over the statistics window (after warm-up). Distance and passages of x = 0 (mod L) follow
      * from the positions and x_start_m, the positions when the window opened. */

@@ -43,11 +43,6 @@ void wf_stats_block(size_t m, const double *v, const double *gap, const double *
 void wf_stats_combine(const WfStatsBlock *blocks, size_t n_blocks, size_t n_classes, const WfScenario *sc,
                       double t_s, int64_t overlaps, WfTsRow *row);
 
-/* Fill a record from the fleet's per-step arrays (multi-pass step). `scratch` holds
- * wf_stats_scratch_blocks(n) blocks. Parallel over blocks when called outside a parallel region. */
-void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t overlaps, WfStatsBlock *scratch,
-                     WfTsRow *row);
-size_t wf_stats_scratch_blocks(size_t n);
 
 /* Aggregates over the statistics window: WfSummary (wavefuel/summary.h). */
 

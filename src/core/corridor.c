@@ -1,10 +1,11 @@
-/* The corridor engine: an open single-lane road [0, L]. Per step: arrivals join the entrance queue, the queue's
- * head is inserted at x = 0 when the gap allows (docs/corridors.md: insertion rule), accelerations from the
- * car-following models with the road features at each vehicle's position, fuel rates from the class energy
- * models, statistics, integration, overlap repair, Edie/detector accumulation, exits at x = L. Vehicles live in a
- * circular buffer in road order and never move in memory, so entries and exits touch no other vehicle's data.
- * Per-vehicle loops write only their own slot (race-free, thread-count independent); every sum that is written
- * out runs serially in road order. Units: m, s, m/s, m/s^2, g. */
+/* The corridor: the open boundary of the block kernel (src/core/block.c) on a single-lane road [0, L]. Per step:
+ * arrivals join the entrance queue, the queue's head is inserted at x = 0 when the gap allows (docs/corridors.md:
+ * insertion rule), the kernel steps the vehicles with the road features at each vehicle's position (grade, speed
+ * limit and zone anticipation as a per-vehicle cap, headway zones as per-vehicle parameters), then overlap repair,
+ * Edie/detector accumulation and exits at x = L. Vehicles live in a circular buffer of slots in road order (the
+ * back at `first`, leaders at higher slots) and never move in memory, so entries and exits touch no other
+ * vehicle's data and the kernel sees at most two contiguous runs. Every sum that is written out runs serially in
+ * road order. Units: m, s, m/s, m/s^2, g. */
 #include "wavefuel/corridor.h"
 
 #include <math.h>
@@ -18,12 +19,9 @@
 #include "wavefuel/fleet.h"
 #include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
+#include "core/block.h"
 
-#define PAR_MIN  4096 /* vehicles below which loops run on one thread (as the ring engine) */
-#define EBLOCK   256  /* energy evaluation gather block */
 #define TRIP_BUF 1024 /* trips handed to the output per call */
-
-enum { MODE_MOVING = 1, MODE_BRAKING = 2, MODE_FAULT = 4 };
 
 const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
     {"t", "s", "simulated time of the record"},
@@ -83,6 +81,7 @@ struct WfCorridor {
     const WfScenario     *sc; /* borrowed */
     const WfCorridorSpec *cs; /* borrowed: sc->corridor */
     const WfIntegrator   *ig;
+    const WfCorridorOutput *out; /* borrowed, during wf_corridor_run */
     WfCorridorVehicles    veh;
     size_t   pstride, sstride; /* doubles of parameters, bytes of controller state, per slot */
     double   L;
@@ -90,10 +89,8 @@ struct WfCorridor {
     double   *xold;
     uint32_t *grade_seg;
     uint8_t  *mode;
-    double   *t_arr, *t_ent, *v_ent, *trip_fuel, *trip_dist, *trip_stopped;
-    uint32_t *trip_stops, *trip_hard, *trip_infeas;
-    double   *w_fuel, *w_dist, *w_stopped;
-    uint32_t *w_steps, *w_stops, *w_hard, *w_infeas;
+    double   *t_arr, *t_ent, *v_ent;
+    WfAccum   trip, win;    /* accumulators over the trip and over the statistics window */
     CorridorRunState st;
     /* trips not yet handed to the output (none at a checkpoint) */
     WfTrip   trips[TRIP_BUF];
@@ -114,32 +111,39 @@ struct WfCorridor {
     double   wall_s, checkpoint_every_s;
     int      nthreads;
     long     fault_slot;
+    /* the vehicles as the kernel sees them */
+    WfLane   lane;
+    WfRoadOps ops;
+    double  *bound_x, *bound_v;
+    int     *chunk_flags;
+    int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
     WfCorridorSummary summary;
 };
 
-static double wall_now(void)
-{
-#ifdef _OPENMP
-    return omp_get_wtime();
-#else
-    struct timespec ts;
-    timespec_get(&ts, TIME_UTC);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-#endif
-}
+/* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names; the others
+ * (acceleration, gap, leader speed, grade, fuel rate, flag, xold) every step recomputes before reading them. */
+#define SAVED_SLOT_ARRAYS(X)                                                                                       \
+    X("x", veh.x_m) X("v", veh.v_mps) X("length", veh.length_m) X("serial", veh.serial) X("class_id", veh.class_id) \
+    X("group_id", veh.group_id) X("grade_seg", grade_seg) X("mode", mode) X("t_arrival", t_arr)                    \
+    X("t_entry", t_ent) X("v_entry", v_ent) X("trip_fuel", trip.fuel_g) X("trip_dist", trip.dist_m)                \
+    X("trip_stopped", trip.stopped_s) X("trip_stops", trip.stops) X("trip_hard", trip.hard_brakes)                 \
+    X("trip_infeasible", trip.infeasible) X("w_fuel", win.fuel_g) X("w_dist", win.dist_m)                          \
+    X("w_stopped", win.stopped_s) X("w_steps", win.steps) X("w_stops", win.stops) X("w_hard", win.hard_brakes)     \
+    X("w_infeasible", win.infeasible)
+#define STEP_SLOT_ARRAYS(X)                                                                                          \
+    X("", veh.a_mps2) X("", veh.gap_m) X("", veh.v_lead_mps) X("", veh.theta_rad) X("", veh.fuel_rate_gps)          \
+    X("", veh.flag) X("", xold)
 
 void wf_corridor_destroy(WfCorridor **pc)
 {
     if (!pc || !*pc) return;
     WfCorridor *c = *pc;
-    WfCorridorVehicles *v = &c->veh;
-    void *arrays[] = {v->x_m, v->v_mps, v->a_mps2, v->gap_m, v->v_lead_mps, v->theta_rad, v->fuel_rate_gps, v->flag,
-                      v->length_m, v->serial, v->class_id, v->group_id, v->params, v->state, c->xold, c->grade_seg,
-                      c->mode, c->t_arr, c->t_ent, c->v_ent, c->trip_fuel, c->trip_dist, c->trip_stopped,
-                      c->trip_stops, c->trip_hard, c->trip_infeas, c->w_fuel, c->w_dist, c->w_stopped, c->w_steps,
-                      c->w_stops, c->w_hard, c->w_infeas, c->queue_t, c->det.count, c->det.sum_v_mps,
-                      c->det.sum_inv_v_spm, c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g,
-                      c->edie.grade_mean_rad, c->edie.class_dist_m, c->edie.class_fuel_g};
+#define FREE(nm, field) free(c->field);
+    SAVED_SLOT_ARRAYS(FREE) STEP_SLOT_ARRAYS(FREE)
+#undef FREE
+    void *arrays[] = {c->veh.params, c->veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
+                      c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g, c->edie.grade_mean_rad,
+                      c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunk_flags};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     free(c);
     *pc = NULL;
@@ -176,115 +180,65 @@ static const double *params_at(const WfCorridor *c, size_t group, const double *
     return p;
 }
 
-/* Applied acceleration of a vehicle: model + noise, clipped to the group's limits and optionally the class's
- * a_max (as the ring's accel_one), then to the speed limit at x (never past it within the step) and to the
- * braking that meets a lower zone limit ahead at the zone's start: once the deceleration needed,
- * (v^2 - v_zone^2) / (2 d), reaches corridor.zone_decel_mps2, the vehicle brakes at least that hard. */
-static double accel_vehicle(const WfCorridor *c, const WfDriverGroup *grp, const double *params, const void *state,
-                            const WfVehicleClass *vc, double x, double gap, double v, double vl, double th, double z)
-{
-    double dmax = grp->decel_max_mps2, dt = c->sc->dt_s;
-    double a = grp->model->accel(params, state, gap, v, vl);
-    if (grp->noise_mps2 > 0.0) a += grp->noise_mps2 * z;
-    a = a > grp->accel_max_mps2 ? grp->accel_max_mps2 : a;
-    a = a < -dmax ? -dmax : a;
-    if (grp->clip_feasible) {
-        double am = vc->model->a_max(vc->params, v, th);
-        a = a > am ? am : a;
-    }
-    double cap = INFINITY, vlim = limit_at(c, x);
-    if (isfinite(vlim)) cap = (vlim - v) / dt;
-    for (size_t k = 0; k < c->cs->n_zones; k++) {
-        const WfCorridorZone *zn = &c->cs->zones[k];
-        if (zn->type != WF_ZONE_SPEED_LIMIT || zn->from_m <= x || zn->value >= v) continue;
-        /* d > 0 here (from > x), so the division is safe. */
-        double need = (v * v - zn->value * zn->value) / (2.0 * (zn->from_m - x));
-        if (need >= c->cs->zone_decel_mps2 && -need < cap) cap = -need;
-    }
-    if (a > cap) a = cap > -dmax ? cap : -dmax;
-    return a;
-}
-
 /* ------------------------------------------------------------------------------------------ setup */
 
-#define ALLOC(ptr, count)                                                        \
-    do {                                                                         \
-        (ptr) = calloc((size_t)(count) + 1, sizeof *(ptr)); /* +1: never a 0-byte request */ \
-        if (!(ptr)) {                                                            \
-            wf_corridor_destroy(&c);                                             \
-            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", cap); \
-        }                                                                        \
+#define ALLOC(ptr, count)                                                                            \
+    do {                                                                                             \
+        /* +1: never a 0-byte request */                                                             \
+        if (!((ptr) = calloc((size_t)(count) + 1, sizeof *(ptr))))                                   \
+            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", c->veh.cap); \
     } while (0)
 
-int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
+/* The vehicle buffer. Capacity: fronts on the road lie in [0, L) and bodies do not overlap, so consecutive fronts
+ * are at least the shortest length apart: n <= floor(L / shortest) + 1; one more slot keeps a margin, and the
+ * capacity is a multiple of the kernel's block, so that no block wraps around the buffer's end. */
+static int alloc_vehicles(WfCorridor *c, WfError *err)
 {
-    *out = NULL;
-    if (!sc->corridor) return wf_err(err, WF_EINPUT, "%s: not a corridor scenario (road.type: corridor)", sc->path);
-    const WfCorridorSpec *cs = sc->corridor;
-    WfCorridor *c = calloc(1, sizeof *c);
-    if (!c) return wf_err(err, WF_ESYS, "out of memory");
-    c->sc = sc;
-    c->cs = cs;
-    c->L = sc->road.length_m;
-    c->fault_slot = -1;
-    int rc = wf_integrator_find(sc->integrator, &c->ig, err);
-    if (rc) {
-        free(c);
-        return rc;
-    }
-    /* Capacity: fronts on the road lie in [0, L) and bodies do not overlap, so consecutive fronts are at least
-     * the shortest length apart: n <= floor(L / shortest) + 1. One more slot keeps a margin. */
+    const WfScenario *sc = c->sc;
     double len_min = INFINITY;
     for (size_t k = 0; k < sc->n_classes; k++) len_min = fmin(len_min, sc->classes[k].length_m);
     double capd = floor(c->L / len_min) + 2.0;
-    if (capd > 1e8) {
-        free(c);
+    if (capd > 1e8)
         return wf_err(err, WF_EINPUT, "%s: road.length_m %.6g m holds up to %.3g vehicles: too many", sc->path,
                       sc->road.length_m, capd);
-    }
-    size_t cap = (size_t)capd;
-    size_t ssz = 0;
+    size_t cap = ((size_t)capd + WF_BLOCK - 1) / WF_BLOCK * WF_BLOCK, ssz = 0;
     for (size_t g = 0; g < sc->n_groups; g++)
         if (sc->groups[g].model->state_size > ssz) ssz = sc->groups[g].model->state_size;
     c->pstride = WF_MAX_MODEL_PARAMS;
     c->sstride = (ssz + 15) / 16 * 16;
     WfCorridorVehicles *v = &c->veh;
     v->cap = cap;
-    ALLOC(v->x_m, cap); ALLOC(v->v_mps, cap); ALLOC(v->a_mps2, cap); ALLOC(v->gap_m, cap); ALLOC(v->v_lead_mps, cap);
-    ALLOC(v->theta_rad, cap); ALLOC(v->fuel_rate_gps, cap); ALLOC(v->flag, cap); ALLOC(v->length_m, cap);
-    ALLOC(v->serial, cap); ALLOC(v->class_id, cap); ALLOC(v->group_id, cap); ALLOC(v->params, cap * c->pstride);
+#define ALLOC_SLOTS(nm, field) ALLOC(c->field, cap);
+    SAVED_SLOT_ARRAYS(ALLOC_SLOTS) STEP_SLOT_ARRAYS(ALLOC_SLOTS)
+#undef ALLOC_SLOTS
+    ALLOC(v->params, cap * c->pstride);
     ALLOC(v->state, cap * (c->sstride ? c->sstride : 1));
-    ALLOC(c->xold, cap); ALLOC(c->grade_seg, cap); ALLOC(c->mode, cap); ALLOC(c->t_arr, cap); ALLOC(c->t_ent, cap);
-    ALLOC(c->v_ent, cap); ALLOC(c->trip_fuel, cap); ALLOC(c->trip_dist, cap); ALLOC(c->trip_stopped, cap);
-    ALLOC(c->trip_stops, cap); ALLOC(c->trip_hard, cap); ALLOC(c->trip_infeas, cap); ALLOC(c->w_fuel, cap);
-    ALLOC(c->w_dist, cap); ALLOC(c->w_stopped, cap); ALLOC(c->w_steps, cap); ALLOC(c->w_stops, cap);
-    ALLOC(c->w_hard, cap); ALLOC(c->w_infeas, cap);
+    return 0;
+}
 
-    c->n_steps = wf_scenario_n_steps(sc);
-    c->out_every = wf_scenario_output_every(sc);
-    c->traj_every = wf_scenario_trajectory_every(sc);
-    c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
-#ifdef _OPENMP
-    c->nthreads = omp_get_max_threads();
-#else
-    c->nthreads = 1;
-#endif
-
-    /* Entrance queue: it never holds more vehicles than arrive in the whole run. Deterministic arrivals: the
-     * cumulative demand, plus one; Poisson: its mean plus 12 standard deviations (the chance of more is below
-     * 1e-30; should it happen the run stops with an error rather than overwrite the queue). */
+/* Entrance queue: it never holds more vehicles than arrive in the whole run. Deterministic arrivals: the
+ * cumulative demand, plus one; Poisson: its mean plus 12 standard deviations (the chance of more is below 1e-30;
+ * should it happen the run stops with an error rather than overwrite the queue). */
+static int alloc_entrance(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    const WfCorridorSpec *cs = c->cs;
     size_t seg = 0;
     double lam = wf_profile_integral(&cs->inflow_vph, sc->duration_s, &seg) / 3600.0;
     double qcap = cs->arrivals == WF_ARRIVALS_POISSON ? lam + 12.0 * sqrt(lam) + 32.0 : floor(lam) + 2.0;
     if (cs->max_arrivals >= 0 && (double)cs->max_arrivals + 1.0 < qcap) qcap = (double)cs->max_arrivals + 1.0;
-    if (qcap > 2e8) {
-        wf_corridor_destroy(&c);
+    if (qcap > 2e8)
         return wf_err(err, WF_EINPUT, "%s: corridor.inflow brings %.3g vehicles over the run: too many", sc->path, lam);
-    }
     c->q_cap = (size_t)qcap;
     ALLOC(c->queue_t, c->q_cap);
+    return 0;
+}
 
-    /* Detectors and Edie grid. Time cells are whole steps; the last cell in x (and in t) may be shorter. */
+/* Detectors and Edie grid. Time cells are whole steps; the last cell in x (and in t) may be shorter. */
+static int alloc_measure(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    const WfCorridorSpec *cs = c->cs;
     c->det.n_det = cs->n_det;
     c->det.x_m = cs->det_x_m;
     c->det.interval_s = cs->det_interval_s;
@@ -307,17 +261,23 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         double a = (double)i * e->dx_m, b = i + 1 == e->nx ? c->L : (double)(i + 1) * e->dx_m;
         e->grade_mean_rad[i] = wf_corridor_grade_mean(cs, a, b);
     }
+    return 0;
+}
 
-    /* Headway zones: where each group's model keeps the zone's key. */
+/* Headway zones (where each group's model keeps the zone's key), the class shares of vehicles whose group fixes no
+ * class (so that the overall mix is the classes' fractions), the first arrival (deterministic at cumulative demand
+ * 1, Poisson after an exponential draw) and the virtual leader. */
+static void init_boundary(WfCorridor *c)
+{
+    const WfScenario *sc = c->sc;
+    const WfCorridorSpec *cs = c->cs;
     for (size_t g = 0; g < sc->n_groups; g++)
         for (size_t z = 0; z < cs->n_zones; z++) {
-            const WfParamSpec *sp = cs->zones[z].type == WF_ZONE_HEADWAY
-                                        ? wf_param_find(sc->groups[g].model->spec, sc->groups[g].model->n_spec,
-                                                        cs->zones[z].key)
-                                        : NULL;
+            const WfCfModel *m = sc->groups[g].model;
+            const WfParamSpec *sp =
+                cs->zones[z].type == WF_ZONE_HEADWAY ? wf_param_find(m->spec, m->n_spec, cs->zones[z].key) : NULL;
             c->hw_off[g][z] = sp ? (int)(sp->offset / sizeof(double)) : -1;
         }
-    /* Class shares of the vehicles whose group fixes no class, so that the overall mix is the classes' fractions. */
     double tot = 0.0;
     for (size_t k = 0; k < sc->n_classes; k++) {
         double r = sc->classes[k].fraction;
@@ -326,14 +286,11 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         tot += c->free_share[k];
     }
     for (size_t k = 0; k < sc->n_classes; k++) c->free_share[k] = tot > 0.0 ? c->free_share[k] / tot : 0.0;
-
-    /* The first arrival: deterministic at cumulative demand 1, Poisson after an exponential draw. */
+    c->st.next_target = 1.0;
     if (cs->arrivals == WF_ARRIVALS_POISSON) {
         double u[2];
         wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ARRIVAL, 0, 0, u);
         c->st.next_target = -log(u[0]);
-    } else {
-        c->st.next_target = 1.0;
     }
     c->has_vl = cs->outflow != WF_OUTFLOW_FREE;
     if (c->has_vl) {
@@ -341,6 +298,42 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
         c->st.vl_iref = 0.0;
         c->st.vl_x = c->st.vl_xref;
         c->st.vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &c->st.vl_seg);
+    }
+}
+
+static int lane_init(WfCorridor *c, WfError *err);
+
+int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
+{
+    *out = NULL;
+    if (!sc->corridor) return wf_err(err, WF_EINPUT, "%s: not a corridor scenario (road.type: corridor)", sc->path);
+    WfCorridor *c = calloc(1, sizeof *c);
+    if (!c) return wf_err(err, WF_ESYS, "out of memory");
+    c->sc = sc;
+    c->cs = sc->corridor;
+    c->L = sc->road.length_m;
+    c->fault_slot = -1;
+    /* The back of an empty road is slot 64 (any slot would do): entries then reach the buffer's end after 65
+     * vehicles, so every run longer than that steps a range wrapping around it, as long runs do. */
+    c->veh.first = 64;
+    c->n_steps = wf_scenario_n_steps(sc);
+    c->out_every = wf_scenario_output_every(sc);
+    c->traj_every = wf_scenario_trajectory_every(sc);
+    c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
+#ifdef _OPENMP
+    c->nthreads = omp_get_max_threads();
+#else
+    c->nthreads = 1;
+#endif
+    int rc = wf_integrator_find(sc->integrator, &c->ig, err);
+    if (!rc) rc = alloc_vehicles(c, err);
+    if (!rc) rc = alloc_entrance(c, err);
+    if (!rc) rc = alloc_measure(c, err);
+    if (!rc) init_boundary(c);
+    if (!rc) rc = lane_init(c, err);
+    if (rc) {
+        wf_corridor_destroy(&c);
+        return rc;
     }
     *out = c;
     return 0;
@@ -478,8 +471,10 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     if (free_road) vl = vin;
     if (!(grp->model->accel(p, NULL, gap, vin, vl) >= -c->cs->insert_decel_mps2)) return 0;
 
-    size_t s = wf_corridor_slot(vh, vh->n);
+    /* The new back vehicle: the slot behind the back one. */
+    vh->first = vh->first ? vh->first - 1 : vh->cap - 1;
     vh->n++;
+    size_t s = vh->first;
     vh->x_m[s] = 0.0;
     vh->v_mps[s] = vin;
     vh->a_mps2[s] = 0.0;
@@ -489,7 +484,7 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     vh->group_id[s] = c->st.cand_group;
     memcpy(vh->params + s * c->pstride, c->st.cand_params, grp->model->param_size);
     c->grade_seg[s] = 0;
-    c->mode[s] = vin > sc->v_go_mps ? MODE_MOVING : 0;
+    c->mode[s] = vin > sc->v_go_mps ? WF_MODE_MOVING : 0;
     double ta = c->queue_t[c->st.q_head];
     c->st.q_head = (c->st.q_head + 1) % c->q_cap;
     c->st.counts.queued--;
@@ -499,158 +494,127 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     c->st.cls_entered[c->st.cand_class]++;
     if (step >= c->warm_steps) c->st.w_entries++;
     c->t_arr[s] = ta, c->t_ent[s] = t, c->v_ent[s] = vin;
-    c->trip_fuel[s] = c->trip_dist[s] = c->trip_stopped[s] = 0.0;
-    c->trip_stops[s] = c->trip_hard[s] = c->trip_infeas[s] = 0;
-    c->w_fuel[s] = c->w_dist[s] = c->w_stopped[s] = 0.0;
-    c->w_steps[s] = c->w_stops[s] = c->w_hard[s] = c->w_infeas[s] = 0;
+    c->trip.fuel_g[s] = c->trip.dist_m[s] = c->trip.stopped_s[s] = 0.0;
+    c->trip.stops[s] = c->trip.hard_brakes[s] = c->trip.infeasible[s] = 0;
+    c->win.fuel_g[s] = c->win.dist_m[s] = c->win.stopped_s[s] = 0.0;
+    c->win.steps[s] = c->win.stops[s] = c->win.hard_brakes[s] = c->win.infeasible[s] = 0;
     if (grp->model->state_size && grp->model->init_state)
         grp->model->init_state(vh->params + s * c->pstride, vh->state + s * c->sstride, gap, vin, vl);
     c->st.have_cand = 0;
     return 0;
 }
 
-/* ------------------------------------------------------------------------------------- step phases */
+/* ------------------------------------------------------------------------------------- the open road */
 
-/* Gap and speed of vehicle k's leader: the vehicle ahead, the virtual leader, or a far leader at its own speed. */
-static inline void leader_of(const WfCorridor *c, size_t k, size_t s, double *gap, double *vl)
+static void corridor_grade(const void *ctx, size_t lo, size_t m, const double *x, double *th)
 {
-    const WfCorridorVehicles *vh = &c->veh;
-    if (k > 0) {
-        size_t p = wf_corridor_slot(vh, k - 1);
-        *gap = vh->x_m[p] - vh->length_m[p] - vh->x_m[s];
-        *vl = vh->v_mps[p];
-    } else if (c->has_vl) {
-        *gap = c->st.vl_x - vh->x_m[s];
-        *vl = c->st.vl_v;
-    } else {
-        *gap = WF_CORRIDOR_FREE_GAP_M;
-        *vl = vh->v_mps[s];
-    }
+    const WfCorridor *c = ctx;
+    for (size_t k = 0; k < m; k++) th[k] = wf_corridor_grade(c->cs, x[k], &c->grade_seg[lo + k]);
 }
 
-static void phase_accel(WfCorridor *c, long step)
+/* The cap of the acceleration at x: never past the speed limit at x within the step, and at least the braking
+ * that meets a lower zone limit ahead at the zone's start: once the deceleration needed, (v^2 - v_zone^2) / (2 d),
+ * reaches corridor.zone_decel_mps2, the vehicle brakes at least that hard. */
+static int corridor_cap(const void *ctx, size_t m, const double *x, const double *v, double *cap)
 {
-    WfCorridorVehicles *vh = &c->veh;
-    size_t n = vh->n;
+    const WfCorridor *c = ctx;
+    double dt = c->sc->dt_s;
+    for (size_t k = 0; k < m; k++) {
+        double cp = INFINITY, vlim = limit_at(c, x[k]);
+        if (isfinite(vlim)) cp = (vlim - v[k]) / dt;
+        for (size_t z = 0; z < c->cs->n_zones; z++) {
+            const WfCorridorZone *zn = &c->cs->zones[z];
+            if (zn->type != WF_ZONE_SPEED_LIMIT || zn->from_m <= x[k] || zn->value >= v[k]) continue;
+            /* d > 0 here (from > x), so the division is safe. */
+            double need = (v[k] * v[k] - zn->value * zn->value) / (2.0 * (zn->from_m - x[k]));
+            if (need >= c->cs->zone_decel_mps2 && -need < cp) cp = -need;
+        }
+        cap[k] = cp;
+    }
+    return 1;
+}
+
+/* The ring's vectorised draws, keyed by slot block and step: a vehicle keeps its slot, so its draws depend only on
+ * the state, never on the thread count. */
+static void corridor_noise(const void *ctx, size_t lo, size_t m, long step, double *z)
+{
+    const WfCorridor *c = ctx;
+    wf_lane_noise(c->sc->seed, lo, m, step, z);
+}
+
+static const double *corridor_params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
+{
+    return params_at(ctx, group, own, x, buf);
+}
+
+/* The vehicle buffer as the kernel sees it. A group without heterogeneity drives with the group's parameters
+ * (every vehicle's copy equals them): one shared block, so the model's block form applies across the block. */
+static int lane_init(WfCorridor *c, WfError *err)
+{
     const WfScenario *sc = c->sc;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, n, sc, step)
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double gap, vl, buf[WF_MAX_MODEL_PARAMS], z = 0.0;
-        leader_of(c, k, s, &gap, &vl);
-        size_t g = vh->group_id[s];
+    WfCorridorVehicles *vh = &c->veh;
+    size_t nt = (size_t)c->nthreads + 1;
+    c->bound_x = calloc(nt, sizeof(double));
+    c->bound_v = calloc(nt, sizeof(double));
+    c->chunk_flags = calloc(nt, sizeof(int));
+    if (!c->bound_x || !c->bound_v || !c->chunk_flags) return wf_err(err, WF_ESYS, "out of memory");
+    c->has_cap = isfinite(sc->road.speed_limit_mps);
+    for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
+    c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
+                         .noise = corridor_noise, .params_at = corridor_params_at};
+    WfLane *ln = &c->lane;
+    *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = c, .cap = vh->cap, .x_m = vh->x_m, .v_mps = vh->v_mps,
+                   .class_id = vh->class_id, .group_id = vh->group_id, .grade_seg = c->grade_seg, .mode = c->mode,
+                   .x_old_m = c->xold, .nthreads = c->nthreads, .bound_x = c->bound_x, .bound_v = c->bound_v,
+                   .chunk_flags = c->chunk_flags};
+    for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
+    for (size_t g = 0; g < sc->n_groups; g++) {
         const WfDriverGroup *grp = &sc->groups[g];
-        double x = vh->x_m[s], th = wf_corridor_grade(c->cs, x, &c->grade_seg[s]);
-        if (grp->noise_mps2 > 0.0) {
-            double r[2];
-            wf_rng_normal2(sc->seed, WF_RNG_NOISE, vh->serial[s], (uint64_t)step, r);
-            z = r[0];
-        }
-        const double *p = params_at(c, g, vh->params + s * c->pstride, x, buf);
-        const void *st = grp->model->state_size ? vh->state + s * c->sstride : NULL;
-        vh->gap_m[s] = gap, vh->v_lead_mps[s] = vl, vh->theta_rad[s] = th;
-        vh->a_mps2[s] = accel_vehicle(c, grp, p, st, &sc->classes[vh->class_id[s]].vc, x, gap, vh->v_mps[s], vl, th, z);
+        int het = 0;
+        for (size_t k = 0; k < grp->model->n_spec; k++) het |= grp->spread[k] > 0.0;
+        ln->params[g] = het ? (const unsigned char *)vh->params : (const unsigned char *)grp->params;
+        ln->pstride[g] = het ? c->pstride * sizeof(double) : 0;
+        ln->state[g] = vh->state;
+        ln->sstride[g] = c->sstride;
+        for (size_t z = 0; z < c->cs->n_zones; z++) ln->zoned[g] |= c->hw_off[g][z] >= 0;
+        ln->noisy |= grp->noise_mps2 > 0.0;
+        ln->stateful |= grp->model->state_size > 0;
     }
+    ln->always = c->trip;
+    ln->window = c->win;
+    return 0;
 }
 
-/* Fuel rate and flag of every vehicle: blocks of road order, gathered class by class for the array kernels. */
-static void phase_energy(WfCorridor *c)
+/* The step's values go to the per-slot arrays (steps with a record or trajectory, which read them before the
+ * vehicles move) or stay in the kernel's blocks; the fuel rate is always kept (Edie and detectors read it). */
+static void lane_exports(WfCorridor *c, int on)
 {
     WfCorridorVehicles *vh = &c->veh;
-    size_t n = vh->n, nblk = (n + EBLOCK - 1) / EBLOCK;
-    const WfScenario *sc = c->sc;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(vh, n, nblk, sc)
-    for (size_t b = 0; b < nblk; b++) {
-        double bv[EBLOCK], ba[EBLOCK], bt[EBLOCK], bf[EBLOCK];
-        uint8_t bfl[EBLOCK];
-        size_t idx[EBLOCK];
-        size_t lo = b * EBLOCK, m = n - lo < EBLOCK ? n - lo : EBLOCK;
-        for (size_t cl = 0; cl < sc->n_classes; cl++) {
-            size_t cnt = 0;
-            for (size_t k = 0; k < m; k++) {
-                size_t s = wf_corridor_slot(vh, lo + k);
-                if (vh->class_id[s] != cl) continue;
-                idx[cnt] = s;
-                bv[cnt] = vh->v_mps[s], ba[cnt] = vh->a_mps2[s], bt[cnt] = vh->theta_rad[s];
-                cnt++;
-            }
-            if (!cnt) continue;
-            const WfVehicleClass *vc = &sc->classes[cl].vc;
-            vc->model->eval(vc->params, cnt, bv, ba, bt, 0, bf, bfl);
-            for (size_t k = 0; k < cnt; k++) vh->fuel_rate_gps[idx[k]] = bf[k], vh->flag[idx[k]] = bfl[k];
-        }
-    }
+    WfLane *ln = &c->lane;
+    ln->a_mps2 = on ? vh->a_mps2 : NULL;
+    ln->gap_m = on ? vh->gap_m : NULL;
+    ln->v_lead_mps = on ? vh->v_lead_mps : NULL;
+    ln->theta_rad = on ? vh->theta_rad : NULL;
+    ln->flag = on ? vh->flag : NULL;
+    ln->fuel_rate_gps = vh->fuel_rate_gps;
 }
 
-/* Statistics of the step that use its start (left-point rule, as the ring: docs/metrics.md), controller memory,
- * integration, then the statistics that need the new state. */
-static void phase_advance(WfCorridor *c, int in_window)
+/* The front vehicle's leader: the virtual leader, or a far one at the vehicle's own speed. */
+static WfLead front_leader(const WfCorridor *c)
 {
-    WfCorridorVehicles *vh = &c->veh;
-    const WfScenario *sc = c->sc;
-    size_t n = vh->n;
-    double dt = sc->dt_s;
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, sc, n, dt, in_window)
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double v = vh->v_mps[s], a = vh->a_mps2[s], fr = vh->fuel_rate_gps[s];
-        uint8_t mode = c->mode[s];
-        int braking = a < -sc->hard_brake_mps2, stopped = v < sc->v_stop_mps;
-        int new_brake = braking && !(mode & MODE_BRAKING), infeas = vh->flag[s] == WF_INFEASIBLE_ACCEL;
-        c->trip_fuel[s] += fr * dt;
-        c->trip_stopped[s] += stopped ? dt : 0.0;
-        c->trip_hard[s] += (uint32_t)new_brake;
-        c->trip_infeas[s] += (uint32_t)infeas;
-        if (in_window) {
-            c->w_fuel[s] += fr * dt;
-            c->w_stopped[s] += stopped ? dt : 0.0;
-            c->w_hard[s] += (uint32_t)new_brake;
-            c->w_infeas[s] += (uint32_t)infeas;
-            c->w_steps[s]++;
-        }
-        /* A non-finite acceleration or fuel rate would be laundered by the integrator: flag it (as the ring). */
-        int fault = !isfinite(a) || !isfinite(fr);
-        c->mode[s] = (uint8_t)((mode & ~MODE_BRAKING) | (braking ? MODE_BRAKING : 0) | (fault ? MODE_FAULT : 0));
-        c->xold[s] = vh->x_m[s];
-        size_t g = vh->group_id[s];
-        const WfCfModel *m = sc->groups[g].model;
-        if (m->state_size && m->update_state) {
-            double buf[WF_MAX_MODEL_PARAMS];
-            const double *p = params_at(c, g, vh->params + s * c->pstride, vh->x_m[s], buf);
-            m->update_state(p, vh->state + s * c->sstride, vh->gap_m[s], v, vh->v_lead_mps[s], dt);
-        }
-    }
-    /* The logical range is at most two contiguous runs of slots. */
-    size_t first = vh->first, run = vh->cap - first < n ? vh->cap - first : n;
-    c->ig->step(run, dt, vh->x_m + first, vh->v_mps + first, vh->a_mps2 + first);
-    if (n > run) c->ig->step(n - run, dt, vh->x_m, vh->v_mps, vh->a_mps2);
-#pragma omp parallel for schedule(static) if (n >= PAR_MIN) default(none) shared(c, vh, sc, n, in_window)
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double v = vh->v_mps[s], d = vh->x_m[s] - c->xold[s];
-        uint8_t mode = c->mode[s];
-        if ((mode & MODE_MOVING) && v < sc->v_stop_mps) {
-            mode &= (uint8_t)~MODE_MOVING;
-            c->trip_stops[s]++;
-            if (in_window) c->w_stops[s]++;
-        } else if (!(mode & MODE_MOVING) && v > sc->v_go_mps) {
-            mode |= MODE_MOVING;
-        }
-        c->mode[s] = mode;
-        c->trip_dist[s] += d;
-        if (in_window) c->w_dist[s] += d;
-    }
+    return c->has_vl ? (WfLead){c->st.vl_x, c->st.vl_v, 0.0} : (WfLead){0.0, 0.0, WF_CORRIDOR_FREE_GAP_M};
 }
 
 /* No gap may be negative: a vehicle that would overlap its leader (or pass the virtual leader) is put at gap 0
  * behind it and stopped, front to back so a repaired leader is seen by its follower; each event is counted. A
- * non-finite state is a numerical fault (the run stops). */
-static void phase_overlaps(WfCorridor *c, int in_window)
+ * non-finite state is a numerical fault (the run stops). Checks the `upto` front vehicles (the kernel flags
+ * overlaps and faults behind the front). */
+static void phase_overlaps(WfCorridor *c, int in_window, size_t upto)
 {
     WfCorridorVehicles *vh = &c->veh;
-    for (size_t k = 0; k < vh->n; k++) {
+    for (size_t k = 0; k < vh->n && k < upto; k++) {
         size_t s = wf_corridor_slot(vh, k);
-        if (!isfinite(vh->x_m[s]) || !isfinite(vh->v_mps[s]) || (c->mode[s] & MODE_FAULT)) {
+        if (!isfinite(vh->x_m[s]) || !isfinite(vh->v_mps[s]) || (c->mode[s] & WF_MODE_FAULT)) {
             c->fault_slot = (long)s;
             return;
         }
@@ -665,8 +629,8 @@ static void phase_overlaps(WfCorridor *c, int in_window)
         }
         if (vh->x_m[s] > limit) {
             double d = limit - vh->x_m[s];
-            c->trip_dist[s] += d;
-            if (in_window) c->w_dist[s] += d;
+            c->trip.dist_m[s] += d;
+            if (in_window) c->win.dist_m[s] += d;
             vh->x_m[s] = limit;
             vh->v_mps[s] = 0.0;
             c->st.counts.overlaps++;
@@ -674,63 +638,98 @@ static void phase_overlaps(WfCorridor *c, int in_window)
     }
 }
 
-/* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Within a step
- * the vehicle is taken to move at constant speed, so time and fuel split between cells in proportion to distance.
- * Serial in road order: several vehicles add to one cell, and the sums must not depend on threads. */
-static void phase_measure(WfCorridor *c, long step, int in_window)
+/* A vehicle's step in Edie's cells [i_lo, i_hi) of row j: distance, time and fuel split in proportion to distance
+ * (constant speed within the step). Cells before i_lo are skipped exactly as the full loop would leave them: the
+ * loop reaches cell i > the first only through the left edge i dx. */
+static inline void edie_vehicle(WfCorridor *c, size_t j, size_t cl, double xa, double xb, double fuel, int in_window,
+                                size_t i_lo, size_t i_hi)
 {
-    WfCorridorVehicles *vh = &c->veh;
-    const WfScenario *sc = c->sc;
     WfEdie *e = &c->edie;
-    WfDetectors *dt_ = &c->det;
-    double dt = sc->dt_s, L = c->L;
-    size_t j = (size_t)(step / c->edie_every), nx = e->nx;
+    size_t nx = e->nx;
+    double dt = c->sc->dt_s, L = c->L, *cd = e->class_dist_m + cl * nx, *cf = e->class_fuel_g + cl * nx;
     double *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx, *erow_f = e->fuel_g + j * nx;
-    size_t jd = dt_->n_det ? (size_t)(step / c->det_every) : 0;
+    if (xb > xa) {
+        double span = xb - xa, lo = xa > 0.0 ? xa : 0.0, hi = xb < L ? xb : L;
+        size_t i = (size_t)(lo / e->dx_m);
+        if (i >= nx) i = nx - 1; /* round-off at the far end */
+        if (i < i_lo) {
+            if (!((double)i_lo * e->dx_m < hi)) return;
+            i = i_lo, lo = (double)i_lo * e->dx_m;
+        }
+        for (; i < i_hi && lo < hi; i++) {
+            /* The last cell ends at L (it may be shorter than dx). */
+            double edge = i + 1 == nx ? L : (double)(i + 1) * e->dx_m;
+            double b = edge < hi ? edge : hi, d = b - lo, w = d / span;
+            erow_d[i] += d, erow_t[i] += dt * w, erow_f[i] += fuel * w;
+            if (in_window) cd[i] += d, cf[i] += fuel * w;
+            lo = b;
+        }
+    } else if (xa >= 0.0 && xa < L) {
+        size_t i = (size_t)(xa / e->dx_m);
+        if (i >= nx) i = nx - 1;
+        if (i < i_lo || i >= i_hi) return;
+        erow_t[i] += dt, erow_f[i] += fuel;
+        if (in_window) cf[i] += fuel;
+    }
+}
+
+/* A vehicle's step at detector q: a passage, and the time within the step when the body [x - len, x] covers x_d
+ * (x moving linearly from xa to xb). Pairs that add nothing (+0 to a sum >= +0) are skipped. */
+static inline void detector_vehicle(WfCorridor *c, size_t jd, size_t q, double xa, double xb, double len)
+{
+    WfDetectors *dt_ = &c->det;
+    double dt = c->sc->dt_s, xd = dt_->x_m[q];
+    size_t cell = jd * dt_->n_det + q;
+    if (xa <= xd && xd < xb) {
+        double v = (xb - xa) / dt; /* > 0: xb > xa */
+        dt_->count[cell]++;
+        dt_->sum_v_mps[cell] += v;
+        dt_->sum_inv_v_spm[cell] += 1.0 / v;
+    }
+    if (xb > xa) {
+        if (!(xd + len - xa > 0.0) || xd - xa >= xb - xa) return; /* t1 <= 0 or t0 >= dt: occupancy 0 */
+        double t0 = (xd - xa) / (xb - xa) * dt, t1 = (xd + len - xa) / (xb - xa) * dt;
+        t0 = t0 > 0.0 ? t0 : 0.0;
+        t1 = t1 < dt ? t1 : dt;
+        dt_->occupied_s[cell] += t1 > t0 ? t1 - t0 : 0.0;
+    } else if (xa >= xd && xa - len <= xd) {
+        dt_->occupied_s[cell] += dt;
+    }
+}
+
+/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. */
+static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
+                          size_t q_hi)
+{
+    const WfCorridorVehicles *vh = &c->veh;
+    size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0;
     for (size_t k = 0; k < vh->n; k++) {
         size_t s = wf_corridor_slot(vh, k);
-        double xa = c->xold[s], xb = vh->x_m[s], fuel = vh->fuel_rate_gps[s] * dt, len = vh->length_m[s];
-        size_t cl = vh->class_id[s];
-        double *cd = e->class_dist_m + cl * nx, *cf = e->class_fuel_g + cl * nx;
-        if (xb > xa) {
-            double span = xb - xa, lo = xa > 0.0 ? xa : 0.0, hi = xb < L ? xb : L;
-            size_t i = (size_t)(lo / e->dx_m);
-            if (i >= nx) i = nx - 1; /* round-off at the far end */
-            for (; i < nx && lo < hi; i++) {
-                /* The last cell ends at L (it may be shorter than dx). */
-                double edge = i + 1 == nx ? L : (double)(i + 1) * e->dx_m;
-                double b = edge < hi ? edge : hi, d = b - lo, w = d / span;
-                erow_d[i] += d, erow_t[i] += dt * w, erow_f[i] += fuel * w;
-                if (in_window) cd[i] += d, cf[i] += fuel * w;
-                lo = b;
-            }
-        } else if (xa >= 0.0 && xa < L) {
-            size_t i = (size_t)(xa / e->dx_m);
-            if (i >= nx) i = nx - 1;
-            erow_t[i] += dt, erow_f[i] += fuel;
-            if (in_window) cf[i] += fuel;
-        }
-        for (size_t q = 0; q < dt_->n_det; q++) {
-            double xd = dt_->x_m[q];
-            size_t cell = jd * dt_->n_det + q;
-            if (xa <= xd && xd < xb) {
-                double v = (xb - xa) / dt; /* > 0: xb > xa */
-                dt_->count[cell]++;
-                dt_->sum_v_mps[cell] += v;
-                dt_->sum_inv_v_spm[cell] += 1.0 / v;
-            }
-            /* Time within the step when the body [x - len, x] covers xd, x moving linearly from xa to xb. */
-            double occ;
-            if (xb > xa) {
-                double t0 = (xd - xa) / (xb - xa) * dt, t1 = (xd + len - xa) / (xb - xa) * dt;
-                t0 = t0 > 0.0 ? t0 : 0.0;
-                t1 = t1 < dt ? t1 : dt;
-                occ = t1 > t0 ? t1 - t0 : 0.0;
-            } else {
-                occ = (xa >= xd && xa - len <= xd) ? dt : 0.0;
-            }
-            dt_->occupied_s[cell] += occ;
-        }
+        double xa = c->xold[s], xb = vh->x_m[s];
+        edie_vehicle(c, j, vh->class_id[s], xa, xb, vh->fuel_rate_gps[s] * c->sc->dt_s, in_window, i_lo, i_hi);
+        for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
+    }
+}
+
+/* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
+ * add to one cell, so each cell's sum runs in road order whatever the thread count: on a large road each thread
+ * owns a range of cells and of detectors and visits every vehicle in road order. */
+static void phase_measure(WfCorridor *c, long step, int in_window)
+{
+    size_t nx = c->edie.nx, nd = c->det.n_det;
+    int nth = c->veh.n >= WF_PAR_MIN ? c->nthreads : 1;
+    if (nth <= 1) {
+        measure_range(c, step, in_window, 0, nx, 0, nd);
+        return;
+    }
+#pragma omp parallel num_threads(nth) default(none) shared(c, step, in_window, nx, nd)
+    {
+#ifdef _OPENMP
+        size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads();
+#else
+        size_t t = 0, nt = 1;
+#endif
+        measure_range(c, step, in_window, nx * t / nt, nx * (t + 1) / nt, nd * t / nt, nd * (t + 1) / nt);
     }
 }
 
@@ -748,27 +747,27 @@ static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed,
 {
     const WfCorridorVehicles *vh = &c->veh;
     size_t cl = vh->class_id[s];
-    c->st.cls_fuel[cl] += c->w_fuel[s];
-    c->st.cls_dist[cl] += c->w_dist[s];
-    c->st.cls_stops[cl] += c->w_stops[s];
-    c->st.cls_infeas[cl] += c->w_infeas[s];
-    c->st.cls_steps[cl] += c->w_steps[s];
-    c->st.tot_hard += c->w_hard[s];
-    c->st.tot_stopped_s += c->w_stopped[s];
+    c->st.cls_fuel[cl] += c->win.fuel_g[s];
+    c->st.cls_dist[cl] += c->win.dist_m[s];
+    c->st.cls_stops[cl] += c->win.stops[s];
+    c->st.cls_infeas[cl] += c->win.infeasible[s];
+    c->st.cls_steps[cl] += c->win.steps[s];
+    c->st.tot_hard += c->win.hard_brakes[s];
+    c->st.tot_stopped_s += c->win.stopped_s[s];
     if (completed) {
         c->st.trips_done++;
         c->st.sum_trip_time += t_exit - c->t_ent[s];
-        c->st.sum_trip_fuel += c->trip_fuel[s];
+        c->st.sum_trip_fuel += c->trip.fuel_g[s];
         c->st.cls_trips[cl]++;
         c->st.cls_trip_time[cl] += t_exit - c->t_ent[s];
-        c->st.cls_trip_fuel[cl] += c->trip_fuel[s];
+        c->st.cls_trip_fuel[cl] += c->trip.fuel_g[s];
     }
     WfTrip *tr = &c->trips[c->n_trips++];
     *tr = (WfTrip){.serial = vh->serial[s], .class_id = vh->class_id[s], .group_id = vh->group_id[s],
                    .completed = (uint8_t)completed, .t_arrival_s = c->t_arr[s], .t_entry_s = c->t_ent[s],
-                   .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = c->v_ent[s], .fuel_g = c->trip_fuel[s],
-                   .dist_m = c->trip_dist[s], .time_stopped_s = c->trip_stopped[s], .stops = c->trip_stops[s],
-                   .hard_brakes = c->trip_hard[s], .infeasible_steps = c->trip_infeas[s]};
+                   .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = c->v_ent[s], .fuel_g = c->trip.fuel_g[s],
+                   .dist_m = c->trip.dist_m[s], .time_stopped_s = c->trip.stopped_s[s], .stops = c->trip.stops[s],
+                   .hard_brakes = c->trip.hard_brakes[s], .infeasible_steps = c->trip.infeasible[s]};
     return c->n_trips == TRIP_BUF ? flush_trips(c, out, err) : 0;
 }
 
@@ -777,8 +776,8 @@ static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed,
 static int phase_exits(WfCorridor *c, double t_end, int in_window, const WfCorridorOutput *out, WfError *err)
 {
     WfCorridorVehicles *vh = &c->veh;
-    while (vh->n > 0 && vh->x_m[vh->first] >= c->L) {
-        size_t s = vh->first;
+    while (vh->n > 0 && vh->x_m[wf_corridor_slot(vh, 0)] >= c->L) {
+        size_t s = wf_corridor_slot(vh, 0);
         int rc = finish_vehicle(c, s, t_end, 1, out, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
             size_t seg = c->st.vl_seg;
@@ -786,7 +785,6 @@ static int phase_exits(WfCorridor *c, double t_end, int in_window, const WfCorri
             c->st.vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
             c->st.vl_x = c->st.vl_xref;
         }
-        vh->first = vh->first + 1 == vh->cap ? 0 : vh->first + 1;
         vh->n--;
         c->st.counts.exited++;
         if (in_window) c->st.w_exits++;
@@ -929,79 +927,83 @@ static int checkpoint(WfCorridor *c, const WfCorridorOutput *out, WfError *err)
     return rc ? rc : out->checkpoint(out->ctx, c, err);
 }
 
+/* One step: the kernel's pass that computes the step's values (fused with the advance unless a record or a
+ * trajectory must see them first), then the open boundary: the virtual leader, overlap repair, Edie and detectors,
+ * exits. Returns WF_LOOP_END after the final instant (recorded without a step), 0 after a step, or an error code. */
+static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    WfCorridorVehicles *vh = &c->veh;
+    double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
+    int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
+    int traj = sc->trajectories && step % c->traj_every == 0, rc;
+    if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, t, step, err))) return rc;
+    WfLead front = front_leader(c);
+    int two_pass = records || traj || last, flags;
+    lane_exports(c, two_pass);
+    if (two_pass) {
+        wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ACCEL | WF_PASS_ENERGY, in_window, NULL);
+        if (records) {
+            WfCorridorRow row;
+            record(c, t, &row);
+            if (in_window && vh->n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
+            if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) return rc;
+        }
+        if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c, t, err))) return rc;
+        if (last) return WF_LOOP_END;
+        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ADVANCE, in_window, NULL);
+    } else {
+        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_FUSED, in_window, NULL);
+    }
+    advance_leader(c, t_next);
+    phase_overlaps(c, in_window, flags ? vh->n : c->has_vl ? 1 : 0);
+    if (c->fault_slot >= 0) return numerical_fault(c, step, err);
+    phase_measure(c, step, in_window);
+    return phase_exits(c, t_next, in_window, out, err);
+}
+
+static int corridor_step_cb(void *ctx, long step, WfError *err)
+{
+    WfCorridor *c = ctx;
+    return corridor_step(c, step, c->out, err);
+}
+
+static int corridor_checkpoint_cb(void *ctx, WfError *err)
+{
+    WfCorridor *c = ctx;
+    return checkpoint(c, c->out, err);
+}
+
+/* The vehicles still on the road: their window totals count, their trips are reported as unfinished. */
+static int corridor_close_cb(void *ctx, WfError *err)
+{
+    WfCorridor *c = ctx;
+    int rc = flush_trips(c, c->out, err);
+    for (size_t k = 0; !rc && k < c->veh.n; k++) rc = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, c->out, err);
+    if (!rc) rc = flush_trips(c, c->out, err);
+    summarize(c);
+    return rc;
+}
+
+static int corridor_end_cb(void *ctx, int completed, const char *reason, WfError *err)
+{
+    WfCorridor *c = ctx;
+    return c->out->end(c->out->ctx, c, completed, reason, err);
+}
+
 int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
                     volatile sig_atomic_t *stop, WfError *err)
 {
     const WfScenario *sc = c->sc;
     int rc = out && out->begin ? out->begin(out->ctx, c, err) : 0;
     if (rc) return rc;
-    double t0 = wall_now(), last_progress = t0, last_ckpt = t0;
-    const char *reason = NULL;
-    WfCorridorRow row;
-    for (long step = c->st.steps_done; step <= c->n_steps; step++) {
-        double t = (double)step * sc->dt_s;
-        int in_window = step >= c->warm_steps;
-        if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, t, step, err))) break;
-        phase_accel(c, step);
-        phase_energy(c);
-        if (step % c->out_every == 0) {
-            record(c, t, &row);
-            if (in_window && c->veh.n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
-            if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) break;
-        }
-        if (sc->trajectories && step % c->traj_every == 0 && out && out->trajectory &&
-            (rc = out->trajectory(out->ctx, c, t, err)))
-            break;
-        if (step == c->n_steps) break;
-        double t_next = (double)(step + 1) * sc->dt_s;
-        phase_advance(c, in_window);
-        advance_leader(c, t_next);
-        phase_overlaps(c, in_window);
-        if (c->fault_slot >= 0) {
-            rc = numerical_fault(c, step, err);
-            break;
-        }
-        phase_measure(c, step, in_window);
-        if ((rc = phase_exits(c, t_next, in_window, out, err))) break;
-        c->st.steps_done = step + 1;
-        if (stop && *stop) {
-            reason = *stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
-            break;
-        }
-        if (c->checkpoint_every_s > 0 && out && out->checkpoint && wall_now() - last_ckpt >= c->checkpoint_every_s) {
-            if ((rc = checkpoint(c, out, err))) break;
-            last_ckpt = wall_now();
-        }
-        if (progress && (step & 63) == 0) {
-            double now = wall_now();
-            if (now - last_progress >= 0.2) {
-                progress(pctx, t_next, sc->duration_s, step + 1, c->n_steps);
-                last_progress = now;
-            }
-        }
-    }
-    c->wall_s = wall_now() - t0;
-    /* An interrupted run can always be resumed: its checkpoint is taken before the vehicles still on the road
-     * are closed below (which changes the totals and appends unfinished trips that a resumed run drops). */
-    if (!rc && reason && out && out->checkpoint) rc = checkpoint(c, out, err);
-    /* Vehicles still on the road: their window totals count, their trips are reported as unfinished. */
-    WfError e2 = {0};
-    int rc2 = flush_trips(c, out, rc ? &e2 : err);
-    for (size_t k = 0; !rc2 && k < c->veh.n; k++)
-        rc2 = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, out, rc ? &e2 : err);
-    if (!rc2) rc2 = flush_trips(c, out, rc ? &e2 : err);
-    summarize(c);
-    if (!rc && rc2) rc = rc2;
-    if (rc) {
-        if (out && out->end) out->end(out->ctx, c, 0, err->msg, &e2);
-        return rc;
-    }
-    int completed = reason == NULL;
-    if (out && out->end && (rc = out->end(out->ctx, c, completed, reason ? reason : "", err))) return rc;
-    if (!completed)
-        return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
-                      (double)c->st.steps_done * sc->dt_s);
-    return 0;
+    c->out = out;
+    WfLoop lp = {.ctx = c, .step = corridor_step_cb,
+                 .checkpoint = out && out->checkpoint ? corridor_checkpoint_cb : NULL, .close = corridor_close_cb,
+                 .end = out && out->end ? corridor_end_cb : NULL, .steps_done = &c->st.steps_done,
+                 .wall_s = &c->wall_s, .n_steps = c->n_steps, .dt_s = sc->dt_s, .duration_s = sc->duration_s,
+                 .checkpoint_every_s = c->checkpoint_every_s, .progress = progress, .pctx = pctx, .stop = stop};
+    return wf_loop_run(&lp, err);
 }
 
 const WfScenario *wf_corridor_scenario(const WfCorridor *c) { return c->sc; }
@@ -1029,34 +1031,11 @@ size_t wf_corridor_state(WfCorridor *c, WfStateVar *vars, size_t max)
     VAR("scalars", &c->st, 1);
     VAR("first", &vh->first, 1);
     VAR("n", &vh->n, 1);
-    /* Per slot, whole buffers (a vehicle keeps its slot). Not saved: gap, leader speed, grade, acceleration, fuel
-     * rate, flag and xold, which every step recomputes from these before reading them. */
-    VAR("x", vh->x_m, cap);
-    VAR("v", vh->v_mps, cap);
-    VAR("length", vh->length_m, cap);
-    VAR("serial", vh->serial, cap);
-    VAR("class_id", vh->class_id, cap);
-    VAR("group_id", vh->group_id, cap);
+#define SAVE_SLOTS(nm, field) VAR(nm, c->field, cap);
+    SAVED_SLOT_ARRAYS(SAVE_SLOTS)
+#undef SAVE_SLOTS
     VAR("params", vh->params, cap * c->pstride);
     if (c->sstride) VAR("controller_state", vh->state, cap * c->sstride);
-    VAR("grade_seg", c->grade_seg, cap);
-    VAR("mode", c->mode, cap);
-    VAR("t_arrival", c->t_arr, cap);
-    VAR("t_entry", c->t_ent, cap);
-    VAR("v_entry", c->v_ent, cap);
-    VAR("trip_fuel", c->trip_fuel, cap);
-    VAR("trip_dist", c->trip_dist, cap);
-    VAR("trip_stopped", c->trip_stopped, cap);
-    VAR("trip_stops", c->trip_stops, cap);
-    VAR("trip_hard", c->trip_hard, cap);
-    VAR("trip_infeasible", c->trip_infeas, cap);
-    VAR("w_fuel", c->w_fuel, cap);
-    VAR("w_dist", c->w_dist, cap);
-    VAR("w_stopped", c->w_stopped, cap);
-    VAR("w_steps", c->w_steps, cap);
-    VAR("w_stops", c->w_stops, cap);
-    VAR("w_hard", c->w_hard, cap);
-    VAR("w_infeasible", c->w_infeas, cap);
     VAR("queue_t", c->queue_t, c->q_cap);
     if (nd) {
         VAR("det_count", c->det.count, nd);

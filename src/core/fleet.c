@@ -19,11 +19,9 @@ void wf_fleet_destroy(WfFleet **pf)
                       f->infeasible_steps, f->mode};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
-        free(f->group_member[g]);
         free(f->group_params[g]);
         free(f->group_state[g]);
     }
-    for (size_t c = 0; c < WF_MAX_CLASSES; c++) free(f->class_member[c]);
     free(f);
     *pf = NULL;
 }
@@ -199,26 +197,16 @@ int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, d
     return draw_params(sc, &sc->groups[group], (size_t)vehicle, out, err);
 }
 
-#define ALLOC(ptr, count)                                                     \
-    do {                                                                      \
-        (ptr) = calloc((count) ? (count) : 1, sizeof *(ptr));                 \
-        if (!(ptr)) {                                                         \
-            rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);   \
-            goto fail;                                                        \
-        }                                                                     \
+#define ALLOC(ptr, count)                                                                                   \
+    do {                                                                                                    \
+        if (!((ptr) = calloc((count) ? (count) : 1, sizeof *(ptr))))                                        \
+            return wf_err(err, WF_ESYS, "out of memory for %zu vehicles", f->n);                            \
     } while (0)
 
-int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
+/* The per-vehicle arrays. The step's values are fleet-wide only when a step may run as two passes. */
+static int fleet_alloc(const WfScenario *sc, WfFleet *f, WfError *err)
 {
-    *out = NULL;
-    size_t n = (size_t)sc->n_vehicles;
-    int rc = 0;
-    WfFleet *f = calloc(1, sizeof *f);
-    if (!f) return wf_err(err, WF_ESYS, "out of memory");
-    f->n = n;
-    f->n_groups = sc->n_groups;
-    f->n_classes = sc->n_classes;
-    /* The multi-pass step keeps the per-step values fleet-wide; the fused step keeps them per block. */
+    size_t n = f->n;
     f->multipass = sc->adaptive || sc->trajectories || !sc->fused_step;
     ALLOC(f->x_m, n); ALLOC(f->v_mps, n);
     if (f->multipass) {
@@ -236,43 +224,51 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     ALLOC(f->x_start_m, n); ALLOC(f->fuel_g, n); ALLOC(f->stopped_steps, n); ALLOC(f->sum_v, n); ALLOC(f->sum_v2, n);
     ALLOC(f->sum_a, n); ALLOC(f->sum_a2, n); ALLOC(f->stops, n); ALLOC(f->hard_brakes, n);
     ALLOC(f->infeasible_steps, n); ALLOC(f->mode, n);
+    return 0;
+}
 
-    if ((rc = place_all(sc, f, err))) goto fail;
-
-    for (size_t c = 0; c < sc->n_classes; c++) {
-        f->class_length_m[c] = sc->classes[c].length_m;
-        if (f->multipass) ALLOC(f->class_member[c], (size_t)sc->classes[c].count);
-    }
+/* Each group's parameter blocks (one copy with stride 0 without heterogeneity: every member has the group's
+ * parameters) and controller memory, the members' slots and their drawn parameters. */
+static int fleet_groups(const WfScenario *sc, WfFleet *f, WfError *err)
+{
+    for (size_t c = 0; c < sc->n_classes; c++) f->class_length_m[c] = sc->classes[c].length_m;
     for (size_t g = 0; g < sc->n_groups; g++) {
         const WfCfModel *m = sc->groups[g].model;
         int het = 0;
         for (size_t k = 0; k < m->n_spec; k++) het |= sc->groups[g].spread[k] > 0.0;
-        /* Without heterogeneity every member has the group's parameters: one copy, stride 0. */
         f->group_param_stride[g] = het ? m->param_size : 0;
-        if (f->multipass) ALLOC(f->group_member[g], (size_t)sc->groups[g].count);
         f->group_params[g] = calloc(het ? (size_t)sc->groups[g].count + 1 : 1, m->param_size);
         f->group_state[g] = m->state_size ? calloc((size_t)sc->groups[g].count + 1, m->state_size) : NULL;
-        if (!f->group_params[g] || (m->state_size && !f->group_state[g])) {
-            rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);
-            goto fail;
-        }
+        if (!f->group_params[g] || (m->state_size && !f->group_state[g]))
+            return wf_err(err, WF_ESYS, "out of memory for %zu vehicles", f->n);
         if (!het) memcpy(f->group_params[g], sc->groups[g].params, m->param_size);
     }
-    for (size_t i = 0; i < n; i++) {
+    for (size_t i = 0; i < f->n; i++) {
         size_t c = f->class_id[i], g = f->group_id[i];
-        if (f->multipass) {
-            f->class_member[c][f->class_n[c]] = (uint32_t)i;
-            f->group_member[g][f->group_n[g]] = (uint32_t)i;
-        }
         f->class_n[c]++;
         size_t slot = f->group_n[g]++;
         if (f->slot) f->slot[i] = (uint32_t)slot;
         if (!f->group_param_stride[g]) continue;
-        double *p = (double *)(f->group_params[g] + slot * f->group_param_stride[g]);
-        if ((rc = draw_params(sc, &sc->groups[g], i, p, err))) goto fail;
+        int rc = draw_params(sc, &sc->groups[g], i, (double *)(f->group_params[g] + slot * f->group_param_stride[g]),
+                             err);
+        if (rc) return rc;
     }
+    return 0;
+}
 
-    /* Initial state. */
+/* Bumper-to-bumper gap of vehicle i to its leader (vehicle 0 one lap ahead for the last). */
+static double ring_gap(const WfFleet *f, double L, size_t i)
+{
+    size_t lead = i + 1 < f->n ? i + 1 : 0;
+    double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
+    return xl - wf_fleet_length(f, lead) - f->x_m[i];
+}
+
+/* Initial gaps (equilibrium, or equal at rest) into gap[n], and the initial speed; fails when the vehicles do not
+ * fit at their standstill gaps. */
+static int initial_gaps(const WfScenario *sc, WfFleet *f, double *gap, double *v0, WfError *err)
+{
+    size_t n = f->n;
     double L = sc->road.length_m, total_len = 0.0, jam = 0.0, jam_i = 0.0;
     const void *prev = NULL;
     for (size_t i = 0; i < n; i++) {
@@ -282,39 +278,35 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
         if (p != prev) jam_i = wf_equilibrium_gap(sc->groups[f->group_id[i]].model, p, 0.0, L), prev = p;
         jam += jam_i;
     }
-    if (total_len + jam > L) {
-        rc = wf_err(err, WF_EINPUT,
-                    "%s: %zu vehicles need %.6g m at their standstill gaps (lengths %.6g m + gaps %.6g m) but the ring "
-                    "is %.6g m long",
-                    sc->path, n, total_len + jam, total_len, jam, L);
-        goto fail;
-    }
-    double v0 = 0.0;
-    double *gap = f->gap_m ? f->gap_m : malloc(n * sizeof *gap); /* scratch until the first step */
-    if (!gap) {
-        rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", n);
-        goto fail;
-    }
-    if (sc->init_state == WF_INIT_EQUILIBRIUM) {
-        double v_hi = isfinite(sc->road.speed_limit_mps) ? sc->road.speed_limit_mps : 100.0;
-        v0 = wf_equilibrium_ring(sc, f, v_hi, gap);
-        if (isnan(v0)) {
-            if (gap != f->gap_m) free(gap);
-            rc = wf_err(err, WF_ESYS, "out of memory");
-            goto fail;
-        }
-        double used = 0.0;
-        for (size_t i = 0; i < n; i++) used += gap[i] + wf_fleet_length(f, i);
-        /* Spare length (speed limit reached, or bisection residue) is shared equally. */
-        for (size_t i = 0; i < n; i++) gap[i] += (L - used) / (double)n;
-    } else {
+    if (total_len + jam > L)
+        return wf_err(err, WF_EINPUT,
+                      "%s: %zu vehicles need %.6g m at their standstill gaps (lengths %.6g m + gaps %.6g m) but the "
+                      "ring is %.6g m long",
+                      sc->path, n, total_len + jam, total_len, jam, L);
+    *v0 = 0.0;
+    if (sc->init_state != WF_INIT_EQUILIBRIUM) {
         for (size_t i = 0; i < n; i++) gap[i] = (L - total_len) / (double)n;
+        return 0;
     }
+    double v_hi = isfinite(sc->road.speed_limit_mps) ? sc->road.speed_limit_mps : 100.0;
+    *v0 = wf_equilibrium_ring(sc, f, v_hi, gap);
+    if (isnan(*v0)) return wf_err(err, WF_ESYS, "out of memory");
+    double used = 0.0;
+    for (size_t i = 0; i < n; i++) used += gap[i] + wf_fleet_length(f, i);
+    /* Spare length (speed limit reached, or bisection residue) is shared equally. */
+    for (size_t i = 0; i < n; i++) gap[i] += (L - used) / (double)n;
+    return 0;
+}
+
+/* Positions and speeds from the gaps, jitter and perturbation; modes and controller memory. */
+static int initial_state(const WfScenario *sc, WfFleet *f, const double *gap, double v0, WfError *err)
+{
+    size_t n = f->n;
+    double L = sc->road.length_m;
     f->v_init_mps = v0;
     /* x_0 = length_0 so vehicle 0's rear bumper sits at 0; x_{i+1} = x_i + gap_i + length_{i+1}. */
     f->x_m[0] = wf_fleet_length(f, 0);
     for (size_t i = 0; i + 1 < n; i++) f->x_m[i + 1] = f->x_m[i] + gap[i] + wf_fleet_length(f, i + 1);
-    if (gap != f->gap_m) free(gap);
     for (size_t i = 0; i < n; i++) f->v_mps[i] = v0;
     for (size_t i = 0; sc->jitter_m > 0 && i < n; i++) {
         double u[2];
@@ -324,39 +316,51 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     if (sc->perturb_vehicle >= 0) {
         f->x_m[sc->perturb_vehicle] += sc->perturb_dx_m;
         f->v_mps[sc->perturb_vehicle] += sc->perturb_dv_mps;
-        if (f->v_mps[sc->perturb_vehicle] < 0.0) {
-            rc = wf_err(err, WF_EINPUT, "%s: initial.perturbation.dv_mps makes vehicle %ld's speed negative (%.6g m/s)",
-                        sc->path, sc->perturb_vehicle, f->v_mps[sc->perturb_vehicle]);
-            goto fail;
-        }
+        if (f->v_mps[sc->perturb_vehicle] < 0.0)
+            return wf_err(err, WF_EINPUT,
+                          "%s: initial.perturbation.dv_mps makes vehicle %ld's speed negative (%.6g m/s)", sc->path,
+                          sc->perturb_vehicle, f->v_mps[sc->perturb_vehicle]);
     }
-    for (size_t i = 0; i < n; i++) {
-        size_t lead = i + 1 < n ? i + 1 : 0;
-        double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
-        double g = xl - wf_fleet_length(f, lead) - f->x_m[i];
-        if (!(g >= 0.0)) {
-            rc = wf_err(err, WF_EINPUT,
-                        "%s: the initial perturbation or jitter makes vehicle %zu overlap its leader (gap %.6g m)",
-                        sc->path, i, g);
-            goto fail;
-        }
-    }
+    for (size_t i = 0; i < n; i++)
+        if (!(ring_gap(f, L, i) >= 0.0))
+            return wf_err(err, WF_EINPUT,
+                          "%s: the initial perturbation or jitter makes vehicle %zu overlap its leader (gap %.6g m)",
+                          sc->path, i, ring_gap(f, L, i));
     for (size_t i = 0; i < n; i++) {
         f->mode[i] = f->v_mps[i] > sc->v_go_mps ? WF_MODE_MOVING : 0;
-        size_t g = f->group_id[i];
+        size_t g = f->group_id[i], lead = i + 1 < n ? i + 1 : 0;
         const WfCfModel *m = sc->groups[g].model;
-        if (m->state_size && m->init_state) {
-            size_t lead = i + 1 < n ? i + 1 : 0;
-            double xl = f->x_m[lead] + (lead == 0 ? L : 0.0);
+        if (m->state_size && m->init_state)
             m->init_state(wf_fleet_params(f, sc, i), f->group_state[g] + wf_fleet_slot(f, i) * m->state_size,
-                          xl - wf_fleet_length(f, lead) - f->x_m[i], f->v_mps[i], f->v_mps[lead]);
-        }
+                          ring_gap(f, L, i), f->v_mps[i], f->v_mps[lead]);
+    }
+    return 0;
+}
+
+int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
+{
+    *out = NULL;
+    WfFleet *f = calloc(1, sizeof *f);
+    if (!f) return wf_err(err, WF_ESYS, "out of memory");
+    f->n = (size_t)sc->n_vehicles;
+    f->n_groups = sc->n_groups;
+    f->n_classes = sc->n_classes;
+    double v0 = 0.0, *gap = NULL;
+    int rc = fleet_alloc(sc, f, err);
+    if (!rc) rc = place_all(sc, f, err);
+    if (!rc) rc = fleet_groups(sc, f, err);
+    /* The gaps: the fleet's array when it has one, else scratch until the first step. */
+    if (!rc && !(gap = f->gap_m ? f->gap_m : malloc(f->n * sizeof *gap)))
+        rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", f->n);
+    if (!rc) rc = initial_gaps(sc, f, gap, &v0, err);
+    if (!rc) rc = initial_state(sc, f, gap, v0, err);
+    if (gap != f->gap_m) free(gap);
+    if (rc) {
+        wf_fleet_destroy(&f);
+        return rc;
     }
     *out = f;
     return 0;
-fail:
-    wf_fleet_destroy(&f);
-    return rc;
 }
 
 void wf_fleet_open_window(WfFleet *f)

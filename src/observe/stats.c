@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "wavefuel/vehicle.h"
-#include "core/par.h"
 
 const WfColumn wf_ts_columns[WF_TS_N_COLS] = {
     {"t", "s", "simulated time of the record"},
@@ -22,8 +21,6 @@ const WfColumn wf_ts_columns[WF_TS_N_COLS] = {
     {"min_gap", "m", "smallest bumper-to-bumper gap"},
     {"overlaps", "1", "overlap events so far (a vehicle stopped behind its leader to keep its gap >= 0)"},
 };
-
-size_t wf_stats_scratch_blocks(size_t n) { return (n + WF_STATS_BLOCK - 1) / WF_STATS_BLOCK + 1; }
 
 void wf_stats_block(size_t m, const double *v, const double *gap, const double *fr, const uint16_t *cid,
                     size_t nc, const WfScenario *sc, WfStatsBlock *out)
@@ -87,20 +84,6 @@ void wf_stats_combine(const WfStatsBlock *b, size_t nb, size_t nc, const WfScena
     row->v[WF_TS_MEAN_GAP] = sg / n;
     row->v[WF_TS_MIN_GAP] = gmin;
     row->v[WF_TS_OVERLAPS] = (double)overlaps;
-}
-
-void wf_stats_record(const WfFleet *f, const WfScenario *sc, double t_s, int64_t overlaps, WfStatsBlock *scratch,
-                     WfTsRow *row)
-{
-    size_t n = f->n, nc = f->n_classes, nb = (n + WF_STATS_BLOCK - 1) / WF_STATS_BLOCK;
-    const double *v = f->v_mps, *gap = f->gap_m, *fr = f->fuel_rate_gps;
-    const uint16_t *cid = f->class_id;
-    WF_PAR_FOR(n >= 4096, "omp parallel for schedule(static) default(none) shared(nb, n, nc, scratch, v, gap, fr, cid, sc)",
-    for (size_t b = 0; b < nb; b++) {
-        size_t lo = b * WF_STATS_BLOCK, m = n - lo < WF_STATS_BLOCK ? n - lo : WF_STATS_BLOCK;
-        wf_stats_block(m, v + lo, gap + lo, fr + lo, cid + lo, nc, sc, &scratch[b]);
-    });
-    wf_stats_combine(scratch, nb, nc, sc, t_s, overlaps, row);
 }
 
 void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, long n_sd, long window_steps,

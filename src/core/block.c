@@ -1,0 +1,522 @@
+/* The block kernel (block.h). Every per-vehicle rule exists once, in block form: loops over a block's arrays
+ * without control flow where they are hot, so they vectorise. A vehicle's arithmetic does not depend on which
+ * pass, block split or thread runs it, so fused and multi-pass steps and any thread count give the same bits. */
+#include "core/block.h"
+
+#include <math.h>
+#include <string.h>
+#include <time.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#include "wavefuel/fleet.h"
+#include "wavefuel/rng.h"
+#include "core/par.h"
+#include "core/simd.h"
+
+#define B WF_BLOCK
+#define AI static inline __attribute__((always_inline))
+
+double wf_wall_now(void)
+{
+#ifdef _OPENMP
+    return omp_get_wtime();
+#else
+    struct timespec ts;
+    timespec_get(&ts, TIME_UTC);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+#endif
+}
+
+int wf_loop_run(const WfLoop *lp, WfError *err)
+{
+    double t0 = wf_wall_now(), last_progress = t0, last_ckpt = t0;
+    const char *reason = NULL;
+    int rc = 0;
+    for (long step = *lp->steps_done; step <= lp->n_steps; step++) {
+        if ((rc = lp->step(lp->ctx, step, err))) break;
+        *lp->steps_done = step + 1;
+        if (lp->stop && *lp->stop) {
+            reason = *lp->stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+            break;
+        }
+        if (lp->checkpoint_every_s > 0 && lp->checkpoint && wf_wall_now() - last_ckpt >= lp->checkpoint_every_s) {
+            if ((rc = lp->checkpoint(lp->ctx, err))) break;
+            last_ckpt = wf_wall_now();
+        }
+        if (lp->progress && (step & 63) == 0 && wf_wall_now() - last_progress >= 0.2) {
+            lp->progress(lp->pctx, (double)(step + 1) * lp->dt_s, lp->duration_s, step + 1, lp->n_steps);
+            last_progress = wf_wall_now();
+        }
+    }
+    *lp->wall_s = wf_wall_now() - t0;
+    if (rc == WF_LOOP_END) rc = 0;
+    /* The checkpoint comes before the close, which may change the totals (a corridor closes the trips of the
+     * vehicles still on the road, which a resumed run drops). */
+    if (!rc && reason && lp->checkpoint) rc = lp->checkpoint(lp->ctx, err);
+    WfError e2 = {0};
+    int rc2 = lp->close(lp->ctx, rc ? &e2 : err);
+    if (!rc && rc2) rc = rc2;
+    if (rc) {
+        if (lp->end) lp->end(lp->ctx, 0, err->msg, &e2);
+        return rc;
+    }
+    if (lp->end && (rc = lp->end(lp->ctx, reason == NULL, reason ? reason : "", err))) return rc;
+    if (reason)
+        return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
+                      (double)*lp->steps_done * lp->dt_s);
+    return 0;
+}
+
+static inline size_t idx_of(const WfLane *ln, size_t i) { return ln->slot ? ln->slot[i] : i; }
+
+/* A block's values of the step, kept locally by the fused step. */
+typedef struct Blk {
+    double a[B], th[B], fr[B], gap[B], vl[B];
+    uint8_t fl[B];
+} Blk;
+
+/* What the engine adds to a model's acceleration: noise, the group's limits, optionally the class's feasible
+ * a_max, and the cap (speed limits: never past the limit within the step, nor into a lower limit ahead too fast). */
+AI void post_rule(const WfScenario *sc, const WfDriverGroup *grp, size_t cnt, const double *restrict v,
+                  const double *restrict th, const double *restrict z, const double *restrict cap,
+                  const uint16_t *restrict cls, double *restrict a)
+{
+    double amax = grp->accel_max_mps2, dmax = grp->decel_max_mps2, noise = grp->noise_mps2;
+    if (noise > 0.0) {
+#pragma omp simd
+        for (size_t j = 0; j < cnt; j++) a[j] += noise * z[j];
+    }
+#pragma omp simd
+    for (size_t j = 0; j < cnt; j++) {
+        double ai = a[j] > amax ? amax : a[j];
+        a[j] = ai < -dmax ? -dmax : ai;
+    }
+    if (grp->clip_feasible) {
+        for (size_t j = 0; j < cnt; j++) {
+            const WfVehicleClass *vc = &sc->classes[cls[j]].vc;
+            double am = vc->model->a_max(vc->params, v[j], th[j]);
+            a[j] = a[j] > am ? am : a[j];
+        }
+    }
+    if (cap) {
+#pragma omp simd
+        for (size_t j = 0; j < cnt; j++) {
+            double floor_a = cap[j] > -dmax ? cap[j] : -dmax;
+            a[j] = a[j] > cap[j] ? floor_a : a[j];
+        }
+    }
+}
+
+/* The parameters of the vehicle in slot i of group g (its zone's copy in buf when the group is zoned). */
+static inline const void *params_of(const WfLane *ln, size_t g, size_t i, double x, double *buf)
+{
+    const void *p = ln->params[g] + idx_of(ln, i) * ln->pstride[g];
+    return ln->zoned[g] ? ln->ops->params_at(ln->ctx, g, p, x, buf) : p;
+}
+
+/* Accelerations of the cnt vehicles of group g in a block (slots lo + k[j], or lo + j when k is NULL) from their
+ * gathered inputs: the model's block kernel when the parameters are one shared block or consecutive, else accel()
+ * per vehicle; then the post-rule. */
+AI void accel_group(const WfLane *ln, size_t g, size_t lo, const uint32_t *k, size_t cnt, const double *x,
+                    const double *gap, const double *v, const double *vl, const double *th, const double *z,
+                    const double *cap, const uint16_t *cls, double *a)
+{
+    const WfDriverGroup *grp = &ln->sc->groups[g];
+    const WfCfModel *m = grp->model;
+    size_t psz = ln->pstride[g], ssz = ln->sstride[g];
+    size_t i0 = lo + (k ? k[0] : 0), i1 = lo + (k ? k[cnt - 1] : cnt - 1), s0 = idx_of(ln, i0);
+    if (m->accel_block && !m->state_size && !ln->zoned[g] && (!psz || idx_of(ln, i1) - s0 == cnt - 1)) {
+        m->accel_block(ln->params[g] + s0 * psz, psz, cnt, gap, v, vl, a);
+    } else {
+        double buf[WF_MAX_MODEL_PARAMS];
+        for (size_t j = 0; j < cnt; j++) {
+            size_t i = lo + (k ? k[j] : j);
+            const void *st = m->state_size ? ln->state[g] + idx_of(ln, i) * ssz : NULL;
+            a[j] = m->accel(params_of(ln, g, i, x[i - lo], buf), st, gap[j], v[j], vl[j]);
+        }
+    }
+    post_rule(ln->sc, grp, cnt, v, th, z, cap, cls, a);
+}
+
+AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
+                    double *fr, uint8_t *fl)
+{
+    const WfScenario *sc = ln->sc;
+    const uint16_t *cid = ln->class_id + lo;
+    if (sc->n_classes == 1) {
+        const WfVehicleClass *vc = &sc->classes[0].vc;
+        vc->model->eval(vc->params, n, v, a, th, 0, fr, fl);
+        return;
+    }
+    double gv[B], ga[B], gt[B], gf[B];
+    uint8_t gfl[B];
+    uint32_t idx[B];
+    for (size_t b0 = 0; b0 < n; b0 += B) {
+        size_t m = n - b0 < B ? n - b0 : B;
+        for (size_t c = 0; c < sc->n_classes; c++) {
+            size_t cnt = 0;
+            for (size_t k = 0; k < m; k++)
+                if (cid[b0 + k] == c) idx[cnt++] = (uint32_t)(b0 + k);
+            if (!cnt) continue;
+            for (size_t j = 0; j < cnt; j++) gv[j] = v[idx[j]], ga[j] = a[idx[j]], gt[j] = th[idx[j]];
+            const WfVehicleClass *vc = &sc->classes[c].vc;
+            vc->model->eval(vc->params, cnt, gv, ga, gt, 0, gf, gfl);
+            for (size_t j = 0; j < cnt; j++) fr[idx[j]] = gf[j], fl[idx[j]] = gfl[j];
+        }
+    }
+}
+
+void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
+                    double *fr, uint8_t *fl)
+{
+    energy_block(ln, lo, n, v, a, th, fr, fl);
+}
+
+/* Accelerations of a block, group by group (gathered when the block mixes groups). */
+AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, const double *v, const double *z,
+                    const double *cap, Blk *b)
+{
+    const WfScenario *sc = ln->sc;
+    const uint16_t *cid = ln->class_id + lo, *gid = ln->group_id + lo;
+    if (sc->n_groups == 1) {
+        accel_group(ln, 0, lo, NULL, m, x, b->gap, v, b->vl, b->th, z, cap, cid, b->a);
+        return;
+    }
+    double gg[B], gv[B], gl[B], gt[B], gz[B], gc[B], ga[B];
+    uint16_t gcl[B];
+    uint32_t idx[B];
+    for (size_t g = 0; g < sc->n_groups; g++) {
+        size_t cnt = 0;
+        for (size_t k = 0; k < m; k++)
+            if (gid[k] == g) idx[cnt++] = (uint32_t)k;
+        if (!cnt) continue;
+        for (size_t j = 0; j < cnt; j++) {
+            size_t k = idx[j];
+            gg[j] = b->gap[k], gv[j] = v[k], gl[j] = b->vl[k], gt[j] = b->th[k], gcl[j] = cid[k];
+            gz[j] = ln->noisy ? z[k] : 0.0;
+            gc[j] = cap ? cap[k] : 0.0;
+        }
+        accel_group(ln, g, lo, idx, cnt, x, gg, gv, gl, gt, gz, cap ? gc : NULL, gcl, ga);
+        for (size_t j = 0; j < cnt; j++) b->a[idx[j]] = ga[j];
+    }
+}
+
+/* Inputs at the step's start, accelerations and (WF_PASS_ENERGY) fuel rates of the block in slots [lo, lo + m);
+ * its last vehicle's leader is ld. */
+AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass,
+                     WfStatsBlock *rec, Blk *b)
+{
+    const WfScenario *sc = ln->sc;
+    const double *x = ln->x_m + lo, *v = ln->v_mps + lo;
+    const uint16_t *cid = ln->class_id + lo;
+    double z[B], cap[B];
+    if (ln->noisy) ln->ops->noise(ln->ctx, lo, m, step, z);
+    for (size_t k = 0; k + 1 < m; k++) {
+        b->gap[k] = x[k + 1] - ln->class_length_m[cid[k + 1]] - x[k];
+        b->vl[k] = v[k + 1];
+    }
+    if (ld->free_gap_m > 0.0) {
+        b->gap[m - 1] = ld->free_gap_m;
+        b->vl[m - 1] = v[m - 1];
+    } else {
+        b->gap[m - 1] = ld->rear_m - x[m - 1];
+        b->vl[m - 1] = ld->v_mps;
+    }
+    if (ln->ops->grade)
+        ln->ops->grade(ln->ctx, lo, m, x, b->th);
+    else
+        memset(b->th, 0, m * sizeof *b->th);
+    int capped = ln->ops->cap && ln->ops->cap(ln->ctx, m, x, v, cap);
+    accel_block(ln, lo, m, x, v, z, capped ? cap : NULL, b);
+    if (pass & WF_PASS_ENERGY) {
+        energy_block(ln, lo, m, v, b->a, b->th, b->fr, b->fl);
+        if (rec) wf_stats_block(m, v, b->gap, b->fr, cid, sc->n_classes, sc, rec);
+    }
+}
+
+/* Left-point accumulation of one gate over a block. */
+AI void accum_before(const WfAccum *ac, const WfScenario *sc, size_t lo, size_t m, const double *restrict v,
+                     const double *restrict a, const double *restrict fr, const uint8_t *restrict fl,
+                     const uint8_t *restrict mode, int with_fuel)
+{
+    double dt = sc->dt_s, v_stop = sc->v_stop_mps, hard = -sc->hard_brake_mps2;
+    if (ac->fuel_g && with_fuel) {
+        double *restrict q = ac->fuel_g + lo;
+        for (size_t k = 0; k < m; k++) q[k] += fr[k] * dt;
+    }
+    if (ac->stopped_s) {
+        double *restrict q = ac->stopped_s + lo;
+        for (size_t k = 0; k < m; k++) q[k] += v[k] < v_stop ? dt : 0.0;
+    }
+    if (ac->sum_v) {
+        double *restrict s1 = ac->sum_v + lo, *restrict s2 = ac->sum_v2 + lo;
+        double *restrict a1 = ac->sum_a + lo, *restrict a2 = ac->sum_a2 + lo;
+        for (size_t k = 0; k < m; k++) {
+            s1[k] += v[k];
+            s2[k] += v[k] * v[k];
+            a1[k] += a[k];
+            a2[k] += a[k] * a[k];
+        }
+    }
+    if (ac->stopped_steps) {
+        uint32_t *restrict q = ac->stopped_steps + lo;
+        for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(v[k] < v_stop);
+    }
+    if (ac->infeasible) {
+        uint32_t *restrict q = ac->infeasible + lo;
+        for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(fl[k] == WF_INFEASIBLE_ACCEL);
+    }
+    if (ac->hard_brakes) {
+        uint32_t *restrict q = ac->hard_brakes + lo;
+        for (size_t k = 0; k < m; k++) q[k] += (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING));
+    }
+    if (ac->steps) {
+        uint32_t *restrict q = ac->steps + lo;
+        for (size_t k = 0; k < m; k++) q[k]++;
+    }
+}
+
+/* Statistics of the step from its start (accumulators, onset of hard braking, faults). */
+AI int stats_before(WfLane *ln, size_t lo, size_t m, const double *restrict v, const double *restrict a,
+                    const double *restrict fr, const uint8_t *restrict fl, int in_window, int with_fuel)
+{
+    uint8_t *restrict mode = ln->mode + lo;
+    double hard = -ln->sc->hard_brake_mps2;
+    accum_before(&ln->always, ln->sc, lo, m, v, a, fr, fl, mode, with_fuel);
+    if (in_window) accum_before(&ln->window, ln->sc, lo, m, v, a, fr, fl, mode, with_fuel);
+    /* x - x is 0 for a finite x and NaN (!= 0) otherwise. */
+    int nonfinite = 0;
+    for (size_t k = 0; k < m; k++) {
+        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_BRAKING) | (a[k] < hard) * WF_MODE_BRAKING);
+        nonfinite |= (a[k] - a[k] != 0.0) | (fr[k] - fr[k] != 0.0);
+    }
+    if (!nonfinite) return 0;
+    /* Rare: mark the vehicles (the step then ends in a numerical-fault error naming the first). */
+    for (size_t k = 0; k < m; k++)
+        if (!isfinite(a[k]) || !isfinite(fr[k])) mode[k] |= WF_MODE_FAULT;
+    return WF_STEP_FAULT;
+}
+
+AI void accum_after(const WfAccum *ac, size_t lo, size_t m, const double *restrict x, const double *restrict xo,
+                    const uint8_t *restrict stop)
+{
+    if (ac->stops) {
+        uint32_t *restrict q = ac->stops + lo;
+        for (size_t k = 0; k < m; k++) q[k] += stop[k];
+    }
+    if (ac->dist_m) {
+        double *restrict q = ac->dist_m + lo;
+        for (size_t k = 0; k < m; k++) q[k] += x[k] - xo[k];
+    }
+}
+
+/* Statistics of the new state: stops (hysteresis between v_stop and v_go), distances from xo, overlaps inside the
+ * block (its last vehicle's is checked once every block has moved) and non-finite states. */
+AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, int in_window)
+{
+    const WfScenario *sc = ln->sc;
+    const double *restrict x = ln->x_m + lo, *restrict v = ln->v_mps + lo;
+    const uint16_t *cid = ln->class_id + lo;
+    uint8_t *restrict mode = ln->mode + lo;
+    uint8_t stop[B];
+    double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps, ll[B];
+    int bad = 0, over = 0;
+    for (size_t k = 0; k < m; k++) {
+        int moving = mode[k] & WF_MODE_MOVING, st = moving & (v[k] < v_stop), go = !moving & (v[k] > v_go);
+        stop[k] = (uint8_t)st;
+        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_MOVING) | ((moving & !st) | go) * WF_MODE_MOVING);
+    }
+    accum_after(&ln->always, lo, m, x, xo, stop);
+    if (in_window) accum_after(&ln->window, lo, m, x, xo, stop);
+    /* integer OR reductions vectorise without reassociating any floating-point sum */
+    for (size_t k = 0; k < m; k++) bad |= (x[k] - x[k] != 0.0) | (v[k] - v[k] != 0.0);
+    for (size_t k = 0; k + 1 < m; k++) ll[k] = ln->class_length_m[cid[k + 1]];
+    for (size_t k = 0; k + 1 < m; k++) over |= x[k + 1] - ll[k] - x[k] < 0.0;
+    return (over ? WF_STEP_OVERLAP : 0) | (bad ? WF_STEP_FAULT : 0);
+}
+
+void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v)
+{
+    const WfScenario *sc = ln->sc;
+    for (size_t k = 0; k < n; k++) {
+        size_t i = lo + k, g = ln->group_id[i];
+        const WfCfModel *cm = sc->groups[g].model;
+        if (!cm->state_size || !cm->update_state) continue;
+        double buf[WF_MAX_MODEL_PARAMS];
+        cm->update_state(params_of(ln, g, i, ln->x_m[i], buf), ln->state[g] + idx_of(ln, i) * ln->sstride[g],
+                         ln->gap_m[i], v[k], ln->v_lead_mps[i], sc->dt_s);
+    }
+}
+
+/* Controller memory (with the step's inputs), statistics, integration of the block. */
+AI int advance_block(WfLane *ln, size_t lo, size_t m, const double *a, const double *gap, const double *vl,
+                     const double *fr, const uint8_t *fl, int in_window)
+{
+    const WfScenario *sc = ln->sc;
+    double *x = ln->x_m + lo, *v = ln->v_mps + lo, xo[B];
+    if (ln->stateful) {
+        for (size_t k = 0; k < m; k++) {
+            size_t i = lo + k, g = ln->group_id[i];
+            const WfCfModel *cm = sc->groups[g].model;
+            if (!cm->state_size || !cm->update_state) continue;
+            double buf[WF_MAX_MODEL_PARAMS];
+            cm->update_state(params_of(ln, g, i, x[k], buf), ln->state[g] + idx_of(ln, i) * ln->sstride[g], gap[k],
+                             v[k], vl[k], sc->dt_s);
+        }
+    }
+    int flags = stats_before(ln, lo, m, v, a, fr, fl, in_window, 1);
+    memcpy(xo, x, m * sizeof *x);
+    if (ln->x_old_m) memcpy(ln->x_old_m + lo, x, m * sizeof *x);
+    ln->ig->step(m, sc->dt_s, x, v, a);
+    return flags | stats_after(ln, lo, m, xo, in_window);
+}
+
+/* One block of a pass: slots [lo, lo + m), its last vehicle's leader ld, rec its record's partial sums or NULL. */
+WF_SIMD_CLONES
+static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass, int in_window,
+                     WfStatsBlock *rec)
+{
+    Blk b;
+    if (!(pass & WF_PASS_ACCEL))
+        return advance_block(ln, lo, m, ln->a_mps2 + lo, ln->gap_m + lo, ln->v_lead_mps + lo, ln->fuel_rate_gps + lo,
+                             ln->flag + lo, in_window);
+    inputs_block(ln, lo, m, ld, step, pass, rec, &b);
+    if (ln->a_mps2) memcpy(ln->a_mps2 + lo, b.a, m * sizeof *b.a);
+    if (ln->gap_m) memcpy(ln->gap_m + lo, b.gap, m * sizeof *b.gap);
+    if (ln->v_lead_mps) memcpy(ln->v_lead_mps + lo, b.vl, m * sizeof *b.vl);
+    if (ln->theta_rad) memcpy(ln->theta_rad + lo, b.th, m * sizeof *b.th);
+    if ((pass & WF_PASS_ENERGY) && ln->fuel_rate_gps) memcpy(ln->fuel_rate_gps + lo, b.fr, m * sizeof *b.fr);
+    if ((pass & WF_PASS_ENERGY) && ln->flag) memcpy(ln->flag + lo, b.fl, m * sizeof *b.fl);
+    if (!(pass & WF_PASS_ADVANCE)) return 0;
+    return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, in_window);
+}
+
+void wf_lane_stats_before(WfLane *ln, size_t lo, size_t n, int in_window)
+{
+    for (size_t b0 = 0; b0 < n; b0 += B) {
+        size_t i = lo + b0, m = n - b0 < B ? n - b0 : B;
+        stats_before(ln, i, m, ln->v_mps + i, ln->a_mps2 + i, ln->fuel_rate_gps + i, ln->flag + i, in_window, 0);
+    }
+}
+
+void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window)
+{
+    for (size_t b0 = 0; b0 < n; b0 += B) {
+        size_t i = lo + b0, m = n - b0 < B ? n - b0 : B;
+        stats_after(ln, i, m, ln->x_old_m + i, in_window);
+    }
+}
+
+void wf_lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
+{
+    /* Block lo / B's draws from its start, so that a slot's draw does not depend on where the range begins. */
+    size_t off = lo % B;
+    if (!off) {
+        wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, m, z);
+        return;
+    }
+    double all[B];
+    wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, off + m, all);
+    memcpy(z, all + off, m * sizeof *z);
+}
+
+size_t wf_lane_blocks(size_t first, size_t n) { return n ? (n + first % B + B - 1) / B : 0; }
+
+/* Logical block j of the range: slots [*lo, *lo + return value). Blocks end at multiples of B in slots. */
+static size_t block_at(const WfLane *ln, size_t first, size_t n, size_t j, size_t *lo)
+{
+    size_t off = first % B, s = j ? j * B - off : 0, e = (j + 1) * B - off;
+    if (e > n) e = n;
+    *lo = (first + s) % ln->cap;
+    return e - s;
+}
+
+/* The leader of the range's front vehicle: the back one (saved at x0, v0) one period ahead, or the open front. */
+static WfLead front_lead(const WfLane *ln, size_t first, double x0, double v0, const WfLead *front)
+{
+    if (!(ln->period_m > 0.0)) return *front;
+    return (WfLead){(x0 + ln->period_m) - ln->class_length_m[ln->class_id[first]], v0, 0.0};
+}
+
+/* Overlap of the vehicle in slot i with the one in slot l (both moved); shift: l's position offset (a period). */
+static int edge_overlap(const WfLane *ln, size_t i, size_t l, double shift)
+{
+    double xl = ln->x_m[l] + shift;
+    return xl - ln->class_length_m[ln->class_id[l]] - ln->x_m[i] < 0.0 ? WF_STEP_OVERLAP : 0;
+}
+
+/* Blocks [b0, b1) of one chunk, in order; (xs, vs): the chunk's last leader, saved before any update. */
+static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, size_t nb, double xs, double vs,
+                     const WfLead *front, long step, int pass, int in_window, WfStatsBlock *rec)
+{
+    int fl = 0;
+    size_t prev_last = 0;
+    for (size_t b = b0; b < b1; b++) {
+        size_t lo, m = block_at(ln, first, n, b, &lo), nx = (lo + m) % ln->cap;
+        WfLead ld;
+        if (b + 1 == nb)
+            ld = front_lead(ln, first, xs, vs, front);
+        else if (b + 1 == b1)
+            ld = (WfLead){xs - ln->class_length_m[ln->class_id[nx]], vs, 0.0};
+        else
+            ld = (WfLead){ln->x_m[nx] - ln->class_length_m[ln->class_id[nx]], ln->v_mps[nx], 0.0};
+        fl |= run_block(ln, lo, m, &ld, step, pass, in_window, rec ? rec + b : NULL);
+        /* The previous block's edge, while both blocks are in cache. */
+        if ((pass & WF_PASS_ADVANCE) && b > b0) fl |= edge_overlap(ln, prev_last, lo, 0.0);
+        prev_last = lo + m - 1;
+    }
+    return fl;
+}
+
+/* The edge after the chunk's last block, once the next chunk has moved too. */
+static int chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_t nb)
+{
+    size_t lo, m = block_at(ln, first, n, b1 - 1, &lo), last = lo + m - 1;
+    if (b1 < nb) return edge_overlap(ln, last, (last + 1) % ln->cap, 0.0);
+    return ln->period_m > 0.0 && n > 1 ? edge_overlap(ln, last, first, ln->period_m) : 0;
+}
+
+/* Positions and speeds are updated in place. Race-free and order-free because every vehicle reads only its
+ * leader's values from the step's start: within a chunk, vehicle i's leader i + 1 is updated after i; the leader
+ * of a chunk's last vehicle is the next chunk's first (or the periodic back vehicle), saved before any update. */
+int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long step, int pass, int in_window,
+                 WfStatsBlock *rec)
+{
+    if (!n) return 0;
+    size_t nb = wf_lane_blocks(first, n);
+    int nth = n >= WF_PAR_MIN ? ln->nthreads : 1;
+    if ((size_t)nth > nb) nth = (int)nb;
+    int adv = (pass & WF_PASS_ADVANCE) != 0, flags = 0, *cf = ln->chunk_flags;
+    double *bx = ln->bound_x, *bv = ln->bound_v;
+    for (int t = 0; t < nth; t++) cf[t] = 0;
+    if (nth <= 1) {
+        /* Small roads: no OpenMP region at all (even a one-thread region costs runtime calls every step). */
+        flags = run_chunk(ln, first, n, 0, nb, nb, ln->x_m[first], ln->v_mps[first], front, step, pass, in_window, rec);
+        return adv ? flags | chunk_edge(ln, first, n, nb, nb) : 0;
+    }
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bx, bv, front, step, pass, in_window, rec, adv, cf)
+    {
+        /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
+         * actually running. */
+#ifdef _OPENMP
+        int t = omp_get_thread_num(), nt = omp_get_num_threads();
+#else
+        int t = 0, nt = 1;
+#endif
+        size_t b0 = nb * (size_t)t / (size_t)nt, b1 = nb * (size_t)(t + 1) / (size_t)nt, lo_t = 0;
+        if (b1 > b0) block_at(ln, first, n, b0, &lo_t);
+        bx[t] = ln->x_m[lo_t];
+        bv[t] = ln->v_mps[lo_t];
+#pragma omp barrier
+        /* Leader of this chunk's last vehicle: the next chunk's first, saved (the front's: chunk 0's, saved). */
+        int tn = t + 1 < nt ? t + 1 : 0;
+        int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, bx[tn], bv[tn], front, step, pass, in_window, rec) : 0;
+#pragma omp barrier
+        if (adv && b1 > b0) fl |= chunk_edge(ln, first, n, b1, nb);
+        cf[t] = fl;
+    }
+    for (int t = 0; t < nth; t++) flags |= cf[t];
+    return adv ? flags : 0;
+}

@@ -1,0 +1,131 @@
+/* The block kernel: one time step of a road's vehicles, block by block of WF_BLOCK consecutive vehicles (road
+ * order, leader of vehicle i is i + 1), shared by every boundary. Per block: noise, inputs (gap, leader speed,
+ * grade), car-following acceleration and its post-rule (noise, group limits, feasible clip, per-vehicle cap), fuel
+ * rate, the record's partial sums, controller memory, left-point statistics, integration and the statistics of the
+ * new state. A boundary (the periodic ring in engine.c, the open corridor in corridor.c) describes its storage as a
+ * WfLane and its road features as a WfRoadOps; the vehicles of a step are a logical range of at most two contiguous
+ * runs of slots in a circular buffer whose capacity is a multiple of WF_BLOCK, so a block never wraps. */
+#ifndef WAVEFUEL_CORE_BLOCK_H
+#define WAVEFUEL_CORE_BLOCK_H
+
+#include <signal.h>
+#include <stddef.h>
+#include <stdint.h>
+
+#include "wavefuel/engine.h"
+
+#include "wavefuel/integrator.h"
+#include "wavefuel/scenario.h"
+#include "wavefuel/stats.h"
+
+/* Vehicles per block; also the ring's noise block (changing it changes the draws) and its statistics block. */
+#define WF_BLOCK WF_STATS_BLOCK
+#define WF_PAR_MIN 4096 /* vehicles below which a step runs on one thread (OpenMP overhead dominates) */
+
+/* Parts of a step (wf_lane_step's pass): inputs and acceleration, fuel rate, and the advance (controller memory,
+ * statistics, integration). All three in one pass is the fused step; the first two alone export the step's values
+ * into the lane's arrays for the outputs, and the advance alone then reads them back. */
+enum { WF_PASS_ACCEL = 1, WF_PASS_ENERGY = 2, WF_PASS_ADVANCE = 4, WF_PASS_FUSED = 7 };
+/* Flags a step returns: some vehicle overlaps its leader, or has a non-finite state, acceleration or fuel rate. */
+enum { WF_STEP_OVERLAP = 1, WF_STEP_FAULT = 2 };
+
+/* Per-vehicle accumulators of one gate (every step, or only inside the statistics window), indexed by slot; NULL
+ * fields are not kept. Left-point rule: values at the step's start held for dt (docs/metrics.md). */
+typedef struct WfAccum {
+    double   *fuel_g, *stopped_s, *dist_m, *sum_v, *sum_v2, *sum_a, *sum_a2;
+    uint32_t *stopped_steps, *steps, *stops, *hard_brakes, *infeasible;
+} WfAccum;
+
+/* The front vehicle's leader on an open road: a rear bumper at rear_m driving at v_mps, or, when free_gap_m > 0, a
+ * far leader at that gap driving at the vehicle's own speed. */
+typedef struct WfLead {
+    double rear_m, v_mps, free_gap_m;
+} WfLead;
+
+/* What a boundary adds to the rules: each hook sees m consecutive slots from lo and their positions / speeds. */
+typedef struct WfRoadOps {
+    /* grade angle (rad); NULL: flat */
+    void (*grade)(const void *ctx, size_t lo, size_t m, const double *x_m, double *theta_rad);
+    /* a cap on each acceleration (m/s^2; the rule: a > cap ? max(cap, -decel_max) : a); returns 0 when there is
+     * none for these vehicles; NULL: never one */
+    int (*cap)(const void *ctx, size_t m, const double *x_m, const double *v_mps, double *cap_mps2);
+    /* standard normal draws of the step (used where a group has noise) */
+    void (*noise)(const void *ctx, size_t lo, size_t m, long step, double *z);
+    /* the parameters a vehicle of a zoned group drives with at x (own, or a copy in buf) */
+    const double *(*params_at)(const void *ctx, size_t group, const double *own, double x_m, double *buf);
+} WfRoadOps;
+
+/* A boundary's vehicles as the kernel sees them. Arrays are indexed by slot and borrowed from the boundary. */
+typedef struct WfLane {
+    const WfScenario   *sc;
+    const WfIntegrator *ig;
+    const WfRoadOps    *ops;
+    const void         *ctx;        /* passed to the hooks */
+    size_t    cap;                  /* slots; a multiple of WF_BLOCK, or the ring's n (its range never wraps) */
+    double    period_m;             /* > 0: periodic, the front's leader is the back vehicle one period ahead */
+    double   *x_m, *v_mps;
+    const uint16_t *class_id, *group_id;
+    double    class_length_m[WF_MAX_CLASSES];
+    /* each group's parameters and controller memory: vehicle in slot i at base + idx * stride with idx = slot[i]
+     * (slot NULL: idx = i); stride 0: one shared block */
+    const uint32_t *slot;
+    const unsigned char *params[WF_MAX_GROUPS];
+    unsigned char *state[WF_MAX_GROUPS];
+    size_t    pstride[WF_MAX_GROUPS], sstride[WF_MAX_GROUPS];
+    uint8_t   zoned[WF_MAX_GROUPS]; /* the group's parameters depend on position (ops->params_at) */
+    uint32_t *grade_seg;            /* grade cache per slot (NULL when flat) */
+    uint8_t  *mode;                 /* WF_MODE_* per slot */
+    WfAccum   always, window;
+    /* the step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with
+     * WF_PASS_ADVANCE alone; NULL where not kept (the fused step keeps them per block) */
+    double   *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps, *x_old_m;
+    uint8_t  *flag;
+    int       noisy, stateful, nthreads;
+    double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
+    int      *chunk_flags;          /* nthreads + 1 */
+} WfLane;
+
+/* One pass of step `step` over the logical range of n vehicles from slot `first` (road order, wrapping at cap).
+ * front: the front vehicle's leader (ignored when periodic). rec: the record's partial sums, one per block, or
+ * NULL. Returns WF_STEP_* flags of an advancing pass (overlaps between blocks included, the open front excluded). */
+int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long step, int pass, int in_window,
+                 WfStatsBlock *rec);
+/* The noise of slots [lo, lo + m) at a step: slot i's draw is deviate i mod WF_BLOCK of the counter-based stream
+ * keyed (seed, block i / WF_BLOCK, step) (wf_rng_normal_block), whatever thread runs it. */
+void wf_lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z);
+/* Number of blocks of that range (the length of rec). */
+size_t wf_lane_blocks(size_t first, size_t n);
+/* Fuel rate and flag of slots [lo, lo + n) at speeds v and accelerations a (grades theta_rad), class by class. */
+void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
+                    double *fr, uint8_t *fl);
+/* The statistics before and after an integration done elsewhere (the SUNDIALS path): before, without fuel, from
+ * the exported values; after, the stops and distances of the new state. */
+void wf_lane_stats_before(WfLane *ln, size_t lo, size_t n, int in_window);
+void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window);
+/* Controller memory of slots [lo, lo + n) from the exported gaps and leader speeds and the speeds v. */
+void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v);
+/* Wall-clock seconds (for phase timers and progress). */
+double wf_wall_now(void);
+
+/* A run, shared by the boundaries: steps from *steps_done to n_steps; after each step, the stop flag, the checkpoint
+ * every checkpoint_every_s of wall time and the progress (about 5 times a second); then, when a signal stopped the
+ * run, a checkpoint (an interrupted run can always be resumed), the boundary's close and the output's end. */
+enum { WF_LOOP_END = -1 };
+typedef struct WfLoop {
+    void  *ctx;
+    int  (*step)(void *ctx, long step, WfError *err); /* 0, WF_LOOP_END after the final instant, or an error */
+    int  (*checkpoint)(void *ctx, WfError *err);       /* NULL: none */
+    int  (*close)(void *ctx, WfError *err);            /* summaries of the run (also after an error) */
+    int  (*end)(void *ctx, int completed, const char *reason, WfError *err); /* NULL: none */
+    long  *steps_done;
+    double *wall_s;                                    /* wall time of the step loop */
+    long   n_steps;
+    double dt_s, duration_s, checkpoint_every_s;
+    WfProgressFn progress;                             /* may be NULL */
+    void  *pctx;
+    volatile sig_atomic_t *stop;                       /* may be NULL */
+} WfLoop;
+/* 0 when the run reached its end; WF_EINTR when a signal stopped it; else the first error. */
+int wf_loop_run(const WfLoop *lp, WfError *err);
+
+#endif
