@@ -1,0 +1,174 @@
+"""Every column a ring result derives from its vehicles (/timeseries, /vehicles, /summary and their per-class
+arrays), recomputed from the trajectories written at every step with numpy, by the definitions of docs/metrics.md.
+
+usage: ring.py BIN TRAJ.h5 [OTHER.h5 ...] TMPDIR
+TRAJ.h5 has a trajectory frame every step; each OTHER.h5 is the same scenario run without trajectories (the fused
+step), checked against the same recomputation.
+
+Tolerances (the rest is compared bit for bit: extremes, counts, shares of counts, waves, positions and speeds):
+- 1e-12 relative for sums that the engine adds in another order (fuel over <= 600 steps, rates over <= 600
+  vehicles, distances over classes): every term is non-negative, so any order is within n * 2^-53 (< 7e-14)
+  relative of the exact sum; ratios of such sums (L/100 km, mpg, mean speed, per-vkm rates) inherit it;
+- the speed s.d. across vehicles: the engine combines 256-vehicle blocks' second moments (Chan et al.), here a
+  two-pass variance: each within n * 2^-53 relative of the exact sum of squares, plus the rounding of the mean;
+  1e-12 relative to the s.d. plus 1e-12 relative to the mean speed (a 1/(N-1) variance differs by 8e-4 relative);
+- per-vehicle variances over time: the engine uses E[x^2] - E[x]^2 (cancellation), here a two-pass variance; they
+  agree within a few n * 2^-53 * E[x^2]: 1e-12 * E[x^2] absolute;
+- gaps: 1e-9 m absolute (the engine may compute them from positions reduced modulo L, which rounds at 2^-53 * L)."""
+import sys
+
+import h5py
+import numpy as np
+
+sys.path.insert(0, __file__.rsplit("/", 1)[0])
+from common import compare, energy, hard_brake_onsets, report, stops_all, waves  # noqa: E402
+import common  # noqa: E402
+
+bin_path, traj_path, others, tmp = sys.argv[1], sys.argv[2], sys.argv[3:-1], sys.argv[-1]
+f = h5py.File(traj_path)
+
+# Thresholds, step and window from the result itself (/meta) and from the scenario text it stores.
+import yaml  # noqa: E402  (python3-yaml: Debian package; the scenario text is plain YAML)
+
+scen = yaml.safe_load(f["meta/scenario_text"][()].decode())
+st = scen.get("statistics", {})
+v_stop, v_go = st.get("v_stop_mps", 0.5), st.get("v_go_mps", 2.0)
+hard, v_wave = st.get("hard_brake_mps2", 1.0), st.get("wave_speed_mps", v_go)
+dt, warm, L = f["meta/dt"][()], f["meta/warmup"][()], f["meta/road_length"][()]
+
+T, X, V, A, FR = (f["trajectories/" + k][()] for k in ("t", "x", "v", "a", "fuel_rate"))
+K = len(T) - 1                      # steps; frame k is the state at the start of step k
+assert np.allclose(T, np.arange(K + 1) * dt, rtol=0, atol=1e-9), "trajectories are not written every step"
+w0 = int(round(warm / dt))          # first step of the statistics window
+win = np.arange(K) >= w0
+W = (K - w0) * dt
+N = X.shape[1]
+cid = f["vehicles/class_id"][()]
+length = f["vehicles/length"][()]
+rho = f["classes/fuel_density"][()]
+n_cls = len(rho)
+assert N > 256, "the ring must span several 256-vehicle statistics blocks"
+
+# The energy model at every step's (v, a), flat road: the fuel rate written to the trajectories, and the flag.
+flag = np.zeros((K + 1, N), dtype=int)
+fr_model = np.zeros((K + 1, N))
+for c in range(n_cls):
+    cols = np.where(cid == c)[0]
+    fr_c, fl_c = energy(bin_path, f["classes/name"][c].decode(), V[:, cols].ravel(), A[:, cols].ravel(),
+                        np.zeros(V[:, cols].size), tmp)
+    fr_model[:, cols], flag[:, cols] = fr_c.reshape(K + 1, -1), fl_c.reshape(K + 1, -1)
+compare("ring_traj_fuel_rate_is_the_class_model", FR, fr_model, rtol=1e-13)
+
+# /timeseries at t = m * output_interval: frame m * stride.
+ts_t = f["timeseries/t"][()]
+frames = np.rint(ts_t / dt).astype(int)
+assert np.allclose(frames * dt, ts_t, rtol=0, atol=1e-9) and frames[-1] == K
+lead = np.roll(np.arange(N), -1)
+gap = np.roll(X, -1, axis=1) - length[lead] - X
+gap[:, -1] += L                     # the last vehicle's leader is vehicle 0, one lap ahead
+Vr, Fr = V[frames], FR[frames]
+ts = {
+    "t": frames * dt,
+    "mean_speed": Vr.mean(axis=1),
+    "sd_speed": Vr.std(axis=1),
+    "min_speed": Vr.min(axis=1),
+    "max_speed": Vr.max(axis=1),
+    "frac_stopped": (Vr < v_stop).sum(axis=1) / N,
+    "waves": np.array([waves(row < v_wave, circular=True) for row in Vr]),
+    "fuel_rate": Fr.sum(axis=1),
+    "class_fuel_rate": np.stack([Fr[:, cid == c].sum(axis=1) for c in range(n_cls)], axis=1),
+    "mean_gap": gap[frames].mean(axis=1),
+    "min_gap": gap[frames].min(axis=1),
+}
+# Coverage of the wave count's boundaries: a slow run across the ring's end and across a block boundary.
+slow = Vr < v_wave
+report("ring_waves_cover_boundaries", not ((slow[:, -1] & slow[:, 0]).any() and (slow[:, 255] & slow[:, 256]).any()
+                                           and (ts["waves"] >= 2).any() and (ts["waves"] == 1).any()),
+       "the scenario no longer puts slow runs across vehicle N-1/0 and 255/256")
+assert (gap >= 0).all()
+
+# /vehicles over the window.
+cnt = win[:, None]
+dist = X[K] - X[w0]
+fuel = (FR[:K] * dt * cnt).sum(axis=0)
+Vw, Aw = V[:K][win], A[:K][win]
+veh = {
+    "distance": dist,
+    "fuel": fuel,
+    "l_per_100km": np.divide(fuel / rho[cid], dist / 1e5, out=np.full(N, np.inf), where=dist > 0),
+    "mpg": (dist / 1609.344) / (fuel / rho[cid] / 3.785411784),
+    "stops": stops_all(V, win, v_stop, v_go),
+    "time_stopped": ((V[:K] < v_stop) & cnt).sum(axis=0) * dt,
+    "mean_speed": dist / W,
+    "speed_var": Vw.var(axis=0),
+    "accel_var": Aw.var(axis=0),
+    "hard_brakes": hard_brake_onsets(A[:K], win, hard),
+    "infeasible_steps": ((flag[:K] == 1) & cnt).sum(axis=0),
+    "final_x": X[K],
+    "final_v": V[K],
+}
+report("ring_lengths_are_the_class_lengths", not (length == f["classes/length"][()][cid]).all())
+
+# /summary.
+laps = np.floor(X[K] / L) - np.floor(X[w0] / L)
+cls_fuel = np.array([fuel[cid == c].sum() for c in range(n_cls)])
+cls_dist = np.array([dist[cid == c].sum() for c in range(n_cls)])
+cls_n = np.array([(cid == c).sum() for c in range(n_cls)])
+litres = (cls_fuel / rho).sum()
+vkt = dist.sum() / 1000
+rec_w = ts["t"] >= warm - 1e-9
+summ = {
+    "fuel": fuel.sum(), "distance": dist.sum(), "vkt": vkt, "window": W,
+    "l_per_100km": litres / (dist.sum() / 1e5),
+    "mpg": (dist.sum() / 1609.344) / (litres / 3.785411784),
+    "stops_per_vkm": veh["stops"].sum() / vkt,
+    "hard_brakes_per_vkm": veh["hard_brakes"].sum() / vkt,
+    "mean_speed": dist.sum() / (N * W),
+    "sd_speed_time_avg": ts["sd_speed"][rec_w].mean(),
+    "throughput": laps.sum() / W * 3600,
+    "infeasible_share": veh["infeasible_steps"].sum() / (N * (K - w0)),
+    "time_stopped_share": veh["time_stopped"].sum() / (N * W),
+    "overlaps": 0,
+    "class_fuel": cls_fuel, "class_distance": cls_dist,
+    "class_l_per_100km": cls_fuel / rho / (cls_dist / 1e5),
+    "class_mpg": (cls_dist / 1609.344) / (cls_fuel / rho / 3.785411784),
+    "class_infeasible_share": np.array([veh["infeasible_steps"][cid == c].sum() for c in range(n_cls)])
+    / (cls_n * (K - w0)),
+    "class_stops_per_vkm": np.array([veh["stops"][cid == c].sum() for c in range(n_cls)]) / (cls_dist / 1000),
+}
+events = {"stops": veh["stops"].sum(), "hard brakes": veh["hard_brakes"].sum(),
+          "infeasible steps": veh["infeasible_steps"].sum(), "passages": laps.sum()}
+report("ring_has_events", min(events.values()) <= 0, f"the scenario no longer exercises all of {events}")
+
+SUM = 1e-12
+tol_ts = {"mean_speed": (SUM, 0), "fuel_rate": (SUM, 0), "class_fuel_rate": (SUM, 0), "mean_gap": (SUM, 1e-9),
+          "min_gap": (0, 1e-9)}
+tol_veh = {"fuel": (SUM, 0), "l_per_100km": (SUM, 0), "mpg": (SUM, 0), "mean_speed": (SUM, 0)}
+tol_sum = {k: (SUM, 0) for k in summ if k not in ("window", "overlaps", "throughput")}
+
+
+def check(path, tag):
+    r = h5py.File(path)
+    for k, want in ts.items():
+        rt, at = tol_ts.get(k, (0, 0))
+        if k == "sd_speed":
+            at = 1e-12 * ts["mean_speed"][:, None] if np.ndim(want) > 1 else 1e-12 * ts["mean_speed"]
+            rt = 1e-12
+        compare(f"{tag}_timeseries_{k}", r["timeseries/" + k][()], want, rt, at)
+    compare(f"{tag}_timeseries_overlaps", r["timeseries/overlaps"][()], np.zeros(len(frames)))
+    for k, want in veh.items():
+        rt, at = tol_veh.get(k, (0, 0))
+        if k in ("speed_var", "accel_var"):
+            at = 1e-12 * ((Vw if k == "speed_var" else Aw) ** 2).mean(axis=0)
+        compare(f"{tag}_vehicles_{k}", r["vehicles/" + k][()], want, rt, at)
+    for k, want in summ.items():
+        rt, at = tol_sum.get(k, (0, 0))
+        if k == "throughput":
+            rt = SUM
+        compare(f"{tag}_summary_{k}", r["summary/" + k][()], want, rt, at)
+
+
+check(traj_path, "ring_traj")
+for i, p in enumerate(others):
+    check(p, f"ring_fused{i}" if len(others) > 1 else "ring_fused")
+sys.exit(1 if common.failures else 0)
