@@ -26,7 +26,7 @@ fleet:
     - {class: class8_tractor, fraction: 0.3, length_m: 12}
   drivers:
     - {name: blockers, model: plugin, path: $SO, placement: explicit, indices: [0, 256],
-       params: {n1_steps: 250, a2_mps2: 1.0, n2_steps: 100}}
+       params: {a1_mps2: 1, n1_steps: 100, a2_mps2: -5, n2_steps: 20, n3_steps: 100, a4_mps2: 1, n4_steps: 100}}
     - name: humans
       model: idm
       count: 598
