@@ -32,8 +32,9 @@ def compare(name, got, want, rtol=0.0, atol=0.0):
     bad = ~(err <= lim)
     if bad.any():
         i = np.unravel_index(np.argmax(np.where(bad, err - lim, -np.inf)), got.shape)
+        lim_i = np.broadcast_to(lim, got.shape)[i]
         report(name, True, f"{int(bad.sum())} of {got.size} values off; worst at {tuple(int(j) for j in i)}: got "
-                           f"{got[i]!r}, want {want[i]!r} (atol {atol}, rtol {rtol})")
+                           f"{got[i]!r}, want {want[i]!r} (allowed {lim_i:.3g})")
     else:
         report(name, False)
 
