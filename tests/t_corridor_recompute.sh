@@ -6,7 +6,6 @@
 # cells and detector intervals whose last ones are shorter; a detector 1 m before the exit (passages in exit steps).
 # The same scenario without trajectories must give the same recomputed values.
 set -u
-BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cat >"$tmp/corridor.yaml" <<EOF
@@ -31,9 +30,4 @@ corridor:
   edie: {dx_m: 100, dt_s: 30}
 output: {trajectories: true, trajectory_interval_s: 0.1}
 EOF
-if "$BIN" run "$tmp/corridor.yaml" -q -o "$tmp/traj.h5" &&
-   "$BIN" run "$tmp/corridor.yaml" -q -o "$tmp/notraj.h5" --set output.trajectories=false; then
-  /usr/bin/python3 tests/recompute/corridor.py "$BIN" "$tmp/traj.h5" "$tmp/notraj.h5" "$tmp"
-else
-  echo "FAIL corridor_recompute_runs"
-fi
+bash tests/recompute/run_pair.sh corridor_recompute "$tmp/corridor.yaml" tests/recompute/corridor.py "$tmp"

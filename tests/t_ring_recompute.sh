@@ -7,7 +7,6 @@
 # the queues behind them grow, brake and stop. The same scenario without trajectories (the fused step) must give
 # the same recomputed values.
 set -u
-BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 BUILD=${BUILD:-build}
 SO="$(pwd)/$BUILD/plugins/scripted_accel.so"
 tmp=$(mktemp -d)
@@ -37,9 +36,4 @@ initial: {state: rest}
 statistics: {v_stop_mps: 0.5, v_go_mps: 2.0, hard_brake_mps2: 1.0, wave_speed_mps: 3.0}
 output: {trajectories: true, trajectory_interval_s: 0.1}
 EOF
-if "$BIN" run "$tmp/ring.yaml" -q -o "$tmp/traj.h5" &&
-   "$BIN" run "$tmp/ring.yaml" -q -o "$tmp/fused.h5" --set output.trajectories=false; then
-  /usr/bin/python3 tests/recompute/ring.py "$BIN" "$tmp/traj.h5" "$tmp/fused.h5" "$tmp"
-else
-  echo "FAIL ring_recompute_runs"
-fi
+bash tests/recompute/run_pair.sh ring_recompute "$tmp/ring.yaml" tests/recompute/ring.py "$tmp"

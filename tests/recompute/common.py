@@ -5,9 +5,22 @@ it, not the engine's vectorised path)."""
 import subprocess
 import sys
 
+import h5py
 import numpy as np
+import yaml  # python3-yaml (Debian): the scenario text a result stores is plain YAML
 
 failures = 0
+
+
+def open_run(argv):
+    """The command line BIN TRAJ.h5 [OTHER.h5 ...] TMPDIR, and the run's settings: the statistics thresholds from
+    the scenario text stored in /meta (with the defaults of docs/scenarios.md), dt, warm-up and road length."""
+    bin_path, traj_path, others, tmp = argv[1], argv[2], argv[3:-1], argv[-1]
+    f = h5py.File(traj_path)
+    st = yaml.safe_load(f["meta/scenario_text"][()].decode()).get("statistics", {})
+    v_go = st.get("v_go_mps", 2.0)
+    thresholds = (st.get("v_stop_mps", 0.5), v_go, st.get("hard_brake_mps2", 1.0), st.get("wave_speed_mps", v_go))
+    return bin_path, f, others, tmp, thresholds, f["meta/dt"][()], f["meta/warmup"][()], f["meta/road_length"][()]
 
 
 def report(name, bad, detail=""):

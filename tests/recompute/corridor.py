@@ -24,16 +24,13 @@ import numpy as np
 import yaml
 
 sys.path.insert(0, __file__.rsplit("/", 1)[0])
-from common import compare, energy, hard_brake_onsets, report, stops, waves  # noqa: E402
+from common import compare, energy, hard_brake_onsets, open_run, report, stops, waves  # noqa: E402
 import common  # noqa: E402
 
-bin_path, traj_path, others, tmp = sys.argv[1], sys.argv[2], sys.argv[3:-1], sys.argv[-1]
-f = h5py.File(traj_path)
+bin_path, f, others, tmp, (v_stop, v_go, hard, v_wave), dt, warm, L = open_run(sys.argv)
+traj_path = f.filename
 scen = yaml.safe_load(f["meta/scenario_text"][()].decode())
-st = scen.get("statistics", {})
-v_stop, v_go = st.get("v_stop_mps", 0.5), st.get("v_go_mps", 2.0)
-hard, v_wave = st.get("hard_brake_mps2", 1.0), st.get("wave_speed_mps", v_go)
-dt, warm, L, dur = (f["meta/" + k][()] for k in ("dt", "warmup", "road_length", "duration"))
+dur = f["meta/duration"][()]
 n_steps = int(round(dur / dt))
 w0 = int(round(warm / dt))
 rho = f["classes/fuel_density"][()]

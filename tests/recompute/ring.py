@@ -21,20 +21,11 @@ import h5py
 import numpy as np
 
 sys.path.insert(0, __file__.rsplit("/", 1)[0])
-from common import compare, energy, hard_brake_onsets, report, stops_all, waves  # noqa: E402
+from common import compare, energy, hard_brake_onsets, open_run, report, stops_all, waves  # noqa: E402
 import common  # noqa: E402
 
-bin_path, traj_path, others, tmp = sys.argv[1], sys.argv[2], sys.argv[3:-1], sys.argv[-1]
-f = h5py.File(traj_path)
-
-# Thresholds, step and window from the result itself (/meta) and from the scenario text it stores.
-import yaml  # noqa: E402  (python3-yaml: Debian package; the scenario text is plain YAML)
-
-scen = yaml.safe_load(f["meta/scenario_text"][()].decode())
-st = scen.get("statistics", {})
-v_stop, v_go = st.get("v_stop_mps", 0.5), st.get("v_go_mps", 2.0)
-hard, v_wave = st.get("hard_brake_mps2", 1.0), st.get("wave_speed_mps", v_go)
-dt, warm, L = f["meta/dt"][()], f["meta/warmup"][()], f["meta/road_length"][()]
+bin_path, f, others, tmp, (v_stop, v_go, hard, v_wave), dt, warm, L = open_run(sys.argv)
+traj_path = f.filename
 
 T, X, V, A, FR = (f["trajectories/" + k][()] for k in ("t", "x", "v", "a", "fuel_rate"))
 K = len(T) - 1                      # steps; frame k is the state at the start of step k
