@@ -49,7 +49,9 @@ export WAVEFUEL_VEHICLES=
 copy="$tmp/tree"
 mkdir -p "$copy"
 cp -a Makefile include src tests examples fuzz vehicles "$copy/"
-for d in "$BUILD" bin lib; do [ -d "$d" ] && cp -a "$d" "$copy/"; done
+# The default build's objects (build/, not $BUILD: a sanitizer build's objects need its flags) keep the rebuild to
+# the changed files; without them the copy builds from scratch.
+for d in build bin lib; do [ -d "$d" ] && cp -a "$d" "$copy/"; done
 sed -e 's/wf_cf_ovm\b/wf_cf_zz_ovm_copy/g' -e 's/"ovm"/"zz_ovm_copy"/' src/models/cf/ovm.c \
   >"$copy/src/models/cf/zz_ovm_copy.c"
 $PY - "$copy/src/models/cf/registry.c" <<'PY'
@@ -66,11 +68,11 @@ PY
 start=$SECONDS
 if ! grep -q 'wf_cf_zz_ovm_copy' "$copy/src/models/cf/zz_ovm_copy.c"; then
   ko inventory_model_build "the model copy has no wf_cf_zz_ovm_copy"
-elif make -C "$copy" -j2 WERROR=1 BUILD="$BUILD" bin/wavefuel lib/libwavefuel.a "$BUILD/tests/test_cf" \
-       >"$tmp/make.log" 2>&1; then
+elif env -u CFLAGS -u LDFLAGS -u MAKEFLAGS -u MFLAGS -u MAKELEVEL make -C "$copy" -j2 WERROR=1 BUILD=build \
+       bin/wavefuel lib/libwavefuel.a build/tests/test_cf >"$tmp/make.log" 2>&1; then
   ok inventory_model_build
   echo "  (model build: $((SECONDS - start)) s)"
-  (cd "$copy" && WAVEFUEL_BIN=bin/wavefuel "$BUILD/tests/test_cf") >"$tmp/cf.log" 2>&1
+  (cd "$copy" && WAVEFUEL_BIN=bin/wavefuel build/tests/test_cf) >"$tmp/cf.log" 2>&1
   no_fail inventory_model_test_cf "$tmp/cf.log"
   msg=$("$copy/bin/wavefuel" run tests/data/tiny_ring.yaml -q -o "$tmp/x.h5" --set 'fleet.drivers[0].model=nosuch' 2>&1)
   if printf '%s' "$msg" | grep -q 'zz_ovm_copy'; then ok inventory_model_listed; else ko inventory_model_listed "$msg"; fi
