@@ -74,6 +74,8 @@ assert (np.roll(P["k"], -1)[consecutive] == P["k"][consecutive] + 1).all(), "a v
 xv, vv, av = P["x"], P["v"], P["a"]
 with np.errstate(divide="ignore", invalid="ignore"):
     x_pred = xv + np.where(vv + av * dt >= 0, vv * dt + 0.5 * av * dt * dt, -(vv * vv) / (2.0 * av))
+# Between its points a vehicle follows the ballistic update (docs/scenarios.md); this scenario has no overlap repairs.
+compare("corridor_traj_steps_are_ballistic", nxt[consecutive], x_pred[consecutive], 0, 1e-9)
 steps = consecutive | (last & completed)
 xb_all = np.where(consecutive, nxt, x_pred)
 exit_pts = last & completed

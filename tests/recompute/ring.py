@@ -92,6 +92,12 @@ events = xp > lead_rear
 report("ring_overlap_repairs", not (np.abs(gap[1:][events]) <= 1e-9).all() or not (V[1:][events] == 0).all(),
        "a vehicle predicted to overlap was not left at gap 0 and v = 0")
 overlaps_so_far = np.concatenate([[0], np.cumsum(events.sum(axis=1))])
+# Every other step is the ballistic update of docs/scenarios.md (Treiber & Kanagaraj 2015): x + v dt + a dt^2/2 and
+# v + a dt, or, when v would turn negative within the step, x + v^2/(2|a|) and v = 0.
+vp = np.where(run_, V[:K] + A[:K] * dt, 0.0)
+compare("ring_traj_steps_are_ballistic_x", np.where(events, 0.0, X[1:]), np.where(events, 0.0, xp), 0, 1e-9)
+compare("ring_traj_steps_are_ballistic_v", np.where(events, 0.0, V[1:]), np.where(events, 0.0, vp), 0, 1e-12)
+report("ring_traj_has_stops_within_a_step", not (~run_ & (V[:K] > 0)).any(), "no vehicle stops within a step")
 
 # /vehicles over the window.
 cnt = win[:, None]
