@@ -31,3 +31,17 @@ corridor:
 output: {trajectories: true, trajectory_interval_s: 0.1}
 EOF
 bash tests/recompute/run_pair.sh corridor_recompute "$tmp/corridor.yaml" tests/recompute/corridor.py "$tmp"
+# The same corridor with drivers whose noise outruns their braking limit: overlap repairs (each predicted here from
+# the ballistic step and the leader's new position) in /timeseries/overlaps and /summary/overlaps.
+mkdir -p "$tmp/overlaps"
+sed -e 's/noise_mps2: 0.3,/noise_mps2: 1.5, decel_max_mps2: 2.5,/' "$tmp/corridor.yaml" >"$tmp/overlaps/corridor.yaml"
+if grep -q 'decel_max_mps2: 2.5' "$tmp/overlaps/corridor.yaml" &&
+   "${WAVEFUEL_BIN:-bin/wavefuel}" run "$tmp/overlaps/corridor.yaml" -q -o "$tmp/overlaps/traj.h5"; then
+  RECOMPUTE_NAME=corridor_overlaps /usr/bin/python3 tests/recompute/corridor.py "${WAVEFUEL_BIN:-bin/wavefuel}" \
+    "$tmp/overlaps/traj.h5" "$tmp/overlaps"
+  if /usr/bin/python3 -c 'import h5py, sys; sys.exit(int(h5py.File(sys.argv[1])["summary/overlaps"][()] < 10))' \
+       "$tmp/overlaps/traj.h5"; then echo "PASS corridor_overlaps_occur"
+  else echo "FAIL corridor_overlaps_occur: fewer than 10 overlap repairs"; fi
+else
+  echo "FAIL corridor_overlaps_runs"
+fi

@@ -17,6 +17,7 @@ trip's distance. Tolerances (the rest bit for bit):
 - the speed s.d. across vehicles: two-pass here and in the engine: 1e-12 relative plus 1e-12 * mean speed;
 - gaps: 1e-9 m (positions < 1e4 m round at 2e-12 m);
 - the predicted exit-step distance against the trip's distance: 1e-9 m (the engine adds the steps' increments)."""
+import os
 import sys
 
 import h5py
@@ -28,6 +29,7 @@ from common import compare, energy, hard_brake_onsets, open_run, report, stops, 
 import common  # noqa: E402
 
 bin_path, f, others, tmp, (v_stop, v_go, hard, v_wave), dt, warm, L = open_run(sys.argv)
+NAME = os.environ.get("RECOMPUTE_NAME", "corridor")  # prefix of the test names
 traj_path = f.filename
 scen = yaml.safe_load(f["meta/scenario_text"][()].decode())
 dur = f["meta/duration"][()]
@@ -62,7 +64,7 @@ fr_model, flag = np.zeros(len(ser)), np.zeros(len(ser), dtype=int)
 for c in range(n_cls):
     m = cid == c
     fr_model[m], flag[m] = energy(bin_path, f["classes/name"][c].decode(), P["v"][m], P["a"][m], np.zeros(m.sum()), tmp)
-compare("corridor_traj_fuel_rate_is_the_class_model", P["fuel_rate"], fr_model, rtol=1e-13)
+compare(f"{NAME}_traj_fuel_rate_is_the_class_model", P["fuel_rate"], fr_model, rtol=1e-13)
 
 # Steps: point i to point i + 1 of the same vehicle one step later; a completed trip's last point to the predicted
 # exit position. An unfinished trip's last point (t = duration) starts no step.
@@ -74,18 +76,29 @@ assert (np.roll(P["k"], -1)[consecutive] == P["k"][consecutive] + 1).all(), "a v
 xv, vv, av = P["x"], P["v"], P["a"]
 with np.errstate(divide="ignore", invalid="ignore"):
     x_pred = xv + np.where(vv + av * dt >= 0, vv * dt + 0.5 * av * dt * dt, -(vv * vv) / (2.0 * av))
-# Between its points a vehicle follows the ballistic update (docs/scenarios.md); this scenario has no overlap repairs.
-compare("corridor_traj_steps_are_ballistic", nxt[consecutive], x_pred[consecutive], 0, 1e-9)
 steps = consecutive | (last & completed)
 xb_all = np.where(consecutive, nxt, x_pred)
 exit_pts = last & completed
-report("corridor_exit_steps_reach_L", not (x_pred[exit_pts] >= L).all() or not (P["x"][exit_pts] < L).all())
-S = {"k": P["k"][steps], "xa": xv[steps], "xb": xb_all[steps], "v": vv[steps], "a": av[steps],
-     "fr": P["fuel_rate"][steps], "flag": flag[steps], "len": length[steps], "cls": cid[steps], "trip": trip_of[steps]}
+report(f"{NAME}_exit_steps_reach_L", not (x_pred[exit_pts] >= L).all() or not (P["x"][exit_pts] < L).all())
+S = {"k": P["k"][steps], "xa": xv[steps], "xb": xb_all[steps], "xp": x_pred[steps], "v": vv[steps], "a": av[steps],
+     "fr": P["fuel_rate"][steps], "flag": flag[steps], "len": length[steps], "cls": cid[steps], "trip": trip_of[steps],
+     "ser": ser[steps], "consecutive": consecutive[steps]}
 # Road order within a step: front first = lowest serial first (no overtaking, FIFO entrance).
-so = np.lexsort((S["trip"], S["k"]))
+so = np.lexsort((S["ser"], S["k"]))
 S = {k: v[so] for k, v in S.items()}
 S_win = S["k"] >= w0
+# Overlap repairs (docs/corridors.md): a vehicle whose ballistic step would end past its leader's rear (the leader
+# after its own step, repaired or not, exits included) is put at gap 0 and stopped. The front vehicle follows a
+# virtual leader 1e5 m ahead (free outflow): no repair.
+has_lead = np.concatenate([[False], S["k"][1:] == S["k"][:-1]])
+lead_rear = np.concatenate([[np.inf], S["xb"][:-1] - S["len"][:-1]])
+ov = has_lead & (S["xp"] > lead_rear)
+report(f"{NAME}_overlap_repairs", not (np.abs(S["xb"][ov] - lead_rear[ov]) <= 1e-9).all(),
+       "a vehicle predicted to overlap was not left at gap 0")
+# Every other step is the ballistic update (docs/scenarios.md); the exit steps were predicted with it.
+ok_ = S["consecutive"] & ~ov
+compare(f"{NAME}_traj_steps_are_ballistic", S["xb"][ok_], S["xp"][ok_], 0, 1e-9)
+ov_per_step = np.bincount(S["k"][ov], minlength=n_steps + 1)
 
 # ---- /trips
 first = np.ones(len(ser), dtype=bool)
@@ -128,14 +141,14 @@ for tr in range(n_trips):
     a_tr = av[i0:i0 + n_st][:, None]
     want["hard_brakes"][tr] = hard_brake_onsets(a_tr, np.ones(n_st, dtype=bool), hard)[0]
     w_hard[tr] = hard_brake_onsets(a_tr, ks >= w0, hard)[0]
-compare("corridor_trip_distance_vs_predicted_exit", T["distance"], dist_pred, rtol=0, atol=1e-9)
+compare(f"{NAME}_trip_distance_vs_predicted_exit", T["distance"], dist_pred, rtol=0, atol=1e-9)
 want["travel_time"] = want["exit_time"] - want["entry_time"]
 want["queue_delay"] = want["entry_time"] - T["arrival_time"]
 tol_trip = {"fuel": (1e-12, 0), "distance": (1e-12, 1e-9), "time_stopped": (0, 1e-12 * n_steps * dt)}
 events = {"stops": want["stops"].sum(), "hard brakes": want["hard_brakes"].sum(), "exits": done.size,
           "delayed entries": (want["queue_delay"] > 0.5 * dt).sum(), "infeasible steps": want["infeasible_steps"].sum(),
           "unfinished trips": n_trips - done.size}
-report("corridor_has_events", min(events.values()) <= 0, f"the scenario no longer exercises all of {events}")
+report(f"{NAME}_has_events", min(events.values()) <= 0, f"the scenario no longer exercises all of {events}")
 
 # ---- /timeseries: the vehicles on the road at each record instant, front first.
 ts_t = f["timeseries/t"][()]
@@ -168,10 +181,9 @@ rows["exited"] = (exit_t[None, :] <= ts_t[:, None] + 1e-9).sum(axis=1)
 rows["arrived"] = (arr_t[None, :] <= ts_t[:, None] + 1e-9).sum(axis=1)
 rows["queued"] = rows["arrived"] - rows["entered"]
 rows["delayed"] = ((entry_t[None, :] <= ts_t[:, None] + 1e-9) & (want["queue_delay"] > 0.5 * dt)[None, :]).sum(axis=1)
-report("corridor_records_conserve", not ((rows["entered"] == rows["exited"] + rows["vehicles"]).all()))
+report(f"{NAME}_records_conserve", not ((rows["entered"] == rows["exited"] + rows["vehicles"]).all()))
 
-# Overlap repairs: this scenario has none (its drivers brake in time); a repair would show here as a mismatch.
-rows["overlaps"] = np.zeros(len(rk))
+rows["overlaps"] = np.concatenate([[0], np.cumsum(ov_per_step)])[rk]   # repairs in the steps before the record
 
 # ---- Edie cells and detectors from the steps.
 xe, te = f["edie/x_edges"][()], f["edie/t_edges"][()]
@@ -200,7 +212,7 @@ for part in range(3):  # a step crosses at most two cell edges (dx >> the longes
     np.add.at(Cf, (S["cls"], ci), np.where(S_win, S["fr"] * dt * w, 0.0))
     dtot += d
     lo_x, cell = np.where(c_ok, b, lo_x), np.where(c_ok, cell + 1, cell)
-report("corridor_edie_split_complete", not np.allclose(dtot[moving], (np.minimum(S["xb"], L) - np.maximum(S["xa"], 0))[moving],
+report(f"{NAME}_edie_split_complete", not np.allclose(dtot[moving], (np.minimum(S["xb"], L) - np.maximum(S["xa"], 0))[moving],
                                                         rtol=0, atol=1e-9))
 still = ~moving & (S["xa"] >= 0) & (S["xa"] < L)
 ci = np.minimum(np.searchsorted(xe, S["xa"], side="right") - 1, nx - 1)
@@ -237,7 +249,7 @@ ilen = (d_t1 - d_t0)[:, None]
 with np.errstate(divide="ignore", invalid="ignore"):
     det = {"count": cnt, "flow": cnt / ilen * 3600.0, "speed_time_mean": np.where(cnt > 0, sv / cnt, np.nan),
            "speed_harmonic_mean": np.where(cnt > 0, cnt / sinv, np.nan), "occupancy": occ / ilen}
-report("corridor_detectors_see_passages", not (cnt.sum(axis=0) > 0).all(),
+report(f"{NAME}_detectors_see_passages", not (cnt.sum(axis=0) > 0).all(),
        f"every detector must count passages (the last one close to L counts exit steps): {cnt.sum(axis=0)}")
 
 # ---- /summary over the window.
@@ -273,7 +285,7 @@ with np.errstate(divide="ignore", invalid="ignore"):
         "outflow": ((exit_t >= (w0 + 1) * dt - 1e-9)).sum() / W * 3600,
         "infeasible_share": cinf.sum() / csteps.sum(), "time_stopped_share": wst.sum() / vht_s,
         "trips": done_m.sum(), "arrived": n_trips, "entered": n_trips, "exited": done_m.sum(),
-        "on_road": (~done_m).sum(), "queued": 0, "overlaps": 0,
+        "on_road": (~done_m).sum(), "queued": 0, "overlaps": ov.sum(),
         "delayed": (want["queue_delay"] > 0.5 * dt).sum(),
         "mean_travel_time": want["travel_time"][done_m].mean(), "mean_trip_fuel": fuel_t[done_m].mean(),
         "mean_queue_delay": want["queue_delay"].mean(),
@@ -313,7 +325,7 @@ def check(path, tag):
         compare(f"{tag}_summary_{k}", r["summary/" + k][()], v, 0 if k in exact else SUM)
 
 
-check(traj_path, "corridor_traj")
+check(traj_path, f"{NAME}_traj")
 for i, p in enumerate(others):
-    check(p, f"corridor_notraj{i}" if len(others) > 1 else "corridor_notraj")
+    check(p, f"{NAME}_notraj{i}" if len(others) > 1 else f"{NAME}_notraj")
 sys.exit(1 if common.failures else 0)
