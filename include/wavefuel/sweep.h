@@ -118,10 +118,6 @@ typedef struct WfSweepTiming {
 int wf_sweep_table_write(const char *path, const WfSweep *sw, const WfSweepResult *res, const WfSweepTiming *timing,
                          WfError *err);
 
-/* Turn off HDF5's printing of its error stack for the calling thread (a setting per thread in the thread-safe
- * library; wavefuel reports errors itself). wf_sweep_run calls it in every thread that writes a per-run file. */
-void wf_sweep_h5_quiet_thread(void);
-
 /* A table read back (resume, tests). */
 typedef struct WfSweepSaved {
     size_t         n;

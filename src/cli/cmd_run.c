@@ -18,9 +18,6 @@
 #include "wavefuel/h5out.h"
 #include "wavefuel/scenario.h"
 
-static volatile sig_atomic_t stop_signal = 0;
-static void on_signal(int sig) { stop_signal = sig; }
-
 static void help(FILE *out)
 {
     fprintf(out,
@@ -189,13 +186,9 @@ int wf_cmd_run(int argc, char **argv)
         wf_scenario_destroy(&sc);
         return wf_cli_fail(&err);
     }
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
+    wf_cli_catch_stop();
     Progress p = {.t0 = now_s(), .tty = isatty(STDERR_FILENO)};
-    rc = wf_sim_run(sim, &ops, (!quiet && p.tty) ? progress : NULL, &p, &stop_signal, &err);
+    rc = wf_sim_run(sim, &ops, (!quiet && p.tty) ? progress : NULL, &p, &wf_cli_stop, &err);
     if (!quiet && p.tty) fprintf(stderr, "\n");
     int status = 0;
     if (rc) {

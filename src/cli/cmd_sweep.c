@@ -23,9 +23,6 @@
 
 #define SAVE_EVERY_S 5.0 /* table snapshots while the sweep runs: what a killed sweep can lose */
 
-static volatile sig_atomic_t stop_signal = 0;
-static void on_signal(int sig) { stop_signal = sig; }
-
 static void help(FILE *out, const char *prog)
 {
     fprintf(out,
@@ -111,7 +108,7 @@ static int take(void *ctx, size_t *run)
 {
     Exec *e = ctx;
     lock(e);
-    int got = !stop_signal && !e->abort && e->next < e->n_todo;
+    int got = !wf_cli_stop && !e->abort && e->next < e->n_todo;
     if (got) *run = e->todo[e->next++];
     unlock(e);
     return got;
@@ -134,8 +131,9 @@ static void worker(Exec *e, int id, int report_each)
     WfSweepRunOpts o = e->opts;
     o.worker = id;
     size_t k;
+    wf_cli_h5_quiet_thread(); /* per-run files are written from this thread */
     while (take(e, &k)) {
-        wf_sweep_run(e->sw, k, &o, &stop_signal, &r);
+        wf_sweep_run(e->sw, k, &o, &wf_cli_stop, &r);
         finish(e, k, &r);
         if (report_each) report(e);
     }
@@ -212,7 +210,7 @@ static void coordinate(Exec *e)
         report(e);
         lock(e);
         int idle = e->local_active == 0 && remote_busy == 0;
-        int nothing_left = stop_signal || e->abort || e->next == e->n_todo;
+        int nothing_left = wf_cli_stop || e->abort || e->next == e->n_todo;
         unlock(e);
         if (idle && nothing_left) break;
         sleep_ms(1);
@@ -375,11 +373,7 @@ int wf_cmd_sweep(int argc, char **argv)
 #else
     if (rc) return wf_cli_fail(&err);
 #endif
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
+    wf_cli_catch_stop();
 
     /* Threads: on one machine, workers = min(threads, runs to do), each run getting threads / workers of them
      * (1 unless runs are fewer than threads). Under MPI, --threads is per run on every rank (default 1). */
@@ -401,7 +395,7 @@ int wf_cmd_sweep(int argc, char **argv)
 #ifdef WF_MPI
     if (rank != 0) {
         WfSweepRunOpts ro = {.threads = (int)threads, .per_run_dir = o.per_run_dir, .worker = rank};
-        wf_mpi_serve(sw, &ro, &stop_signal);
+        wf_mpi_serve(sw, &ro, &wf_cli_stop);
         wf_sweep_destroy(&sw);
         return 0;
     }

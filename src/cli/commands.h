@@ -3,6 +3,8 @@
 #ifndef WAVEFUEL_CLI_COMMANDS_H
 #define WAVEFUEL_CLI_COMMANDS_H
 
+#include <signal.h>
+
 #include "wavefuel/err.h"
 
 typedef struct WfCommand {
@@ -25,5 +27,17 @@ int wf_cli_fail(const WfError *err);
  * that /meta/reason says why and that the row counters `counters` (named as in the message) say how much it holds,
  * and whether a checkpoint (result.ckpt) lets --resume continue it. */
 void wf_cli_note_partial(const char *partial, const char *result, const char *counters);
+
+/* Process-wide settings (src/cli/process.c), made by the programs only, never by the library. */
+/* Set by SIGINT/SIGTERM once wf_cli_catch_stop() is called: the signal's number; runs poll it and stop. */
+extern volatile sig_atomic_t wf_cli_stop;
+/* At the start of main: SIGXFSZ ignored, HDF5 without its exit handler and without printing its error stack in
+ * this thread (errors are reported through WfError). */
+void wf_cli_process_init(void);
+/* HDF5's error-stack printing off in the calling thread (per thread in the thread-safe HDF5): every thread of
+ * the program that calls HDF5 calls it first. */
+void wf_cli_h5_quiet_thread(void);
+/* From now on SIGINT and SIGTERM set wf_cli_stop instead of killing the process. */
+void wf_cli_catch_stop(void);
 
 #endif

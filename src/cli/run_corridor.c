@@ -12,9 +12,6 @@
 #include "wavefuel/corridor.h"
 #include "wavefuel/h5corridor.h"
 
-static volatile sig_atomic_t stop_signal = 0;
-static void on_signal(int sig) { stop_signal = sig; }
-
 static double now_s(void)
 {
     struct timespec ts;
@@ -83,14 +80,10 @@ int wf_cli_run_corridor(const WfScenario *sc, const char *resume, double checkpo
         return wf_cli_fail(&err);
     }
     if (checkpoint_s > 0) wf_corridor_set_checkpoint_interval(c, checkpoint_s);
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
+    wf_cli_catch_stop();
     double t0 = now_s();
     int tty = isatty(STDERR_FILENO);
-    rc = wf_corridor_run(c, &ops, (!quiet && tty) ? progress : NULL, &t0, &stop_signal, &err);
+    rc = wf_corridor_run(c, &ops, (!quiet && tty) ? progress : NULL, &t0, &wf_cli_stop, &err);
     if (!quiet && tty) fprintf(stderr, "\n");
     int status = 0;
     if (rc) {

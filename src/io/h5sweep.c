@@ -12,8 +12,6 @@
 #include "io/h5util.h"
 #include "wavefuel/version.h"
 
-void wf_sweep_h5_quiet_thread(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }
-
 static double metric_of(const WfSweepResult *r, const WfSweepMetric *m)
 {
     return *(const double *)((const char *)&r->summary + m->offset);
@@ -225,7 +223,6 @@ int wf_sweep_table_write(const char *path, const WfSweep *sw, const WfSweepResul
                          WfError *err)
 {
     WfH5File *f = NULL;
-    wf_sweep_h5_quiet_thread();
     /* force: PATH is this sweep's previous snapshot (cmd_sweep checked it may be replaced before starting). */
     int rc = wf_h5_create(path, 1, &f, err);
     if (rc) return rc;
@@ -352,7 +349,7 @@ void wf_sweep_saved_free(WfSweepSaved *sv)
 int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
 {
     memset(sv, 0, sizeof *sv);
-    wf_sweep_h5_quiet_thread();
+    wf_h5_library_init();
     if (H5Fis_hdf5(path) <= 0) return bad(err, path, "not an HDF5 file");
     hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     if (f < 0) return wf_err(err, WF_ESYS, "%s: cannot open", path);

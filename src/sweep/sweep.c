@@ -731,10 +731,7 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
         }
         free(ov);
         /* force: the table does not hold this run as complete, so a file left by an earlier attempt is stale. */
-        if (!rc) {
-            wf_sweep_h5_quiet_thread();
-            rc = wf_h5out_create(sc->output_path, 1, &h5, &ops, &err);
-        }
+        if (!rc) rc = wf_h5out_create(sc->output_path, 1, &h5, &ops, &err);
         if (!rc) out = &ops;
     }
     if (!rc) rc = wf_sim_run(sim, out, NULL, NULL, stop, &err);
