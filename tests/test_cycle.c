@@ -257,14 +257,14 @@ static void test_names_and_dirs(void)
           "%s", err.msg);
     /* --cycles wins over $WAVEFUEL_DATA, which wins over the default. */
     setenv("WAVEFUEL_DATA", dir, 1);
-    CHECK(wf_cycle_data_dir(NULL, out, sizeof out, &found, &err) == 0 && found && !strcmp(out, dir), "env: %s", out);
-    CHECK(wf_cycle_data_dir(tmpdir, out, sizeof out, &found, &err) == 0 && !strcmp(out, tmpdir), "option: %s", out);
-    CHECK(wf_cycle_data_dir("/nonexistent/dir", out, sizeof out, &found, &err) == WF_EINPUT &&
+    CHECK(wf_cycle_data_dir(NULL, NULL, out, sizeof out, &found, &err) == 0 && found && !strcmp(out, dir), "env: %s", out);
+    CHECK(wf_cycle_data_dir(tmpdir, NULL, out, sizeof out, &found, &err) == 0 && !strcmp(out, tmpdir), "option: %s", out);
+    CHECK(wf_cycle_data_dir("/nonexistent/dir", NULL, out, sizeof out, &found, &err) == WF_EINPUT &&
               strstr(err.msg, "--cycles"),
           "%s", err.msg);
     unsetenv("WAVEFUEL_DATA");
     if (have_data()) {
-        CHECK(wf_cycle_data_dir(NULL, out, sizeof out, &found, &err) == 0 && found && strstr(out, "/shared/data"),
+        CHECK(wf_cycle_data_dir(NULL, data_dir, out, sizeof out, &found, &err) == 0 && found && strstr(out, "/shared/data"),
               "default: %s", out);
     }
 }

@@ -395,7 +395,10 @@ int wf_cmd_cycle(int argc, char **argv)
     WfError err = {0};
     char data_dir[4096];
     int found = 0;
-    if (wf_cycle_data_dir(cycles_dir, data_dir, sizeof data_dir, &found, &err)) return wf_cli_fail(&err);
+    char dflt[4096];
+    int have_dflt = wf_cli_data_default(dflt, sizeof dflt) == 0;
+    if (wf_cycle_data_dir(cycles_dir, have_dflt ? dflt : NULL, data_dir, sizeof data_dir, &found, &err))
+        return wf_cli_fail(&err);
     Entry *entries = NULL;
     size_t n_entries = 0;
     int rc = 0;

@@ -32,8 +32,13 @@ void wf_cli_note_partial(const char *partial, const char *result, const char *co
 /* Set by SIGINT/SIGTERM once wf_cli_catch_stop() is called: the signal's number; runs poll it and stop. */
 extern volatile sig_atomic_t wf_cli_stop;
 /* At the start of main: SIGXFSZ ignored, HDF5 without its exit handler and without printing its error stack in
- * this thread (errors are reported through WfError). */
-void wf_cli_process_init(void);
+ * this thread (errors are reported through WfError), and the vehicle class search path set to
+ * "$WAVEFUEL_VEHICLES:PREFIX/vehicles", PREFIX the parent of the executable's directory (the repository for
+ * bin/wavefuel). WF_EINPUT if that is too long. */
+int wf_cli_process_init(WfError *err);
+/* The default data directory of drive cycles: PREFIX/../shared/data (shared/ next to the repository for
+ * bin/wavefuel). Returns 0, or -1 if it cannot be formed. */
+int wf_cli_data_default(char *out, size_t len);
 /* HDF5's error-stack printing off in the calling thread (per thread in the thread-safe HDF5): every thread of
  * the program that calls HDF5 calls it first. */
 void wf_cli_h5_quiet_thread(void);

@@ -26,7 +26,8 @@ static void usage(FILE *out)
 
 int main(int argc, char **argv)
 {
-    wf_cli_process_init();
+    WfError err = {0};
+    if (wf_cli_process_init(&err)) return wf_cli_fail(&err);
     if (argc < 2) {
         usage(stderr);
         return 2;

@@ -1,0 +1,10 @@
+/* The one wall clock of wavefuel: seconds from a monotonic clock, for wall times, progress and checkpoint
+ * intervals (never for results). Internal to wavefuel. */
+#ifndef WAVEFUEL_CLOCK_H
+#define WAVEFUEL_CLOCK_H
+
+/* Seconds since an arbitrary fixed origin (CLOCK_MONOTONIC: never jumps with the date); differences are
+ * elapsed wall time. Thread-safe. */
+double wf_wall_now(void);
+
+#endif
