@@ -7,12 +7,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
+#include "util/clock.h"
 #include "util/hash.h"
+#include "util/path.h"
 #include "wavefuel/config.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
@@ -434,12 +432,8 @@ static int parse_runs(WfSweep *sw, WfCfgNode *runs, SetList **lists_out, WfError
 
 static int resolve_scenario(WfSweep *sw, const char *scen, WfError *err)
 {
-    const char *slash = strrchr(sw->path, '/');
-    int n = scen[0] == '/' || !slash
-                ? snprintf(sw->scenario_path, sizeof sw->scenario_path, "%s", scen)
-                : snprintf(sw->scenario_path, sizeof sw->scenario_path, "%.*s/%s", (int)(slash - sw->path), sw->path,
-                           scen);
-    if (n < 0 || (size_t)n >= sizeof sw->scenario_path) return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
+    if (wf_path_relative_to(sw->path, scen, sw->scenario_path, sizeof sw->scenario_path))
+        return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
     return 0;
 }
 
@@ -668,13 +662,6 @@ int wf_sweep_command(const WfSweep *sw, size_t run, char *buf, size_t len)
 
 /* ---- One run ---- */
 
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* FNV-1a, 64 bit: names a run's own file after its overrides, so the name stays when the sweep is extended. */
 static uint64_t fnv1a(const char *s) { return wf_fnv1a64(WF_FNV1A64_INIT, s, strlen(s)); }
 
@@ -693,17 +680,13 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
     res->seed = run->seed;
     res->worker = o->worker;
     res->threads = o->threads;
-    double t0 = now_s();
+    double t0 = wf_wall_now();
     WfError err = {0};
     if (stop && *stop) {
         wf_err(&err, WF_EINTR, "interrupted before it started");
         record_error(res, &err);
         return;
     }
-#ifdef _OPENMP
-    /* The engine sizes its per-thread buffers from this thread's setting when the simulation is created. */
-    omp_set_num_threads(o->threads > 0 ? o->threads : 1);
-#endif
     WfScenario *sc = NULL;
     WfSim *sim = NULL;
     WfH5Out *h5 = NULL;
@@ -745,7 +728,7 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
     wf_h5out_destroy(&h5);
     wf_sim_destroy(&sim);
     wf_scenario_destroy(&sc);
-    res->wall_s = now_s() - t0;
+    res->wall_s = wf_wall_now() - t0;
 }
 
 /* ---- Resume ---- */

@@ -7,4 +7,8 @@
  * elapsed wall time. Thread-safe. */
 double wf_wall_now(void);
 
+/* Sleep about ms milliseconds (the polling loops of the sweep scheduler and the MPI workers: 1 ms keeps a waiting
+ * thread off the CPU). */
+void wf_sleep_ms(long ms);
+
 #endif
