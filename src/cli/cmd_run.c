@@ -1,11 +1,9 @@
 /* `wavefuel run`: load a scenario, simulate, write the HDF5 result, print a summary table. */
 #include <getopt.h>
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -13,6 +11,7 @@
 
 #include "cli/commands.h"
 #include "cli/run_corridor.h"
+#include "util/clock.h"
 #include "wavefuel/checkpoint.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
@@ -39,33 +38,6 @@ static void help(FILE *out)
             "                      comes from the checkpoint); with the fixed-step integrators the result is\n"
             "                      bit-identical to an uninterrupted run. A damaged checkpoint, or one of another\n"
             "                      run, is refused with exit status 2\n");
-}
-
-typedef struct Progress {
-    double t0;
-    int    tty;
-} Progress;
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static void progress(void *ctx, double t, double duration, long step, long n_steps)
-{
-    Progress *p = ctx;
-    double wall = now_s() - p->t0, frac = t / duration;
-    double eta = frac > 0 ? wall * (1.0 - frac) / frac : 0.0;
-    int width = 30, filled = (int)(frac * width);
-    char bar[64];
-    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
-    bar[width] = '\0';
-    fprintf(stderr, "\r[%s] %5.1f%%  t = %.1f / %.1f s  wall %.1f s  ETA %.1f s  %.3g steps/s   ", bar, 100 * frac, t,
-            duration, wall, eta, wall > 0 ? (double)step / wall : 0.0);
-    (void)n_steps;
-    fflush(stderr);
 }
 
 static void print_summary(const WfSim *sim, const char *path)
@@ -187,9 +159,10 @@ int wf_cmd_run(int argc, char **argv)
         return wf_cli_fail(&err);
     }
     wf_cli_catch_stop();
-    Progress p = {.t0 = now_s(), .tty = isatty(STDERR_FILENO)};
-    rc = wf_sim_run(sim, &ops, (!quiet && p.tty) ? progress : NULL, &p, &wf_cli_stop, &err);
-    if (!quiet && p.tty) fprintf(stderr, "\n");
+    double t0 = wf_wall_now();
+    int tty = isatty(STDERR_FILENO);
+    rc = wf_sim_run(sim, &ops, (!quiet && tty) ? wf_cli_run_progress : NULL, &t0, &wf_cli_stop, &err);
+    if (!quiet && tty) fprintf(stderr, "\n");
     int status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
