@@ -346,6 +346,73 @@ void wf_sweep_saved_free(WfSweepSaved *sv)
     memset(sv, 0, sizeof *sv);
 }
 
+/* /metrics and /class_metrics into sv->res[].summary (sv->n rows). */
+static int read_metrics(hid_t met, hid_t cm, const char *path, WfSweepSaved *sv, WfError *err)
+{
+    int rc = 0;
+    size_t w1 = 1, wc = 0, wc2;
+    int64_t *k = NULL;
+    double *d = NULL;
+    for (size_t m = 0; !rc && m < wf_sweep_n_metrics; m++) {
+        w1 = 1;
+        if (!(d = read_numeric(met, wf_sweep_metrics[m].name, H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
+            rc = bad(err, path, wf_sweep_metrics[m].name);
+        for (size_t i = 0; !rc && i < sv->n; i++)
+            *(double *)((char *)&sv->res[i].summary + wf_sweep_metrics[m].offset) = d[i];
+        free(d);
+    }
+    if (!rc) {
+        w1 = 1;
+        if (!(k = read_numeric(met, "overlaps", H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, "overlaps");
+        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].summary.overlaps = k[i];
+        free(k);
+    }
+    for (size_t m = 0; !rc && m < wf_sweep_n_class_metrics; m++) {
+        wc2 = wc;
+        if (!(d = read_numeric(cm, wf_sweep_class_metrics[m].name, H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &wc2)) ||
+            wc2 > WF_MAX_CLASSES)
+            rc = bad(err, path, wf_sweep_class_metrics[m].name);
+        wc = wc2;
+        for (size_t i = 0; !rc && i < sv->n; i++)
+            for (size_t c = 0; c < wc; c++)
+                *(double *)((char *)&sv->res[i].summary.cls[c] + wf_sweep_class_metrics[m].offset) = d[i * wc + c];
+        free(d);
+    }
+    if (!rc) {
+        wc2 = wc;
+        if (!(k = read_numeric(cm, "class_count", H5T_NATIVE_INT64, sizeof *k, sv->n, &wc2)))
+            rc = bad(err, path, "class_count");
+        for (size_t i = 0; !rc && i < sv->n; i++)
+            for (size_t c = 0; c < wc; c++) sv->res[i].summary.cls[c].count = (long)k[i * wc + c];
+        free(k);
+    }
+    return rc;
+}
+
+/* /timing: each run's wall time, worker and threads. */
+static int read_timing(hid_t tim, const char *path, WfSweepSaved *sv, WfError *err)
+{
+    int rc = 0;
+    size_t w1 = 1;
+    int64_t *k = NULL;
+    double *d = NULL;
+    if (!rc) {
+        w1 = 1;
+        if (!(d = read_numeric(tim, "wall_time", H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
+            rc = bad(err, path, "wall_time");
+        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].wall_s = d[i];
+        free(d);
+    }
+    const char *ints[] = {"worker", "threads"};
+    for (int q = 0; q < 2 && !rc; q++) {
+        w1 = 1;
+        if (!(k = read_numeric(tim, ints[q], H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, ints[q]);
+        for (size_t i = 0; !rc && i < sv->n; i++) *(q ? &sv->res[i].threads : &sv->res[i].worker) = (int)k[i];
+        free(k);
+    }
+    return rc;
+}
+
 int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
 {
     memset(sv, 0, sizeof *sv);
@@ -385,61 +452,15 @@ int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
         if (!sv->overrides[i]) rc = wf_err(err, WF_ESYS, "out of memory");
         else if (sv->res[i].status < 0) rc = bad(err, path, "/runs/status");
     }
-    size_t w1 = 1, wc = 0, wc2;
+    size_t w1 = 1;
     int64_t *k = NULL;
-    double *d = NULL;
     if (!rc) {
         if (!(k = read_numeric(runs, "seed", H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, "seed");
         for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].seed = k[i];
         free(k);
     }
-    for (size_t m = 0; !rc && m < wf_sweep_n_metrics; m++) {
-        w1 = 1;
-        if (!(d = read_numeric(met, wf_sweep_metrics[m].name, H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
-            rc = bad(err, path, wf_sweep_metrics[m].name);
-        for (size_t i = 0; !rc && i < sv->n; i++)
-            *(double *)((char *)&sv->res[i].summary + wf_sweep_metrics[m].offset) = d[i];
-        free(d);
-    }
-    if (!rc) {
-        w1 = 1;
-        if (!(k = read_numeric(met, "overlaps", H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, "overlaps");
-        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].summary.overlaps = k[i];
-        free(k);
-    }
-    for (size_t m = 0; !rc && m < wf_sweep_n_class_metrics; m++) {
-        wc2 = wc;
-        if (!(d = read_numeric(cm, wf_sweep_class_metrics[m].name, H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &wc2)) ||
-            wc2 > WF_MAX_CLASSES)
-            rc = bad(err, path, wf_sweep_class_metrics[m].name);
-        wc = wc2;
-        for (size_t i = 0; !rc && i < sv->n; i++)
-            for (size_t c = 0; c < wc; c++)
-                *(double *)((char *)&sv->res[i].summary.cls[c] + wf_sweep_class_metrics[m].offset) = d[i * wc + c];
-        free(d);
-    }
-    if (!rc) {
-        wc2 = wc;
-        if (!(k = read_numeric(cm, "class_count", H5T_NATIVE_INT64, sizeof *k, sv->n, &wc2)))
-            rc = bad(err, path, "class_count");
-        for (size_t i = 0; !rc && i < sv->n; i++)
-            for (size_t c = 0; c < wc; c++) sv->res[i].summary.cls[c].count = (long)k[i * wc + c];
-        free(k);
-    }
-    if (!rc) {
-        w1 = 1;
-        if (!(d = read_numeric(tim, "wall_time", H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
-            rc = bad(err, path, "wall_time");
-        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].wall_s = d[i];
-        free(d);
-    }
-    const char *ints[] = {"worker", "threads"};
-    for (int q = 0; q < 2 && !rc; q++) {
-        w1 = 1;
-        if (!(k = read_numeric(tim, ints[q], H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, ints[q]);
-        for (size_t i = 0; !rc && i < sv->n; i++) *(q ? &sv->res[i].threads : &sv->res[i].worker) = (int)k[i];
-        free(k);
-    }
+    if (!rc) rc = read_metrics(met, cm, path, sv, err);
+    if (!rc) rc = read_timing(tim, path, sv, err);
     /* Failed rows keep their error; their code is not stored (an input error is the usual cause). */
     for (size_t i = 0; !rc && i < sv->n; i++)
         if (sv->res[i].status == WF_RUN_FAILED) sv->res[i].error_code = WF_EINPUT;

@@ -230,6 +230,94 @@ static int range_values(WfCfgNode *range, const char ***out, size_t *n_out, stru
     return 0;
 }
 
+/* An axis given by `points`: each a label (`value`) and a map of overrides (`set`); the keys of the first point
+ * name the axis's keys. */
+static int parse_points(WfCfgNode *points, WfSweepAxis *ax, AxisDef *def, struct WfSweepPool *pool, WfError *err)
+{
+    char w[1100];
+    def->n = points->n_child;
+    def->pt = pool_calloc(pool, def->n, sizeof *def->pt);
+    if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
+    for (size_t j = 0; j < def->n; j++) {
+        WfCfgNode *p = points->child[j], *set = NULL;
+        const char *label = NULL;
+        p->used = 1;
+        if (p->kind != WF_CFG_MAP)
+            return wf_err(err, WF_EINPUT, "%s: a point is a map {value: ..., set: {key: value, ...}}",
+                          where(p, w, sizeof w));
+        if (wf_cfg_string(p, "value", &label, err) || check_text(wf_cfg_child(p, "value"), label, 0, err) ||
+            wf_cfg_map_opt(p, "set", &set, err))
+            return WF_EINPUT;
+        if (!set) return wf_cfg_missing(p, "set", "a map of overrides", err);
+        SetList l = {0};
+        int rc = flatten(set, "", &l, pool, err);
+        if (!rc && !pool_keep(pool, l.s) && l.n) rc = wf_err(err, WF_ESYS, "out of memory");
+        if (rc) return rc;
+        /* Labels outlive the configuration tree: copy them. */
+        if (!(label = pool_strdup(pool, label))) return wf_err(err, WF_ESYS, "out of memory");
+        def->pt[j] = (Point){label, l.s, l.n};
+        size_t used = strlen(ax->keys);
+        for (size_t k = 0; k < l.n && j == 0; k++) {
+            const char *a = l.s[k];
+            int n = snprintf(ax->keys + used, sizeof ax->keys - used, "%s%.*s", used ? "," : "",
+                             (int)(strchr(a, '=') - a), a);
+            if (n > 0 && (size_t)n < sizeof ax->keys - used) used += (size_t)n;
+        }
+    }
+    return 0;
+}
+
+/* An axis given by `key` and `values` or a `range`, with optional `with` keys set alongside (one value each). */
+static int parse_values(const char *key, WfCfgNode *values, WfCfgNode *range, WfCfgNode *with, WfSweepAxis *ax,
+                        AxisDef *def, struct WfSweepPool *pool, WfError *err)
+{
+    char w[1100];
+    const char **v = NULL;
+    size_t n = 0;
+    if (range) {
+        if (range_values(range, &v, &n, pool, err)) return WF_EINPUT;
+    } else {
+        n = values->n_child;
+        v = pool_calloc(pool, n, sizeof *v);
+        if (!v) return wf_err(err, WF_ESYS, "out of memory");
+        for (size_t j = 0; j < n; j++) {
+            if (scalar_of(values->child[j], "a value", &v[j], err)) return WF_EINPUT;
+            if (!(v[j] = pool_strdup(pool, v[j]))) return wf_err(err, WF_ESYS, "out of memory");
+        }
+    }
+    size_t n_with = with ? with->n_child : 0;
+    if (with) with->used = 1;
+    for (size_t k = 0; k < n_with; k++) {
+        WfCfgNode *c = with->child[k];
+        c->used = 1;
+        if (check_text(c, c->key, 1, err)) return WF_EINPUT;
+        if (c->kind != WF_CFG_SEQ || c->n_child != n)
+            return wf_err(err, WF_EINPUT, "%s: expected a list of %zu values, one per value of %s",
+                          where(c, w, sizeof w), n, key);
+    }
+    def->n = n;
+    def->pt = pool_calloc(pool, n, sizeof *def->pt);
+    if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
+    for (size_t j = 0; j < n; j++) {
+        SetList l = {0};
+        int rc = setlist_add(&l, pool, key, v[j], err);
+        for (size_t k = 0; !rc && k < n_with; k++) {
+            const char *wv = NULL;
+            rc = scalar_of(with->child[k]->child[j], "a value", &wv, err) ||
+                 setlist_add(&l, pool, with->child[k]->key, wv, err);
+        }
+        if (!rc && !pool_keep(pool, l.s)) rc = wf_err(err, WF_ESYS, "out of memory");
+        if (rc) return err->code;
+        def->pt[j] = (Point){v[j], l.s, l.n};
+    }
+    size_t used = (size_t)snprintf(ax->keys, sizeof ax->keys, "%s", key);
+    for (size_t k = 0; k < n_with && used < sizeof ax->keys; k++) {
+        int m = snprintf(ax->keys + used, sizeof ax->keys - used, ",%s", with->child[k]->key);
+        if (m > 0) used += (size_t)m;
+    }
+    return 0;
+}
+
 /* `key` + `values` | `range` [+ `with`], or `points`. Fills the axis definition and the table column. */
 static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSweepPool *pool, WfError *err)
 {
@@ -255,80 +343,12 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
     if (key && check_text(wf_cfg_child(e, "key"), key, 1, err)) return WF_EINPUT;
 
     if (points) {
-        def->n = points->n_child;
-        def->pt = pool_calloc(pool, def->n, sizeof *def->pt);
-        if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
-        for (size_t j = 0; j < def->n; j++) {
-            WfCfgNode *p = points->child[j], *set = NULL;
-            const char *label = NULL;
-            p->used = 1;
-            if (p->kind != WF_CFG_MAP)
-                return wf_err(err, WF_EINPUT, "%s: a point is a map {value: ..., set: {key: value, ...}}",
-                              where(p, w, sizeof w));
-            if (wf_cfg_string(p, "value", &label, err) || check_text(wf_cfg_child(p, "value"), label, 0, err) ||
-                wf_cfg_map_opt(p, "set", &set, err))
-                return WF_EINPUT;
-            if (!set) return wf_cfg_missing(p, "set", "a map of overrides", err);
-            SetList l = {0};
-            int rc = flatten(set, "", &l, pool, err);
-            if (!rc && !pool_keep(pool, l.s) && l.n) rc = wf_err(err, WF_ESYS, "out of memory");
-            if (rc) return rc;
-            /* Labels outlive the configuration tree: copy them. */
-            if (!(label = pool_strdup(pool, label))) return wf_err(err, WF_ESYS, "out of memory");
-            def->pt[j] = (Point){label, l.s, l.n};
-            size_t used = strlen(ax->keys);
-            for (size_t k = 0; k < l.n && j == 0; k++) {
-                const char *a = l.s[k];
-                int n = snprintf(ax->keys + used, sizeof ax->keys - used, "%s%.*s", used ? "," : "",
-                                 (int)(strchr(a, '=') - a), a);
-                if (n > 0 && (size_t)n < sizeof ax->keys - used) used += (size_t)n;
-            }
-        }
+        int rc = parse_points(points, ax, def, pool, err);
+        if (rc) return rc;
         if (!name) return wf_cfg_missing(e, "name", "the column name of an axis given by points", err);
     } else {
-        const char **v = NULL;
-        size_t n = 0;
-        if (range) {
-            if (range_values(range, &v, &n, pool, err)) return WF_EINPUT;
-        } else {
-            n = values->n_child;
-            v = pool_calloc(pool, n, sizeof *v);
-            if (!v) return wf_err(err, WF_ESYS, "out of memory");
-            for (size_t j = 0; j < n; j++) {
-                if (scalar_of(values->child[j], "a value", &v[j], err)) return WF_EINPUT;
-                if (!(v[j] = pool_strdup(pool, v[j]))) return wf_err(err, WF_ESYS, "out of memory");
-            }
-        }
-        size_t n_with = with ? with->n_child : 0;
-        if (with) with->used = 1;
-        for (size_t k = 0; k < n_with; k++) {
-            WfCfgNode *c = with->child[k];
-            c->used = 1;
-            if (check_text(c, c->key, 1, err)) return WF_EINPUT;
-            if (c->kind != WF_CFG_SEQ || c->n_child != n)
-                return wf_err(err, WF_EINPUT, "%s: expected a list of %zu values, one per value of %s",
-                              where(c, w, sizeof w), n, key);
-        }
-        def->n = n;
-        def->pt = pool_calloc(pool, n, sizeof *def->pt);
-        if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
-        for (size_t j = 0; j < n; j++) {
-            SetList l = {0};
-            int rc = setlist_add(&l, pool, key, v[j], err);
-            for (size_t k = 0; !rc && k < n_with; k++) {
-                const char *wv = NULL;
-                rc = scalar_of(with->child[k]->child[j], "a value", &wv, err) ||
-                     setlist_add(&l, pool, with->child[k]->key, wv, err);
-            }
-            if (!rc && !pool_keep(pool, l.s)) rc = wf_err(err, WF_ESYS, "out of memory");
-            if (rc) return err->code;
-            def->pt[j] = (Point){v[j], l.s, l.n};
-        }
-        size_t used = (size_t)snprintf(ax->keys, sizeof ax->keys, "%s", key);
-        for (size_t k = 0; k < n_with && used < sizeof ax->keys; k++) {
-            int m = snprintf(ax->keys + used, sizeof ax->keys - used, ",%s", with->child[k]->key);
-            if (m > 0) used += (size_t)m;
-        }
+        int rc = parse_values(key, values, range, with, ax, def, pool, err);
+        if (rc) return rc;
         if (!name) {
             /* The key's last component names the column: fleet.drivers[1].count -> count. */
             const char *dot = strrchr(key, '.');
