@@ -47,12 +47,15 @@ typedef struct WfSweep {
 } WfSweep;
 
 /* Read and expand a sweep file; the base scenario's text is read too (not validated: a run whose overrides do not
- * fit it fails alone, recorded in the table). Errors name file:line and key; WF_EINPUT for bad input. */
+ * fit it fails alone, recorded in the table). Errors name file:line and key; WF_EINPUT for bad input.
+ * Ownership: *out is the caller's, holding copies of everything (no pointer into the arguments), until
+ * wf_sweep_destroy(); NULL on failure. */
 int  wf_sweep_load(const char *path, WfSweep **out, WfError *err);
 /* Same from texts already in memory (MPI ranks get them from rank 0); `path` resolves the scenario path and names
  * errors; scenario_text NULL: read the scenario file. */
 int  wf_sweep_load_text(const char *path, const char *text, const char *scenario_text, WfSweep **out,
                         WfError *err);
+/* Frees the sweep and sets *sw to NULL; accepts NULL and *sw == NULL. */
 void wf_sweep_destroy(WfSweep **sw);
 
 /* The run's overrides, one per line (the format of a result file's /meta/overrides); *out is malloc'ed. Identifies
@@ -179,7 +182,8 @@ typedef struct WfSweepSaved {
     char          *scenario_text; /* owned */
     char          *scenario_path; /* owned */
 } WfSweepSaved;
-/* WF_EINPUT if `path` is not a wavefuel sweep table. */
+/* WF_EINPUT if `path` is not a wavefuel sweep table. *out owns what it holds (the caller frees it with
+ * wf_sweep_saved_free(), which zeroes it); on failure it is left empty. */
 int  wf_sweep_table_read(const char *path, WfSweepSaved *out, WfError *err);
 void wf_sweep_saved_free(WfSweepSaved *s);
 
