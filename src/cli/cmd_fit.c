@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "util/path.h"
 #include "wavefuel/fit.h"
 
 /* kW per g/s when neither --kw-per-gps nor --like gives one: the CIRCLES release's values (its model files'
@@ -184,12 +185,10 @@ static int write_class(int argc, char **argv, const FitArgs *a, const WfFitResul
                                     ? base->fuel_density_g_per_l
                                     : NAN;
     char stem[256], default_label[600], command[4096];
-    const char *base_name = strrchr(a->out, '/') ? strrchr(a->out, '/') + 1 : a->out;
-    snprintf(stem, sizeof stem, "%s", base_name);
+    snprintf(stem, sizeof stem, "%s", wf_path_base(a->out));
     char *dot = strrchr(stem, '.');
     if (dot) *dot = '\0';
-    const char *tbase = strrchr(a->table_path, '/') ? strrchr(a->table_path, '/') + 1 : a->table_path;
-    snprintf(default_label, sizeof default_label, "%s (fitted from %s)", stem, tbase);
+    snprintf(default_label, sizeof default_label, "%s (fitted from %s)", stem, wf_path_base(a->table_path));
     info.label = a->label ? a->label : default_label;
     info.table_path = a->table_path;
     join_args(argc, argv, command, sizeof command);

@@ -530,8 +530,7 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     if (name)
         snprintf(sw->name, sizeof sw->name, "%s", name);
     else {
-        const char *base = strrchr(sw->path, '/');
-        base = base ? base + 1 : sw->path;
+        const char *base = wf_path_base(sw->path);
         snprintf(sw->name, sizeof sw->name, "%.*s", (int)strcspn(base, "."), base);
     }
     if (resolve_scenario(sw, scen, err)) return WF_EINPUT;

@@ -13,6 +13,12 @@ int wf_path_relative_to(const char *base_file, const char *rel, char *out, size_
     return w < 0 || (size_t)w >= len ? -1 : 0;
 }
 
+const char *wf_path_base(const char *path)
+{
+    const char *slash = strrchr(path, '/');
+    return slash ? slash + 1 : path;
+}
+
 int wf_path_dirname(const char *path, int levels, char *out, size_t len)
 {
     int w = snprintf(out, len, "%s", path);

@@ -10,6 +10,9 @@
  * when the result does not fit in len bytes (out then holds a truncated string). */
 int wf_path_relative_to(const char *base_file, const char *rel, char *out, size_t len);
 
+/* The file name part of `path`: what follows its last '/' (all of it when it has none); a pointer into path. */
+const char *wf_path_base(const char *path);
+
 /* out = the directory part of `path` up, `levels` times (1: the directory holding the file; 2: its parent).
  * Returns 0, or -1 when `path` has fewer than `levels` '/' or out (len bytes) is too small. */
 int wf_path_dirname(const char *path, int levels, char *out, size_t len);

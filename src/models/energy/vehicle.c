@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "util/path.h"
 #include "wavefuel/config.h"
 
 const char *wf_duty_name(WfDuty d) { return d == WF_DUTY_HEAVY ? "heavy" : "light"; }
@@ -25,9 +26,7 @@ void wf_vehicle_free(WfVehicleClass *vc)
 
 static void stem_of(const char *path, char *out, size_t len)
 {
-    const char *base = strrchr(path, '/');
-    base = base ? base + 1 : path;
-    snprintf(out, len, "%s", base);
+    snprintf(out, len, "%s", wf_path_base(path));
     char *dot = strrchr(out, '.');
     if (dot && (strcmp(dot, ".yaml") == 0 || strcmp(dot, ".yml") == 0)) *dot = '\0';
 }
