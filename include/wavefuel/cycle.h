@@ -35,11 +35,13 @@ double wf_cycle_duration_s(const WfCycle *c);
  * the steps are even, as in the regulatory cycles). */
 double wf_cycle_distance_m(const WfCycle *c);
 
-/* The data directory holding cycles/NAME.csv: `dir` when not NULL, else $WAVEFUEL_DATA, else `default_dir` (the
- * caller's default, may be NULL; `wavefuel cycle` gives PREFIX/../shared/data for PREFIX/bin/wavefuel, shared/ next to
- * the repository) when it exists. *found = 0 (and out = "") when none is given and the
- * default does not exist. Errors: a given directory that does not exist. */
-int wf_cycle_data_dir(const char *dir, const char *default_dir, char *out, size_t len, int *found, WfError *err);
+/* The data directory holding cycles/NAME.csv: `dir` when given (not NULL or ""), else `default_dir` (may be NULL)
+ * when it exists. `wavefuel cycle` gives --cycles, else $WAVEFUEL_DATA, with dir_from naming which ("--cycles",
+ * "$WAVEFUEL_DATA") for the error message, and the default PREFIX/../shared/data for PREFIX/bin/wavefuel (shared/
+ * next to the repository). *found = 0 (and out = "") when none is given and the default does not exist. Errors:
+ * a given directory that does not exist (WF_EINPUT). The library reads no environment variable here. */
+int wf_cycle_data_dir(const char *dir, const char *dir_from, const char *default_dir, char *out, size_t len,
+                      int *found, WfError *err);
 /* A CYCLE argument: a path (contains '/' or ends in .csv) is used as is; a name ("udds") is
  * DATA_DIR/cycles/NAME.csv. Unknown names list the cycles present. data_dir may be "" (none found). */
 int wf_cycle_resolve(const char *name_or_path, const char *data_dir, char *out, size_t len, WfError *err);

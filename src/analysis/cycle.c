@@ -138,16 +138,15 @@ static int is_dir(const char *p)
     return stat(p, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
-int wf_cycle_data_dir(const char *dir, const char *default_dir, char *out, size_t len, int *found, WfError *err)
+int wf_cycle_data_dir(const char *dir, const char *dir_from, const char *default_dir, char *out, size_t len,
+                      int *found, WfError *err)
 {
     *found = 0;
     out[0] = '\0';
-    const char *env = getenv("WAVEFUEL_DATA");
-    const char *given = dir ? dir : (env && *env ? env : NULL);
+    const char *given = dir && *dir ? dir : NULL;
     if (given) {
         if (!is_dir(given))
-            return wf_err(err, WF_EINPUT, "data directory %s (%s) does not exist", given,
-                          dir ? "--cycles" : "$WAVEFUEL_DATA");
+            return wf_err(err, WF_EINPUT, "data directory %s (%s) does not exist", given, dir_from ? dir_from : "given");
         int w = snprintf(out, len, "%s", given);
         if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "data directory path too long: %s", given);
         *found = 1;

@@ -427,7 +427,9 @@ int wf_cmd_cycle(int argc, char **argv)
     int found = 0;
     char dflt[4096];
     int have_dflt = wf_cli_data_default(dflt, sizeof dflt) == 0;
-    if (wf_cycle_data_dir(cycles_dir, have_dflt ? dflt : NULL, data_dir, sizeof data_dir, &found, &err))
+    const char *env = getenv("WAVEFUEL_DATA"), *given = cycles_dir ? cycles_dir : env && *env ? env : NULL;
+    if (wf_cycle_data_dir(given, cycles_dir ? "--cycles" : "$WAVEFUEL_DATA", have_dflt ? dflt : NULL, data_dir,
+                          sizeof data_dir, &found, &err))
         return wf_cli_fail(&err);
     Entry *entries = NULL;
     size_t n_entries = 0;
