@@ -16,7 +16,7 @@ CFLAGS   ?= -O2 -g
 # vectoriser cost model (that of -O3) because -O2's very-cheap one skips loops of unknown trip count.
 override CFLAGS += -std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
             -ffp-contract=off -fno-fast-math -fno-math-errno -fno-trapping-math -Iinclude -Isrc $(HDF5_CFLAGS) -MMD -MP \
-            -DWF_GIT_HASH='"$(GIT_HASH)"' -DWF_REPO_DIR='"$(CURDIR)"'
+            -DWF_GIT_HASH='"$(GIT_HASH)"'
 ifeq ($(WERROR),1)
 override CFLAGS += -Werror
 endif
@@ -64,6 +64,10 @@ deps:
 $(BUILD)/%.o: %.c Makefile
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -c $< -o $@
+
+# Tests, benchmarks and fuzz targets find the repository's files (vehicles/, tests/data/, ../shared/data) by its
+# source path; the library and the programs have no build-tree path compiled in (docs/energy.md: search paths).
+$(BUILD)/tests/%.o $(BUILD)/bench/%.o $(BUILD)/fuzz/%.o: override CFLAGS += -DWF_REPO_DIR='"$(CURDIR)"'
 
 # The 4-lane noise kernel: AVX instructions, called only on CPUs that have them (src/core/rng.c checks at run time).
 ifneq ($(filter x86_64%,$(shell $(CC) -dumpmachine)),)
@@ -138,7 +142,7 @@ valgrind:
 # MPI sweep driver (docs/sweeps.md): bin/wavefuel-mpi = src/mpi/*.c + src/cli/cmd_sweep.c built with -DWF_MPI by
 # mpicc in $(BUILD)/mpi, linked with the library. Optional: needs `tools/install-deps.sh mpi`; `make` never does.
 MPICC    ?= mpicc
-MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o
+MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o $(BUILD)/src/cli/process.o
 .PHONY: mpi
 mpi: bin/wavefuel-mpi
 $(BUILD)/mpi/%.o: %.c Makefile

@@ -100,6 +100,9 @@ static void run(const Kernel *k, const WfTable *t, size_t n, const double *v, co
 int main(int argc, char **argv)
 {
     size_t n = 10000000;
+    WfError path_err = {0};
+    /* The library has no class search path of its own: the repository's classes, by its source path. */
+    if (wf_vehicle_search_path_set(WF_REPO_DIR "/vehicles", &path_err)) return 1;
     if (argc > 1) {
         long k;
         if (wf_parse_long(argv[1], 1, 1000000000L, &k)) {

@@ -16,6 +16,7 @@
 #include <unistd.h>
 
 #include "wavefuel/err.h"
+#include "wavefuel/vehicle.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
 
@@ -48,8 +49,9 @@ static inline const char *fuzz_path(const char *name)
             abort();
         }
         if (!freopen("/dev/null", "r", stdin)) abort();
-        /* Vehicle classes come from the repository's vehicles/ only, whatever the caller's environment. */
-        setenv("WAVEFUEL_VEHICLES", "", 1);
+        /* Vehicle classes come from the repository's vehicles/ only (the library has no default search path). */
+        WfError e = {0};
+        if (wf_vehicle_search_path_set(WF_REPO_DIR "/vehicles", &e)) abort();
         atexit(fuzz_cleanup);
     }
     for (int i = 0; i < fuzz_n_dir_file; i++) {

@@ -6,7 +6,11 @@ set -u
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}
 export WAVEFUEL_BIN=${WAVEFUEL_BIN:-bin/wavefuel}
-export WAVEFUEL_VEHICLES=
+# The repository's classes and drive cycles, whatever the caller's environment and wherever the binary under test
+# was built: for build-san/bin/wavefuel or build-tsan/bin/wavefuel, PREFIX/vehicles and PREFIX/../shared/data do
+# not exist (docs/energy.md, the class search path; docs/cycles.md). tests/t_energy_cli.sh checks the PREFIX rule.
+export WAVEFUEL_VEHICLES="$PWD/vehicles"
+if [ -z "${WAVEFUEL_DATA:-}" ] && [ -d ../shared/data ]; then export WAVEFUEL_DATA="$(cd ../shared/data && pwd)"; fi
 export OMP_NUM_THREADS=${OMP_NUM_THREADS:-2}
 pass=0; fail=0
 log=$(mktemp -d)

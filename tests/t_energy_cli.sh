@@ -116,4 +116,23 @@ if echo "$o" | grep -q 'compact_sedan' && echo "$o" | grep -q 'class8_tractor'; 
 else ko unknown_class_lists_known "$o"; fi
 expect_err two_input_files "one input file at most" $BIN energy --class compact_sedan "$tmp/in.csv" "$tmp/in.csv"
 expect_err bad_option "usage" $BIN energy --bogus compact_sedan
+
+# The programs' class search path ($WAVEFUEL_VEHICLES, then PREFIX/vehicles for PREFIX/bin/wavefuel;
+# docs/energy.md): a class in the user's directory is found and listed, shadows a shipped class of the same name,
+# and the shipped classes stay found; the same binary moved to another PREFIX finds that PREFIX's vehicles/.
+ROOT=$(cd "$(dirname "$0")/.." && pwd)
+mkdir -p "$tmp/mine" "$tmp/prefix/bin" "$tmp/prefix/vehicles"
+sed 's/^name:.*/name: My Van/' "$ROOT/vehicles/midsize_suv.yaml" >"$tmp/mine/my_van.yaml"
+sed 's/^name:.*/name: Heavier SUV/' "$ROOT/vehicles/midsize_suv.yaml" >"$tmp/mine/midsize_suv.yaml"
+l=$(WAVEFUEL_VEHICLES="/nonexistent:$tmp/mine:$ROOT/vehicles" $BIN energy --list 2>&1); rc=$?
+if [ $rc -eq 0 ] && echo "$l" | grep -q "^my_van .*$tmp/mine/my_van.yaml" &&
+   echo "$l" | grep -q "^midsize_suv .*$tmp/mine/midsize_suv.yaml" && echo "$l" | grep -q '^class8_tractor '; then
+  ok search_path_env_first
+else ko search_path_env_first "rc=$rc $l"; fi
+cp "$BIN" "$tmp/prefix/bin/wavefuel"
+cp "$ROOT/vehicles/compact_sedan.yaml" "$tmp/prefix/vehicles/only_here.yaml"
+l=$(WAVEFUEL_VEHICLES= "$tmp/prefix/bin/wavefuel" energy --list 2>&1); rc=$?
+if [ $rc -eq 0 ] && [ "$(echo "$l" | tail -n +2 | wc -l)" -eq 1 ] && echo "$l" | grep -q "^only_here .*$tmp/prefix/vehicles/only_here.yaml"; then
+  ok search_path_prefix_of_binary
+else ko search_path_prefix_of_binary "rc=$rc $l"; fi
 exit 0

@@ -259,16 +259,20 @@ static void test_names_and_dirs(void)
     CHECK(wf_cycle_resolve("flat", dir, out, sizeof out, &err) == 0 && !strcmp(out, f), "%s", err.msg);
     CHECK(wf_cycle_resolve("hill", dir, out, sizeof out, &err) == WF_EINPUT && strstr(err.msg, "(cycles there: flat)"),
           "%s", err.msg);
-    /* --cycles wins over $WAVEFUEL_DATA, which wins over the default. */
-    setenv("WAVEFUEL_DATA", dir, 1);
-    CHECK(wf_cycle_data_dir(NULL, out, sizeof out, &found, &err) == 0 && found && !strcmp(out, dir), "env: %s", out);
-    CHECK(wf_cycle_data_dir(tmpdir, out, sizeof out, &found, &err) == 0 && !strcmp(out, tmpdir), "option: %s", out);
-    CHECK(wf_cycle_data_dir("/nonexistent/dir", out, sizeof out, &found, &err) == WF_EINPUT &&
-              strstr(err.msg, "--cycles"),
+    /* A given directory wins over the default (the CLI's --cycles over $WAVEFUEL_DATA: tests/t_cycle_cli.sh); a
+     * missing one is an error naming where it came from; no default, none found. */
+    CHECK(wf_cycle_data_dir(dir, "$WAVEFUEL_DATA", tmpdir, out, sizeof out, &found, &err) == 0 && found &&
+              !strcmp(out, dir),
+          "given: %s", out);
+    CHECK(wf_cycle_data_dir("/nonexistent/dir", "--cycles", tmpdir, out, sizeof out, &found, &err) == WF_EINPUT &&
+              strstr(err.msg, "/nonexistent/dir (--cycles)"),
           "%s", err.msg);
-    unsetenv("WAVEFUEL_DATA");
+    CHECK(wf_cycle_data_dir(NULL, NULL, NULL, out, sizeof out, &found, &err) == 0 && !found && !out[0], "none: %s", out);
+    CHECK(wf_cycle_data_dir("", NULL, "/nonexistent/dir", out, sizeof out, &found, &err) == 0 && !found,
+          "missing default: %s", out);
     if (have_data()) {
-        CHECK(wf_cycle_data_dir(NULL, out, sizeof out, &found, &err) == 0 && found && strstr(out, "/shared/data"),
+        CHECK(wf_cycle_data_dir(NULL, NULL, data_dir, out, sizeof out, &found, &err) == 0 && found &&
+                  strstr(out, "/shared/data"),
               "default: %s", out);
     }
 }

@@ -1,6 +1,6 @@
 /* Tests of vehicle class files (src/models/energy/vehicle.c): the shipped classes load, a class written back out with
  * %.17g loads to identical parameters, every malformed file is a WF_EINPUT error whose message names the
- * problem, and the search path ($WAVEFUEL_VEHICLES, then the repository's vehicles/) finds classes. */
+ * problem, and the class search path finds classes. */
 #include <errno.h>
 #include <math.h>
 #include <stdio.h>
@@ -292,8 +292,9 @@ static void test_error_cases(void)
     CHECK(rc == WF_EINPUT && strstr(err.msg, "cannot open") != NULL, "rc %d: %s", rc, err.msg);
 }
 
-/* $WAVEFUEL_VEHICLES: a custom class in a directory of the user's is found by name, listed, and shadows a
- * shipped class of the same name (first occurrence wins). */
+/* The class search path (what the programs build from $WAVEFUEL_VEHICLES, then the shipped vehicles/): a custom
+ * class in a directory of the user's is found by name, listed, and shadows a shipped class of the same name (first
+ * occurrence wins); a missing directory on the path is skipped. */
 static void test_search_path(void)
 {
     WfVehicleClass base, vc;
@@ -314,13 +315,13 @@ static void test_search_path(void)
     snprintf(path, sizeof path, "%s/midsize_suv.yaml", dir);
     CHECK(write_file(path, text) == 0, "write %s", path);
 
-    /* Not found before the variable is set. */
-    unsetenv("WAVEFUEL_VEHICLES");
-    CHECK(wf_vehicle_find("my_van", &vc, &err) == WF_EINPUT, "my_van found without WAVEFUEL_VEHICLES");
+    /* Not found before its directory is on the path. */
+    CHECK(wf_vehicle_find("my_van", &vc, &err) == WF_EINPUT && strstr(err.msg, WF_REPO_DIR "/vehicles"),
+          "my_van found without its directory, or the message does not name the path: %s", err.msg);
 
-    char env[700];
-    snprintf(env, sizeof env, "/nonexistent_dir:%s", dir);
-    setenv("WAVEFUEL_VEHICLES", env, 1);
+    char env[2000];
+    snprintf(env, sizeof env, "/nonexistent_dir:%s:%s", dir, WF_REPO_DIR "/vehicles");
+    CHECK(wf_vehicle_search_path_set(env, &err) == 0 && !strcmp(wf_vehicle_search_path(), env), "%s", err.msg);
     err = (WfError){0};
     int rc = wf_vehicle_find("my_van", &vc, &err);
     CHECK(rc == 0, "my_van: %s", err.msg);
@@ -350,7 +351,7 @@ static void test_search_path(void)
     free(all);
     CHECK(van && suv_user && n >= N_SHIPPED + 1, "list: my_van %d, user's suv %d, n %zu", van, suv_user, n);
 
-    unsetenv("WAVEFUEL_VEHICLES");
+    CHECK(wf_vehicle_search_path_set(WF_REPO_DIR "/vehicles", &err) == 0, "%s", err.msg);
     snprintf(path, sizeof path, "%s/my_van.yaml", dir);
     remove(path);
     snprintf(path, sizeof path, "%s/midsize_suv.yaml", dir);
@@ -361,8 +362,6 @@ static void test_search_path(void)
 
 int main(void)
 {
-    /* Tests run with WAVEFUEL_VEHICLES empty (tests/run.sh): the shipped classes come from the repository. */
-    unsetenv("WAVEFUEL_VEHICLES");
     const char *t = getenv("TMPDIR");
     snprintf(tmpdir, sizeof tmpdir, "%s/wf_test_vehicle.XXXXXX", t && *t ? t : "/tmp");
     if (!mkdtemp(tmpdir)) {

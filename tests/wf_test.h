@@ -5,7 +5,10 @@
 
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
+
+#include "wavefuel/vehicle.h"
 
 static int wf_test_failed_;      /* failures in the current case */
 static int wf_test_fail_total_;  /* failed cases in this binary */
@@ -38,8 +41,19 @@ static const char *wf_test_name_;
               fabs(g_ - w_), (double)(atol));                                             \
     } while (0)
 
+/* Before the first case: the library has no class search path of its own; tests find the repository's classes
+ * by its source path (WF_REPO_DIR, given to test objects by the Makefile). */
+static void wf_test_setup_(void)
+{
+    static int done;
+    WfError e = {0};
+    if (!done && wf_vehicle_search_path_set(WF_REPO_DIR "/vehicles", &e)) abort();
+    done = 1;
+}
+
 #define RUN(fn)                                                                   \
     do {                                                                          \
+        wf_test_setup_();                                                         \
         wf_test_failed_ = 0;                                                      \
         wf_test_name_ = #fn;                                                      \
         fn();                                                                     \

@@ -38,6 +38,8 @@ export OMP_NUM_THREADS=2
 # (LLVM 14; 500 kB is fine): the tests' ulimit -f cases below 512 kB are skipped here (they run in every other
 # build).
 export WF_TEST_MIN_FSIZE_KB=512
+# $TB/bin/wavefuel has no $TB/vehicles: the repository's classes by path (docs/energy.md, the class search path).
+export WAVEFUEL_VEHICLES="$PWD/vehicles"
 export FUZZ_SMOKE_SECONDS=0 # the libFuzzer part is an ASan build: nothing to learn about threads there
 BUILD="$TB" WAVEFUEL_BIN="$TB/bin/wavefuel" ./tests/run.sh
 suite=$?

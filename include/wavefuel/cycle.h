@@ -21,9 +21,11 @@ typedef struct WfCycle {
 } WfCycle;
 
 /* Read a speed trace. Header optional (if present: `time_s,speed_mps`); at least 2 samples; time strictly
- * increasing; speeds finite and >= 0. Errors name file, line and field. */
+ * increasing; speeds finite and >= 0. Errors name file, line and field. Ownership: the arrays of *c are owned by
+ * *c (the struct is the caller's) until wf_cycle_free(); on failure nothing is left to free. */
 int wf_cycle_load(const char *path, WfCycle *c, WfError *err);
-/* Same checks on arrays (copied); `name` labels the cycle. */
+/* Same checks on arrays (copied: the caller keeps t_s and v_mps); `name` labels the cycle. *c as for
+ * wf_cycle_load. */
 int wf_cycle_from_arrays(const char *name, size_t n, const double *t_s, const double *v_mps, WfCycle *c,
                          WfError *err);
 void wf_cycle_free(WfCycle *c);
@@ -33,11 +35,13 @@ double wf_cycle_duration_s(const WfCycle *c);
  * the steps are even, as in the regulatory cycles). */
 double wf_cycle_distance_m(const WfCycle *c);
 
-/* The data directory holding cycles/NAME.csv: `dir` when not NULL, else $WAVEFUEL_DATA, else ../shared/data
- * next to the repository (found like vehicles/: from the running binary, then the source tree) when it
- * exists. *found = 0 (and out = "") when none is given and the default does not exist. Errors: a given
- * directory that does not exist. */
-int wf_cycle_data_dir(const char *dir, char *out, size_t len, int *found, WfError *err);
+/* The data directory holding cycles/NAME.csv: `dir` when given (not NULL or ""), else `default_dir` (may be NULL)
+ * when it exists. `wavefuel cycle` gives --cycles, else $WAVEFUEL_DATA, with dir_from naming which ("--cycles",
+ * "$WAVEFUEL_DATA") for the error message, and the default PREFIX/../shared/data for PREFIX/bin/wavefuel (shared/
+ * next to the repository). *found = 0 (and out = "") when none is given and the default does not exist. Errors:
+ * a given directory that does not exist (WF_EINPUT). The library reads no environment variable here. */
+int wf_cycle_data_dir(const char *dir, const char *dir_from, const char *default_dir, char *out, size_t len,
+                      int *found, WfError *err);
 /* A CYCLE argument: a path (contains '/' or ends in .csv) is used as is; a name ("udds") is
  * DATA_DIR/cycles/NAME.csv. Unknown names list the cycles present. data_dir may be "" (none found). */
 int wf_cycle_resolve(const char *name_or_path, const char *data_dir, char *out, size_t len, WfError *err);
@@ -74,6 +78,8 @@ size_t wf_protocol_grades(WfDuty duty, double *theta_rad, size_t cap);
  * existing file unless force. Each run goes to the group /CLASS/CYCLE/theta_<+0.0000>/MODEL with the time
  * series (t, v, a, fuel, power, flag) and the totals as scalars; see docs/cycles.md. */
 typedef struct WfCycleOut WfCycleOut;
+/* *out is the caller's (NULL on failure) until wf_cycle_out_commit() or wf_cycle_out_abandon(), which free it and
+ * set *out to NULL; command_line is copied into the file. */
 int wf_cycle_out_create(const char *path, int force, const char *command_line, WfCycleOut **out, WfError *err);
 int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, const WfCycleRun *r, WfError *err);
 /* Protocol summary of one class at /CLASS/summary: cycle names (+ "ALL"), grades, model names, fuel_g per

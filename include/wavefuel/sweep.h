@@ -47,12 +47,15 @@ typedef struct WfSweep {
 } WfSweep;
 
 /* Read and expand a sweep file; the base scenario's text is read too (not validated: a run whose overrides do not
- * fit it fails alone, recorded in the table). Errors name file:line and key; WF_EINPUT for bad input. */
+ * fit it fails alone, recorded in the table). Errors name file:line and key; WF_EINPUT for bad input.
+ * Ownership: *out is the caller's, holding copies of everything (no pointer into the arguments), until
+ * wf_sweep_destroy(); NULL on failure. */
 int  wf_sweep_load(const char *path, WfSweep **out, WfError *err);
 /* Same from texts already in memory (MPI ranks get them from rank 0); `path` resolves the scenario path and names
  * errors; scenario_text NULL: read the scenario file. */
 int  wf_sweep_load_text(const char *path, const char *text, const char *scenario_text, WfSweep **out,
                         WfError *err);
+/* Frees the sweep and sets *sw to NULL; accepts NULL and *sw == NULL. */
 void wf_sweep_destroy(WfSweep **sw);
 
 /* The run's overrides, one per line (the format of a result file's /meta/overrides); *out is malloc'ed. Identifies
@@ -82,18 +85,71 @@ typedef struct WfSweepResult {
 } WfSweepResult;
 
 typedef struct WfSweepRunOpts {
-    int         threads;     /* OpenMP threads inside the run (the engine's loops), >= 1 */
+    int         threads;     /* OpenMP threads inside the run, recorded in the result: the engine sizes its team from
+                                the calling thread's OpenMP setting, which the caller sets (wf_sweep_execute) */
     const char *per_run_dir; /* NULL: no per-run file; else DIR/run_HASH.h5 (HASH of the overrides), replaced if
                                 the table did not record it as complete */
     int         worker;      /* recorded in the result */
 } WfSweepRunOpts;
 
-/* Load the run's scenario (the base text + overrides), simulate it, fill *res. Never stops the caller: a failure
+/* Load the run's scenario (the base text + overrides), simulate it on the calling thread's OpenMP team size
+ * (omp_get_max_threads(); this function changes no OpenMP setting), fill *res. Never stops the caller: a failure
  * is recorded in res (status failed, error); *stop (may be NULL) set by a signal interrupts the run, which then
  * stays pending. Thread-safe: runs may execute concurrently (HDF5 is used only for per-run files, and the library
  * is built thread-safe; see docs/sweeps.md). */
 void wf_sweep_run(const WfSweep *sw, size_t run, const WfSweepRunOpts *o, volatile sig_atomic_t *stop,
                   WfSweepResult *res);
+
+typedef struct WfSweepTiming WfSweepTiming; /* below, with the table */
+
+/* ---- The scheduler: every pending run of a sweep, on threads of this process and on remote workers ---- */
+typedef int  (*WfSweepTakeFn)(void *sched, size_t *run); /* 1 and *run: a run to do; 0: none left */
+typedef void (*WfSweepFinishFn)(void *sched, size_t run, const WfSweepResult *res);
+
+/* Workers outside this process (the MPI ranks of bin/wavefuel-mpi, src/mpi/), driven from the coordinating
+ * thread: poll() records the results that arrived (finish) and hands a run to every free worker (take), without
+ * blocking, and returns how many workers still hold a run. */
+typedef struct WfSweepRemote {
+    int  (*poll)(void *ctx, WfSweepTakeFn take, WfSweepFinishFn finish, void *sched);
+    void  *ctx;     /* borrowed */
+    int    workers; /* recorded in /timing as the number of workers (MPI: the ranks) */
+} WfSweepRemote;
+
+typedef struct WfSweepCounts {
+    size_t n_todo;        /* pending runs when wf_sweep_execute was called */
+    size_t n_reported;    /* of them, finished or interrupted so far */
+    size_t n_ok, n_failed, n_interrupted;
+} WfSweepCounts;
+
+typedef struct WfSweepExecOpts {
+    int            workers;      /* runs side by side on threads of this process, >= 1 */
+    WfSweepRunOpts run;          /* for every run (.worker is set by the scheduler); .threads is recorded only:
+                                    see wf_sweep_execute for the threads a run actually gets */
+    const char    *table_path;   /* the result table (wf_sweep_table_write), saved while runs finish and at the end */
+    double         save_every_s; /* wall time between snapshots: what a killed sweep can lose */
+    volatile sig_atomic_t *stop; /* may be NULL; once set (by a signal), no run starts and runs in progress stop
+                                    (they stay pending) */
+    const WfSweepRemote *remote; /* NULL: none. With remote workers the coordinating thread never runs a run */
+    const char    *mode;         /* recorded in /timing: "threads" or "mpi" */
+    /* The caller's callbacks, all may be NULL. From the coordinating thread: each finished (or interrupted) run,
+     * in order of completion; then, after each batch (about every ms), the counts and wall time so far, s. From
+     * each worker thread before its first run: per-thread settings of the program (HDF5's error printing). */
+    void (*on_finished)(void *ctx, size_t run, const WfSweepResult *res, const WfSweepCounts *c);
+    void (*on_progress)(void *ctx, const WfSweepCounts *c, double wall_s);
+    void (*on_thread_start)(void *ctx);
+    void  *ctx;
+} WfSweepExecOpts;
+
+/* Execute every run whose row of res[] (sw->n_runs entries, filled as runs finish) is pending, in table order,
+ * pulled one at a time by o->workers worker threads and the remote workers, while one more thread coordinates.
+ * The table is saved every o->save_every_s and at the end (not at all when no run is pending). Each run's engine
+ * takes its team size from the OpenMP setting its worker thread inherits from the caller's thread
+ * (omp_get_max_threads() at the call): the caller sets it, and enables nested parallelism when it is above 1;
+ * the library changes neither. Fills *counts and *timing (may be NULL; timing.workers is the number of worker
+ * threads the OpenMP runtime gave, or remote->workers). Returns 0, or the error of a snapshot that
+ * could not be written (no run is handed out after it; the table keeps its last good snapshot). */
+int wf_sweep_execute(const WfSweep *sw, WfSweepResult *res, const WfSweepExecOpts *o, WfSweepCounts *counts,
+                     WfSweepTiming *timing, WfError *err);
 
 /* The metrics of the table are the ring summary's fields: wf_summary_fields and wf_summary_class_fields with a
  * ring description (wavefuel/summary.h), under the names and units of a run file's /summary. */
@@ -111,10 +167,6 @@ typedef struct WfSweepTiming {
 int wf_sweep_table_write(const char *path, const WfSweep *sw, const WfSweepResult *res, const WfSweepTiming *timing,
                          WfError *err);
 
-/* Turn off HDF5's printing of its error stack for the calling thread (a setting per thread in the thread-safe
- * library; wavefuel reports errors itself). wf_sweep_run calls it in every thread that writes a per-run file. */
-void wf_sweep_h5_quiet_thread(void);
-
 /* A table read back (resume, tests). */
 typedef struct WfSweepSaved {
     size_t         n;
@@ -123,7 +175,8 @@ typedef struct WfSweepSaved {
     char          *scenario_text; /* owned */
     char          *scenario_path; /* owned */
 } WfSweepSaved;
-/* WF_EINPUT if `path` is not a wavefuel sweep table. */
+/* WF_EINPUT if `path` is not a wavefuel sweep table. *out owns what it holds (the caller frees it with
+ * wf_sweep_saved_free(), which zeroes it); on failure it is left empty. */
 int  wf_sweep_table_read(const char *path, WfSweepSaved *out, WfError *err);
 void wf_sweep_saved_free(WfSweepSaved *s);
 

@@ -32,15 +32,27 @@ typedef struct WfVehicleClass {
 #define WF_L_PER_US_GAL       3.785411784
 #define WF_M_PER_MILE         1609.344
 
-/* Load a class file. `name` is the file stem. On failure the message names file, line and key. */
+/* Load a class file into *vc (name = the file stem). vc->params is owned by *vc: free it with wf_vehicle_free()
+ * (the struct itself is the caller's); vc->model is borrowed from the registry, valid for the process. On failure
+ * nothing is left to free and the message names file, line and key. */
 int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err);
-/* Find a class: if `name_or_path` contains '/' or ends in .yaml it is a path; otherwise it is looked
- * up as NAME.yaml in $WAVEFUEL_VEHICLES (colon-separated), then in the repository's vehicles/
- * directory (located from the running binary: bin/../vehicles). Unknown names list the classes found. */
+/* The class search path: directories searched for NAME.yaml, in order, colon-separated ("DIR1:DIR2"; empty
+ * entries and missing directories are skipped). A setting of the library for the whole process, empty by default:
+ * until it is set, classes are found only by file path. `dirs` is copied (the caller keeps it); NULL or ""
+ * empties the path. Set it at start-up, before any lookup, and not while another thread looks classes up. The
+ * wavefuel programs set "$WAVEFUEL_VEHICLES:PREFIX/vehicles" for PREFIX/bin/wavefuel (docs/energy.md).
+ * WF_EINPUT, and the path unchanged, if it has WF_VEHICLE_PATH_MAX bytes or more. */
+#define WF_VEHICLE_PATH_MAX 8192
+int wf_vehicle_search_path_set(const char *dirs, WfError *err);
+/* The search path now ("" when empty); borrowed, valid until the next wf_vehicle_search_path_set(). */
+const char *wf_vehicle_search_path(void);
+/* Find a class: if `name_or_path` contains '/' or ends in .yaml it is a path; otherwise it is looked up as
+ * NAME.yaml along the class search path (first match wins). Unknown names list the classes found there. *vc as
+ * for wf_vehicle_load(). */
 int wf_vehicle_find(const char *name_or_path, WfVehicleClass *vc, WfError *err);
 void wf_vehicle_free(WfVehicleClass *vc);
 
-/* Every class on the search path (sorted by name, first occurrence wins). *out is owned by the caller:
+/* Every class on the class search path (sorted by name, first occurrence wins). *out is owned by the caller:
  * free each with wf_vehicle_free() and the array with free(). */
 int wf_vehicle_list(WfVehicleClass **out, size_t *n, WfError *err);
 

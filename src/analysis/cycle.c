@@ -138,51 +138,23 @@ static int is_dir(const char *p)
     return stat(p, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
-/* ../shared/data next to the repository: the running binary's BIN_DIR/../../shared/data (bin/ sits in the
- * repository), else the source tree the library was built from (WF_REPO_DIR), which serves tests. */
-static int default_data_dir(char *out, size_t len)
-{
-    char exe[PATH_MAX];
-    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    if (n > 0) {
-        exe[n] = '\0';
-        char *s1 = strrchr(exe, '/');
-        if (s1) {
-            *s1 = '\0';
-            char *s2 = strrchr(exe, '/');
-            if (s2) {
-                *s2 = '\0';
-                int w = snprintf(out, len, "%s/../shared/data", exe);
-                if (w > 0 && (size_t)w < len && is_dir(out)) return 0;
-            }
-        }
-    }
-#ifdef WF_REPO_DIR
-    int w = snprintf(out, len, "%s/../shared/data", WF_REPO_DIR);
-    if (w > 0 && (size_t)w < len && is_dir(out)) return 0;
-#endif
-    return -1;
-}
-
-int wf_cycle_data_dir(const char *dir, char *out, size_t len, int *found, WfError *err)
+int wf_cycle_data_dir(const char *dir, const char *dir_from, const char *default_dir, char *out, size_t len,
+                      int *found, WfError *err)
 {
     *found = 0;
     out[0] = '\0';
-    const char *env = getenv("WAVEFUEL_DATA");
-    const char *given = dir ? dir : (env && *env ? env : NULL);
+    const char *given = dir && *dir ? dir : NULL;
     if (given) {
         if (!is_dir(given))
-            return wf_err(err, WF_EINPUT, "data directory %s (%s) does not exist", given,
-                          dir ? "--cycles" : "$WAVEFUEL_DATA");
+            return wf_err(err, WF_EINPUT, "data directory %s (%s) does not exist", given, dir_from ? dir_from : "given");
         int w = snprintf(out, len, "%s", given);
         if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "data directory path too long: %s", given);
         *found = 1;
         return 0;
     }
-    char buf[PATH_MAX + 64];
-    if (default_data_dir(buf, sizeof buf) == 0) {
+    if (default_dir && is_dir(default_dir)) {
         char real[PATH_MAX];
-        const char *show = realpath(buf, real) ? real : buf;
+        const char *show = realpath(default_dir, real) ? real : default_dir;
         int w = snprintf(out, len, "%s", show);
         if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "data directory path too long: %s", show);
         *found = 1;

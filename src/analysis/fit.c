@@ -634,6 +634,36 @@ static int fit_lower_bound(const FitCtx *c, WfCirclesParams *p, WfFitStep *s, Wf
     return rc;
 }
 
+/* The steps read the table over v in [0, 35] m/s, a in [-3, 3] m/s^2 and theta in [-0.03, 0.03] rad; a table that
+ * does not span them would be read at its clamped edge, which no step can fit. */
+static int check_grid(const WfTable *t, WfError *err)
+{
+    const double eps = 1e-9;
+    if (t->v.lo <= eps && t->v.hi >= WF_FIT_V_MAX - eps && t->a.lo <= -3.0 + eps && t->a.hi >= 3.0 - eps &&
+        t->theta.lo <= -0.03 + eps && t->theta.hi >= 0.03 - eps)
+        return 0;
+    return wf_err(err, WF_EINPUT,
+                  "fit: the table's grid (v [%.6g, %.6g] m/s, a [%.6g, %.6g] m/s^2, theta [%.6g, %.6g] rad) "
+                  "must span "
+                  "v [0, 35] m/s, a [-3, 3] m/s^2 and theta [-0.03, 0.03] rad, the ranges the fit reads (the "
+                  "release's tables span v [0, 35], a [-4, 4], theta [-0.03, 0.03])",
+                  t->v.lo, t->v.hi, t->a.lo, t->a.hi, t->theta.lo, t->theta.hi);
+}
+
+/* Overall: the fitted model, as the simulator evaluates it, against the table at the points of steps 2-5. */
+static void overall_error(const WfCirclesParams *p, const Keep *keep, WfFitResult *r)
+{
+    double ss = 0.0, mx = 0.0;
+    for (size_t i = 0; i < keep->n; i++) {
+        double e = wf_circles_fuel(p, keep->v[i], keep->a[i], keep->th[i], 0, NULL) - keep->f[i];
+        ss += e * e;
+        if (fabs(e) > mx) mx = fabs(e);
+    }
+    r->fuel_n = keep->n;
+    r->fuel_rms_gps = keep->n ? sqrt(ss / (double)keep->n) : NAN;
+    r->fuel_max_gps = mx;
+}
+
 int wf_fit_table(const WfTable *t, WfFitDuty duty, WfFitResult *out, WfError *err)
 {
     WfFitResult *r = calloc(1, sizeof *r);
@@ -646,20 +676,8 @@ int wf_fit_table(const WfTable *t, WfFitDuty duty, WfFitResult *out, WfError *er
     r->table_checksum = t->data_fnv1a64;
     int rc = 0;
     FitCtx c = {.t = t, .light = 0, .v_c = INFINITY, .beta = 0.0};
-    /* The steps read the table over v in [0, 35] m/s, a in [-3, 3] m/s^2 and theta in [-0.03, 0.03] rad;
-     * a table that does not span them would be read at its clamped edge, which no step can fit. */
-    const double eps = 1e-9;
-    if (!(t->v.lo <= eps && t->v.hi >= WF_FIT_V_MAX - eps && t->a.lo <= -3.0 + eps && t->a.hi >= 3.0 - eps &&
-          t->theta.lo <= -0.03 + eps && t->theta.hi >= 0.03 - eps)) {
-        rc = wf_err(err, WF_EINPUT,
-                    "fit: the table's grid (v [%.6g, %.6g] m/s, a [%.6g, %.6g] m/s^2, theta [%.6g, %.6g] rad) "
-                    "must span "
-                    "v [0, 35] m/s, a [-3, 3] m/s^2 and theta [-0.03, 0.03] rad, the ranges the fit reads (the "
-                    "release's tables span v [0, 35], a [-4, 4], theta [-0.03, 0.03])",
-                    t->v.lo, t->v.hi, t->a.lo, t->a.hi, t->theta.lo, t->theta.hi);
-        goto done;
-    }
-    double a_lo_p = 0.0, th_hi_z = 0.02, ss = 0.0, mx = 0.0;
+    if ((rc = check_grid(t, err))) goto done;
+    double a_lo_p = 0.0, th_hi_z = 0.02;
 
     /* 1a. Fuel-cut speed and duty. */
     size_t n_eval = 0;
@@ -722,15 +740,7 @@ int wf_fit_table(const WfTable *t, WfFitDuty duty, WfFitResult *out, WfError *er
         wf_err_prefix(err, "fit: the fitted parameters are not a valid model: ");
         goto done;
     }
-    /* Overall: the fitted model, as the simulator evaluates it, against the table at the points of 2-5. */
-    for (size_t i = 0; i < keep.n; i++) {
-        double e = wf_circles_fuel(p, keep.v[i], keep.a[i], keep.th[i], 0, NULL) - keep.f[i];
-        ss += e * e;
-        if (fabs(e) > mx) mx = fabs(e);
-    }
-    r->fuel_n = keep.n;
-    r->fuel_rms_gps = keep.n ? sqrt(ss / (double)keep.n) : NAN;
-    r->fuel_max_gps = mx;
+    overall_error(p, &keep, r);
     *out = *r;
 done:
     free(keep.v);

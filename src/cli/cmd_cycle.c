@@ -326,6 +326,36 @@ static int run_protocol(Entry *entries, size_t n_entries, const char *data_dir, 
 
 /* ------------------------------------------------------------------------------------------------------- */
 
+/* The classes to drive: the --class ones, else every class on the search path; each --table must name one. */
+static int load_entries(const char *const *classes, size_t n_classes, TableArg *tables, size_t n_tables,
+                        Entry **out, size_t *n_out, WfError *err)
+{
+    Entry *entries = NULL;
+    size_t n_entries = 0;
+    int rc = 0;
+    if (n_classes) {
+        for (size_t i = 0; i < n_classes && !rc; i++)
+            rc = add_class(&entries, &n_entries, classes[i], tables, n_tables, err);
+    } else {
+        WfVehicleClass *all = NULL;
+        size_t n_all = 0;
+        rc = wf_vehicle_list(&all, &n_all, err);
+        for (size_t i = 0; i < n_all; i++) {
+            if (!rc) rc = add_class(&entries, &n_entries, all[i].path, tables, n_tables, err);
+            wf_vehicle_free(&all[i]);
+        }
+        free(all);
+        if (!rc && n_entries == 0) rc = wf_err(err, WF_EINPUT, "no vehicle classes found");
+    }
+    for (size_t i = 0; i < n_tables && !rc; i++)
+        if (!tables[i].used)
+            rc = wf_err(err, WF_EINPUT, "--table %s=%s: no class '%s' in this run", tables[i].cls, tables[i].path,
+                        tables[i].cls);
+    *out = entries;
+    *n_out = n_entries;
+    return rc;
+}
+
 int wf_cmd_cycle(int argc, char **argv)
 {
     static const struct option opts[] = {{"class", required_argument, 0, 'c'},  {"grade", required_argument, 0, 'g'},
@@ -395,28 +425,15 @@ int wf_cmd_cycle(int argc, char **argv)
     WfError err = {0};
     char data_dir[4096];
     int found = 0;
-    if (wf_cycle_data_dir(cycles_dir, data_dir, sizeof data_dir, &found, &err)) return wf_cli_fail(&err);
+    char dflt[4096];
+    int have_dflt = wf_cli_data_default(dflt, sizeof dflt) == 0;
+    const char *env = getenv("WAVEFUEL_DATA"), *given = cycles_dir ? cycles_dir : env && *env ? env : NULL;
+    if (wf_cycle_data_dir(given, cycles_dir ? "--cycles" : "$WAVEFUEL_DATA", have_dflt ? dflt : NULL, data_dir,
+                          sizeof data_dir, &found, &err))
+        return wf_cli_fail(&err);
     Entry *entries = NULL;
     size_t n_entries = 0;
-    int rc = 0;
-    if (n_classes) {
-        for (size_t i = 0; i < n_classes && !rc; i++)
-            rc = add_class(&entries, &n_entries, classes[i], tables, n_tables, &err);
-    } else {
-        WfVehicleClass *all = NULL;
-        size_t n_all = 0;
-        rc = wf_vehicle_list(&all, &n_all, &err);
-        for (size_t i = 0; i < n_all; i++) {
-            if (!rc) rc = add_class(&entries, &n_entries, all[i].path, tables, n_tables, &err);
-            wf_vehicle_free(&all[i]);
-        }
-        free(all);
-        if (!rc && n_entries == 0) rc = wf_err(&err, WF_EINPUT, "no vehicle classes found");
-    }
-    for (size_t i = 0; i < n_tables && !rc; i++)
-        if (!tables[i].used)
-            rc = wf_err(&err, WF_EINPUT, "--table %s=%s: no class '%s' in this run", tables[i].cls, tables[i].path,
-                        tables[i].cls);
+    int rc = load_entries(classes, n_classes, tables, n_tables, &entries, &n_entries, &err);
     if (rc) {
         free_entries(entries, n_entries);
         return wf_cli_fail(&err);

@@ -17,7 +17,8 @@ static void help(FILE *out)
             "lines and '#' comments skipped) from FILE or standard input, and writes CSV\n"
             "v,a,theta,fuel_gps,power_kw,flag with 17 significant digits. flag: 0 feasible, 1 acceleration\n"
             "above a_max(v, theta), 2 negative speed. --project clips a to a_max before evaluating.\n"
-            "Classes are found in $WAVEFUEL_VEHICLES (colon-separated) and the repository's vehicles/.\n");
+            "Classes are found in $WAVEFUEL_VEHICLES (colon-separated), then in PREFIX/vehicles for this program\n"
+            "PREFIX/bin/wavefuel (the repository's vehicles/).\n");
 }
 
 static int list_classes(void)

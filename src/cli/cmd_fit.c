@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "util/path.h"
 #include "wavefuel/fit.h"
 
 /* kW per g/s when neither --kw-per-gps nor --like gives one: the CIRCLES release's values (its model files'
@@ -92,7 +93,15 @@ static int parse_num(const char *opt, const char *s, double *out)
     return 0;
 }
 
-int wf_cmd_fit(int argc, char **argv)
+typedef struct FitArgs {
+    const char *out, *like, *label, *table_path;
+    WfFitDuty   duty;
+    int         force, fuel; /* fuel: a WfFuelType, or -1 when not given */
+    double      mass, length, kw; /* NAN when not given */
+} FitArgs;
+
+/* Returns 0, -1 after --help (exit status 0) or 2 after a usage error. */
+static int parse_args(int argc, char **argv, FitArgs *a)
 {
     static const struct option opts[] = {{"duty", required_argument, 0, 'd'},
                                          {"output", required_argument, 0, 'o'},
@@ -105,44 +114,42 @@ int wf_cmd_fit(int argc, char **argv)
                                          {"kw-per-gps", required_argument, 0, 'k'},
                                          {"help", no_argument, 0, 'h'},
                                          {0, 0, 0, 0}};
-    const char *out = NULL, *like = NULL, *label = NULL;
-    WfFitDuty duty = WF_FIT_DUTY_AUTO;
-    int force = 0, fuel = -1, o;
-    double mass = NAN, length = NAN, kw = NAN;
+    *a = (FitArgs){.duty = WF_FIT_DUTY_AUTO, .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
+    int o;
     optind = 1;
     while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
         switch (o) {
         case 'd':
-            if (!strcmp(optarg, "auto")) duty = WF_FIT_DUTY_AUTO;
-            else if (!strcmp(optarg, "light")) duty = WF_FIT_DUTY_LIGHT;
-            else if (!strcmp(optarg, "heavy")) duty = WF_FIT_DUTY_HEAVY;
+            if (!strcmp(optarg, "auto")) a->duty = WF_FIT_DUTY_AUTO;
+            else if (!strcmp(optarg, "light")) a->duty = WF_FIT_DUTY_LIGHT;
+            else if (!strcmp(optarg, "heavy")) a->duty = WF_FIT_DUTY_HEAVY;
             else {
                 fprintf(stderr, "wavefuel fit: --duty must be light, heavy or auto (got '%s')\n", optarg);
                 return 2;
             }
             break;
-        case 'o': out = optarg; break;
-        case 'f': force = 1; break;
-        case 'L': like = optarg; break;
-        case 'n': label = optarg; break;
+        case 'o': a->out = optarg; break;
+        case 'f': a->force = 1; break;
+        case 'L': a->like = optarg; break;
+        case 'n': a->label = optarg; break;
         case 'F':
-            if (!strcmp(optarg, "gasoline")) fuel = WF_FUEL_GASOLINE;
-            else if (!strcmp(optarg, "diesel")) fuel = WF_FUEL_DIESEL;
+            if (!strcmp(optarg, "gasoline")) a->fuel = WF_FUEL_GASOLINE;
+            else if (!strcmp(optarg, "diesel")) a->fuel = WF_FUEL_DIESEL;
             else {
                 fprintf(stderr, "wavefuel fit: --fuel must be gasoline or diesel (got '%s')\n", optarg);
                 return 2;
             }
             break;
         case 'm':
-            if (parse_num("--mass-kg", optarg, &mass)) return 2;
+            if (parse_num("--mass-kg", optarg, &a->mass)) return 2;
             break;
         case 'l':
-            if (parse_num("--length-m", optarg, &length)) return 2;
+            if (parse_num("--length-m", optarg, &a->length)) return 2;
             break;
         case 'k':
-            if (parse_num("--kw-per-gps", optarg, &kw)) return 2;
+            if (parse_num("--kw-per-gps", optarg, &a->kw)) return 2;
             break;
-        case 'h': help(stdout); return 0;
+        case 'h': help(stdout); return -1;
         default: help(stderr); return 2;
         }
     }
@@ -150,17 +157,69 @@ int wf_cmd_fit(int argc, char **argv)
         fprintf(stderr, "wavefuel fit: one TABLE argument (an imported .h5 table or a release-format CSV)\n");
         return 2;
     }
-    const char *table_path = argv[optind];
+    a->table_path = argv[optind];
+    return 0;
+}
+
+/* Write the fitted class to a->out (metadata from the options, else --like's class `base`, else the fuel's
+ * defaults) and read it back as every user of it will, so a class that is written also loads. */
+static int write_class(int argc, char **argv, const FitArgs *a, const WfFitResult *r, const WfVehicleClass *base,
+                       int have_base, WfError *err)
+{
+    WfFitClassInfo info = {0};
+    int fuel = a->fuel;
+    info.fuel = fuel >= 0 ? (WfFuelType)fuel
+                : have_base ? base->fuel
+                            : (r->duty == WF_DUTY_HEAVY ? WF_FUEL_DIESEL : WF_FUEL_GASOLINE);
+    info.mass_kg = !isnan(a->mass) ? a->mass : base->mass_kg;
+    info.length_m = !isnan(a->length) ? a->length : base->length_m;
+    info.kw_per_gps = !isnan(a->kw) ? a->kw
+                      : have_base && (fuel < 0 || (WfFuelType)fuel == base->fuel)
+                          ? base->kw_per_gps
+                          : (info.fuel == WF_FUEL_DIESEL ? KW_PER_GPS_DIESEL : KW_PER_GPS_GASOLINE);
+    /* A density copied from --like only when the fuel is the same and the class set its own (the fuel's
+     * default is what the loader gives when none is written). */
+    double default_density =
+        (base->fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL;
+    info.fuel_density_g_per_l = have_base && info.fuel == base->fuel && base->fuel_density_g_per_l != default_density
+                                    ? base->fuel_density_g_per_l
+                                    : NAN;
+    char stem[256], default_label[600], command[4096];
+    snprintf(stem, sizeof stem, "%s", wf_path_base(a->out));
+    char *dot = strrchr(stem, '.');
+    if (dot) *dot = '\0';
+    snprintf(default_label, sizeof default_label, "%s (fitted from %s)", stem, wf_path_base(a->table_path));
+    info.label = a->label ? a->label : default_label;
+    info.table_path = a->table_path;
+    join_args(argc, argv, command, sizeof command);
+    info.command = command;
+    int rc = wf_fit_write_class(r, &info, a->out, a->force, err);
+    WfVehicleClass back;
+    if (!rc) rc = wf_vehicle_load(a->out, &back, err);
+    if (!rc) {
+        printf("wrote    %s (class %s: %s duty, %s, %.6g kg, %.6g m, %.6g kW per g/s)\n", a->out, back.name,
+               wf_duty_name(back.duty), wf_fuel_name(back.fuel), back.mass_kg, back.length_m, back.kw_per_gps);
+        wf_vehicle_free(&back);
+    }
+    return rc;
+}
+
+int wf_cmd_fit(int argc, char **argv)
+{
+    FitArgs a;
+    int status = parse_args(argc, argv, &a);
+    if (status) return status < 0 ? 0 : status;
+    const char *table_path = a.table_path;
     WfError err = {0};
     WfVehicleClass base;
     int have_base = 0;
     memset(&base, 0, sizeof base);
-    if (like) {
-        if (wf_vehicle_find(like, &base, &err)) return wf_cli_fail(&err);
+    if (a.like) {
+        if (wf_vehicle_find(a.like, &base, &err)) return wf_cli_fail(&err);
         have_base = 1;
     }
     /* Check the metadata before the fit, so a missing option does not cost a fit. */
-    if (out && !have_base && (isnan(mass) || isnan(length))) {
+    if (a.out && !have_base && (isnan(a.mass) || isnan(a.length))) {
         fprintf(stderr, "wavefuel fit: -o needs the vehicle's mass and length, which a table does not hold: give "
                         "--mass-kg and --length-m, or --like CLASS to copy them from a class\n");
         return 2;
@@ -170,7 +229,7 @@ int wf_cmd_fit(int argc, char **argv)
     int rc = len > 4 && !strcmp(table_path + len - 4, ".csv") ? wf_table_read_csv(table_path, &t, &err)
                                                              : wf_table_load_h5(table_path, &t, &err);
     WfFitResult r;
-    if (!rc) rc = wf_fit_table(t, duty, &r, &err);
+    if (!rc) rc = wf_fit_table(t, a.duty, &r, &err);
     if (rc) {
         wf_table_destroy(&t);
         if (have_base) wf_vehicle_free(&base);
@@ -178,45 +237,7 @@ int wf_cmd_fit(int argc, char **argv)
     }
     print_report(t, table_path, &r);
     wf_table_destroy(&t);
-    if (out) {
-        WfFitClassInfo info = {0};
-        info.fuel = fuel >= 0 ? (WfFuelType)fuel
-                    : have_base ? base.fuel
-                                : (r.duty == WF_DUTY_HEAVY ? WF_FUEL_DIESEL : WF_FUEL_GASOLINE);
-        info.mass_kg = !isnan(mass) ? mass : base.mass_kg;
-        info.length_m = !isnan(length) ? length : base.length_m;
-        info.kw_per_gps = !isnan(kw) ? kw
-                          : have_base && (fuel < 0 || (WfFuelType)fuel == base.fuel)
-                              ? base.kw_per_gps
-                              : (info.fuel == WF_FUEL_DIESEL ? KW_PER_GPS_DIESEL : KW_PER_GPS_GASOLINE);
-        /* A density copied from --like only when the fuel is the same and the class set its own (the fuel's
-         * default is what the loader gives when none is written). */
-        double default_density =
-            (base.fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL;
-        info.fuel_density_g_per_l = have_base && info.fuel == base.fuel && base.fuel_density_g_per_l != default_density
-                                        ? base.fuel_density_g_per_l
-                                        : NAN;
-        char stem[256], default_label[600], command[4096];
-        const char *base_name = strrchr(out, '/') ? strrchr(out, '/') + 1 : out;
-        snprintf(stem, sizeof stem, "%s", base_name);
-        char *dot = strrchr(stem, '.');
-        if (dot) *dot = '\0';
-        const char *tbase = strrchr(table_path, '/') ? strrchr(table_path, '/') + 1 : table_path;
-        snprintf(default_label, sizeof default_label, "%s (fitted from %s)", stem, tbase);
-        info.label = label ? label : default_label;
-        info.table_path = table_path;
-        join_args(argc, argv, command, sizeof command);
-        info.command = command;
-        rc = wf_fit_write_class(&r, &info, out, force, &err);
-        /* Read the file back as every user of it will, so a class that is written also loads. */
-        WfVehicleClass back;
-        if (!rc) rc = wf_vehicle_load(out, &back, &err);
-        if (!rc) {
-            printf("wrote    %s (class %s: %s duty, %s, %.6g kg, %.6g m, %.6g kW per g/s)\n", out, back.name,
-                   wf_duty_name(back.duty), wf_fuel_name(back.fuel), back.mass_kg, back.length_m, back.kw_per_gps);
-            wf_vehicle_free(&back);
-        }
-    }
+    if (a.out) rc = write_class(argc, argv, &a, &r, &base, have_base, &err);
     if (have_base) wf_vehicle_free(&base);
     return rc ? wf_cli_fail(&err) : 0;
 }

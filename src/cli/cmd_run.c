@@ -1,11 +1,9 @@
 /* `wavefuel run`: load a scenario, simulate, write the HDF5 result, print a summary table. */
 #include <getopt.h>
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 #ifdef _OPENMP
 #include <omp.h>
@@ -13,13 +11,11 @@
 
 #include "cli/commands.h"
 #include "cli/run_corridor.h"
+#include "util/clock.h"
 #include "wavefuel/checkpoint.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
 #include "wavefuel/scenario.h"
-
-static volatile sig_atomic_t stop_signal = 0;
-static void on_signal(int sig) { stop_signal = sig; }
 
 static void help(FILE *out)
 {
@@ -44,33 +40,6 @@ static void help(FILE *out)
             "                      run, is refused with exit status 2\n");
 }
 
-typedef struct Progress {
-    double t0;
-    int    tty;
-} Progress;
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static void progress(void *ctx, double t, double duration, long step, long n_steps)
-{
-    Progress *p = ctx;
-    double wall = now_s() - p->t0, frac = t / duration;
-    double eta = frac > 0 ? wall * (1.0 - frac) / frac : 0.0;
-    int width = 30, filled = (int)(frac * width);
-    char bar[64];
-    for (int i = 0; i < width; i++) bar[i] = i < filled ? '#' : '.';
-    bar[width] = '\0';
-    fprintf(stderr, "\r[%s] %5.1f%%  t = %.1f / %.1f s  wall %.1f s  ETA %.1f s  %.3g steps/s   ", bar, 100 * frac, t,
-            duration, wall, eta, wall > 0 ? (double)step / wall : 0.0);
-    (void)n_steps;
-    fflush(stderr);
-}
-
 static void print_summary(const WfSim *sim, const char *path)
 {
     const WfSummary *s = wf_sim_summary(sim);
@@ -87,82 +56,104 @@ static void print_summary(const WfSim *sim, const char *path)
     printf("result: %s\n", path);
 }
 
-int wf_cmd_run(int argc, char **argv)
+typedef struct RunArgs {
+    double       ckpt_s;
+    const char  *resume, *outpath, *scenario;
+    const char **sets; /* owned (the strings are argv's), n_set */
+    size_t       n_set;
+    int          force, quiet;
+    long         threads;
+} RunArgs;
+
+/* Returns 0, -1 after --help (exit status 0) or 2 after a usage error; a->sets is to be freed in every case. */
+static int parse_args(int argc, char **argv, RunArgs *a)
 {
     static const struct option opts[] = {{"output", required_argument, 0, 'o'}, {"set", required_argument, 0, 's'},
                                          {"threads", required_argument, 0, 't'}, {"force", no_argument, 0, 'f'},
                                          {"quiet", no_argument, 0, 'q'},         {"help", no_argument, 0, 'h'},
                                          {"checkpoint-every", required_argument, 0, 'c'},
                                          {"resume", required_argument, 0, 'r'},  {0, 0, 0, 0}};
-    double ckpt_s = 0.0;
-    const char *resume = NULL;
-    const char *outpath = NULL;
-    const char **sets = calloc((size_t)argc + 1, sizeof *sets);
-    size_t n_set = 0;
-    int force = 0, quiet = 0, o;
-    long threads = 0;
-    WfError err = {0};
-    if (!sets) return 1;
+    int o;
+    memset(a, 0, sizeof *a);
+    if (!(a->sets = calloc((size_t)argc + 1, sizeof *a->sets))) return 1;
     optind = 1;
     while ((o = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
         switch (o) {
-        case 'o': outpath = optarg; break;
-        case 's': sets[n_set++] = optarg; break;
+        case 'o': a->outpath = optarg; break;
+        case 's': a->sets[a->n_set++] = optarg; break;
         case 't':
-            if (wf_parse_long(optarg, 1, 4096, &threads)) {
+            if (wf_parse_long(optarg, 1, 4096, &a->threads)) {
                 fprintf(stderr, "wavefuel run: --threads expects an integer in [1, 4096] (got '%s')\n", optarg);
-                free(sets);
                 return 2;
             }
             break;
-        case 'f': force = 1; break;
+        case 'f': a->force = 1; break;
         case 'c':
-            if (wf_parse_double(optarg, &ckpt_s) || ckpt_s <= 0) {
+            if (wf_parse_double(optarg, &a->ckpt_s) || a->ckpt_s <= 0) {
                 fprintf(stderr, "wavefuel run: --checkpoint-every expects a positive number of seconds (got '%s')\n",
                         optarg);
-                free(sets);
                 return 2;
             }
             break;
-        case 'r': resume = optarg; break;
-        case 'q': quiet = 1; break;
-        case 'h': help(stdout); free(sets); return 0;
-        default: help(stderr); free(sets); return 2;
+        case 'r': a->resume = optarg; break;
+        case 'q': a->quiet = 1; break;
+        case 'h': help(stdout); return -1;
+        default: help(stderr); return 2;
         }
     }
-    if (resume ? (argc != optind || n_set || outpath || force) : argc - optind != 1) {
-        fprintf(stderr, resume ? "wavefuel run: --resume takes no scenario, --set, -o or --force: the checkpoint holds "
-                                 "them\n"
-                               : "wavefuel run: expected one SCENARIO.yaml (see --help)\n");
-        free(sets);
+    if (a->resume ? (argc != optind || a->n_set || a->outpath || a->force) : argc - optind != 1) {
+        fprintf(stderr, a->resume ? "wavefuel run: --resume takes no scenario, --set, -o or --force: the checkpoint "
+                                    "holds them\n"
+                                  : "wavefuel run: expected one SCENARIO.yaml (see --help)\n");
         return 2;
     }
+    a->scenario = a->resume ? NULL : argv[optind];
+    return 0;
+}
+
+/* The scenario file with --set overrides, or, with --resume, the checkpoint's copy of the scenario text and
+ * overrides (not the file on disk, which may have changed since). */
+static int load_scenario(RunArgs *a, WfScenario **sc, WfError *err)
+{
+    int rc;
+    if (a->resume) {
+        WfCheckpointInfo ck;
+        rc = wf_checkpoint_read_info(a->resume, &ck, err);
+        if (!rc) {
+            size_t n = 0;
+            for (char *line = strtok(ck.overrides, "\n"); line; line = strtok(NULL, "\n")) a->sets[n++] = line;
+            rc = wf_scenario_load_text(ck.scenario_path, ck.scenario_text, a->sets, n, sc, err);
+            if (!rc) snprintf((*sc)->output_path, sizeof (*sc)->output_path, "%s", a->resume);
+            wf_checkpoint_info_free(&ck);
+        }
+        return rc;
+    }
+    rc = wf_scenario_load(a->scenario, a->sets, a->n_set, sc, err);
+    if (!rc && a->outpath) snprintf((*sc)->output_path, sizeof (*sc)->output_path, "%s", a->outpath);
+    return rc;
+}
+
+int wf_cmd_run(int argc, char **argv)
+{
+    RunArgs a;
+    WfError err = {0};
+    int status = parse_args(argc, argv, &a);
+    if (status) {
+        free(a.sets);
+        return status < 0 ? 0 : status;
+    }
 #ifdef _OPENMP
-    if (threads) omp_set_num_threads((int)threads);
+    if (a.threads) omp_set_num_threads((int)a.threads);
 #endif
     WfScenario *sc = NULL;
     WfSim *sim = NULL;
     WfH5Out *h5 = NULL;
     WfOutput ops;
-    int rc;
-    if (resume) {
-        /* The scenario is rebuilt from the checkpoint's copy of its text and overrides, not from the file on
-         * disk, which may have changed since. */
-        WfCheckpointInfo ck;
-        rc = wf_checkpoint_read_info(resume, &ck, &err);
-        if (!rc) {
-            size_t n = 0;
-            for (char *line = strtok(ck.overrides, "\n"); line; line = strtok(NULL, "\n")) sets[n++] = line;
-            rc = wf_scenario_load_text(ck.scenario_path, ck.scenario_text, sets, n, &sc, &err);
-            if (!rc) snprintf(sc->output_path, sizeof sc->output_path, "%s", resume);
-            wf_checkpoint_info_free(&ck);
-        }
-        free(sets);
-    } else {
-        rc = wf_scenario_load(argv[optind], sets, n_set, &sc, &err);
-        free(sets);
-        if (!rc && outpath) snprintf(sc->output_path, sizeof sc->output_path, "%s", outpath);
-    }
+    int rc = load_scenario(&a, &sc, &err);
+    free(a.sets);
+    const char *resume = a.resume;
+    double ckpt_s = a.ckpt_s;
+    int force = a.force, quiet = a.quiet;
     if (!rc && sc->corridor) {
         /* Open corridors have their own engine and writer (src/core/corridor.c, src/io/h5corridor.c). */
         int st = wf_cli_run_corridor(sc, resume, ckpt_s, force, quiet);
@@ -179,15 +170,12 @@ int wf_cmd_run(int argc, char **argv)
         wf_scenario_destroy(&sc);
         return wf_cli_fail(&err);
     }
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-    Progress p = {.t0 = now_s(), .tty = isatty(STDERR_FILENO)};
-    rc = wf_sim_run(sim, &ops, (!quiet && p.tty) ? progress : NULL, &p, &stop_signal, &err);
-    if (!quiet && p.tty) fprintf(stderr, "\n");
-    int status = 0;
+    wf_cli_catch_stop();
+    double t0 = wf_wall_now();
+    int tty = isatty(STDERR_FILENO);
+    rc = wf_sim_run(sim, &ops, (!quiet && tty) ? wf_cli_run_progress : NULL, &t0, &wf_cli_stop, &err);
+    if (!quiet && tty) fprintf(stderr, "\n");
+    status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
         if (wf_h5out_path(h5)[0])

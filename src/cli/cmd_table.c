@@ -4,9 +4,9 @@
 #include <getopt.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 
 #include "cli/commands.h"
+#include "util/clock.h"
 #include "wavefuel/fit.h"
 #include "wavefuel/tabulated.h"
 
@@ -68,17 +68,15 @@ static int cmd_import(int argc, char **argv)
     int rc = wf_table_read_csv(argv[optind], &t, &err);
     if (!rc) rc = wf_table_write_h5(t, out, force, &err);
     /* Read the file back as every user of it will, so a table that imports also loads. */
-    struct timespec t0, t1;
-    clock_gettime(CLOCK_MONOTONIC, &t0);
+    double t0 = wf_wall_now();
     if (!rc) rc = wf_table_load_h5(out, &back, &err);
-    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double load_s = wf_wall_now() - t0;
     if (rc) {
         wf_table_destroy(&t);
         return wf_cli_fail(&err);
     }
     describe(back);
-    printf("wrote    %s (loads in %.1f ms)\n", out,
-           (double)(t1.tv_sec - t0.tv_sec) * 1e3 + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-6);
+    printf("wrote    %s (loads in %.1f ms)\n", out, 1e3 * load_s);
     wf_table_destroy(&t);
     wf_table_destroy(&back);
     return 0;

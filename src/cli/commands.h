@@ -3,6 +3,8 @@
 #ifndef WAVEFUEL_CLI_COMMANDS_H
 #define WAVEFUEL_CLI_COMMANDS_H
 
+#include <signal.h>
+
 #include "wavefuel/err.h"
 
 typedef struct WfCommand {
@@ -25,5 +27,26 @@ int wf_cli_fail(const WfError *err);
  * that /meta/reason says why and that the row counters `counters` (named as in the message) say how much it holds,
  * and whether a checkpoint (result.ckpt) lets --resume continue it. */
 void wf_cli_note_partial(const char *partial, const char *result, const char *counters);
+
+/* Process-wide settings (src/cli/process.c), made by the programs only, never by the library. */
+/* Set by SIGINT/SIGTERM once wf_cli_catch_stop() is called: the signal's number; runs poll it and stop. */
+extern volatile sig_atomic_t wf_cli_stop;
+/* At the start of main: SIGXFSZ ignored, HDF5 without its exit handler and without printing its error stack in
+ * this thread (errors are reported through WfError), and the vehicle class search path set to
+ * "$WAVEFUEL_VEHICLES:PREFIX/vehicles", PREFIX the parent of the executable's directory (the repository for
+ * bin/wavefuel). WF_EINPUT if that is too long. */
+int wf_cli_process_init(WfError *err);
+/* The default data directory of drive cycles: PREFIX/../shared/data (shared/ next to the repository for
+ * bin/wavefuel). Returns 0, or -1 if it cannot be formed. */
+int wf_cli_data_default(char *out, size_t len);
+/* HDF5's error-stack printing off in the calling thread (per thread in the thread-safe HDF5): every thread of
+ * the program that calls HDF5 calls it first. */
+void wf_cli_h5_quiet_thread(void);
+/* From now on SIGINT and SIGTERM set wf_cli_stop instead of killing the process. */
+void wf_cli_catch_stop(void);
+
+/* A WfProgressFn for wf_sim_run and wf_corridor_run: the progress line on stderr (src/cli/progress.c). ctx points
+ * to the run's start, a double from wf_wall_now(). */
+void wf_cli_run_progress(void *ctx, double t_s, double duration_s, long step, long n_steps);
 
 #endif

@@ -1,5 +1,4 @@
 /* wavefuel: command-line entry point. Only dispatches to a subcommand; each lives in src/cli/. */
-#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -27,8 +26,8 @@ static void usage(FILE *out)
 
 int main(int argc, char **argv)
 {
-    /* A file size limit (ulimit -f) must be a write error the writers report (EFBIG), not a silent kill. */
-    signal(SIGXFSZ, SIG_IGN);
+    WfError err = {0};
+    if (wf_cli_process_init(&err)) return wf_cli_fail(&err);
     if (argc < 2) {
         usage(stderr);
         return 2;

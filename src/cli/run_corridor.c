@@ -2,39 +2,14 @@
 #include "cli/run_corridor.h"
 
 #include <math.h>
-#include <signal.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 #include <unistd.h>
 
 #include "cli/commands.h"
+#include "util/clock.h"
 #include "wavefuel/corridor.h"
 #include "wavefuel/h5corridor.h"
-
-static volatile sig_atomic_t stop_signal = 0;
-static void on_signal(int sig) { stop_signal = sig; }
-
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
-static void progress(void *ctx, double t, double duration, long step, long n_steps)
-{
-    double t0 = *(const double *)ctx, wall = now_s() - t0, frac = t / duration;
-    double eta = frac > 0 ? wall * (1.0 - frac) / frac : 0.0;
-    char bar[32];
-    int filled = (int)(frac * 30);
-    for (int i = 0; i < 30; i++) bar[i] = i < filled ? '#' : '.';
-    bar[30] = '\0';
-    (void)n_steps;
-    fprintf(stderr, "\r[%s] %5.1f%%  t = %.1f / %.1f s  wall %.1f s  ETA %.1f s  %.3g steps/s   ", bar, 100 * frac, t,
-            duration, wall, eta, wall > 0 ? (double)step / wall : 0.0);
-    fflush(stderr);
-}
 
 static void print_summary(const WfCorridor *c, const char *path)
 {
@@ -70,14 +45,10 @@ int wf_cli_run_corridor(const WfScenario *sc, const char *resume, double checkpo
         return wf_cli_fail(&err);
     }
     if (checkpoint_s > 0) wf_corridor_set_checkpoint_interval(c, checkpoint_s);
-    struct sigaction sa;
-    memset(&sa, 0, sizeof sa);
-    sa.sa_handler = on_signal;
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
-    double t0 = now_s();
+    wf_cli_catch_stop();
+    double t0 = wf_wall_now();
     int tty = isatty(STDERR_FILENO);
-    rc = wf_corridor_run(c, &ops, (!quiet && tty) ? progress : NULL, &t0, &stop_signal, &err);
+    rc = wf_corridor_run(c, &ops, (!quiet && tty) ? wf_cli_run_progress : NULL, &t0, &wf_cli_stop, &err);
     if (!quiet && tty) fprintf(stderr, "\n");
     int status = 0;
     if (rc) {

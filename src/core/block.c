@@ -18,17 +18,6 @@
 #define B WF_BLOCK
 #define AI static inline __attribute__((always_inline))
 
-double wf_wall_now(void)
-{
-#ifdef _OPENMP
-    return omp_get_wtime();
-#else
-    struct timespec ts;
-    timespec_get(&ts, TIME_UTC);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-#endif
-}
-
 int wf_loop_run(const WfLoop *lp, WfError *err)
 {
     double t0 = wf_wall_now(), last_progress = t0, last_ckpt = t0;

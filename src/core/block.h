@@ -17,6 +17,7 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/scenario.h"
 #include "wavefuel/stats.h"
+#include "util/clock.h"
 
 /* Vehicles per block; also the ring's noise block (changing it changes the draws) and its statistics block. */
 #define WF_BLOCK WF_STATS_BLOCK
@@ -104,8 +105,6 @@ void wf_lane_stats_before(WfLane *ln, size_t lo, size_t n, int in_window);
 void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window);
 /* Controller memory of slots [lo, lo + n) from the exported gaps and leader speeds and the speeds v. */
 void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v);
-/* Wall-clock seconds (for phase timers and progress). */
-double wf_wall_now(void);
 
 /* A run, shared by the boundaries: steps from *steps_done to n_steps; after each step, the stop flag, the checkpoint
  * every checkpoint_every_s of wall time and the progress (about 5 times a second); then, when a signal stopped the

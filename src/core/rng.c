@@ -3,8 +3,6 @@
 #include "wavefuel/rng.h"
 
 #include <math.h>
-#include <stdatomic.h>
-#include <stdlib.h>
 #include <string.h>
 #include <Random123/philox.h>
 
@@ -69,20 +67,14 @@ static void box_muller_libm(size_t pairs, const double *u1, const double *u2, do
 }
 #endif
 
-/* The widest Box-Muller kernel the CPU runs (same bits either way); WAVEFUEL_SIMD=2 forces the SSE2 one. */
+/* The widest Box-Muller kernel of the library's SIMD level (core/simd.h; same bits either way). */
 static BoxMuller *box_muller(void)
 {
-    static BoxMuller *_Atomic chosen;
-    BoxMuller *k = atomic_load_explicit(&chosen, memory_order_relaxed);
-    if (k) return k;
 #if defined(__x86_64__)
-    const char *force = getenv("WAVEFUEL_SIMD");
-    k = !(force && strcmp(force, "2") == 0) && __builtin_cpu_supports("avx") ? wf_noise_avx : wf_noise_sse2;
+    return wf_simd_level() >= WF_SIMD_AVX ? wf_noise_avx : wf_noise_sse2;
 #else
-    k = box_muller_libm;
+    return box_muller_libm;
 #endif
-    atomic_store_explicit(&chosen, k, memory_order_relaxed);
-    return k;
 }
 
 #define NB_CHUNK 128 /* pairs per chunk: the buffers below stay on the stack (9 kB) */

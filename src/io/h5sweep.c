@@ -12,7 +12,6 @@
 #include "io/h5util.h"
 #include "wavefuel/version.h"
 
-void wf_sweep_h5_quiet_thread(void) { H5Eset_auto2(H5E_DEFAULT, NULL, NULL); }
 
 static int write_meta(hid_t fid, const WfSweep *sw, const WfSweepResult *res, WfError *err)
 {
@@ -217,7 +216,6 @@ int wf_sweep_table_write(const char *path, const WfSweep *sw, const WfSweepResul
                          WfError *err)
 {
     WfH5File *f = NULL;
-    wf_sweep_h5_quiet_thread();
     /* force: PATH is this sweep's previous snapshot (cmd_sweep checked it may be replaced before starting). */
     int rc = wf_h5_create(path, 1, &f, err);
     if (rc) return rc;
@@ -365,10 +363,47 @@ void wf_sweep_saved_free(WfSweepSaved *sv)
     memset(sv, 0, sizeof *sv);
 }
 
+/* /metrics and /class_metrics into sv->res[].summary (sv->n rows). */
+static int read_metrics(hid_t met, hid_t cm, const char *path, WfSweepSaved *sv, WfError *err)
+{
+    int rc = 0;
+    size_t wc = 0;
+    for (size_t m = 0; !rc && m < wf_summary_n_fields; m++)
+        if (wf_summary_fields[m].desc[WF_SUMMARY_RING]) rc = read_metric(met, &wf_summary_fields[m], 0, sv, &wc, path, err);
+    for (size_t m = 0; !rc && m < wf_summary_n_class_fields; m++)
+        if (wf_summary_class_fields[m].desc[WF_SUMMARY_RING])
+            rc = read_metric(cm, &wf_summary_class_fields[m], 1, sv, &wc, path, err);
+    return rc;
+}
+
+/* /timing: each run's wall time, worker and threads. */
+static int read_timing(hid_t tim, const char *path, WfSweepSaved *sv, WfError *err)
+{
+    int rc = 0;
+    size_t w1 = 1;
+    int64_t *k = NULL;
+    double *d = NULL;
+    if (!rc) {
+        w1 = 1;
+        if (!(d = read_numeric(tim, "wall_time", H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
+            rc = bad(err, path, "wall_time");
+        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].wall_s = d[i];
+        free(d);
+    }
+    const char *ints[] = {"worker", "threads"};
+    for (int q = 0; q < 2 && !rc; q++) {
+        w1 = 1;
+        if (!(k = read_numeric(tim, ints[q], H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, ints[q]);
+        for (size_t i = 0; !rc && i < sv->n; i++) *(q ? &sv->res[i].threads : &sv->res[i].worker) = (int)k[i];
+        free(k);
+    }
+    return rc;
+}
+
 int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
 {
     memset(sv, 0, sizeof *sv);
-    wf_sweep_h5_quiet_thread();
+    wf_h5_library_init();
     if (H5Fis_hdf5(path) <= 0) return bad(err, path, "not an HDF5 file");
     hid_t f = H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT);
     if (f < 0) return wf_err(err, WF_ESYS, "%s: cannot open", path);
@@ -404,33 +439,15 @@ int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
         if (!sv->overrides[i]) rc = wf_err(err, WF_ESYS, "out of memory");
         else if (sv->res[i].status < 0) rc = bad(err, path, "/runs/status");
     }
-    size_t w1 = 1, wc = 0;
+    size_t w1 = 1;
     int64_t *k = NULL;
-    double *d = NULL;
     if (!rc) {
         if (!(k = read_numeric(runs, "seed", H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, "seed");
         for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].seed = k[i];
         free(k);
     }
-    for (size_t m = 0; !rc && m < wf_summary_n_fields; m++)
-        if (wf_summary_fields[m].desc[WF_SUMMARY_RING]) rc = read_metric(met, &wf_summary_fields[m], 0, sv, &wc, path, err);
-    for (size_t m = 0; !rc && m < wf_summary_n_class_fields; m++)
-        if (wf_summary_class_fields[m].desc[WF_SUMMARY_RING])
-            rc = read_metric(cm, &wf_summary_class_fields[m], 1, sv, &wc, path, err);
-    if (!rc) {
-        w1 = 1;
-        if (!(d = read_numeric(tim, "wall_time", H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
-            rc = bad(err, path, "wall_time");
-        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].wall_s = d[i];
-        free(d);
-    }
-    const char *ints[] = {"worker", "threads"};
-    for (int q = 0; q < 2 && !rc; q++) {
-        w1 = 1;
-        if (!(k = read_numeric(tim, ints[q], H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, ints[q]);
-        for (size_t i = 0; !rc && i < sv->n; i++) *(q ? &sv->res[i].threads : &sv->res[i].worker) = (int)k[i];
-        free(k);
-    }
+    if (!rc) rc = read_metrics(met, cm, path, sv, err);
+    if (!rc) rc = read_timing(tim, path, sv, err);
     /* Failed rows keep their error; their code is not stored (an input error is the usual cause). */
     for (size_t i = 0; !rc && i < sv->n; i++)
         if (sv->res[i].status == WF_RUN_FAILED) sv->res[i].error_code = WF_EINPUT;

@@ -81,8 +81,6 @@ void wf_h5_library_init(void)
      * again and crashes; the operating system releases everything anyway. Only effective before the library
      * initialises; later calls return an error, which is harmless. */
     H5dont_atexit();
-    /* Per thread in HDF5 (each sweep worker calls this): wavefuel reports errors itself, naming the object. */
-    H5Eset_auto2(H5E_DEFAULT, NULL, NULL);
 }
 
 /* File access: no sieve buffer, so every H5Dwrite reaches the file at once and in call order (a row count

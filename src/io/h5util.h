@@ -19,8 +19,9 @@ typedef struct WfH5File {
     char  partial[1040];  /* path + ".partial", where writing happens */
 } WfH5File;
 
-/* Call before any other HDF5 call (every entry point does): disables HDF5's own error printing and its exit
- * handler. Idempotent. */
+/* Call before any other HDF5 call (every entry point does): disables HDF5's exit handler. Idempotent. HDF5's own
+ * printing of its error stack is left as the program set it: every failure is reported through WfError, and the
+ * wavefuel programs turn the printing off (src/cli/process.c); the library never changes it. */
 void wf_h5_library_init(void);
 
 /* Create PATH.partial for writing. Fails (WF_EINPUT) if PATH exists and force is 0, or if PATH.partial

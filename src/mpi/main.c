@@ -2,7 +2,6 @@
  * for `wavefuel sweep`, docs/sweeps.md). Only prolog and epilog: MPI is initialised for funneled threads (rank 0's
  * main thread alone calls MPI while its other thread runs simulations). */
 #include <mpi.h>
-#include <signal.h>
 #include <stdio.h>
 
 #include "cli/commands.h"
@@ -10,8 +9,8 @@
 int main(int argc, char **argv)
 {
     int provided = 0;
-    /* As in src/cli/main.c: a file size limit is a write error the writers report, not a silent kill. */
-    signal(SIGXFSZ, SIG_IGN);
+    WfError err = {0};
+    if (wf_cli_process_init(&err)) return wf_cli_fail(&err); /* as in src/cli/main.c */
     if (MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
         fprintf(stderr, "wavefuel-mpi: MPI_Init_thread failed\n");
         return 1;

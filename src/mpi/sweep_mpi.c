@@ -8,7 +8,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
+
+#include "util/clock.h"
 
 enum { TAG_RUN = 1, TAG_RESULT = 2 };
 
@@ -22,12 +23,6 @@ struct WfMpiPool {
     char      *busy; /* per rank: a run is out */
     ResultMsg *msg;  /* receive buffer */
 };
-
-static void sleep_ms(long ms)
-{
-    struct timespec ts = {ms / 1000, (ms % 1000) * 1000000L};
-    nanosleep(&ts, NULL);
-}
 
 int wf_mpi_rank(void)
 {
@@ -88,7 +83,7 @@ void wf_mpi_serve(const WfSweep *sw, const WfSweepRunOpts *o, volatile sig_atomi
         MPI_Request rq;
         int done = 0;
         MPI_Irecv(&run, 1, MPI_INT64_T, 0, TAG_RUN, MPI_COMM_WORLD, &rq);
-        while (MPI_Test(&rq, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && !done) sleep_ms(1);
+        while (MPI_Test(&rq, &done, MPI_STATUS_IGNORE) == MPI_SUCCESS && !done) wf_sleep_ms(1);
         if (run < 0) break;
         m.run = run;
         if ((size_t)run < sw->n_runs) {
@@ -119,8 +114,9 @@ int wf_mpi_pool_create(WfMpiPool **out, WfError *err)
     return 0;
 }
 
-int wf_mpi_pool_poll(WfMpiPool *p, WfMpiTakeFn take, WfMpiFinishFn finish, void *ctx)
+int wf_mpi_pool_poll(void *pool, WfSweepTakeFn take, WfSweepFinishFn finish, void *ctx)
 {
+    WfMpiPool *p = pool;
     for (;;) {
         int flag = 0;
         MPI_Status st;
@@ -158,7 +154,7 @@ void wf_mpi_pool_destroy(WfMpiPool **pp)
     if (!p) return;
     /* Results still out are received (and dropped): a worker blocked sending a large message would otherwise
      * never read its stop message. */
-    while (wf_mpi_pool_poll(p, take_none, finish_drop, NULL) > 0) sleep_ms(1);
+    while (wf_mpi_pool_poll(p, take_none, finish_drop, NULL) > 0) wf_sleep_ms(1);
     int64_t stop = -1;
     for (int r = 1; r < p->size; r++) MPI_Send(&stop, 1, MPI_INT64_T, r, TAG_RUN, MPI_COMM_WORLD);
     free(p->busy);

@@ -24,14 +24,14 @@ int wf_mpi_share_sweep(int status, const char *path, WfSweep **sw, WfError *err)
  * with 1 ms sleeps rather than in a blocking receive, which would keep a core busy. */
 void wf_mpi_serve(const WfSweep *sw, const WfSweepRunOpts *o, volatile sig_atomic_t *stop);
 
-/* Rank 0: the other ranks as a pool of workers. */
+/* Rank 0: the other ranks as a pool of workers, the remote workers of the library's scheduler
+ * (WfSweepRemote{wf_mpi_pool_poll, pool}). Created by wf_mpi_pool_create, owned by the caller, released (and the
+ * ranks told to stop) by wf_mpi_pool_destroy. */
 typedef struct WfMpiPool WfMpiPool;
-typedef int  (*WfMpiTakeFn)(void *ctx, size_t *run);                               /* 1: a run to do */
-typedef void (*WfMpiFinishFn)(void *ctx, size_t run, const WfSweepResult *res);
 int  wf_mpi_pool_create(WfMpiPool **p, WfError *err);
-/* Non-blocking: collect the results that arrived (finish), send a run (take) to every free rank. Returns the number
- * of ranks still running one. */
-int  wf_mpi_pool_poll(WfMpiPool *p, WfMpiTakeFn take, WfMpiFinishFn finish, void *ctx);
+/* Non-blocking: collect the results that arrived (finish), send a run (take) to every free rank. `pool` is a
+ * WfMpiPool. Returns the number of ranks still running one. */
+int  wf_mpi_pool_poll(void *pool, WfSweepTakeFn take, WfSweepFinishFn finish, void *sched);
 /* Tell every rank to stop serving (call when poll returns 0 and take gives nothing), and free the pool. */
 void wf_mpi_pool_destroy(WfMpiPool **p);
 

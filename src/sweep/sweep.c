@@ -7,12 +7,10 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
+#include "util/clock.h"
 #include "util/hash.h"
+#include "util/path.h"
 #include "wavefuel/config.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
@@ -202,6 +200,94 @@ static int range_values(WfCfgNode *range, const char ***out, size_t *n_out, stru
     return 0;
 }
 
+/* An axis given by `points`: each a label (`value`) and a map of overrides (`set`); the keys of the first point
+ * name the axis's keys. */
+static int parse_points(WfCfgNode *points, WfSweepAxis *ax, AxisDef *def, struct WfSweepPool *pool, WfError *err)
+{
+    char w[1100];
+    def->n = points->n_child;
+    def->pt = pool_calloc(pool, def->n, sizeof *def->pt);
+    if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
+    for (size_t j = 0; j < def->n; j++) {
+        WfCfgNode *p = points->child[j], *set = NULL;
+        const char *label = NULL;
+        p->used = 1;
+        if (p->kind != WF_CFG_MAP)
+            return wf_err(err, WF_EINPUT, "%s: a point is a map {value: ..., set: {key: value, ...}}",
+                          where(p, w, sizeof w));
+        if (wf_cfg_string(p, "value", &label, err) || check_text(wf_cfg_child(p, "value"), label, 0, err) ||
+            wf_cfg_map_opt(p, "set", &set, err))
+            return WF_EINPUT;
+        if (!set) return wf_cfg_missing(p, "set", "a map of overrides", err);
+        SetList l = {0};
+        int rc = flatten(set, "", &l, pool, err);
+        if (!rc && !pool_keep(pool, l.s) && l.n) rc = wf_err(err, WF_ESYS, "out of memory");
+        if (rc) return rc;
+        /* Labels outlive the configuration tree: copy them. */
+        if (!(label = pool_strdup(pool, label))) return wf_err(err, WF_ESYS, "out of memory");
+        def->pt[j] = (Point){label, l.s, l.n};
+        size_t used = strlen(ax->keys);
+        for (size_t k = 0; k < l.n && j == 0; k++) {
+            const char *a = l.s[k];
+            int n = snprintf(ax->keys + used, sizeof ax->keys - used, "%s%.*s", used ? "," : "",
+                             (int)(strchr(a, '=') - a), a);
+            if (n > 0 && (size_t)n < sizeof ax->keys - used) used += (size_t)n;
+        }
+    }
+    return 0;
+}
+
+/* An axis given by `key` and `values` or a `range`, with optional `with` keys set alongside (one value each). */
+static int parse_values(const char *key, WfCfgNode *values, WfCfgNode *range, WfCfgNode *with, WfSweepAxis *ax,
+                        AxisDef *def, struct WfSweepPool *pool, WfError *err)
+{
+    char w[1100];
+    const char **v = NULL;
+    size_t n = 0;
+    if (range) {
+        if (range_values(range, &v, &n, pool, err)) return WF_EINPUT;
+    } else {
+        n = values->n_child;
+        v = pool_calloc(pool, n, sizeof *v);
+        if (!v) return wf_err(err, WF_ESYS, "out of memory");
+        for (size_t j = 0; j < n; j++) {
+            if (scalar_of(values->child[j], "a value", &v[j], err)) return WF_EINPUT;
+            if (!(v[j] = pool_strdup(pool, v[j]))) return wf_err(err, WF_ESYS, "out of memory");
+        }
+    }
+    size_t n_with = with ? with->n_child : 0;
+    if (with) with->used = 1;
+    for (size_t k = 0; k < n_with; k++) {
+        WfCfgNode *c = with->child[k];
+        c->used = 1;
+        if (check_text(c, c->key, 1, err)) return WF_EINPUT;
+        if (c->kind != WF_CFG_SEQ || c->n_child != n)
+            return wf_err(err, WF_EINPUT, "%s: expected a list of %zu values, one per value of %s",
+                          where(c, w, sizeof w), n, key);
+    }
+    def->n = n;
+    def->pt = pool_calloc(pool, n, sizeof *def->pt);
+    if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
+    for (size_t j = 0; j < n; j++) {
+        SetList l = {0};
+        int rc = setlist_add(&l, pool, key, v[j], err);
+        for (size_t k = 0; !rc && k < n_with; k++) {
+            const char *wv = NULL;
+            rc = scalar_of(with->child[k]->child[j], "a value", &wv, err) ||
+                 setlist_add(&l, pool, with->child[k]->key, wv, err);
+        }
+        if (!rc && !pool_keep(pool, l.s)) rc = wf_err(err, WF_ESYS, "out of memory");
+        if (rc) return err->code;
+        def->pt[j] = (Point){v[j], l.s, l.n};
+    }
+    size_t used = (size_t)snprintf(ax->keys, sizeof ax->keys, "%s", key);
+    for (size_t k = 0; k < n_with && used < sizeof ax->keys; k++) {
+        int m = snprintf(ax->keys + used, sizeof ax->keys - used, ",%s", with->child[k]->key);
+        if (m > 0) used += (size_t)m;
+    }
+    return 0;
+}
+
 /* `key` + `values` | `range` [+ `with`], or `points`. Fills the axis definition and the table column. */
 static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSweepPool *pool, WfError *err)
 {
@@ -227,80 +313,12 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
     if (key && check_text(wf_cfg_child(e, "key"), key, 1, err)) return WF_EINPUT;
 
     if (points) {
-        def->n = points->n_child;
-        def->pt = pool_calloc(pool, def->n, sizeof *def->pt);
-        if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
-        for (size_t j = 0; j < def->n; j++) {
-            WfCfgNode *p = points->child[j], *set = NULL;
-            const char *label = NULL;
-            p->used = 1;
-            if (p->kind != WF_CFG_MAP)
-                return wf_err(err, WF_EINPUT, "%s: a point is a map {value: ..., set: {key: value, ...}}",
-                              where(p, w, sizeof w));
-            if (wf_cfg_string(p, "value", &label, err) || check_text(wf_cfg_child(p, "value"), label, 0, err) ||
-                wf_cfg_map_opt(p, "set", &set, err))
-                return WF_EINPUT;
-            if (!set) return wf_cfg_missing(p, "set", "a map of overrides", err);
-            SetList l = {0};
-            int rc = flatten(set, "", &l, pool, err);
-            if (!rc && !pool_keep(pool, l.s) && l.n) rc = wf_err(err, WF_ESYS, "out of memory");
-            if (rc) return rc;
-            /* Labels outlive the configuration tree: copy them. */
-            if (!(label = pool_strdup(pool, label))) return wf_err(err, WF_ESYS, "out of memory");
-            def->pt[j] = (Point){label, l.s, l.n};
-            size_t used = strlen(ax->keys);
-            for (size_t k = 0; k < l.n && j == 0; k++) {
-                const char *a = l.s[k];
-                int n = snprintf(ax->keys + used, sizeof ax->keys - used, "%s%.*s", used ? "," : "",
-                                 (int)(strchr(a, '=') - a), a);
-                if (n > 0 && (size_t)n < sizeof ax->keys - used) used += (size_t)n;
-            }
-        }
+        int rc = parse_points(points, ax, def, pool, err);
+        if (rc) return rc;
         if (!name) return wf_cfg_missing(e, "name", "the column name of an axis given by points", err);
     } else {
-        const char **v = NULL;
-        size_t n = 0;
-        if (range) {
-            if (range_values(range, &v, &n, pool, err)) return WF_EINPUT;
-        } else {
-            n = values->n_child;
-            v = pool_calloc(pool, n, sizeof *v);
-            if (!v) return wf_err(err, WF_ESYS, "out of memory");
-            for (size_t j = 0; j < n; j++) {
-                if (scalar_of(values->child[j], "a value", &v[j], err)) return WF_EINPUT;
-                if (!(v[j] = pool_strdup(pool, v[j]))) return wf_err(err, WF_ESYS, "out of memory");
-            }
-        }
-        size_t n_with = with ? with->n_child : 0;
-        if (with) with->used = 1;
-        for (size_t k = 0; k < n_with; k++) {
-            WfCfgNode *c = with->child[k];
-            c->used = 1;
-            if (check_text(c, c->key, 1, err)) return WF_EINPUT;
-            if (c->kind != WF_CFG_SEQ || c->n_child != n)
-                return wf_err(err, WF_EINPUT, "%s: expected a list of %zu values, one per value of %s",
-                              where(c, w, sizeof w), n, key);
-        }
-        def->n = n;
-        def->pt = pool_calloc(pool, n, sizeof *def->pt);
-        if (!def->pt) return wf_err(err, WF_ESYS, "out of memory");
-        for (size_t j = 0; j < n; j++) {
-            SetList l = {0};
-            int rc = setlist_add(&l, pool, key, v[j], err);
-            for (size_t k = 0; !rc && k < n_with; k++) {
-                const char *wv = NULL;
-                rc = scalar_of(with->child[k]->child[j], "a value", &wv, err) ||
-                     setlist_add(&l, pool, with->child[k]->key, wv, err);
-            }
-            if (!rc && !pool_keep(pool, l.s)) rc = wf_err(err, WF_ESYS, "out of memory");
-            if (rc) return err->code;
-            def->pt[j] = (Point){v[j], l.s, l.n};
-        }
-        size_t used = (size_t)snprintf(ax->keys, sizeof ax->keys, "%s", key);
-        for (size_t k = 0; k < n_with && used < sizeof ax->keys; k++) {
-            int m = snprintf(ax->keys + used, sizeof ax->keys - used, ",%s", with->child[k]->key);
-            if (m > 0) used += (size_t)m;
-        }
+        int rc = parse_values(key, values, range, with, ax, def, pool, err);
+        if (rc) return rc;
         if (!name) {
             /* The key's last component names the column: fleet.drivers[1].count -> count. */
             const char *dot = strrchr(key, '.');
@@ -404,12 +422,8 @@ static int parse_runs(WfSweep *sw, WfCfgNode *runs, SetList **lists_out, WfError
 
 static int resolve_scenario(WfSweep *sw, const char *scen, WfError *err)
 {
-    const char *slash = strrchr(sw->path, '/');
-    int n = scen[0] == '/' || !slash
-                ? snprintf(sw->scenario_path, sizeof sw->scenario_path, "%s", scen)
-                : snprintf(sw->scenario_path, sizeof sw->scenario_path, "%.*s/%s", (int)(slash - sw->path), sw->path,
-                           scen);
-    if (n < 0 || (size_t)n >= sizeof sw->scenario_path) return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
+    if (wf_path_relative_to(sw->path, scen, sw->scenario_path, sizeof sw->scenario_path))
+        return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
     return 0;
 }
 
@@ -486,8 +500,7 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     if (name)
         snprintf(sw->name, sizeof sw->name, "%s", name);
     else {
-        const char *base = strrchr(sw->path, '/');
-        base = base ? base + 1 : sw->path;
+        const char *base = wf_path_base(sw->path);
         snprintf(sw->name, sizeof sw->name, "%.*s", (int)strcspn(base, "."), base);
     }
     if (resolve_scenario(sw, scen, err)) return WF_EINPUT;
@@ -638,13 +651,6 @@ int wf_sweep_command(const WfSweep *sw, size_t run, char *buf, size_t len)
 
 /* ---- One run ---- */
 
-static double now_s(void)
-{
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* FNV-1a, 64 bit: names a run's own file after its overrides, so the name stays when the sweep is extended. */
 static uint64_t fnv1a(const char *s) { return wf_fnv1a64(WF_FNV1A64_INIT, s, strlen(s)); }
 
@@ -663,17 +669,13 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
     res->seed = run->seed;
     res->worker = o->worker;
     res->threads = o->threads;
-    double t0 = now_s();
+    double t0 = wf_wall_now();
     WfError err = {0};
     if (stop && *stop) {
         wf_err(&err, WF_EINTR, "interrupted before it started");
         record_error(res, &err);
         return;
     }
-#ifdef _OPENMP
-    /* The engine sizes its per-thread buffers from this thread's setting when the simulation is created. */
-    omp_set_num_threads(o->threads > 0 ? o->threads : 1);
-#endif
     WfScenario *sc = NULL;
     WfSim *sim = NULL;
     WfH5Out *h5 = NULL;
@@ -701,10 +703,7 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
         }
         free(ov);
         /* force: the table does not hold this run as complete, so a file left by an earlier attempt is stale. */
-        if (!rc) {
-            wf_sweep_h5_quiet_thread();
-            rc = wf_h5out_create(sc->output_path, 1, &h5, &ops, &err);
-        }
+        if (!rc) rc = wf_h5out_create(sc->output_path, 1, &h5, &ops, &err);
         if (!rc) out = &ops;
     }
     if (!rc) rc = wf_sim_run(sim, out, NULL, NULL, stop, &err);
@@ -718,7 +717,7 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
     wf_h5out_destroy(&h5);
     wf_sim_destroy(&sim);
     wf_scenario_destroy(&sc);
-    res->wall_s = now_s() - t0;
+    res->wall_s = wf_wall_now() - t0;
 }
 
 /* ---- Resume ---- */

@@ -5,12 +5,12 @@
  * The kernel evaluates two or four points per step with GNU C vector types; results are those of the scalar
  * formula. */
 #include <math.h>
-#include <stdatomic.h>
 #include <stddef.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "core/simd.h"
 #include "wavefuel/energy.h"
 
 #define P(field, unit, doc) \
@@ -132,28 +132,17 @@ typedef void CirclesKernel(const WfCirclesParams *restrict p, size_t n, const do
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag);
 
-/* The widest kernel this CPU runs; WAVEFUEL_SIMD=2 forces the 2-lane one (tests compare the two). */
-static CirclesKernel *circles_kernel_select(void)
-{
-#ifdef WF_HAVE_AVX2_KERNEL
-    const char *force = getenv("WAVEFUEL_SIMD");
-    if (!(force && strcmp(force, "2") == 0) && __builtin_cpu_supports("avx2")) return circles_kernel4;
-#endif
-    return circles_kernel2;
-}
-
+/* The widest kernel of the library's SIMD level (core/simd.h: 2 lanes when WAVEFUEL_SIMD=2; tests compare the
+ * two). */
 static void circles_kernel(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag)
 {
-    /* Chosen once; a data race on the first calls would only store the same pointer twice, but keep it clean
-     * with a relaxed atomic. */
-    static CirclesKernel *_Atomic kernel;
-    CirclesKernel *k = atomic_load_explicit(&kernel, memory_order_relaxed);
-    if (!k) {
-        k = circles_kernel_select();
-        atomic_store_explicit(&kernel, k, memory_order_relaxed);
-    }
+#ifdef WF_HAVE_AVX2_KERNEL
+    CirclesKernel *k = wf_simd_level() >= WF_SIMD_AVX2 ? circles_kernel4 : circles_kernel2;
+#else
+    CirclesKernel *k = circles_kernel2;
+#endif
     k(p, n, v_in, a_in, th_in, project, fuel, flag);
 }
 

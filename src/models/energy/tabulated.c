@@ -14,6 +14,7 @@
 
 #include "io/h5util.h"
 #include "util/hash.h"
+#include "util/path.h"
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/version.h"
@@ -713,11 +714,8 @@ static size_t tab_n_outside(const void *params, size_t n, const double *v, const
 /* `table: PATH` relative to the class file's directory (absolute paths kept). */
 static int resolve_table(const char *class_path, const char *rel, char *out, size_t len, WfError *err)
 {
-    int w;
-    const char *slash = strrchr(class_path, '/');
-    if (rel[0] == '/' || !slash) w = snprintf(out, len, "%s", rel);
-    else w = snprintf(out, len, "%.*s/%s", (int)(slash - class_path), class_path, rel);
-    if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "%s: table path too long: %s", class_path, rel);
+    if (wf_path_relative_to(class_path, rel, out, len))
+        return wf_err(err, WF_EINPUT, "%s: table path too long: %s", class_path, rel);
     return 0;
 }
 

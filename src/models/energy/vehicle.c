@@ -8,9 +8,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <unistd.h>
 
+#include "util/path.h"
 #include "wavefuel/config.h"
 
 const char *wf_duty_name(WfDuty d) { return d == WF_DUTY_HEAVY ? "heavy" : "light"; }
@@ -26,9 +26,7 @@ void wf_vehicle_free(WfVehicleClass *vc)
 
 static void stem_of(const char *path, char *out, size_t len)
 {
-    const char *base = strrchr(path, '/');
-    base = base ? base + 1 : path;
-    snprintf(out, len, "%s", base);
+    snprintf(out, len, "%s", wf_path_base(path));
     char *dot = strrchr(out, '.');
     if (dot && (strcmp(dot, ".yaml") == 0 || strcmp(dot, ".yml") == 0)) *dot = '\0';
 }
@@ -143,49 +141,32 @@ fail:
     return rc ? rc : WF_EINPUT;
 }
 
-/* The repository's vehicles/ directory: BIN_DIR/../vehicles from /proc/self/exe, else the source tree the
- * library was built from (WF_REPO_DIR, set by the Makefile), which serves test and benchmark binaries. */
-static int repo_vehicles_dir(char *out, size_t len)
+/* The search path: set by the program (wf_vehicle_search_path_set), empty until then. Written only at start-up,
+ * before any lookup (the header's contract), so lookups from several threads read it without a lock. */
+static char search_path[WF_VEHICLE_PATH_MAX];
+
+int wf_vehicle_search_path_set(const char *dirs, WfError *err)
 {
-    char exe[PATH_MAX];
-    struct stat st;
-    ssize_t n = readlink("/proc/self/exe", exe, sizeof exe - 1);
-    if (n > 0) {
-        exe[n] = '\0';
-        char *s1 = strrchr(exe, '/');
-        if (s1) {
-            *s1 = '\0';
-            char *s2 = strrchr(exe, '/');
-            if (s2) {
-                *s2 = '\0';
-                int w = snprintf(out, len, "%s/vehicles", exe);
-                if (w > 0 && (size_t)w < len && stat(out, &st) == 0 && S_ISDIR(st.st_mode)) return 0;
-            }
-        }
-    }
-#ifdef WF_REPO_DIR
-    int w = snprintf(out, len, "%s/vehicles", WF_REPO_DIR);
-    return (w < 0 || (size_t)w >= len) ? -1 : 0;
-#else
-    return -1;
-#endif
+    const char *d = dirs ? dirs : "";
+    if (strlen(d) >= sizeof search_path)
+        return wf_err(err, WF_EINPUT, "vehicle class search path longer than %zu bytes: %.60s...",
+                      sizeof search_path - 1, d);
+    memcpy(search_path, d, strlen(d) + 1);
+    return 0;
 }
+
+const char *wf_vehicle_search_path(void) { return search_path; }
 
 /* Calls fn(dir) for each directory of the search path, in order; stops at a non-zero return. */
 static int for_each_dir(int (*fn)(const char *dir, void *ctx), void *ctx)
 {
-    const char *env = getenv("WAVEFUEL_VEHICLES");
-    if (env && *env) {
-        char buf[4096];
-        snprintf(buf, sizeof buf, "%s", env);
-        char *save = NULL;
-        for (char *d = strtok_r(buf, ":", &save); d; d = strtok_r(NULL, ":", &save)) {
-            int rc = fn(d, ctx);
-            if (rc) return rc;
-        }
+    char buf[WF_VEHICLE_PATH_MAX];
+    memcpy(buf, search_path, sizeof buf);
+    char *save = NULL;
+    for (char *d = strtok_r(buf, ":", &save); d; d = strtok_r(NULL, ":", &save)) {
+        int rc = fn(d, ctx);
+        if (rc) return rc;
     }
-    char dir[PATH_MAX];
-    if (repo_vehicles_dir(dir, sizeof dir) == 0) return fn(dir, ctx);
     return 0;
 }
 
@@ -233,8 +214,8 @@ int wf_vehicle_find(const char *name, WfVehicleClass *vc, WfError *err)
     NamesCtx nc = {.used = 0};
     for_each_dir(names_in, &nc);
     return wf_err(err, WF_EINPUT,
-                  "vehicle class '%s' not found in $WAVEFUEL_VEHICLES or the repository's vehicles/ (known: %s)", name,
-                  nc.used ? nc.known : "none");
+                  "vehicle class '%s' not found in the class search path %s (known: %s)", name,
+                  search_path[0] ? search_path : "(none set)", nc.used ? nc.known : "none");
 }
 
 typedef struct ListCtx {
