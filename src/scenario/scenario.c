@@ -236,10 +236,10 @@ static const WfKeySpec time_rows[] = {
      .min = 0, .max = 1e9, .unit = "s", .doc_range = "[0, duration)",
      .doc = "excluded from every statistic of the window"},
     {.key = "integrator", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_integrator,
-     .doc_default = "`ballistic`",
+     .doc_type = "a name of the table below", .doc_default = "`ballistic`",
      .doc = "`ballistic`: x += v dt + a dt²/2, v += a dt, stopping exactly where v reaches 0 (Treiber & Kanagaraj "
             "2015); `euler`: x += v dt, v += a dt, v ≥ 0; `cvode`, `arkode`, `rk4`: SUNDIALS, configured by the "
-            "`solver` section below; the list below"},
+            "`solver` section below"},
     {.key = "fused_step", .type = WF_KEY_BOOL, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, fused_step), .def = 1,
      .doc = "fixed-step schemes: every step (records included) runs car-following, energy, the record's partial sums, "
             "statistics and integration in one pass per block of 256 vehicles, with the per-step values (gap, leader "
@@ -447,8 +447,10 @@ static const WfKeySpec root_rows[] = {
 };
 static const WfKeyTable root_keys = {"top", root_rows, sizeof root_rows / sizeof *root_rows};
 
-const WfKeyTable *const wf_key_tables[] = {&root_keys, &wf_road_keys, &time_keys, &solver_keys, &wf_fleet_keys,
-                                           &initial_keys, &statistics_keys, &output_keys, &wf_corridor_keys, NULL};
+const WfKeyTable *const wf_key_tables[] = {&root_keys,       &wf_road_keys,    &wf_corridor_zone_keys, &time_keys,
+                                           &solver_keys,     &wf_fleet_keys,   &wf_class_keys,         &wf_driver_keys,
+                                           &initial_keys,    &statistics_keys, &output_keys,           &wf_corridor_keys,
+                                           NULL};
 
 /* The fleet must fit: total length plus each driver group's minimum standstill gap (its equilibrium gap at v = 0 is
  * not model-generic, so the fit check uses the vehicles' lengths; the engine checks gaps >= 0). */

@@ -455,7 +455,7 @@ static const WfKeyTable outflow_keys = {"corridor.outflow", outflow_rows, sizeof
 
 static const WfKeySpec detector_rows[] = {
     {.key = "x_m", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED, .hook = load_detectors,
-     .doc_type = "list of m", .doc_range = "[0, L), ≤ 256", .doc = "virtual detector positions"},
+     .doc_type = "list of m", .doc_default = "none (required in `detectors`)", .doc_range = "[0, L), ≤ 256", .doc = "virtual detector positions"},
     {.key = "interval_s", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
      .offset = offsetof(WfCorridorSpec, det_interval_s), .def = 60, .min = 1e-6, .max = 1e9, .unit = "s",
      .doc_range = "a multiple of `dt_s`", .doc = "counting interval (the last may be shorter)"},

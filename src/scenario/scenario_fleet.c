@@ -156,7 +156,7 @@ static const WfKeySpec class_rows[] = {
      .doc_type = "list of integers", .doc_range = "[0, N)",
      .doc = "with `placement: explicit`: the vehicles of this class"},
 };
-static const WfKeyTable class_keys = {"fleet.classes[i]", class_rows, sizeof class_rows / sizeof *class_rows};
+const WfKeyTable wf_class_keys = {"fleet.classes[i]", class_rows, sizeof class_rows / sizeof *class_rows};
 
 /* Fraction, count and indices of one entry (class or driver group) under the placement rules; *count_out and
  * *frac_out are the entry's share for resolve_counts. */
@@ -213,7 +213,7 @@ static int load_classes(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyEn
     for (size_t i = 0; i < seq->n_child; i++) {
         WfCfgNode *e = seq->child[i];
         if (entry_map(e, "{class: NAME, fraction: F}", err) ||
-            wf_keys_read(e, &class_keys, WF_KEYS_FIRST, &sc->classes[i], env, err) ||
+            wf_keys_read(e, &wf_class_keys, WF_KEYS_FIRST, &sc->classes[i], env, err) ||
             class_share(sc, e, &sc->classes[i], &frac[i], &count[i], err))
             return WF_EINPUT;
         given[i] = count[i] >= 0;
@@ -389,7 +389,7 @@ static const WfKeySpec driver_rows[] = {
      .doc_type = "list of integers", .doc_range = "[0, N)",
      .doc = "as for classes, with `placement: explicit` (the fleet's or the group's own)"},
 };
-static const WfKeyTable driver_keys = {"fleet.drivers[i]", driver_rows, sizeof driver_rows / sizeof *driver_rows};
+const WfKeyTable wf_driver_keys = {"fleet.drivers[i]", driver_rows, sizeof driver_rows / sizeof *driver_rows};
 
 /* After the counts are known: groups that name a class fit in it, and groups placed explicitly on their own
  * (fleet.placement not explicit) claim distinct vehicles. */
@@ -457,7 +457,7 @@ static int load_groups(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyEnv
         WfDriverGroup *g = &sc->groups[i];
         sc->n_groups = i + 1;
         snprintf(g->name, sizeof g->name, "group%zu", i);
-        if (wf_keys_read(e, &driver_keys, WF_KEYS_FIRST, g, env, err) ||
+        if (wf_keys_read(e, &wf_driver_keys, WF_KEYS_FIRST, g, env, err) ||
             group_share(sc, e, g, &frac[i], &count[i], err))
             return WF_EINPUT;
         given[i] = count[i] >= 0;
@@ -521,9 +521,8 @@ static const WfKeySpec fleet_rows[] = {
      .doc = "how classes and driver groups are laid around the ring: shuffled by seed, spread evenly, or listed with "
             "`indices`"},
     {.key = "classes", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED, .hook = load_classes,
-     .sub = &class_keys, .doc_type = "list", .doc_range = "≤ 16 entries", .doc = "the energy-class mix (below)"},
+     .sub = &wf_class_keys, .doc_type = "list", .doc_range = "≤ 16 entries", .doc = "the energy-class mix (below)"},
     {.key = "drivers", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED, .hook = load_groups,
-     .sub = &driver_keys, .doc_type = "list", .doc_range = "≤ 16 entries", .doc = "driver groups (below)"},
+     .sub = &wf_driver_keys, .doc_type = "list", .doc_range = "≤ 16 entries", .doc = "driver groups (below)"},
 };
 const WfKeyTable wf_fleet_keys = {"fleet", fleet_rows, sizeof fleet_rows / sizeof *fleet_rows};
-const WfKeyTable *const wf_fleet_entry_keys[] = {&class_keys, &driver_keys, NULL};

@@ -20,9 +20,8 @@ extern const WfKeyTable wf_corridor_grade_keys, wf_corridor_elevation_keys, wf_c
 extern const WfKeyTable wf_corridor_keys;
 /* The road table, whose LATER rows the corridor loader reads. */
 extern const WfKeyTable wf_road_keys;
-/* The fleet section (scenario_fleet.c), its entries' tables (classes, drivers; NULL-terminated) and its check. */
-extern const WfKeyTable wf_fleet_keys;
-extern const WfKeyTable *const wf_fleet_entry_keys[];
+/* The fleet section (scenario_fleet.c), the tables of its entries (classes, driver groups) and its check. */
+extern const WfKeyTable wf_fleet_keys, wf_class_keys, wf_driver_keys;
 int wf_fleet_check_partition(WfCfgNode *root, const WfKeySpec *row, void *sc, WfKeyEnv *env, WfError *err);
 
 #endif
