@@ -26,6 +26,14 @@ const char *wf_scenario_where(const WfCfgNode *n, char *buf, size_t len)
     return buf;
 }
 
+int wf_scenario_relpath(const WfScenario *sc, const char *name, char *buf, size_t len)
+{
+    const char *slash = strrchr(sc->path, '/');
+    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
+                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
+    return n < 0 || (size_t)n >= len ? -1 : 0;
+}
+
 void wf_scenario_destroy(WfScenario **psc)
 {
     if (!psc || !*psc) return;
@@ -95,11 +103,10 @@ static int load_grade(WfCfgNode *road, const WfKeySpec *row, void *target, WfKey
     } else {
         /* Relative paths are relative to the scenario file, so a scenario and its profile travel together. */
         char path[2048];
-        const char *slash = strrchr(sc->path, '/');
-        if (csv[0] == '/' || !slash)
-            snprintf(path, sizeof path, "%s", csv);
-        else
-            snprintf(path, sizeof path, "%.*s/%s", (int)(slash - sc->path), sc->path, csv);
+        if (wf_scenario_relpath(sc, csv, path, sizeof path)) {
+            rc = wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(grade, "csv"), w, sizeof w));
+            goto done;
+        }
         static const char *const names[] = {"x_m", "grade_rad"};
         WfCsv t;
         if ((rc = wf_csv_read(path, 2, names, &t, err))) {

@@ -37,15 +37,6 @@ void wf_corridor_spec_destroy(WfCorridorSpec **ps)
     *ps = NULL;
 }
 
-/* A path written in the scenario: absolute, or relative to the scenario file's directory. */
-static int resolve_path(const WfScenario *sc, const char *name, char *buf, size_t len)
-{
-    const char *slash = strrchr(sc->path, '/');
-    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
-                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
-    return n < 0 || (size_t)n >= len ? -1 : 0;
-}
-
 /* Two-column numbers from either `points: [[a, b], ...]` or `csv: FILE` (header `names`) of `map`. The arrays
  * are owned by the caller. `where` receives the location of what was read, for later messages. */
 static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const names[2], double min0, double max0,
@@ -83,7 +74,7 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
     } else {
         char path[2048];
         WfCsv t;
-        if (resolve_path(sc, csv, path, sizeof path))
+        if (wf_scenario_relpath(sc, csv, path, sizeof path))
             return wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(map, "csv"), w, sizeof w));
         if (snprintf(where, wlen, "%s", path) >= (int)wlen) where[wlen - 1] = '\0'; /* only for messages */
         if (wf_csv_read(path, 2, names, &t, err)) {

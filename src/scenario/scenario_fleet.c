@@ -100,16 +100,6 @@ static int resolve_counts(const char *what, size_t m, double *fraction, long *co
     return 0;
 }
 
-/* A path as written in the scenario: absolute, or relative to the scenario file's directory. Returns -1 when it
- * does not fit in buf. */
-static int relative_to_scenario(const WfScenario *sc, const char *name, char *buf, size_t len)
-{
-    const char *slash = strrchr(sc->path, '/');
-    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
-                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
-    return n < 0 || (size_t)n >= len ? -1 : 0;
-}
-
 /* fleet.classes[i].class: a class name or file; sets the class's length as the default of length_m. */
 static int load_class_name(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
@@ -120,13 +110,10 @@ static int load_class_name(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv
     const char *name = NULL;
     char w[1024];
     if (wf_cfg_string(e, "class", &name, err)) return WF_EINPUT;
-    /* Class files named by relative path resolve against the scenario's directory. */
+    /* A class name is looked up in the class directories; a path (with a '/') resolves against the scenario's. */
     char path[2048];
-    const char *slash = strrchr(sc->path, '/');
-    if (strchr(name, '/') && name[0] != '/' && slash)
-        snprintf(path, sizeof path, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
-    else
-        snprintf(path, sizeof path, "%s", name);
+    if (strchr(name, '/') ? wf_scenario_relpath(sc, name, path, sizeof path) : snprintf(path, sizeof path, "%s", name) < 0)
+        return wf_err(err, WF_EINPUT, "%s: class path too long", where_of(wf_cfg_child(e, "class"), w, sizeof w));
     if (wf_vehicle_find(path, &cs->vc, err)) {
         wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(e, "class"), w, sizeof w));
         return WF_EINPUT;
@@ -160,8 +147,9 @@ const WfKeyTable wf_class_keys = {"fleet.classes[i]", class_rows, sizeof class_r
 
 /* Fraction, count and indices of one entry (class or driver group) under the placement rules; *count_out and
  * *frac_out are the entry's share for resolve_counts. */
-static int class_share(const WfScenario *sc, WfCfgNode *e, WfClassShare *cs, double *frac, long *count, WfError *err)
+static int class_share(const WfScenario *sc, WfCfgNode *e, void *entry, double *frac, long *count, WfError *err)
 {
+    const WfClassShare *cs = entry;
     char w[1024];
     *frac = cs->fraction;
     *count = cs->count;
@@ -176,51 +164,6 @@ static int class_share(const WfScenario *sc, WfCfgNode *e, WfClassShare *cs, dou
     } else if (isnan(*frac) == (*count < 0)) {
         return wf_err(err, WF_EINPUT, "%s: give exactly one of 'fraction' or 'count'", where_of(e, w, sizeof w));
     }
-    return 0;
-}
-
-/* A list of entries read with `t`: at least one, at most `max`. */
-static int entries(WfCfgNode *fleet, const char *key, const char *need, size_t max, const char *many, WfCfgNode **out,
-                   WfError *err)
-{
-    char w[1024];
-    if (wf_cfg_seq_opt(fleet, key, out, err)) return WF_EINPUT;
-    if (!*out || (*out)->n_child == 0)
-        return wf_err(err, WF_EINPUT, "%s: missing '%s': %s", where_of(fleet, w, sizeof w), key, need);
-    if ((*out)->n_child > max) return wf_err(err, WF_EINPUT, "%s: at most %zu %s", where_of(*out, w, sizeof w), max, many);
-    return 0;
-}
-
-/* An entry of a list must be a map. */
-static int entry_map(WfCfgNode *e, const char *shape, WfError *err)
-{
-    char w[1024];
-    e->used = 1;
-    return e->kind == WF_CFG_MAP ? 0 : wf_err(err, WF_EINPUT, "%s: expected a map %s", where_of(e, w, sizeof w), shape);
-}
-
-static int load_classes(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
-{
-    (void)row;
-    WfScenario *sc = t;
-    WfCfgNode *seq = NULL;
-    char w[1024];
-    if (entries(fleet, "classes", "a list of {class: NAME, fraction: F} entries", WF_MAX_CLASSES, "classes", &seq, err))
-        return WF_EINPUT;
-    double frac[WF_MAX_CLASSES];
-    long count[WF_MAX_CLASSES];
-    int given[WF_MAX_CLASSES];
-    for (size_t i = 0; i < seq->n_child; i++) {
-        WfCfgNode *e = seq->child[i];
-        if (entry_map(e, "{class: NAME, fraction: F}", err) ||
-            wf_keys_read(e, &wf_class_keys, WF_KEYS_FIRST, &sc->classes[i], env, err) ||
-            class_share(sc, e, &sc->classes[i], &frac[i], &count[i], err))
-            return WF_EINPUT;
-        given[i] = count[i] >= 0;
-    }
-    if (resolve_counts("class", seq->n_child, frac, count, given, sc->n_vehicles, where_of(seq, w, sizeof w), err))
-        return WF_EINPUT;
-    for (size_t i = 0; i < seq->n_child; i++) sc->classes[i].fraction = frac[i], sc->classes[i].count = count[i];
     return 0;
 }
 
@@ -239,7 +182,7 @@ static int load_group_model(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEn
         const char *lib = NULL;
         char path[2048];
         if (wf_cfg_string(e, "path", &lib, err)) return WF_EINPUT;
-        if (relative_to_scenario(env->sc, lib, path, sizeof path))
+        if (wf_scenario_relpath(env->sc, lib, path, sizeof path))
             return wf_err(err, WF_EINPUT, "%s: plugin path too long", where_of(pn, w, sizeof w));
         if (wf_cf_plugin_load(path, &g->plugin, err)) {
             wf_err_prefix(err, "%s: ", where_of(pn, w, sizeof w));
@@ -416,9 +359,9 @@ static int check_group_claims(const WfScenario *sc, const char *where, WfError *
 }
 
 /* A group's share under the placement rules (its own placement or the fleet's). */
-static int group_share(const WfScenario *sc, WfCfgNode *e, const WfDriverGroup *g, double *frac, long *count,
-                       WfError *err)
+static int group_share(const WfScenario *sc, WfCfgNode *e, void *entry, double *frac, long *count, WfError *err)
 {
+    const WfDriverGroup *g = entry;
     char w[1024];
     *frac = g->fraction;
     *count = g->count;
@@ -439,34 +382,85 @@ static int group_share(const WfScenario *sc, WfCfgNode *e, const WfDriverGroup *
     return 0;
 }
 
-static int load_groups(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+/* The two share lists of the fleet, classes and driver groups: each entry is a map read with `table`, then its
+ * share (fraction or count) under the placement rules; resolve_counts turns the shares into counts. */
+typedef struct ShareList {
+    const char       *key, *need, *shape, *what, *many;
+    size_t            max;
+    const WfKeyTable *table;
+    void *(*entry)(WfScenario *sc, size_t i); /* entry i's struct, its defaults set */
+    int (*share)(const WfScenario *sc, WfCfgNode *e, void *entry, double *frac, long *count, WfError *err);
+    void (*store)(WfScenario *sc, size_t i, double frac, long count);
+} ShareList;
+
+static int load_shares(WfCfgNode *fleet, const ShareList *l, WfScenario *sc, WfKeyEnv *env, WfCfgNode **out,
+                       WfError *err)
 {
-    (void)row;
-    WfScenario *sc = t;
     WfCfgNode *seq = NULL;
     char w[1024];
-    if (entries(fleet, "drivers", "a list of driver groups {model: idm, fraction: 1, ...}", WF_MAX_GROUPS,
-                "driver groups", &seq, err))
-        return WF_EINPUT;
-    double frac[WF_MAX_GROUPS];
-    long count[WF_MAX_GROUPS];
-    int given[WF_MAX_GROUPS];
+    if (wf_cfg_seq_opt(fleet, l->key, &seq, err)) return WF_EINPUT;
+    if (!seq || seq->n_child == 0)
+        return wf_err(err, WF_EINPUT, "%s: missing '%s': %s", where_of(fleet, w, sizeof w), l->key, l->need);
+    if (seq->n_child > l->max)
+        return wf_err(err, WF_EINPUT, "%s: at most %zu %s", where_of(seq, w, sizeof w), l->max, l->many);
+    double frac[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
+    long count[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
+    int given[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
     for (size_t i = 0; i < seq->n_child; i++) {
         WfCfgNode *e = seq->child[i];
-        if (entry_map(e, "{model: idm, ...}", err)) return WF_EINPUT;
-        WfDriverGroup *g = &sc->groups[i];
-        sc->n_groups = i + 1;
-        snprintf(g->name, sizeof g->name, "group%zu", i);
-        if (wf_keys_read(e, &wf_driver_keys, WF_KEYS_FIRST, g, env, err) ||
-            group_share(sc, e, g, &frac[i], &count[i], err))
+        e->used = 1;
+        if (e->kind != WF_CFG_MAP)
+            return wf_err(err, WF_EINPUT, "%s: expected a map %s", where_of(e, w, sizeof w), l->shape);
+        void *entry = l->entry(sc, i);
+        if (wf_keys_read(e, l->table, WF_KEYS_FIRST, entry, env, err) ||
+            l->share(sc, e, entry, &frac[i], &count[i], err))
             return WF_EINPUT;
         given[i] = count[i] >= 0;
     }
-    if (resolve_counts("driver group", seq->n_child, frac, count, given, sc->n_vehicles, where_of(seq, w, sizeof w),
-                       err))
+    if (resolve_counts(l->what, seq->n_child, frac, count, given, sc->n_vehicles, where_of(seq, w, sizeof w), err))
         return WF_EINPUT;
-    for (size_t i = 0; i < seq->n_child; i++) sc->groups[i].fraction = frac[i], sc->groups[i].count = count[i];
-    return check_group_claims(sc, where_of(seq, w, sizeof w), err);
+    for (size_t i = 0; i < seq->n_child; i++) l->store(sc, i, frac[i], count[i]);
+    *out = seq;
+    return 0;
+}
+
+static void *class_entry(WfScenario *sc, size_t i) { return &sc->classes[i]; }
+static void class_store(WfScenario *sc, size_t i, double frac, long count)
+{
+    sc->classes[i].fraction = frac, sc->classes[i].count = count;
+}
+
+static void *group_entry(WfScenario *sc, size_t i)
+{
+    sc->n_groups = i + 1;
+    snprintf(sc->groups[i].name, sizeof sc->groups[i].name, "group%zu", i);
+    return &sc->groups[i];
+}
+static void group_store(WfScenario *sc, size_t i, double frac, long count)
+{
+    sc->groups[i].fraction = frac, sc->groups[i].count = count;
+}
+
+static int load_classes(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row;
+    static const ShareList classes = {"classes", "a list of {class: NAME, fraction: F} entries",
+                                      "{class: NAME, fraction: F}", "class", "classes", WF_MAX_CLASSES,
+                                      &wf_class_keys, class_entry, class_share, class_store};
+    WfCfgNode *seq = NULL;
+    return load_shares(fleet, &classes, t, env, &seq, err);
+}
+
+static int load_groups(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row;
+    static const ShareList groups = {"drivers", "a list of driver groups {model: idm, fraction: 1, ...}",
+                                     "{model: idm, ...}", "driver group", "driver groups", WF_MAX_GROUPS,
+                                     &wf_driver_keys, group_entry, group_share, group_store};
+    WfCfgNode *seq = NULL;
+    char w[1024];
+    if (load_shares(fleet, &groups, t, env, &seq, err)) return WF_EINPUT;
+    return check_group_claims(t, where_of(seq, w, sizeof w), err);
 }
 
 /* Explicit placement: every vehicle index must be claimed exactly once among classes, and among groups. */
