@@ -206,7 +206,8 @@ static const char *const zone_types[] = {"speed_limit", "headway", NULL};
 
 static const WfKeySpec zone_rows[] = {
     {.key = "type", .type = WF_KEY_CHOICE, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
-     .offset = offsetof(WfCorridorZone, type), .choices = zone_types, .need = "speed_limit or headway", .doc = ""},
+     .offset = offsetof(WfCorridorZone, type), .choices = zone_types, .need = "speed_limit or headway",
+     .doc = "what the zone changes: the speed limit, or the drivers' time headway"},
     {.key = "from_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
      .offset = offsetof(WfCorridorZone, from_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
      .doc = "the zone is [from, to)"},
