@@ -1,15 +1,14 @@
 /* Scenario key tables: every section of a scenario file (top level, road, time, solver, fleet, ..., corridor)
  * declares its keys once, as an array of WfKeySpec: name, type, target field, default, range, unit, the boundary
  * it applies to and the text of its row in the docs. One generic reader fills a section's struct from its table
- * (defaults, type and range checks, "missing key" errors, keys of the other boundary rejected), and one printer
- * writes the markdown tables of docs/scenarios.md and docs/corridors.md (tools/gen-key-docs.sh). Keys whose
+ * (defaults, type and range checks, "missing key" errors, keys of the other boundary rejected), and tools/keydoc
+ * prints the markdown tables of docs/scenarios.md and docs/corridors.md from them (tools/gen-key-docs.sh). Keys whose
  * reading needs more than a type and a range (vehicle classes, driver models, lists, profiles) are `WF_KEY_CUSTOM`
  * rows: the table holds their docs and, through `hook`, the function that reads them. */
 #ifndef WAVEFUEL_KEYS_H
 #define WAVEFUEL_KEYS_H
 
 #include <stddef.h>
-#include <stdio.h>
 #include "wavefuel/err.h"
 
 struct WfCfgNode;
@@ -97,9 +96,5 @@ void wf_key_range(const WfKeySpec *row, const WfKeyEnv *env, double *min, double
 /* Every section table of a scenario, for the docs: NULL-terminated. */
 extern const WfKeyTable *const wf_key_tables[];
 const WfKeyTable *wf_key_table_find(const char *name);
-
-/* The markdown table of a section as the docs show it, for boundary `on`: header, then one row per key (FLAT
- * sub-tables inlined as `key.sub`). */
-int wf_keys_markdown(FILE *out, const WfKeyTable *t, int on);
 
 #endif

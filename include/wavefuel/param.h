@@ -5,7 +5,6 @@
 #define WAVEFUEL_PARAM_H
 
 #include <stddef.h>
-#include <stdio.h>
 #include "wavefuel/err.h"
 
 enum {
@@ -41,8 +40,5 @@ int wf_param_check_complete(const WfParamSpec *spec, size_t n, const void *param
 const char *wf_param_suggest(const WfParamSpec *spec, size_t n, const char *key);
 /* Edit distance helper shared by every "unknown key" message. */
 size_t wf_edit_distance(const char *a, const char *b);
-/* The markdown table of a model's parameters as docs/models.md and docs/controllers.md show it (key, unit, default,
- * range, meaning); tools/gen-key-docs.sh writes it into the docs. Returns WF_ESYS on a write error. */
-int wf_param_markdown(FILE *out, const WfParamSpec *spec, size_t n);
 
 #endif
