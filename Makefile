@@ -41,10 +41,13 @@ LIB_SRC  := $(filter-out src/cli/% src/mpi/%,$(LIB_SRC))
 CLI_SRC  := $(sort $(wildcard src/cli/*.c))
 TEST_SRC := $(sort $(wildcard tests/test_*.c))
 BENCH_SRC:= $(sort $(wildcard bench/*.c))
+# Small programs built from the library for the scripts of tools/ (tools/keydoc.c: the generated doc tables).
+TOOL_SRC := $(sort $(wildcard tools/*.c))
 LIB_OBJ  := $(LIB_SRC:%.c=$(BUILD)/%.o)
 CLI_OBJ  := $(CLI_SRC:%.c=$(BUILD)/%.o)
 TEST_BIN := $(TEST_SRC:tests/%.c=$(BUILD)/tests/%)
 BENCH_BIN:= $(BENCH_SRC:bench/%.c=$(BUILD)/bench/%)
+TOOL_BIN := $(TOOL_SRC:tools/%.c=$(BUILD)/tools/%)
 PLUGIN_SO:= $(patsubst examples/plugins/%.c,$(BUILD)/plugins/%.so,$(sort $(wildcard examples/plugins/*.c)))
 # Fuzz targets (fuzz/README.md): *_replay feed saved inputs to a target and are built with $(CC) as part of
 # `tests`; *_fuzzer are the libFuzzer binaries, built with clang in build-fuzz/ by fuzz/run.sh.
@@ -89,6 +92,9 @@ $(BUILD)/tests/%: $(BUILD)/tests/%.o $(LIBA)
 $(BUILD)/bench/%: $(BUILD)/bench/%.o $(LIBA)
 	$(CC) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
 
+$(BUILD)/tools/%: $(BUILD)/tools/%.o $(LIBA)
+	$(CC) $(LDFLAGS) $< $(LIBA) $(LDLIBS) -o $@
+
 $(BUILD)/fuzz/%_replay: $(BUILD)/fuzz/fuzz_%.o $(BUILD)/fuzz/replay_main.o $(LIBA)
 	$(CC) $(LDFLAGS) $(filter %.o,$^) $(LIBA) $(LDLIBS) -o $@
 
@@ -100,7 +106,7 @@ $(BUILD)/plugins/%.so: examples/plugins/%.c include/wavefuel/cf_plugin.h
 	@mkdir -p $(dir $@)
 	$(CC) $(CFLAGS) -fPIC -shared $< -o $@
 
-tests: $(BIN) $(TEST_BIN) $(REPLAY_BIN) $(PLUGIN_SO)
+tests: $(BIN) $(TEST_BIN) $(REPLAY_BIN) $(PLUGIN_SO) $(TOOL_BIN)
 fuzzers: $(FUZZER_BIN)
 .SECONDARY: $(FUZZ_TARGETS:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 bench: $(BIN) $(BENCH_BIN)

@@ -33,8 +33,6 @@ static inline double wf_param_get(const void *p, const WfParamSpec *s)
 const WfParamSpec *wf_param_find(const WfParamSpec *spec, size_t n, const char *key);
 /* Fill every field with its default (NaN for required and optional ones). */
 void wf_param_defaults(const WfParamSpec *spec, size_t n, void *params);
-/* Range-check one value against its spec; on failure the message names `where` and the key. */
-int wf_param_check_value(const WfParamSpec *s, double value, const char *where, WfError *err);
 /* After filling: every WF_PARAM_REQUIRED field must be set (not NaN). */
 int wf_param_check_complete(const WfParamSpec *spec, size_t n, const void *params, const char *where,
                             WfError *err);

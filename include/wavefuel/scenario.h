@@ -1,5 +1,6 @@
 /* Scenarios: a YAML file (plus --set overrides) turned into a plain, validated struct. The engine reads
- * only this struct; it never sees text. Every key, unit, default and range is listed in docs/scenarios.md. */
+ * only this struct; it never sees text. Every key, with its unit, default, range and boundary, is a row of a key
+ * table (include/wavefuel/keys.h) that the loader reads and docs/scenarios.md and docs/corridors.md show. */
 #ifndef WAVEFUEL_SCENARIO_H
 #define WAVEFUEL_SCENARIO_H
 

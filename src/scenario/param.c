@@ -19,14 +19,6 @@ void wf_param_defaults(const WfParamSpec *spec, size_t n, void *params)
                                                                                                     : spec[i].def;
 }
 
-int wf_param_check_value(const WfParamSpec *s, double value, const char *where, WfError *err)
-{
-    if (!isfinite(value) || value < s->min || value > s->max)
-        return wf_err(err, WF_EINPUT, "%s%s must be in [%.17g, %.17g] %s (got %.17g)", where, s->key, s->min, s->max,
-                      s->unit, value);
-    return WF_OK;
-}
-
 int wf_param_check_complete(const WfParamSpec *spec, size_t n, const void *params, const char *where,
                             WfError *err)
 {

@@ -1,23 +1,37 @@
 /* Scenario loading: YAML + --set overrides -> WfScenario, with every key typed, range-checked and named in
- * errors (file:line: path), unknown keys rejected with a suggestion, and cross-field consistency checked. */
+ * errors (file:line: path), unknown keys rejected with a suggestion, and cross-field consistency checked. Every
+ * section's keys are rows of a table (include/wavefuel/keys.h) read in order by wf_keys_read; this file holds the
+ * tables of the top level, road, time, solver, initial, statistics and output, scenario_fleet.c those of the fleet,
+ * scenario_corridor.c those of corridors. */
 #include "wavefuel/scenario.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "scenario/scenario_keys.h"
 #include "wavefuel/cf_plugin.h"
-#include "wavefuel/config.h"
 #include "wavefuel/corridor.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/integrator.h"
 
-static const char *where_of(WfCfgNode *n, char *buf, size_t len)
+#define where_of wf_scenario_where
+
+const char *wf_scenario_where(const WfCfgNode *n, char *buf, size_t len)
 {
     char w[600], p[400];
     snprintf(buf, len, "%s: %s", wf_cfg_where(n, w, sizeof w), wf_cfg_path(n, p, sizeof p));
     return buf;
+}
+
+int wf_scenario_relpath(const WfScenario *sc, const char *name, char *buf, size_t len)
+{
+    const char *slash = strrchr(sc->path, '/');
+    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
+                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
+    return n < 0 || (size_t)n >= len ? -1 : 0;
 }
 
 void wf_scenario_destroy(WfScenario **psc)
@@ -49,79 +63,11 @@ long wf_scenario_trajectory_every(const WfScenario *sc)
 }
 long wf_scenario_records(const WfScenario *sc, long every) { return wf_scenario_n_steps(sc) / every + 1; }
 
-/* A list of vehicle indices (explicit placement). */
-static int read_indices(WfCfgNode *map, long n_veh, long **out, size_t *n_out, WfError *err)
+/* road.grade of a ring: points or a CSV file; wf_road_set_grade checks that the profile closes. */
+static int load_grade(WfCfgNode *road, const WfKeySpec *row, void *target, WfKeyEnv *env, WfError *err)
 {
-    WfCfgNode *seq = NULL;
-    *out = NULL;
-    *n_out = 0;
-    if (wf_cfg_seq_opt(map, "indices", &seq, err)) return WF_EINPUT;
-    if (!seq) return 0;
-    long *idx = malloc((seq->n_child + 1) * sizeof *idx);
-    if (!idx) return wf_err(err, WF_ESYS, "out of memory");
-    for (size_t k = 0; k < seq->n_child; k++) {
-        double v;
-        if (wf_cfg_node_double(seq->child[k], 0, (double)(n_veh - 1), "(vehicle index)", &v, err)) {
-            free(idx);
-            return WF_EINPUT;
-        }
-        if (v != floor(v)) {
-            char w[1024];
-            free(idx);
-            return wf_err(err, WF_EINPUT, "%s: expected an integer vehicle index (got %.17g)",
-                          where_of(seq->child[k], w, sizeof w), v);
-        }
-        idx[k] = (long)v;
-    }
-    *out = idx;
-    *n_out = seq->n_child;
-    return 0;
-}
-
-/* Shares given as fraction or count: exactly one of them per entry, all entries alike. Resolves counts by
- * largest remainder (ties to the earlier entry) so they sum to n exactly. */
-static int resolve_counts(const char *what, size_t m, double *fraction, long *count, int *given_count, long n,
-                          const char *where, WfError *err)
-{
-    int any_count = 0, any_frac = 0;
-    for (size_t i = 0; i < m; i++) any_count |= given_count[i], any_frac |= !given_count[i];
-    if (any_count && any_frac)
-        return wf_err(err, WF_EINPUT, "%s: give every %s a 'count' or every one a 'fraction', not a mix", where, what);
-    if (any_count) {
-        long sum = 0;
-        for (size_t i = 0; i < m; i++) sum += count[i];
-        if (sum != n)
-            return wf_err(err, WF_EINPUT, "%s: %s counts sum to %ld but fleet.vehicles is %ld", where, what, sum, n);
-        return 0;
-    }
-    double sum = 0.0;
-    for (size_t i = 0; i < m; i++) sum += fraction[i];
-    if (fabs(sum - 1.0) > 1e-9)
-        return wf_err(err, WF_EINPUT, "%s: %s fractions sum to %.12g, expected 1", where, what, sum);
-    long assigned = 0;
-    double rem[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
-    for (size_t i = 0; i < m; i++) {
-        /* Fractions are normalised by their sum (within 1e-9 of 1): floors of un-normalised shares could add up to
-         * more than n for a billion vehicles. */
-        double exact = fraction[i] / sum * (double)n;
-        if (exact > (double)n) exact = (double)n;
-        count[i] = (long)floor(exact);
-        rem[i] = exact - (double)count[i];
-        assigned += count[i];
-    }
-    while (assigned < n) {
-        size_t best = 0;
-        for (size_t i = 1; i < m; i++)
-            if (rem[i] > rem[best]) best = i;
-        count[best]++;
-        rem[best] = -1.0;
-        assigned++;
-    }
-    return 0;
-}
-
-static int load_grade(WfScenario *sc, WfCfgNode *road, WfError *err)
-{
+    (void)row, (void)env;
+    WfScenario *sc = target;
     WfCfgNode *grade = NULL, *points = NULL;
     const char *csv = NULL;
     char w[1024];
@@ -157,11 +103,10 @@ static int load_grade(WfScenario *sc, WfCfgNode *road, WfError *err)
     } else {
         /* Relative paths are relative to the scenario file, so a scenario and its profile travel together. */
         char path[2048];
-        const char *slash = strrchr(sc->path, '/');
-        if (csv[0] == '/' || !slash)
-            snprintf(path, sizeof path, "%s", csv);
-        else
-            snprintf(path, sizeof path, "%.*s/%s", (int)(slash - sc->path), sc->path, csv);
+        if (wf_scenario_relpath(sc, csv, path, sizeof path)) {
+            rc = wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(grade, "csv"), w, sizeof w));
+            goto done;
+        }
         static const char *const names[] = {"x_m", "grade_rad"};
         WfCsv t;
         if ((rc = wf_csv_read(path, 2, names, &t, err))) {
@@ -183,315 +128,145 @@ done:
     return rc;
 }
 
-static int load_classes(WfScenario *sc, WfCfgNode *fleet, WfError *err)
+/* name: the file stem unless given. */
+static int load_name(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
-    WfCfgNode *seq = NULL;
+    (void)row, (void)env;
+    WfScenario *sc = t;
+    const char *s = NULL;
+    const char *stem = strrchr(sc->path, '/');
+    snprintf(sc->name, sizeof sc->name, "%.127s", stem ? stem + 1 : sc->path);
+    char *dot = strrchr(sc->name, '.');
+    if (dot) *dot = '\0';
+    if (wf_cfg_string_opt(root, "name", &s, err)) return WF_EINPUT;
+    if (s) snprintf(sc->name, sizeof sc->name, "%.127s", s);
+    return 0;
+}
+
+/* road.type: the boundary every later key is read for. */
+static int load_road_type(WfCfgNode *road, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfScenario *sc = t;
+    int rtype = 0;
+    if (wf_cfg_enum_opt(road, "type", row->choices, &rtype, err)) return WF_EINPUT;
+    env->on = rtype == 0 ? WF_ON_RING : WF_ON_CORRIDOR;
+    /* Corridors: vehicles come from the inflow; class and group fractions resolve against a nominal count. */
+    if (env->on == WF_ON_CORRIDOR) sc->n_vehicles = WF_CORRIDOR_SHARE_BASE;
+    return 0;
+}
+
+static const char *const road_types[] = {"ring", "corridor", NULL};
+
+static const WfKeySpec ring_grade_rows[] = {
+    {.key = "points", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .flags = WF_KEY_NOREAD,
+     .doc_type = "list of `[x_m, grade_rad]`", .doc_default = "flat",
+     .doc_range = "x in [0, L) increasing, \\|θ\\| ≤ 0.2 rad", .doc = "piecewise-linear grade angle, periodic on the ring"},
+    {.key = "csv", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .flags = WF_KEY_NOREAD, .doc_type = "path",
+     .doc = "same from a CSV with header `x_m,grade_rad` (relative to the scenario file)"},
+};
+static const WfKeyTable ring_grade_keys = {"road.grade", ring_grade_rows, 2};
+
+static const WfKeySpec road_rows[] = {
+    {.key = "type", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_road_type, .choices = road_types,
+     .doc = "single-lane ring road; `corridor`: an open road with inflow and outflow, keys in "
+            "[corridors.md](corridors.md)"},
+    {.key = "length_m", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfScenario, road.length_m), .min = 1, .max = 1e10, .unit = "m", .doc_range = "> 0",
+     .doc = "ring length; corridor: L, from the entrance to the exit"},
+    {.key = "speed_limit_mps", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH,
+     .offset = offsetof(WfScenario, road.speed_limit_mps), .def = INFINITY, .min = 0.1, .max = 100, .unit = "m/s",
+     .doc = "no vehicle accelerates past it (the acceleration is capped at (limit − v)/dt); corridor: the limit "
+            "everywhere (zones may lower it)"},
+    {.key = "grade", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .flags = WF_KEY_FLAT, .hook = load_grade,
+     .sub = &ring_grade_keys},
+    /* A corridor's grade profile is not periodic and its zones name driver parameters: scenario_corridor.c reads
+     * them after the fleet. */
+    {.key = "grade", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_LATER | WF_KEY_FLAT,
+     .hook = wf_corridor_road_grade, .sub = &wf_corridor_grade_keys},
+    {.key = "elevation", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_LATER | WF_KEY_FLAT,
+     .hook = wf_corridor_road_elevation, .sub = &wf_corridor_elevation_keys},
+    {.key = "zones", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_LATER,
+     .hook = wf_corridor_road_zones, .sub = &wf_corridor_zone_keys, .doc_type = "list", .doc_default = "none",
+     .doc_range = "≤ 64", .doc = "road features along x, below"},
+};
+const WfKeyTable wf_road_keys = {"road", road_rows, sizeof road_rows / sizeof *road_rows};
+
+/* time.integrator: any entry of the integrator registry; the adaptive ones are configured by `solver`. */
+static int load_integrator(WfCfgNode *time, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row, (void)env;
+    WfScenario *sc = t;
+    const char *integ = "ballistic";
+    const WfIntegrator *ig = NULL;
     char w[1024];
-    if (wf_cfg_seq_opt(fleet, "classes", &seq, err)) return WF_EINPUT;
-    if (!seq || seq->n_child == 0)
-        return wf_err(err, WF_EINPUT, "%s: missing 'classes': a list of {class: NAME, fraction: F} entries",
-                      where_of(fleet, w, sizeof w));
-    if (seq->n_child > WF_MAX_CLASSES)
-        return wf_err(err, WF_EINPUT, "%s: at most %d classes", where_of(seq, w, sizeof w), WF_MAX_CLASSES);
-    double frac[WF_MAX_CLASSES];
-    long count[WF_MAX_CLASSES];
-    int given[WF_MAX_CLASSES];
-    for (size_t i = 0; i < seq->n_child; i++) {
-        WfCfgNode *e = seq->child[i];
-        e->used = 1;
-        if (e->kind != WF_CFG_MAP)
-            return wf_err(err, WF_EINPUT, "%s: expected a map {class: NAME, fraction: F}", where_of(e, w, sizeof w));
-        WfClassShare *cs = &sc->classes[i];
-        const char *name = NULL;
-        if (wf_cfg_string(e, "class", &name, err)) return WF_EINPUT;
-        /* Class files named by relative path resolve against the scenario's directory. */
-        char path[2048];
-        const char *slash = strrchr(sc->path, '/');
-        if (strchr(name, '/') && name[0] != '/' && slash)
-            snprintf(path, sizeof path, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
-        else
-            snprintf(path, sizeof path, "%s", name);
-        if (wf_vehicle_find(path, &cs->vc, err)) {
-            wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(e, "class"), w, sizeof w));
-            return WF_EINPUT;
-        }
-        sc->n_classes = i + 1;
-        for (size_t k = 0; k < i; k++)
-            if (strcmp(sc->classes[k].vc.path, cs->vc.path) == 0)
-                return wf_err(err, WF_EINPUT, "%s: class '%s' listed twice", where_of(e, w, sizeof w), name);
-        cs->length_m = cs->vc.length_m;
-        if (wf_cfg_double_opt(e, "length_m", 1, 30, "m", &cs->length_m, err)) return WF_EINPUT;
-        frac[i] = NAN;
-        count[i] = -1;
-        if (wf_cfg_double_opt(e, "fraction", 0, 1, "(share of vehicles)", &frac[i], err)) return WF_EINPUT;
-        if (wf_cfg_long_opt(e, "count", 0, sc->n_vehicles, &count[i], err)) return WF_EINPUT;
-        if (read_indices(e, sc->n_vehicles, &cs->indices, &cs->n_indices, err)) return WF_EINPUT;
-        if (sc->placement == WF_PLACE_EXPLICIT) {
-            if (!cs->indices)
-                return wf_err(err, WF_EINPUT, "%s: placement is explicit: list this class's vehicles in 'indices'",
-                              where_of(e, w, sizeof w));
-            count[i] = (long)cs->n_indices;
-            frac[i] = NAN;
-        } else if (cs->indices) {
-            return wf_err(err, WF_EINPUT, "%s: 'indices' needs fleet.placement: explicit", where_of(e, w, sizeof w));
-        } else if (isnan(frac[i]) == (count[i] < 0)) {
-            return wf_err(err, WF_EINPUT, "%s: give exactly one of 'fraction' or 'count'", where_of(e, w, sizeof w));
-        }
-        given[i] = count[i] >= 0;
-    }
-    if (resolve_counts("class", seq->n_child, frac, count, given, sc->n_vehicles, where_of(seq, w, sizeof w), err))
+    if (wf_cfg_string_opt(time, "integrator", &integ, err)) return WF_EINPUT;
+    if (wf_integrator_find(integ, &ig, err)) {
+        wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(time, "integrator"), w, sizeof w));
         return WF_EINPUT;
-    for (size_t i = 0; i < seq->n_child; i++) sc->classes[i].fraction = frac[i], sc->classes[i].count = count[i];
+    }
+    sc->adaptive = ig->kind == WF_INTEG_ADAPTIVE;
+    sc->solver.kind = sc->adaptive ? (WfOdeKind)ig->ode_kind : WF_ODE_RK4;
+    snprintf(sc->integrator, sizeof sc->integrator, "%s", integ);
     return 0;
 }
 
-/* A path as written in the scenario: absolute, or relative to the scenario file's directory. Returns -1 when it
- * does not fit in buf. */
-static int relative_to_scenario(const WfScenario *sc, const char *name, char *buf, size_t len)
+/* The step must divide the output interval and the duration: records then fall on steps exactly. */
+static int check_time(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
-    const char *slash = strrchr(sc->path, '/');
-    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
-                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
-    return n < 0 || (size_t)n >= len ? -1 : 0;
-}
-
-_Static_assert(WF_CF_PLUGIN_MAX_PARAMS <= WF_MAX_MODEL_PARAMS, "a plugin's parameters must fit a driver group");
-
-/* A driver group's model: a registry name, or `plugin` with `path` naming a shared library. */
-static int load_group_model(WfScenario *sc, WfCfgNode *e, WfDriverGroup *g, WfError *err)
-{
-    const char *model = NULL;
-    char w[1024];
-    if (wf_cfg_string(e, "model", &model, err)) return WF_EINPUT;
-    WfCfgNode *pn = wf_cfg_child(e, "path");
-    if (strcmp(model, "plugin") == 0) {
-        const char *lib = NULL;
-        char path[2048];
-        if (wf_cfg_string(e, "path", &lib, err)) return WF_EINPUT;
-        if (relative_to_scenario(sc, lib, path, sizeof path))
-            return wf_err(err, WF_EINPUT, "%s: plugin path too long", where_of(pn, w, sizeof w));
-        if (wf_cf_plugin_load(path, &g->plugin, err)) {
-            wf_err_prefix(err, "%s: ", where_of(pn, w, sizeof w));
-            return WF_EINPUT;
-        }
-        g->model = wf_cf_plugin_model(g->plugin);
-        return 0;
-    }
-    if (pn)
-        return wf_err(err, WF_EINPUT, "%s: 'path' names a controller library and needs model: plugin (model is '%s')",
-                      where_of(pn, w, sizeof w), model);
-    if (wf_cf_model_find(model, &g->model, err)) {
-        char msg[sizeof err->msg];
-        memcpy(msg, err->msg, sizeof msg);
-        return wf_err(err, WF_EINPUT, "%s: %s, or 'plugin' with 'path: LIBRARY.so'",
-                      where_of(wf_cfg_child(e, "model"), w, sizeof w), msg);
-    }
-    return 0;
-}
-
-/* A group's own placement and class (automated vehicles placed apart from the fleet's rule). */
-static int load_group_placement(WfScenario *sc, WfCfgNode *e, WfDriverGroup *g, WfError *err)
-{
-    static const char *const places[] = {"random", "interleaved", "explicit", NULL};
-    char w[1024];
-    const char *cls = NULL;
-    g->placement = -1;
-    g->class_index = -1;
-    if (sc->placement == WF_PLACE_EXPLICIT && (wf_cfg_child(e, "placement") || wf_cfg_child(e, "class")))
+    (void)root, (void)row, (void)env;
+    WfScenario *sc = t;
+    double ratio = sc->output_interval_s / sc->dt_s, nsteps = sc->duration_s / sc->dt_s;
+    if (sc->dt_s > sc->output_interval_s || fabs(ratio - round(ratio)) > 1e-9 * ratio)
         return wf_err(err, WF_EINPUT,
-                      "%s: fleet.placement is explicit: the group's vehicles and their classes are the 'indices' "
-                      "lists; drop this group's 'placement' and 'class'",
-                      where_of(e, w, sizeof w));
-    if (wf_cfg_child(e, "placement")) {
-        int p = 0;
-        if (wf_cfg_enum_opt(e, "placement", places, &p, err)) return WF_EINPUT;
-        g->placement = p;
-    }
-    if (wf_cfg_string_opt(e, "class", &cls, err)) return WF_EINPUT;
-    if (cls) {
-        char known[512] = "";
-        size_t used = 0;
-        for (size_t c = 0; c < sc->n_classes && g->class_index < 0; c++) {
-            if (strcmp(sc->classes[c].vc.name, cls) == 0) g->class_index = (int)c;
-            int n = snprintf(known + used, sizeof known - used, "%s%s", c ? ", " : "", sc->classes[c].vc.name);
-            if (n > 0 && (size_t)n < sizeof known - used) used += (size_t)n;
-        }
-        if (g->class_index < 0)
-            return wf_err(err, WF_EINPUT, "%s: class '%s' is not in fleet.classes (%s)",
-                          where_of(wf_cfg_child(e, "class"), w, sizeof w), cls, known);
-    }
+                      "%s: time.output_interval_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)", sc->path,
+                      sc->output_interval_s, sc->dt_s);
+    if (fabs(nsteps - round(nsteps)) > 1e-9 * nsteps)
+        return wf_err(err, WF_EINPUT, "%s: time.duration_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)",
+                      sc->path, sc->duration_s, sc->dt_s);
+    if (nsteps > 1e12) return wf_err(err, WF_EINPUT, "%s: more than 1e12 steps: reduce duration or raise dt", sc->path);
+    if (sc->warmup_s >= sc->duration_s)
+        return wf_err(err, WF_EINPUT, "%s: time.warmup_s (%.17g s) must be shorter than time.duration_s (%.17g s)",
+                      sc->path, sc->warmup_s, sc->duration_s);
     return 0;
 }
 
-/* After the counts are known: groups that name a class fit in it, and groups placed explicitly on their own
- * (fleet.placement not explicit) claim distinct vehicles. */
-static int check_group_claims(const WfScenario *sc, const char *where, WfError *err)
-{
-    for (size_t c = 0; c < sc->n_classes; c++) {
-        long need = 0;
-        for (size_t g = 0; g < sc->n_groups; g++) need += sc->groups[g].class_index == (int)c ? sc->groups[g].count : 0;
-        if (need > sc->classes[c].count)
-            return wf_err(err, WF_EINPUT, "%s: driver groups with class %s have %ld vehicles but the class has %ld",
-                          where, sc->classes[c].vc.name, need, sc->classes[c].count);
-    }
-    if (sc->placement == WF_PLACE_EXPLICIT) return 0; /* check_partition covers it */
-    unsigned char *seen = calloc((size_t)sc->n_vehicles, 1);
-    if (!seen) return wf_err(err, WF_ESYS, "out of memory");
-    int rc = 0;
-    for (size_t g = 0; !rc && g < sc->n_groups; g++)
-        for (size_t k = 0; !rc && sc->groups[g].placement == WF_PLACE_EXPLICIT && k < sc->groups[g].n_indices; k++)
-            if (seen[sc->groups[g].indices[k]]++)
-                rc = wf_err(err, WF_EINPUT, "%s: vehicle %ld is listed twice in driver groups' indices", where,
-                            sc->groups[g].indices[k]);
-    free(seen);
-    return rc;
-}
+static const WfKeySpec time_rows[] = {
+    {.key = "duration_s", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfScenario, duration_s), .min = 1e-6, .max = 1e9, .unit = "s",
+     .doc_range = "> 0, a multiple of `dt_s`", .doc = "simulated time"},
+    {.key = "dt_s", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, dt_s), .def = 0.1,
+     .min = 1e-6, .max = 10, .unit = "s", .doc_range = "(0, 10]", .doc = "time step"},
+    {.key = "output_interval_s", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH,
+     .offset = offsetof(WfScenario, output_interval_s), .def = 1.0, .min = 1e-6, .max = 1e9, .unit = "s",
+     .doc_range = "a multiple of `dt_s`", .doc = "time-series records"},
+    {.key = "warmup_s", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, warmup_s), .def = 0,
+     .min = 0, .max = 1e9, .unit = "s", .doc_range = "[0, duration)",
+     .doc = "excluded from every statistic of the window"},
+    {.key = "integrator", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_integrator,
+     .doc_type = "a name of the table below", .doc_default = "`ballistic`",
+     .doc = "`ballistic`: x += v dt + a dt²/2, v += a dt, stopping exactly where v reaches 0 (Treiber & Kanagaraj "
+            "2015); `euler`: x += v dt, v += a dt, v ≥ 0; `cvode`, `arkode`, `rk4`: SUNDIALS, configured by the "
+            "`solver` section below"},
+    {.key = "fused_step", .type = WF_KEY_BOOL, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, fused_step), .def = 1,
+     .doc = "fixed-step schemes: every step (records included) runs car-following, energy, the record's partial sums, "
+            "statistics and integration in one pass per block of 256 vehicles, with the per-step values (gap, leader "
+            "speed, grade, acceleration, fuel rate) kept per block instead of fleet-wide (less memory and memory "
+            "traffic). Steps that write trajectories take the multi-pass path (it keeps those values fleet-wide, so "
+            "runs with trajectories hold 49 B more per vehicle). Results are bit-identical either way "
+            "(`tests/test_engine_paths.c`: final state, every record, every accumulator, with and without "
+            "trajectories). Set false to get a per-phase breakdown in `/meta/phase_time`"},
+};
+static const WfKeyTable time_keys = {"time", time_rows, sizeof time_rows / sizeof *time_rows};
 
-static int load_groups(WfScenario *sc, WfCfgNode *fleet, WfError *err)
+/* solver.method: cvode's linear multistep family or arkode's Butcher table; rk4 has none. */
+static int load_method(WfCfgNode *sv, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
-    WfCfgNode *seq = NULL;
-    char w[1024];
-    if (wf_cfg_seq_opt(fleet, "drivers", &seq, err)) return WF_EINPUT;
-    if (!seq || seq->n_child == 0)
-        return wf_err(err, WF_EINPUT, "%s: missing 'drivers': a list of driver groups {model: idm, fraction: 1, ...}",
-                      where_of(fleet, w, sizeof w));
-    if (seq->n_child > WF_MAX_GROUPS)
-        return wf_err(err, WF_EINPUT, "%s: at most %d driver groups", where_of(seq, w, sizeof w), WF_MAX_GROUPS);
-    double frac[WF_MAX_GROUPS];
-    long count[WF_MAX_GROUPS];
-    int given[WF_MAX_GROUPS];
-    static const char *const dists[] = {"normal", "uniform", NULL};
-    static const char *const feas[] = {"none", "clip", NULL};
-    for (size_t i = 0; i < seq->n_child; i++) {
-        WfCfgNode *e = seq->child[i], *params = NULL, *het = NULL;
-        e->used = 1;
-        if (e->kind != WF_CFG_MAP)
-            return wf_err(err, WF_EINPUT, "%s: expected a map {model: idm, ...}", where_of(e, w, sizeof w));
-        WfDriverGroup *g = &sc->groups[i];
-        sc->n_groups = i + 1;
-        const char *name = NULL;
-        snprintf(g->name, sizeof g->name, "group%zu", i);
-        if (wf_cfg_string_opt(e, "name", &name, err)) return WF_EINPUT;
-        if (name) snprintf(g->name, sizeof g->name, "%s", name);
-        if (load_group_model(sc, e, g, err) || load_group_placement(sc, e, g, err)) return WF_EINPUT;
-        if (g->model->param_size > sizeof g->params)
-            return wf_err(err, WF_ESYS, "model %s has too many parameters", g->model->name);
-        if (wf_cfg_map_opt(e, "params", &params, err)) return WF_EINPUT;
-        if (wf_cfg_params(params, g->model->spec, g->model->n_spec, g->params, err)) return WF_EINPUT;
-        char wh[1100];
-        snprintf(wh, sizeof wh, "%s: ", where_of(e, w, sizeof w));
-        if (wf_param_check_complete(g->model->spec, g->model->n_spec, g->params, wh, err)) return WF_EINPUT;
-        if (g->model->check && g->model->check(g->params, err)) {
-            wf_err_prefix(err, "%s", wh);
-            return WF_EINPUT;
-        }
-        if (wf_cfg_map_opt(e, "heterogeneity", &het, err)) return WF_EINPUT;
-        int dist = WF_HET_NORMAL;
-        if (het) {
-            WfCfgNode *spread = NULL;
-            if (wf_cfg_enum_opt(het, "distribution", dists, &dist, err)) return WF_EINPUT;
-            if (wf_cfg_map_opt(het, "spread", &spread, err)) return WF_EINPUT;
-            for (size_t k = 0; spread && k < g->model->n_spec; k++)
-                if (wf_cfg_double_opt(spread, g->model->spec[k].key, 0, 0.5, "(relative)", &g->spread[k], err))
-                    return WF_EINPUT;
-        }
-        g->dist = (WfHetDist)dist;
-        if (wf_cfg_double_opt(e, "noise_mps2", 0, 10, "m/s^2", &g->noise_mps2, err)) return WF_EINPUT;
-        g->accel_max_mps2 = 5.0;
-        g->decel_max_mps2 = 9.0;
-        if (wf_cfg_double_opt(e, "accel_max_mps2", 0.1, 20, "m/s^2", &g->accel_max_mps2, err)) return WF_EINPUT;
-        if (wf_cfg_double_opt(e, "decel_max_mps2", 0.1, 20, "m/s^2", &g->decel_max_mps2, err)) return WF_EINPUT;
-        int fe = 0;
-        if (wf_cfg_enum_opt(e, "feasible_accel", feas, &fe, err)) return WF_EINPUT;
-        g->clip_feasible = fe;
-        frac[i] = NAN;
-        count[i] = -1;
-        if (wf_cfg_double_opt(e, "fraction", 0, 1, "(share of vehicles)", &frac[i], err)) return WF_EINPUT;
-        if (wf_cfg_long_opt(e, "count", 0, sc->n_vehicles, &count[i], err)) return WF_EINPUT;
-        if (read_indices(e, sc->n_vehicles, &g->indices, &g->n_indices, err)) return WF_EINPUT;
-        if (g->placement == WF_PLACE_EXPLICIT && (!isnan(frac[i]) || count[i] >= 0))
-            return wf_err(err, WF_EINPUT, "%s: placement is explicit: the group's size is its 'indices' list; drop "
-                          "'fraction' and 'count'", where_of(e, w, sizeof w));
-        if (sc->placement == WF_PLACE_EXPLICIT || g->placement == WF_PLACE_EXPLICIT) {
-            if (!g->indices)
-                return wf_err(err, WF_EINPUT, "%s: placement is explicit: list this group's vehicles in 'indices'",
-                              where_of(e, w, sizeof w));
-            count[i] = (long)g->n_indices;
-        } else if (g->indices) {
-            return wf_err(err, WF_EINPUT, "%s: 'indices' needs placement: explicit (fleet.placement or the group's own)",
-                          where_of(e, w, sizeof w));
-        } else if (isnan(frac[i]) == (count[i] < 0)) {
-            return wf_err(err, WF_EINPUT, "%s: give exactly one of 'fraction' or 'count'", where_of(e, w, sizeof w));
-        }
-        given[i] = count[i] >= 0;
-    }
-    if (resolve_counts("driver group", seq->n_child, frac, count, given, sc->n_vehicles, where_of(seq, w, sizeof w),
-                       err))
-        return WF_EINPUT;
-    for (size_t i = 0; i < seq->n_child; i++) sc->groups[i].fraction = frac[i], sc->groups[i].count = count[i];
-    return check_group_claims(sc, where_of(seq, w, sizeof w), err);
-}
-
-/* Explicit placement: every vehicle index must be claimed exactly once among classes, and among groups. */
-static int check_partition(const WfScenario *sc, WfError *err)
-{
-    unsigned char *seen = calloc((size_t)sc->n_vehicles, 2);
-    if (!seen) return wf_err(err, WF_ESYS, "out of memory");
-    int rc = 0;
-    for (size_t c = 0; !rc && c < sc->n_classes; c++)
-        for (size_t k = 0; !rc && k < sc->classes[c].n_indices; k++)
-            if (seen[2 * sc->classes[c].indices[k]]++)
-                rc = wf_err(err, WF_EINPUT, "%s: fleet.classes: vehicle %ld is listed in two classes", sc->path,
-                            sc->classes[c].indices[k]);
-    for (size_t g = 0; !rc && g < sc->n_groups; g++)
-        for (size_t k = 0; !rc && k < sc->groups[g].n_indices; k++)
-            if (seen[2 * sc->groups[g].indices[k] + 1]++)
-                rc = wf_err(err, WF_EINPUT, "%s: fleet.drivers: vehicle %ld is listed in two driver groups", sc->path,
-                            sc->groups[g].indices[k]);
-    for (long i = 0; !rc && i < sc->n_vehicles; i++)
-        if (!seen[2 * i] || !seen[2 * i + 1])
-            rc = wf_err(err, WF_EINPUT, "%s: explicit placement: vehicle %ld has no %s", sc->path, i,
-                        !seen[2 * i] ? "class (fleet.classes[].indices)" : "driver group (fleet.drivers[].indices)");
-    free(seen);
-    return rc;
-}
-
-/* `solver`: settings of the SUNDIALS integrators (docs/scenarios.md). Present only with one of them. */
-static int load_solver(WfScenario *sc, WfCfgNode *root, const char *integ, WfError *err)
-{
-    WfCfgNode *sv = NULL;
-    char w[1024];
-    WfOdeConfig *c = &sc->solver;
-    memset(c, 0, sizeof *c);
-    c->kind = !strcmp(integ, "cvode") ? WF_ODE_CVODE : !strcmp(integ, "arkode") ? WF_ODE_ARKODE : WF_ODE_RK4;
-    c->rtol = 1e-6;
-    c->atol_x_m = 1e-6;
-    c->atol_v_mps = 1e-6;
-    c->atol_fuel_g = 1e-6;
-    c->max_steps = 100000;
-    c->rk4_substeps = 1;
-    snprintf(c->erk_table, sizeof c->erk_table, "ARKODE_DORMAND_PRINCE_7_4_5");
-    if (wf_cfg_map_opt(root, "solver", &sv, err)) return WF_EINPUT;
-    if (!sv) return 0;
-    if (!sc->adaptive)
-        return wf_err(err, WF_EINPUT, "%s: 'solver' configures cvode, arkode and rk4; time.integrator is '%s'",
-                      where_of(sv, w, sizeof w), integ);
-    static const char *const nvecs[] = {"serial", "openmp", NULL};
+    (void)row, (void)env;
+    WfOdeConfig *c = t;
     const char *method = NULL;
-    int nv = 0;
-    if (wf_cfg_double_opt(sv, "rtol", 1e-14, 1e-1, "1", &c->rtol, err) ||
-        wf_cfg_double_opt(sv, "atol_x_m", 1e-14, 10, "m", &c->atol_x_m, err) ||
-        wf_cfg_double_opt(sv, "atol_v_mps", 1e-14, 10, "m/s", &c->atol_v_mps, err) ||
-        wf_cfg_double_opt(sv, "atol_fuel_g", 1e-14, 10, "g", &c->atol_fuel_g, err) ||
-        wf_cfg_double_opt(sv, "max_step_s", 0, 1e6, "s", &c->max_step_s, err) ||
-        wf_cfg_long_opt(sv, "max_steps", 1, 1000000000L, &c->max_steps, err) ||
-        wf_cfg_bool_opt(sv, "fuel_error_control", &c->fuel_errcon, err) ||
-        wf_cfg_enum_opt(sv, "nvector", nvecs, &nv, err) || wf_cfg_string_opt(sv, "method", &method, err))
-        return WF_EINPUT;
-    long sub = 1;
-    if (wf_cfg_long_opt(sv, "rk4_substeps", 1, 1000000, &sub, err)) return WF_EINPUT;
-    c->rk4_substeps = (int)sub;
-    c->nvector_openmp = nv;
+    char w[1024];
+    snprintf(c->erk_table, sizeof c->erk_table, "ARKODE_DORMAND_PRINCE_7_4_5");
+    if (wf_cfg_string_opt(sv, "method", &method, err)) return WF_EINPUT;
     if (method && c->kind == WF_ODE_CVODE) {
         if (strcmp(method, "adams") && strcmp(method, "bdf"))
             return wf_err(err, WF_EINPUT, "%s: solver.method for cvode is 'adams' or 'bdf' (got '%s')",
@@ -506,145 +281,202 @@ static int load_solver(WfScenario *sc, WfCfgNode *root, const char *integ, WfErr
     return 0;
 }
 
-static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
+static const char *const nvectors[] = {"serial", "openmp", NULL};
+
+static const WfKeySpec solver_rows[] = {
+    {.key = "rtol", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, rtol), .def = 1e-6,
+     .min = 1e-14, .max = 1e-1, .unit = "1",
+     .doc = "relative tolerance: speeds relative to themselves, positions relative to the spacing to the leader "
+            "(unwrapped positions grow without bound, so a tolerance relative to them would mean nothing), fuel "
+            "relative to the accumulated fuel"},
+    {.key = "atol_x_m", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, atol_x_m),
+     .def = 1e-6, .min = 1e-14, .max = 10, .unit = "m", .doc = "absolute tolerance of positions"},
+    {.key = "atol_v_mps", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, atol_v_mps),
+     .def = 1e-6, .min = 1e-14, .max = 10, .unit = "m/s", .doc = "absolute tolerance of speeds"},
+    {.key = "atol_fuel_g", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, atol_fuel_g),
+     .def = 1e-6, .min = 1e-14, .max = 10, .unit = "g", .doc = "absolute tolerance of the fuel integrals"},
+    {.key = "max_step_s", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, max_step_s),
+     .def = 0, .min = 0, .max = 1e6, .unit = "s", .doc_default = "0 (none)",
+     .doc = "largest internal step (adaptive methods)"},
+    {.key = "max_steps", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, max_steps),
+     .size = sizeof(long), .def = 100000, .imin = 1, .imax = 1000000000L, .doc = "internal steps allowed per time step"},
+    {.key = "fuel_error_control", .type = WF_KEY_BOOL, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, fuel_errcon),
+     .def = 0, .doc = "include the fuel integrals in the local error test"},
+    {.key = "nvector", .type = WF_KEY_CHOICE, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, nvector_openmp),
+     .choices = nvectors,
+     .doc = "`openmp` uses NVECTOR_OPENMP: its norms are floating-point reductions whose order depends on the thread "
+            "count, so results are then not bit-identical across thread counts. The right-hand side is parallel with "
+            "either"},
+    {.key = "method", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_method, .doc_type = "text",
+     .doc_default = "`adams` (cvode), `ARKODE_DORMAND_PRINCE_7_4_5` (arkode)",
+     .doc = "cvode: `adams` (Adams–Moulton, fixed-point iteration) or `bdf` (BDF, Newton with matrix-free GMRES); "
+            "arkode: any explicit Butcher table name of ARKODE (`ARKODE_BOGACKI_SHAMPINE_4_2_3`, "
+            "`ARKODE_CASH_KARP_6_4_5`, `ARKODE_VERNER_8_5_6`, ...)"},
+    {.key = "rk4_substeps", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfOdeConfig, rk4_substeps),
+     .size = sizeof(int), .def = 1, .imin = 1, .imax = 1000000, .doc_range = "≥ 1",
+     .doc = "rk4: fixed steps of dt / substeps (classic RK4 tableau)"},
+};
+static const WfKeyTable solver_keys = {"solver", solver_rows, sizeof solver_rows / sizeof *solver_rows};
+
+/* `solver`: settings of the SUNDIALS integrators. Present only with one of them. */
+static int load_solver(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
-    WfCfgNode *root = cfg->root, *road = NULL, *time = NULL, *fleet = NULL, *init = NULL, *stats = NULL,
-              *out = NULL, *pert = NULL;
+    (void)row;
+    WfScenario *sc = t;
+    WfCfgNode *sv = NULL;
     char w[1024];
-    const char *s = NULL;
-    static const char *const road_types[] = {"ring", "corridor", NULL};
-    static const char *const places[] = {"random", "interleaved", "explicit", NULL};
-    static const char *const inits[] = {"equilibrium", "rest", NULL};
-    int rtype = 0, place = WF_PLACE_RANDOM, init_state = WF_INIT_EQUILIBRIUM;
+    WfOdeKind kind = sc->solver.kind;
+    memset(&sc->solver, 0, sizeof sc->solver);
+    sc->solver.kind = kind;
+    if (wf_cfg_map_opt(root, "solver", &sv, err)) return WF_EINPUT;
+    if (sv && !sc->adaptive)
+        return wf_err(err, WF_EINPUT, "%s: 'solver' configures cvode, arkode and rk4; time.integrator is '%s'",
+                      where_of(sv, w, sizeof w), sc->integrator);
+    return wf_keys_read(sv, &solver_keys, WF_KEYS_FIRST, &sc->solver, env, err);
+}
 
-    const char *stem = strrchr(sc->path, '/');
-    snprintf(sc->name, sizeof sc->name, "%.127s", stem ? stem + 1 : sc->path);
-    char *dot = strrchr(sc->name, '.');
-    if (dot) *dot = '\0';
-    if (wf_cfg_string_opt(root, "name", &s, err)) return WF_EINPUT;
-    if (s) snprintf(sc->name, sizeof sc->name, "%.127s", s);
-    long seed = 1;
-    if (wf_cfg_long_opt(root, "seed", 0, 0x7fffffffffffffffL, &seed, err)) return WF_EINPUT;
-    sc->seed = (uint64_t)seed;
+_Static_assert(sizeof(WfInitState) == sizeof(int) && sizeof(WfOdeKind) == sizeof(int), "choice fields are ints");
 
-    if (wf_cfg_map_opt(root, "road", &road, err)) return WF_EINPUT;
-    if (!road) return wf_cfg_missing(root, "road", "a section", err);
-    if (wf_cfg_enum_opt(road, "type", road_types, &rtype, err)) return WF_EINPUT;
-    if (wf_cfg_double(road, "length_m", 1, 1e10, "m", &sc->road.length_m, err)) return WF_EINPUT;
-    sc->road.speed_limit_mps = INFINITY;
-    if (wf_cfg_double_opt(road, "speed_limit_mps", 0.1, 100, "m/s", &sc->road.speed_limit_mps, err)) return WF_EINPUT;
-    /* A corridor's grade profile is not periodic: src/scenario/scenario_corridor.c reads it. */
-    if (rtype == 0 && load_grade(sc, road, err)) return WF_EINPUT;
+/* No perturbation section: no vehicle is perturbed. */
+static int check_perturbation(WfCfgNode *init, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)env, (void)err;
+    if (!wf_cfg_child(init, row->key)) ((WfScenario *)t)->perturb_vehicle = -1;
+    return 0;
+}
 
-    if (wf_cfg_map_opt(root, "time", &time, err)) return WF_EINPUT;
-    if (!time) return wf_cfg_missing(root, "time", "a section", err);
-    if (wf_cfg_double(time, "duration_s", 1e-6, 1e9, "s", &sc->duration_s, err)) return WF_EINPUT;
-    sc->dt_s = 0.1;
-    if (wf_cfg_double_opt(time, "dt_s", 1e-6, 10, "s", &sc->dt_s, err)) return WF_EINPUT;
-    sc->output_interval_s = 1.0;
-    if (wf_cfg_double_opt(time, "output_interval_s", 1e-6, 1e9, "s", &sc->output_interval_s, err)) return WF_EINPUT;
-    if (wf_cfg_double_opt(time, "warmup_s", 0, 1e9, "s", &sc->warmup_s, err)) return WF_EINPUT;
-    const char *integ = "ballistic";
-    if (wf_cfg_string_opt(time, "integrator", &integ, err)) return WF_EINPUT;
-    const WfIntegrator *ig;
-    sc->adaptive = !strcmp(integ, "cvode") || !strcmp(integ, "arkode") || !strcmp(integ, "rk4");
-    if (!sc->adaptive && wf_integrator_find(integ, &ig, NULL)) {
-        char known[256] = "";
-        for (size_t i = 0; wf_integrators[i]; i++)
-            snprintf(known + strlen(known), sizeof known - strlen(known), "%s, ", wf_integrators[i]->name);
-        return wf_err(err, WF_EINPUT, "%s: unknown integrator '%s' (known: %scvode, arkode, rk4)",
-                      where_of(wf_cfg_child(time, "integrator"), w, sizeof w), integ, known);
-    }
-    snprintf(sc->integrator, sizeof sc->integrator, "%s", integ);
-    if (load_solver(sc, root, integ, err)) return WF_EINPUT;
-    sc->fused_step = 1;
-    if (wf_cfg_bool_opt(time, "fused_step", &sc->fused_step, err)) return WF_EINPUT;
-    /* The step must divide the output interval and the duration: records then fall on steps exactly. */
-    double ratio = sc->output_interval_s / sc->dt_s, nsteps = sc->duration_s / sc->dt_s;
-    if (sc->dt_s > sc->output_interval_s || fabs(ratio - round(ratio)) > 1e-9 * ratio)
-        return wf_err(err, WF_EINPUT,
-                      "%s: time.output_interval_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)", sc->path,
-                      sc->output_interval_s, sc->dt_s);
-    if (fabs(nsteps - round(nsteps)) > 1e-9 * nsteps)
-        return wf_err(err, WF_EINPUT, "%s: time.duration_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)",
-                      sc->path, sc->duration_s, sc->dt_s);
-    if (nsteps > 1e12) return wf_err(err, WF_EINPUT, "%s: more than 1e12 steps: reduce duration or raise dt", sc->path);
-    if (sc->warmup_s >= sc->duration_s)
-        return wf_err(err, WF_EINPUT, "%s: time.warmup_s (%.17g s) must be shorter than time.duration_s (%.17g s)",
-                      sc->path, sc->warmup_s, sc->duration_s);
+static const WfKeySpec perturbation_rows[] = {
+    {.key = "vehicle", .type = WF_KEY_INTEGER, .on = WF_ON_RING, .offset = offsetof(WfScenario, perturb_vehicle),
+     .size = sizeof(long), .def = 0, .imin = 0, .max_is = WF_BOUND_LAST_VEHICLE, .doc_range = "[0, N)",
+     .doc = "vehicle to perturb"},
+    {.key = "dx_m", .type = WF_KEY_NUMBER, .on = WF_ON_RING, .offset = offsetof(WfScenario, perturb_dx_m), .def = 0,
+     .min = -1e3, .max = 1e3, .unit = "m", .doc = "position offset"},
+    {.key = "dv_mps", .type = WF_KEY_NUMBER, .on = WF_ON_RING, .offset = offsetof(WfScenario, perturb_dv_mps),
+     .def = 0, .min = -100, .max = 100, .unit = "m/s", .doc = "speed offset (the result must stay ≥ 0)"},
+};
+static const WfKeyTable perturbation_keys = {"initial.perturbation", perturbation_rows, 3};
 
-    if (wf_cfg_map_opt(root, "fleet", &fleet, err)) return WF_EINPUT;
-    if (!fleet) return wf_cfg_missing(root, "fleet", "a section", err);
-    /* Corridors: vehicles come from the inflow; class and group fractions resolve against a nominal count. */
-    double nv = (double)WF_CORRIDOR_SHARE_BASE;
-    if (rtype == 0 && wf_cfg_double(fleet, "vehicles", 1, 1e9, "(count)", &nv, err)) return WF_EINPUT;
-    if (nv != floor(nv))
-        return wf_err(err, WF_EINPUT, "%s: fleet.vehicles must be a whole number (got %.17g)",
-                      where_of(wf_cfg_child(fleet, "vehicles"), w, sizeof w), nv);
-    sc->n_vehicles = (long)nv;
-    if (wf_cfg_enum_opt(fleet, "placement", places, &place, err)) return WF_EINPUT;
-    sc->placement = (WfPlacement)place;
-    if (load_classes(sc, fleet, err) || load_groups(sc, fleet, err)) return WF_EINPUT;
-    if (sc->placement == WF_PLACE_EXPLICIT && check_partition(sc, err)) return WF_EINPUT;
+static const char *const init_states[] = {"equilibrium", "rest", NULL};
 
-    sc->perturb_vehicle = -1;
-    if (wf_cfg_map_opt(root, "initial", &init, err)) return WF_EINPUT;
-    if (init) {
-        if (wf_cfg_enum_opt(init, "state", inits, &init_state, err)) return WF_EINPUT;
-        if (wf_cfg_double_opt(init, "jitter_m", 0, 1e3, "m", &sc->jitter_m, err)) return WF_EINPUT;
-        if (wf_cfg_map_opt(init, "perturbation", &pert, err)) return WF_EINPUT;
-        if (pert) {
-            sc->perturb_vehicle = 0;
-            if (wf_cfg_long_opt(pert, "vehicle", 0, sc->n_vehicles - 1, &sc->perturb_vehicle, err)) return WF_EINPUT;
-            if (wf_cfg_double_opt(pert, "dx_m", -1e3, 1e3, "m", &sc->perturb_dx_m, err)) return WF_EINPUT;
-            if (wf_cfg_double_opt(pert, "dv_mps", -100, 100, "m/s", &sc->perturb_dv_mps, err)) return WF_EINPUT;
-        }
-    }
-    sc->init_state = (WfInitState)init_state;
+static const WfKeySpec initial_rows[] = {
+    {.key = "state", .type = WF_KEY_CHOICE, .on = WF_ON_RING, .offset = offsetof(WfScenario, init_state),
+     .choices = init_states,
+     .doc = "`equilibrium`: every vehicle at the common speed v* at which each one's model equilibrium gap s_e,i(v*) "
+            "fills the ring exactly (Σ s_e,i(v*) + len_i = L, solved by bisection from the models, so identical "
+            "drivers get uniform spacing); `rest`: equal gaps, v = 0"},
+    {.key = "jitter_m", .type = WF_KEY_NUMBER, .on = WF_ON_RING, .offset = offsetof(WfScenario, jitter_m), .def = 0,
+     .min = 0, .max = 1e3, .unit = "m", .doc = "uniform random position offset in [−j, j] per vehicle, by seed"},
+    {.key = "perturbation", .type = WF_KEY_SECTION, .on = WF_ON_RING, .flags = WF_KEY_FLAT,
+     .sub = &perturbation_keys, .hook = check_perturbation},
+};
+static const WfKeyTable initial_keys = {"initial", initial_rows, sizeof initial_rows / sizeof *initial_rows};
 
-    sc->v_stop_mps = 0.5;
-    sc->v_go_mps = 2.0;
-    sc->hard_brake_mps2 = 1.0;
-    sc->wave_speed_mps = NAN;
-    if (wf_cfg_map_opt(root, "statistics", &stats, err)) return WF_EINPUT;
-    if (stats) {
-        if (wf_cfg_double_opt(stats, "v_stop_mps", 0, 50, "m/s", &sc->v_stop_mps, err)) return WF_EINPUT;
-        if (wf_cfg_double_opt(stats, "v_go_mps", 0, 50, "m/s", &sc->v_go_mps, err)) return WF_EINPUT;
-        if (wf_cfg_double_opt(stats, "hard_brake_mps2", 0.01, 20, "m/s^2", &sc->hard_brake_mps2, err))
-            return WF_EINPUT;
-        if (wf_cfg_double_opt(stats, "wave_speed_mps", 0, 100, "m/s", &sc->wave_speed_mps, err)) return WF_EINPUT;
-    }
+static int check_statistics(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)root, (void)row, (void)env;
+    WfScenario *sc = t;
     if (!(sc->v_go_mps > sc->v_stop_mps))
         return wf_err(err, WF_EINPUT, "%s: statistics.v_go_mps (%.17g) must exceed statistics.v_stop_mps (%.17g)",
                       sc->path, sc->v_go_mps, sc->v_stop_mps);
     if (isnan(sc->wave_speed_mps)) sc->wave_speed_mps = sc->v_go_mps;
+    return 0;
+}
 
-    snprintf(sc->output_path, sizeof sc->output_path, "output/%s.h5", sc->name);
-    sc->trajectory_interval_s = sc->output_interval_s;
-    if (wf_cfg_map_opt(root, "output", &out, err)) return WF_EINPUT;
-    if (out) {
-        s = NULL;
-        if (wf_cfg_string_opt(out, "path", &s, err)) return WF_EINPUT;
-        if (s) snprintf(sc->output_path, sizeof sc->output_path, "%s", s);
-        if (wf_cfg_bool_opt(out, "trajectories", &sc->trajectories, err)) return WF_EINPUT;
-        if (wf_cfg_double_opt(out, "trajectory_interval_s", 1e-6, 1e9, "s", &sc->trajectory_interval_s, err))
-            return WF_EINPUT;
-        double r2 = sc->trajectory_interval_s / sc->dt_s;
-        if (fabs(r2 - round(r2)) > 1e-9 * r2)
-            return wf_err(err, WF_EINPUT, "%s: output.trajectory_interval_s must be a whole multiple of time.dt_s",
-                          sc->path);
-    }
+static const WfKeySpec statistics_rows[] = {
+    {.key = "v_stop_mps", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, v_stop_mps),
+     .def = 0.5, .min = 0, .max = 50, .unit = "m/s", .doc = "a stop begins below this speed"},
+    {.key = "v_go_mps", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, v_go_mps), .def = 2.0,
+     .min = 0, .max = 50, .unit = "m/s", .doc_range = "(v_stop, 50]", .doc = "...after having exceeded this one"},
+    {.key = "hard_brake_mps2", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH,
+     .offset = offsetof(WfScenario, hard_brake_mps2), .def = 1.0, .min = 0.01, .max = 20, .unit = "m/s^2",
+     .doc = "hard braking: a < −this"},
+    {.key = "wave_speed_mps", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, wave_speed_mps),
+     .def = NAN, .min = 0, .max = 100, .unit = "m/s", .doc_default = "`v_go_mps`",
+     .doc = "vehicles slower than this belong to a wave"},
+};
+static const WfKeyTable statistics_keys = {"statistics", statistics_rows, 4};
 
-    if (rtype == 1) return wf_corridor_spec_load(sc, root, err) ? WF_EINPUT : wf_cfg_check_unused(cfg, err);
+/* Derived defaults of `output`, and trajectory frames on steps. */
+static int check_output(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)env;
+    WfScenario *sc = t;
+    if (!sc->output_path[0]) snprintf(sc->output_path, sizeof sc->output_path, "output/%s.h5", sc->name);
+    if (isnan(sc->trajectory_interval_s)) sc->trajectory_interval_s = sc->output_interval_s;
+    double r2 = sc->trajectory_interval_s / sc->dt_s;
+    if (wf_cfg_child(root, row->key) && fabs(r2 - round(r2)) > 1e-9 * r2)
+        return wf_err(err, WF_EINPUT, "%s: output.trajectory_interval_s must be a whole multiple of time.dt_s",
+                      sc->path);
+    return 0;
+}
 
-    /* The fleet must fit: total length plus each driver group's minimum standstill gap (its equilibrium gap at
-     * v = 0 is not model-generic, so the fit check uses the vehicles' lengths; the engine checks gaps >= 0). */
+static const WfKeySpec output_rows[] = {
+    {.key = "path", .type = WF_KEY_TEXT, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, output_path),
+     .size = sizeof(((WfScenario *)0)->output_path), .doc_type = "path", .doc_default = "`output/NAME.h5`",
+     .doc = "result file (`-o` overrides)"},
+    {.key = "trajectories", .type = WF_KEY_BOOL, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, trajectories),
+     .def = 0, .doc = "write `/trajectories` (x, v, a, fuel rate per vehicle)"},
+    {.key = "trajectory_interval_s", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH,
+     .offset = offsetof(WfScenario, trajectory_interval_s), .def = NAN, .min = 1e-6, .max = 1e9, .unit = "s",
+     .doc_default = "`output_interval_s`", .doc_range = "a multiple of `dt_s`", .doc = "trajectory sampling"},
+};
+static const WfKeyTable output_keys = {"output", output_rows, 3};
+
+/* The corridor section, after everything a ring reads too. */
+static int load_corridor(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row, (void)env;
+    return wf_corridor_spec_load(t, root, err) ? WF_EINPUT : 0;
+}
+
+static const WfKeySpec root_rows[] = {
+    {.key = "name", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_name, .doc_type = "text",
+     .doc_default = "file stem", .doc = "run name; default output `output/NAME.h5`"},
+    {.key = "seed", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, seed),
+     .size = sizeof(uint64_t), .def = 1, .imin = 0, .imax = 0x7fffffffffffffffL, .doc_range = "≥ 0",
+     .doc = "seed of every random draw (placement, heterogeneity, noise, jitter)"},
+    {.key = "road", .type = WF_KEY_SECTION, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED | WF_KEY_NODOC,
+     .sub = &wf_road_keys, .need = "a section"},
+    {.key = "time", .type = WF_KEY_SECTION, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED | WF_KEY_NODOC,
+     .sub = &time_keys, .hook = check_time, .need = "a section"},
+    {.key = "solver", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .flags = WF_KEY_NODOC, .hook = load_solver,
+     .sub = &solver_keys},
+    {.key = "fleet", .type = WF_KEY_SECTION, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED | WF_KEY_NODOC,
+     .sub = &wf_fleet_keys, .hook = wf_fleet_check_partition, .need = "a section"},
+    {.key = "initial", .type = WF_KEY_SECTION, .on = WF_ON_RING, .flags = WF_KEY_NODOC, .sub = &initial_keys,
+     .off_msg = "a corridor starts empty and fills from the inflow: 'initial' applies to rings"},
+    {.key = "statistics", .type = WF_KEY_SECTION, .on = WF_ON_BOTH, .flags = WF_KEY_NODOC, .sub = &statistics_keys,
+     .hook = check_statistics},
+    {.key = "output", .type = WF_KEY_SECTION, .on = WF_ON_BOTH, .flags = WF_KEY_NODOC, .sub = &output_keys,
+     .hook = check_output},
+    {.key = "corridor", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NODOC, .hook = load_corridor,
+     .sub = &wf_corridor_keys},
+};
+static const WfKeyTable root_keys = {"top", root_rows, sizeof root_rows / sizeof *root_rows};
+
+const WfKeyTable *const wf_key_tables[] = {&root_keys,       &wf_road_keys,    &wf_corridor_zone_keys, &time_keys,
+                                           &solver_keys,     &wf_fleet_keys,   &wf_class_keys,         &wf_driver_keys,
+                                           &initial_keys,    &statistics_keys, &output_keys,           &wf_corridor_keys,
+                                           NULL};
+
+/* The fleet must fit: total length plus each driver group's minimum standstill gap (its equilibrium gap at v = 0 is
+ * not model-generic, so the fit check uses the vehicles' lengths; the engine checks gaps >= 0). */
+static int check_ring_fits(const WfScenario *sc, WfError *err)
+{
     double total_len = 0.0;
     for (size_t c = 0; c < sc->n_classes; c++) total_len += (double)sc->classes[c].count * sc->classes[c].length_m;
     if (total_len >= sc->road.length_m)
         return wf_err(err, WF_EINPUT,
                       "%s: %ld vehicles of total length %.6g m cannot fit on a ring of road.length_m = %.6g m", sc->path,
                       sc->n_vehicles, total_len, sc->road.length_m);
+    return 0;
+}
+
+static int load_tree(WfScenario *sc, WfCfg *cfg, WfError *err)
+{
+    WfKeyEnv env = {.on = WF_ON_RING, .sc = sc};
+    if (wf_keys_read(cfg->root, &root_keys, WF_KEYS_FIRST, sc, &env, err)) return WF_EINPUT;
+    if (env.on == WF_ON_RING && check_ring_fits(sc, err)) return WF_EINPUT;
     return wf_cfg_check_unused(cfg, err);
 }
 

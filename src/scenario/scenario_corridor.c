@@ -1,23 +1,20 @@
 /* Scenario keys of open corridors (`road.type: corridor`): the non-periodic grade or elevation profile, zones,
  * and the `corridor` section (inflow, outflow, detectors, Edie grid), read into a WfCorridorSpec. The ring loader
  * (src/scenario/scenario.c) reads everything else and calls wf_corridor_spec_load() before it rejects unread keys.
- * Keys, units and defaults: docs/corridors.md. */
+ * Every key is a row of the tables below (include/wavefuel/keys.h); docs/corridors.md shows them. */
 #include "wavefuel/corridor.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "scenario/scenario_keys.h"
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 
-static const char *where_of(const WfCfgNode *n, char *buf, size_t len)
-{
-    char w[600], p[400];
-    snprintf(buf, len, "%s: %s", wf_cfg_where(n, w, sizeof w), wf_cfg_path(n, p, sizeof p));
-    return buf;
-}
+#define where_of wf_scenario_where
 
 static void profile_free(WfProfile *p)
 {
@@ -38,15 +35,6 @@ void wf_corridor_spec_destroy(WfCorridorSpec **ps)
     profile_free(&s->leader_speed_mps);
     free(s);
     *ps = NULL;
-}
-
-/* A path written in the scenario: absolute, or relative to the scenario file's directory. */
-static int resolve_path(const WfScenario *sc, const char *name, char *buf, size_t len)
-{
-    const char *slash = strrchr(sc->path, '/');
-    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
-                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
-    return n < 0 || (size_t)n >= len ? -1 : 0;
 }
 
 /* Two-column numbers from either `points: [[a, b], ...]` or `csv: FILE` (header `names`) of `map`. The arrays
@@ -86,7 +74,7 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
     } else {
         char path[2048];
         WfCsv t;
-        if (resolve_path(sc, csv, path, sizeof path))
+        if (wf_scenario_relpath(sc, csv, path, sizeof path))
             return wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(map, "csv"), w, sizeof w));
         if (snprintf(where, wlen, "%s", path) >= (int)wlen) where[wlen - 1] = '\0'; /* only for messages */
         if (wf_csv_read(path, 2, names, &t, err)) {
@@ -160,12 +148,44 @@ static int read_profile(const WfScenario *sc, WfCfgNode *map, const char *key, c
     return 0;
 }
 
-static int load_grade(WfScenario *sc, WfCorridorSpec *cs, WfCfgNode *road, WfError *err)
+/* road.grade of a corridor: only checked to be a map here; road.elevation (the next row) reads either. */
+int wf_corridor_road_grade(WfCfgNode *road, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
-    WfCfgNode *grade = NULL, *elev = NULL;
+    (void)row, (void)t, (void)env;
+    WfCfgNode *grade = NULL;
+    return wf_cfg_map_opt(road, "grade", &grade, err);
+}
+
+/* theta of an elevation profile: on [x_i, x_{i+1}) the angle of the straight segment, atan(dz / dx). */
+static int elevation_to_grade(WfCorridorSpec *cs, double *x, double *z, size_t n, const char *where, WfError *err)
+{
+    double *th = n >= 2 ? malloc(n * sizeof *th) : NULL;
+    int rc = n < 2 ? wf_err(err, WF_EINPUT, "%s: an elevation profile needs at least two points", where)
+                   : !th ? wf_err(err, WF_ESYS, "out of memory") : 0;
+    for (size_t i = 0; !rc && i + 1 < n; i++) {
+        th[i] = atan((z[i + 1] - z[i]) / (x[i + 1] - x[i]));
+        if (fabs(th[i]) > 0.2)
+            rc = wf_err(err, WF_EINPUT, "%s: segment %zu climbs at %.6g rad; grades beyond 0.2 rad are outside the "
+                        "energy models' range", where, i, th[i]);
+    }
+    if (rc) {
+        free(x), free(z), free(th);
+        return rc;
+    }
+    th[n - 1] = 0.0; /* beyond the last point the road is flat */
+    cs->grade_x_m = x, cs->grade_rad = th, cs->elev_z_m = z, cs->n_grade = n, cs->grade_steps = 1;
+    return 0;
+}
+
+int wf_corridor_road_elevation(WfCfgNode *road, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row, (void)env;
+    WfScenario *sc = t;
+    WfCorridorSpec *cs = sc->corridor;
+    WfCfgNode *grade = wf_cfg_child(road, "grade"), *elev = NULL;
     char w[1024], where[1024];
     double L = sc->road.length_m;
-    if (wf_cfg_map_opt(road, "grade", &grade, err) || wf_cfg_map_opt(road, "elevation", &elev, err)) return WF_EINPUT;
+    if (wf_cfg_map_opt(road, "elevation", &elev, err)) return WF_EINPUT;
     if (grade && elev)
         return wf_err(err, WF_EINPUT, "%s: give either road.grade or road.elevation, not both",
                       where_of(elev, w, sizeof w));
@@ -179,38 +199,67 @@ static int load_grade(WfScenario *sc, WfCorridorSpec *cs, WfCfgNode *road, WfErr
     double *x = NULL, *z = NULL;
     size_t n = 0;
     if (read_pairs(sc, elev, names, 0, L, "m", -1e4, 1e4, "m", &x, &z, &n, where, sizeof where, err)) return WF_EINPUT;
-    if (n < 2) {
-        free(x);
-        free(z);
-        return wf_err(err, WF_EINPUT, "%s: an elevation profile needs at least two points", where);
-    }
-    /* theta on [x_i, x_{i+1}) is the angle of the straight segment: atan(dz / dx). */
-    double *th = malloc(n * sizeof *th);
-    if (!th) {
-        free(x);
-        free(z);
-        return wf_err(err, WF_ESYS, "out of memory");
-    }
-    for (size_t i = 0; i + 1 < n; i++) {
-        th[i] = atan((z[i + 1] - z[i]) / (x[i + 1] - x[i]));
-        if (fabs(th[i]) > 0.2) {
-            double bad = th[i];
-            free(x), free(z), free(th);
-            return wf_err(err, WF_EINPUT, "%s: segment %zu climbs at %.6g rad; grades beyond 0.2 rad are outside the "
-                          "energy models' range", where, i, bad);
-        }
-    }
-    th[n - 1] = 0.0; /* beyond the last point the road is flat */
-    cs->grade_x_m = x, cs->grade_rad = th, cs->elev_z_m = z, cs->n_grade = n, cs->grade_steps = 1;
+    return elevation_to_grade(cs, x, z, n, where, err);
+}
+
+static const char *const zone_types[] = {"speed_limit", "headway", NULL};
+
+static const WfKeySpec zone_rows[] = {
+    {.key = "type", .type = WF_KEY_CHOICE, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfCorridorZone, type), .choices = zone_types, .need = "speed_limit or headway",
+     .doc = "what the zone changes: the speed limit, or the drivers' time headway"},
+    {.key = "from_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfCorridorZone, from_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
+     .doc = "the zone is [from, to)"},
+    {.key = "to_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfCorridorZone, to_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
+     .doc_range = "[0, L], to > from", .doc = "the zone's end"},
+    {.key = "speed_limit_mps", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED | WF_KEY_NOREAD,
+     .offset = offsetof(WfCorridorZone, value), .min = 0.1, .max = 100, .unit = "m/s",
+     .doc_default = "required (speed_limit)", .doc = "the limit inside the zone (overlapping zones: the lowest)"},
+    {.key = "factor", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED | WF_KEY_NOREAD,
+     .offset = offsetof(WfCorridorZone, value), .min = 0.1, .max = 10, .unit = "(multiplies the headway parameter)",
+     .doc_type = "1", .doc_default = "required (headway)",
+     .doc = "multiplies the driver-model parameter `key` inside the zone (a lane-drop-like capacity reduction); "
+            "overlapping zones multiply"},
+    {.key = "key", .type = WF_KEY_TEXT, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD, .doc_default = "`T_s`",
+     .doc_range = "a parameter of at least one driver group's model",
+     .doc = "the time-headway parameter (IDM, ACC: `T_s`; Gipps: `tau_s`). Groups whose model lacks it are "
+            "unaffected; a key no group has is an error"},
+};
+const WfKeyTable wf_corridor_zone_keys = {"road.zones[i]", zone_rows, sizeof zone_rows / sizeof *zone_rows};
+
+_Static_assert(sizeof(WfZoneType) == sizeof(int) && sizeof(WfArrivals) == sizeof(int) &&
+               sizeof(WfOutflow) == sizeof(int), "choice fields are ints");
+
+/* A headway zone: its factor and the driver parameter it multiplies, which some group's model must have. */
+static int headway_zone(WfScenario *sc, WfCfgNode *e, WfCorridorZone *z, WfKeyEnv *env, WfError *err)
+{
+    const char *key = "T_s";
+    char w[1024];
+    if (wf_key_read(e, wf_keys_find(&wf_corridor_zone_keys, "factor", WF_ON_CORRIDOR), z, env, err) ||
+        wf_cfg_string_opt(e, "key", &key, err))
+        return WF_EINPUT;
+    if (strlen(key) >= sizeof z->key)
+        return wf_err(err, WF_EINPUT, "%s: key '%s' too long", where_of(e, w, sizeof w), key);
+    snprintf(z->key, sizeof z->key, "%s", key);
+    /* A zone that no driver can feel is a mistake in the scenario, not something to ignore. */
+    int any = 0;
+    for (size_t g = 0; g < sc->n_groups; g++)
+        any |= wf_param_find(sc->groups[g].model->spec, sc->groups[g].model->n_spec, key) != NULL;
+    if (!any)
+        return wf_err(err, WF_EINPUT, "%s: no driver group's model has a parameter '%s' to multiply (IDM and "
+                      "ACC: T_s; Gipps: tau_s)", where_of(e, w, sizeof w), key);
     return 0;
 }
 
-static int load_zones(WfScenario *sc, WfCorridorSpec *cs, WfCfgNode *road, WfError *err)
+int wf_corridor_road_zones(WfCfgNode *road, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
-    static const char *const types[] = {"speed_limit", "headway", NULL};
+    (void)row;
+    WfScenario *sc = t;
+    WfCorridorSpec *cs = sc->corridor;
     WfCfgNode *seq = NULL;
     char w[1024];
-    double L = sc->road.length_m;
     if (wf_cfg_seq_opt(road, "zones", &seq, err)) return WF_EINPUT;
     if (!seq) return 0;
     if (seq->n_child > WF_CORRIDOR_MAX_ZONES)
@@ -222,49 +271,23 @@ static int load_zones(WfScenario *sc, WfCorridorSpec *cs, WfCfgNode *road, WfErr
         if (e->kind != WF_CFG_MAP)
             return wf_err(err, WF_EINPUT, "%s: expected a map {type: speed_limit, from_m: A, to_m: B, "
                           "speed_limit_mps: V}", where_of(e, w, sizeof w));
-        int type = -1;
-        if (!wf_cfg_child(e, "type")) return wf_cfg_missing(e, "type", "speed_limit or headway", err);
-        if (wf_cfg_enum_opt(e, "type", types, &type, err)) return WF_EINPUT;
-        z->type = (WfZoneType)type;
-        if (wf_cfg_double(e, "from_m", 0, L, "m", &z->from_m, err) || wf_cfg_double(e, "to_m", 0, L, "m", &z->to_m, err))
-            return WF_EINPUT;
+        if (wf_keys_read(e, &wf_corridor_zone_keys, WF_KEYS_FIRST, z, env, err)) return WF_EINPUT;
         if (!(z->to_m > z->from_m))
             return wf_err(err, WF_EINPUT, "%s: to_m (%.17g) must exceed from_m (%.17g)", where_of(e, w, sizeof w),
                           z->to_m, z->from_m);
-        if (z->type == WF_ZONE_SPEED_LIMIT) {
-            if (wf_cfg_double(e, "speed_limit_mps", 0.1, 100, "m/s", &z->value, err)) return WF_EINPUT;
-        } else {
-            const char *key = "T_s";
-            if (wf_cfg_double(e, "factor", 0.1, 10, "(multiplies the headway parameter)", &z->value, err) ||
-                wf_cfg_string_opt(e, "key", &key, err))
-                return WF_EINPUT;
-            if (strlen(key) >= sizeof z->key)
-                return wf_err(err, WF_EINPUT, "%s: key '%s' too long", where_of(e, w, sizeof w), key);
-            snprintf(z->key, sizeof z->key, "%s", key);
-            /* A zone that no driver can feel is a mistake in the scenario, not something to ignore. */
-            int any = 0;
-            for (size_t g = 0; g < sc->n_groups; g++)
-                any |= wf_param_find(sc->groups[g].model->spec, sc->groups[g].model->n_spec, key) != NULL;
-            if (!any)
-                return wf_err(err, WF_EINPUT, "%s: no driver group's model has a parameter '%s' to multiply (IDM and "
-                              "ACC: T_s; Gipps: tau_s)", where_of(e, w, sizeof w), key);
-        }
+        if (z->type == WF_ZONE_SPEED_LIMIT
+                ? wf_key_read(e, wf_keys_find(&wf_corridor_zone_keys, "speed_limit_mps", WF_ON_CORRIDOR), z, env, err)
+                : headway_zone(sc, e, z, env, err))
+            return WF_EINPUT;
         cs->n_zones = i + 1;
     }
     return 0;
 }
 
-/* What the ring loader read, checked against corridor semantics. */
-static int check_fleet(WfScenario *sc, WfCorridorSpec *cs, WfCfgNode *root, WfError *err)
+/* What the ring loader read, checked against corridor semantics (fleet.vehicles and `initial` are rejected by
+ * their rows' off_msg). */
+static int check_fleet(WfScenario *sc, WfCorridorSpec *cs, WfError *err)
 {
-    char w[1024];
-    WfCfgNode *fleet = wf_cfg_child(root, "fleet"), *n;
-    if ((n = wf_cfg_child(fleet, "vehicles")))
-        return wf_err(err, WF_EINPUT, "%s: a corridor has no fixed fleet size: vehicles come from corridor.inflow",
-                      where_of(n, w, sizeof w));
-    if ((n = wf_cfg_child(root, "initial")))
-        return wf_err(err, WF_EINPUT, "%s: a corridor starts empty and fills from the inflow: 'initial' applies to rings",
-                      where_of(n, w, sizeof w));
     if (sc->adaptive)
         return wf_err(err, WF_EINPUT, "%s: corridors run with the fixed-step integrators (ballistic, euler), not '%s'",
                       sc->path, sc->integrator);
@@ -306,70 +329,68 @@ static int whole_steps(const WfScenario *sc, WfCfgNode *map, const char *key, do
     return 0;
 }
 
-static int load_section(WfScenario *sc, WfCorridorSpec *cs, WfCfgNode *root, WfError *err)
+/* A constant or a time profile (read_profile) with the range of its row. */
+static int profile_row(WfCfgNode *map, const WfKeySpec *row, WfKeyEnv *env, WfProfile *p, WfError *err)
 {
-    static const char *const arrivals[] = {"deterministic", "poisson", NULL};
-    static const char *const outflows[] = {"free", "leader", "speed", NULL};
-    WfCfgNode *corr = NULL, *in = NULL, *outf = NULL, *det = NULL, *edie = NULL;
+    double lo, hi;
+    wf_key_range(row, env, &lo, &hi);
+    return read_profile(env->sc, map, row->key, row->key, hi, row->unit, 1, p, err);
+}
+
+static int load_inflow(WfCfgNode *in, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    return profile_row(in, row, env, &((WfCorridorSpec *)t)->inflow_vph, err);
+}
+
+static const WfKeyTable outflow_keys;
+
+/* The virtual leader's speed and start: only for the leader and speed outflows. */
+static int load_outflow_speed(WfCfgNode *outf, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfCorridorSpec *cs = t;
+    if (cs->outflow == WF_OUTFLOW_FREE) return 0;
+    if (profile_row(outf, row, env, &cs->leader_speed_mps, err)) return WF_EINPUT;
+    return wf_key_read(outf, wf_keys_find(&outflow_keys, "offset_m", WF_ON_CORRIDOR), t, env, err);
+}
+
+/* Detector positions: before the exit, at most WF_CORRIDOR_MAX_DETECTORS. */
+static int load_detectors(WfCfgNode *det, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row;
+    WfCorridorSpec *cs = t;
+    WfCfgNode *xs = NULL;
     char w[1024];
+    double L = env->sc->road.length_m;
+    if (wf_cfg_seq_opt(det, "x_m", &xs, err)) return WF_EINPUT;
+    if (!xs) return wf_cfg_missing(det, "x_m", "a list of positions in m", err);
+    if (xs->n_child > WF_CORRIDOR_MAX_DETECTORS)
+        return wf_err(err, WF_EINPUT, "%s: at most %d detectors", where_of(xs, w, sizeof w), WF_CORRIDOR_MAX_DETECTORS);
+    for (size_t i = 0; i < xs->n_child; i++) {
+        if (wf_cfg_node_double(xs->child[i], 0, L, "m", &cs->det_x_m[i], err)) return WF_EINPUT;
+        /* A passage is x_before <= x_d < x_after, and vehicles leave once x >= L: x_d = L would miss some. */
+        if (!(cs->det_x_m[i] < L))
+            return wf_err(err, WF_EINPUT, "%s: a detector must lie before the exit, in [0, %.17g) m",
+                          where_of(xs->child[i], w, sizeof w), L);
+    }
+    cs->n_det = xs->n_child;
+    return 0;
+}
+
+static int check_detectors(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfCfgNode *det = wf_cfg_child(corr, row->key);
+    return det ? whole_steps(env->sc, det, "interval_s", ((WfCorridorSpec *)t)->det_interval_s, err) : 0;
+}
+
+/* Edie's grid: cells of dx by dt (defaults: 100 m and 60 s, at most the road and the run), whole steps. */
+static int check_edie(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfCorridorSpec *cs = t;
+    const WfScenario *sc = env->sc;
+    WfCfgNode *edie = wf_cfg_child(corr, row->key);
     double L = sc->road.length_m;
-    if (wf_cfg_map_opt(root, "corridor", &corr, err)) return WF_EINPUT;
-    if (!corr) return wf_cfg_missing(root, "corridor", "a section with at least corridor.inflow", err);
-    if (wf_cfg_map_opt(corr, "inflow", &in, err)) return WF_EINPUT;
-    if (!in) return wf_cfg_missing(corr, "inflow", "a map {flow_vph: Q}", err);
-    int arr = WF_ARRIVALS_DETERMINISTIC;
-    if (wf_cfg_enum_opt(in, "arrivals", arrivals, &arr, err)) return WF_EINPUT;
-    cs->arrivals = (WfArrivals)arr;
-    if (read_profile(sc, in, "flow_vph", "flow_vph", 36000, "veh/h", 1, &cs->inflow_vph, err)) return WF_EINPUT;
-    cs->entry_speed_mps = INFINITY;
-    if (wf_cfg_double_opt(in, "entry_speed_mps", 0, 100, "m/s", &cs->entry_speed_mps, err)) return WF_EINPUT;
-    cs->insert_decel_mps2 = 0.3;
-    if (wf_cfg_double_opt(in, "insert_decel_mps2", 0.01, 20, "m/s^2", &cs->insert_decel_mps2, err)) return WF_EINPUT;
-    long maxv = -1;
-    if (wf_cfg_long_opt(in, "vehicles", 0, 1000000000L, &maxv, err)) return WF_EINPUT;
-    cs->max_arrivals = maxv;
-
-    int of = WF_OUTFLOW_FREE;
-    if (wf_cfg_map_opt(corr, "outflow", &outf, err)) return WF_EINPUT;
-    if (outf && wf_cfg_enum_opt(outf, "type", outflows, &of, err)) return WF_EINPUT;
-    cs->outflow = (WfOutflow)of;
-    if (outf && of != WF_OUTFLOW_FREE) {
-        if (read_profile(sc, outf, "speed_mps", "speed_mps", 100, "m/s", 1, &cs->leader_speed_mps, err))
-            return WF_EINPUT;
-        if (wf_cfg_double_opt(outf, "offset_m", -L, 1e7, "m", &cs->leader_offset_m, err)) return WF_EINPUT;
-    }
-
-    cs->zone_decel_mps2 = 1.0;
-    if (wf_cfg_double_opt(corr, "zone_decel_mps2", 0.1, 10, "m/s^2", &cs->zone_decel_mps2, err)) return WF_EINPUT;
-
-    cs->det_interval_s = 60.0;
-    if (wf_cfg_map_opt(corr, "detectors", &det, err)) return WF_EINPUT;
-    if (det) {
-        WfCfgNode *xs = NULL;
-        if (wf_cfg_seq_opt(det, "x_m", &xs, err) || wf_cfg_double_opt(det, "interval_s", 1e-6, 1e9, "s",
-                                                                       &cs->det_interval_s, err))
-            return WF_EINPUT;
-        if (!xs) return wf_cfg_missing(det, "x_m", "a list of positions in m", err);
-        if (xs->n_child > WF_CORRIDOR_MAX_DETECTORS)
-            return wf_err(err, WF_EINPUT, "%s: at most %d detectors", where_of(xs, w, sizeof w),
-                          WF_CORRIDOR_MAX_DETECTORS);
-        for (size_t i = 0; i < xs->n_child; i++) {
-            if (wf_cfg_node_double(xs->child[i], 0, L, "m", &cs->det_x_m[i], err)) return WF_EINPUT;
-            /* A passage is x_before <= x_d < x_after, and vehicles leave once x >= L: x_d = L would miss some. */
-            if (!(cs->det_x_m[i] < L))
-                return wf_err(err, WF_EINPUT, "%s: a detector must lie before the exit, in [0, %.17g) m",
-                              where_of(xs->child[i], w, sizeof w), L);
-        }
-        cs->n_det = xs->n_child;
-        if (whole_steps(sc, det, "interval_s", cs->det_interval_s, err)) return WF_EINPUT;
-    }
-
-    cs->edie_dx_m = 100.0 < L ? 100.0 : L;
-    cs->edie_dt_s = 60.0 < sc->duration_s ? 60.0 : sc->duration_s;
-    if (wf_cfg_map_opt(corr, "edie", &edie, err)) return WF_EINPUT;
-    if (edie && (wf_cfg_double_opt(edie, "dx_m", 1e-3, L, "m", &cs->edie_dx_m, err) ||
-                 wf_cfg_double_opt(edie, "dt_s", 1e-6, sc->duration_s, "s", &cs->edie_dt_s, err)))
-        return WF_EINPUT;
+    if (isnan(cs->edie_dx_m)) cs->edie_dx_m = 100.0 < L ? 100.0 : L;
+    if (isnan(cs->edie_dt_s)) cs->edie_dt_s = 60.0 < sc->duration_s ? 60.0 : sc->duration_s;
     if (whole_steps(sc, edie ? edie : corr, "dt_s", cs->edie_dt_s, err)) {
         wf_err_prefix(err, "corridor.edie: ");
         return WF_EINPUT;
@@ -381,14 +402,117 @@ static int load_section(WfScenario *sc, WfCorridorSpec *cs, WfCfgNode *root, WfE
     return 0;
 }
 
+static const char *const arrivals[] = {"deterministic", "poisson", NULL};
+static const char *const outflows[] = {"free", "leader", "speed", NULL};
+
+static const WfKeySpec inflow_rows[] = {
+    {.key = "arrivals", .type = WF_KEY_CHOICE, .on = WF_ON_CORRIDOR, .offset = offsetof(WfCorridorSpec, arrivals),
+     .choices = arrivals, .doc = "below"},
+    {.key = "flow_vph", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .hook = load_inflow, .max = 36000,
+     .unit = "veh/h", .doc_type = "veh/h", .doc_default = "required (or `csv`/`points`)", .doc_range = "[0, 36000]",
+     .doc = "constant demand at the entrance"},
+    {.key = "csv", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "CSV `time_s,flow_vph`", .doc_range = "t increasing",
+     .doc = "time-varying demand, linear between points, end values held"},
+    {.key = "points", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "list of `[t, q]`", .doc_range = "t increasing", .doc = "the same as a list"},
+    {.key = "entry_speed_mps", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
+     .offset = offsetof(WfCorridorSpec, entry_speed_mps), .def = INFINITY, .min = 0, .max = 100, .unit = "m/s",
+     .doc = "cap on the entry speed"},
+    {.key = "insert_decel_mps2", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
+     .offset = offsetof(WfCorridorSpec, insert_decel_mps2), .def = 0.3, .min = 0.01, .max = 20, .unit = "m/s^2",
+     .doc = "b of the insertion rule"},
+    {.key = "vehicles", .type = WF_KEY_INTEGER, .on = WF_ON_CORRIDOR, .offset = offsetof(WfCorridorSpec, max_arrivals),
+     .size = sizeof(int64_t), .def = -1, .imin = 0, .imax = 1000000000L, .doc_default = "unlimited",
+     .doc_range = "≥ 0", .doc = "stop the arrivals after this many vehicles (a platoon)"},
+};
+static const WfKeyTable inflow_keys = {"corridor.inflow", inflow_rows, sizeof inflow_rows / sizeof *inflow_rows};
+
+static const WfKeySpec outflow_rows[] = {
+    {.key = "type", .type = WF_KEY_CHOICE, .on = WF_ON_CORRIDOR, .offset = offsetof(WfCorridorSpec, outflow),
+     .choices = outflows, .doc = "downstream boundary, below"},
+    {.key = "speed_mps", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .hook = load_outflow_speed, .max = 100,
+     .unit = "m/s", .doc_type = "m/s", .doc_default = "required for `leader` and `speed`", .doc_range = "[0, 100]",
+     .doc = "the virtual leader's speed, constant"},
+    {.key = "csv", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "CSV `time_s,speed_mps`", .doc_range = "t increasing",
+     .doc = "the virtual leader's speed profile, linear between points, end values held"},
+    {.key = "points", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "list of `[t, v]`", .doc_range = "t increasing", .doc = "the same as a list"},
+    {.key = "offset_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .offset = offsetof(WfCorridorSpec, leader_offset_m), .def = 0, .min_is = WF_BOUND_NEG_LENGTH, .max = 1e7,
+     .unit = "m", .doc = "the virtual leader starts at x = L + offset (negative: inside the road)"},
+};
+static const WfKeyTable outflow_keys = {"corridor.outflow", outflow_rows, sizeof outflow_rows / sizeof *outflow_rows};
+
+static const WfKeySpec detector_rows[] = {
+    {.key = "x_m", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED, .hook = load_detectors,
+     .doc_type = "list of m", .doc_default = "none (required in `detectors`)", .doc_range = "[0, L), ≤ 256", .doc = "virtual detector positions"},
+    {.key = "interval_s", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
+     .offset = offsetof(WfCorridorSpec, det_interval_s), .def = 60, .min = 1e-6, .max = 1e9, .unit = "s",
+     .doc_range = "a multiple of `dt_s`", .doc = "counting interval (the last may be shorter)"},
+};
+static const WfKeyTable detector_keys = {"corridor.detectors", detector_rows, 2};
+
+static const WfKeySpec edie_rows[] = {
+    {.key = "dx_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .offset = offsetof(WfCorridorSpec, edie_dx_m),
+     .def = NAN, .min = 1e-3, .max_is = WF_BOUND_LENGTH, .unit = "m", .doc_default = "min(100, L)",
+     .doc_range = "(0, L]", .doc = "Edie cell length (the last cell ends at L and may be shorter)"},
+    {.key = "dt_s", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .offset = offsetof(WfCorridorSpec, edie_dt_s),
+     .def = NAN, .min = 1e-6, .max_is = WF_BOUND_DURATION, .unit = "s", .doc_default = "min(60, duration)",
+     .doc_range = "a multiple of `dt_s`",
+     .doc = "Edie cell duration (the last may be shorter); at most 5·10⁷ cells"},
+};
+static const WfKeyTable edie_keys = {"corridor.edie", edie_rows, 2};
+
+static const WfKeySpec corridor_rows[] = {
+    {.key = "inflow", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED | WF_KEY_FLAT,
+     .sub = &inflow_keys, .need = "a map {flow_vph: Q}"},
+    {.key = "outflow", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_FLAT, .sub = &outflow_keys},
+    {.key = "zone_decel_mps2", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
+     .offset = offsetof(WfCorridorSpec, zone_decel_mps2), .def = 1.0, .min = 0.1, .max = 10, .unit = "m/s^2",
+     .doc = "braking with which drivers meet a lower zone limit ahead"},
+    {.key = "detectors", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_FLAT, .sub = &detector_keys,
+     .hook = check_detectors},
+    {.key = "edie", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_FLAT, .sub = &edie_keys,
+     .hook = check_edie},
+};
+const WfKeyTable wf_corridor_keys = {"corridor", corridor_rows, sizeof corridor_rows / sizeof *corridor_rows};
+
+static const WfKeySpec grade_rows[] = {
+    {.key = "points", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "list of `[x_m, grade_rad]`", .doc_default = "flat",
+     .doc_range = "x in [0, L] increasing, \\|θ\\| ≤ 0.2 rad",
+     .doc = "θ linear between the points, the end values held before the first and after the last. Not periodic: "
+            "the profile need not close"},
+    {.key = "csv", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "CSV `x_m,grade_rad`", .doc = "the same from a file"},
+};
+const WfKeyTable wf_corridor_grade_keys = {"road.grade", grade_rows, 2};
+
+static const WfKeySpec elevation_rows[] = {
+    {.key = "points", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "list of `[x_m, z_m]`", .doc_range = "≥ 2 points, x increasing, \\|θ\\| ≤ 0.2 rad",
+     .doc = "instead of `grade`: θ = atan(Δz/Δx), constant on each straight segment, 0 before the first and after "
+            "the last point"},
+    {.key = "csv", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "CSV `x_m,z_m`", .doc = "the same from a file"},
+};
+const WfKeyTable wf_corridor_elevation_keys = {"road.elevation", elevation_rows, 2};
+
 int wf_corridor_spec_load(WfScenario *sc, WfCfgNode *root, WfError *err)
 {
     WfCorridorSpec *cs = calloc(1, sizeof *cs);
     if (!cs) return wf_err(err, WF_ESYS, "out of memory");
     sc->corridor = cs; /* owned by the scenario from here on, also on failure */
-    WfCfgNode *road = wf_cfg_child(root, "road");
-    if (check_fleet(sc, cs, root, err) || load_grade(sc, cs, road, err) || load_zones(sc, cs, road, err) ||
-        load_section(sc, cs, root, err))
+    WfKeyEnv env = {.on = WF_ON_CORRIDOR, .sc = sc};
+    WfCfgNode *corr = NULL;
+    if (check_fleet(sc, cs, err) ||
+        wf_keys_read(wf_cfg_child(root, "road"), &wf_road_keys, WF_KEYS_LATER, sc, &env, err) ||
+        wf_cfg_map_opt(root, "corridor", &corr, err))
+        return err && err->code ? err->code : WF_EINPUT;
+    if (!corr) return wf_cfg_missing(root, "corridor", "a section with at least corridor.inflow", err);
+    if (wf_keys_read(corr, &wf_corridor_keys, WF_KEYS_FIRST, cs, &env, err))
         return err && err->code ? err->code : WF_EINPUT;
     return 0;
 }
