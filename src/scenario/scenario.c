@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "scenario/scenario_keys.h"
+#include "util/path.h"
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
 #include "wavefuel/csv.h"
@@ -24,14 +25,6 @@ const char *wf_scenario_where(const WfCfgNode *n, char *buf, size_t len)
     char w[600], p[400];
     snprintf(buf, len, "%s: %s", wf_cfg_where(n, w, sizeof w), wf_cfg_path(n, p, sizeof p));
     return buf;
-}
-
-int wf_scenario_relpath(const WfScenario *sc, const char *name, char *buf, size_t len)
-{
-    const char *slash = strrchr(sc->path, '/');
-    int n = name[0] == '/' || !slash ? snprintf(buf, len, "%s", name)
-                                     : snprintf(buf, len, "%.*s/%s", (int)(slash - sc->path), sc->path, name);
-    return n < 0 || (size_t)n >= len ? -1 : 0;
 }
 
 void wf_scenario_destroy(WfScenario **psc)
@@ -103,7 +96,7 @@ static int load_grade(WfCfgNode *road, const WfKeySpec *row, void *target, WfKey
     } else {
         /* Relative paths are relative to the scenario file, so a scenario and its profile travel together. */
         char path[2048];
-        if (wf_scenario_relpath(sc, csv, path, sizeof path)) {
+        if (wf_path_relative_to(sc->path, csv, path, sizeof path)) {
             rc = wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(grade, "csv"), w, sizeof w));
             goto done;
         }

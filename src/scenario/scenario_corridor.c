@@ -11,6 +11,7 @@
 #include <string.h>
 
 #include "scenario/scenario_keys.h"
+#include "util/path.h"
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 
@@ -74,7 +75,7 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
     } else {
         char path[2048];
         WfCsv t;
-        if (wf_scenario_relpath(sc, csv, path, sizeof path))
+        if (wf_path_relative_to(sc->path, csv, path, sizeof path))
             return wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(map, "csv"), w, sizeof w));
         if (snprintf(where, wlen, "%s", path) >= (int)wlen) where[wlen - 1] = '\0'; /* only for messages */
         if (wf_csv_read(path, 2, names, &t, err)) {

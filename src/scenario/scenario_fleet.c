@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "scenario/scenario_keys.h"
+#include "util/path.h"
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
 
@@ -112,7 +113,7 @@ static int load_class_name(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv
     if (wf_cfg_string(e, "class", &name, err)) return WF_EINPUT;
     /* A class name is looked up in the class directories; a path (with a '/') resolves against the scenario's. */
     char path[2048];
-    if (strchr(name, '/') ? wf_scenario_relpath(sc, name, path, sizeof path) : snprintf(path, sizeof path, "%s", name) < 0)
+    if (strchr(name, '/') ? wf_path_relative_to(sc->path, name, path, sizeof path) : snprintf(path, sizeof path, "%s", name) < 0)
         return wf_err(err, WF_EINPUT, "%s: class path too long", where_of(wf_cfg_child(e, "class"), w, sizeof w));
     if (wf_vehicle_find(path, &cs->vc, err)) {
         wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(e, "class"), w, sizeof w));
@@ -182,7 +183,7 @@ static int load_group_model(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEn
         const char *lib = NULL;
         char path[2048];
         if (wf_cfg_string(e, "path", &lib, err)) return WF_EINPUT;
-        if (wf_scenario_relpath(env->sc, lib, path, sizeof path))
+        if (wf_path_relative_to(env->sc->path, lib, path, sizeof path))
             return wf_err(err, WF_EINPUT, "%s: plugin path too long", where_of(pn, w, sizeof w));
         if (wf_cf_plugin_load(path, &g->plugin, err)) {
             wf_err_prefix(err, "%s: ", where_of(pn, w, sizeof w));

@@ -8,9 +8,6 @@
 #include "wavefuel/keys.h"
 #include "wavefuel/scenario.h"
 
-/* A path as written in the scenario: absolute, or relative to the scenario file's directory (so a scenario and
- * the files it names travel together). Returns -1 when it does not fit in buf. */
-int wf_scenario_relpath(const WfScenario *sc, const char *name, char *buf, size_t len);
 /* "file:line: path" of a node, into buf. */
 const char *wf_scenario_where(const WfCfgNode *n, char *buf, size_t len);
 
