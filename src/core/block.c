@@ -244,15 +244,18 @@ AI void accum_before(const WfAccum *ac, const WfScenario *sc, size_t lo, size_t 
     double dt = sc->dt_s, v_stop = sc->v_stop_mps, hard = -sc->hard_brake_mps2;
     if (ac->fuel_g && with_fuel) {
         double *restrict q = ac->fuel_g + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += fr[k] * dt;
     }
     if (ac->stopped_s) {
         double *restrict q = ac->stopped_s + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += v[k] < v_stop ? dt : 0.0;
     }
     if (ac->sum_v) {
         double *restrict s1 = ac->sum_v + lo, *restrict s2 = ac->sum_v2 + lo;
         double *restrict a1 = ac->sum_a + lo, *restrict a2 = ac->sum_a2 + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) {
             s1[k] += v[k];
             s2[k] += v[k] * v[k];
@@ -262,18 +265,22 @@ AI void accum_before(const WfAccum *ac, const WfScenario *sc, size_t lo, size_t 
     }
     if (ac->stopped_steps) {
         uint32_t *restrict q = ac->stopped_steps + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(v[k] < v_stop);
     }
     if (ac->infeasible) {
         uint32_t *restrict q = ac->infeasible + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(fl[k] == WF_INFEASIBLE_ACCEL);
     }
     if (ac->hard_brakes) {
         uint32_t *restrict q = ac->hard_brakes + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING));
     }
     if (ac->steps) {
         uint32_t *restrict q = ac->steps + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k]++;
     }
 }
@@ -304,10 +311,12 @@ AI void accum_after(const WfAccum *ac, size_t lo, size_t m, const double *restri
 {
     if (ac->stops) {
         uint32_t *restrict q = ac->stops + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += stop[k];
     }
     if (ac->dist_m) {
         double *restrict q = ac->dist_m + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += x[k] - xo[k];
     }
 }
