@@ -11,7 +11,6 @@
 #include <omp.h>
 #endif
 
-#include "wavefuel/rng.h"
 #include "core/block.h"
 #include "core/par.h"
 
