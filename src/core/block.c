@@ -355,7 +355,7 @@ void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v)
         if (!cm->state_size || !cm->update_state) continue;
         double buf[WF_MAX_MODEL_PARAMS];
         cm->update_state(params_of(ln, g, i, ln->x_m[i], buf), ln->state[g] + idx_of(ln, i) * ln->sstride[g],
-                         ln->gap_m[i], v[k], ln->v_lead_mps[i], sc->dt_s);
+                         ln->out.gap_m[i], v[k], ln->out.v_lead_mps[i], sc->dt_s);
     }
 }
 
@@ -389,15 +389,15 @@ static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long ste
 {
     Blk b;
     if (!(pass & WF_PASS_ACCEL))
-        return advance_block(ln, lo, m, ln->a_mps2 + lo, ln->gap_m + lo, ln->v_lead_mps + lo, ln->fuel_rate_gps + lo,
-                             ln->flag + lo, in_window);
+        return advance_block(ln, lo, m, ln->out.a_mps2 + lo, ln->out.gap_m + lo, ln->out.v_lead_mps + lo, ln->out.fuel_rate_gps + lo,
+                             ln->out.flag + lo, in_window);
     inputs_block(ln, lo, m, ld, step, pass, rec, &b);
-    if (ln->a_mps2) memcpy(ln->a_mps2 + lo, b.a, m * sizeof *b.a);
-    if (ln->gap_m) memcpy(ln->gap_m + lo, b.gap, m * sizeof *b.gap);
-    if (ln->v_lead_mps) memcpy(ln->v_lead_mps + lo, b.vl, m * sizeof *b.vl);
-    if (ln->theta_rad) memcpy(ln->theta_rad + lo, b.th, m * sizeof *b.th);
-    if ((pass & WF_PASS_ENERGY) && ln->fuel_rate_gps) memcpy(ln->fuel_rate_gps + lo, b.fr, m * sizeof *b.fr);
-    if ((pass & WF_PASS_ENERGY) && ln->flag) memcpy(ln->flag + lo, b.fl, m * sizeof *b.fl);
+    if (ln->out.a_mps2) memcpy(ln->out.a_mps2 + lo, b.a, m * sizeof *b.a);
+    if (ln->out.gap_m) memcpy(ln->out.gap_m + lo, b.gap, m * sizeof *b.gap);
+    if (ln->out.v_lead_mps) memcpy(ln->out.v_lead_mps + lo, b.vl, m * sizeof *b.vl);
+    if (ln->out.theta_rad) memcpy(ln->out.theta_rad + lo, b.th, m * sizeof *b.th);
+    if ((pass & WF_PASS_ENERGY) && ln->out.fuel_rate_gps) memcpy(ln->out.fuel_rate_gps + lo, b.fr, m * sizeof *b.fr);
+    if ((pass & WF_PASS_ENERGY) && ln->out.flag) memcpy(ln->out.flag + lo, b.fl, m * sizeof *b.fl);
     if (!(pass & WF_PASS_ADVANCE)) return 0;
     return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, in_window);
 }
@@ -406,7 +406,7 @@ void wf_lane_stats_before(WfLane *ln, size_t lo, size_t n, int in_window)
 {
     for (size_t b0 = 0; b0 < n; b0 += B) {
         size_t i = lo + b0, m = n - b0 < B ? n - b0 : B;
-        stats_before(ln, i, m, ln->v_mps + i, ln->a_mps2 + i, ln->fuel_rate_gps + i, ln->flag + i, in_window, 0);
+        stats_before(ln, i, m, ln->v_mps + i, ln->out.a_mps2 + i, ln->out.fuel_rate_gps + i, ln->out.flag + i, in_window, 0);
     }
 }
 

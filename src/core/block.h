@@ -55,6 +55,13 @@ typedef struct WfRoadOps {
     const double *(*params_at)(const void *ctx, size_t group, const double *own, double x_m, double *buf);
 } WfRoadOps;
 
+/* The step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with
+ * WF_PASS_ADVANCE alone; NULL where not kept (the fused step keeps them per block). */
+typedef struct WfLaneValues {
+    double  *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps;
+    uint8_t *flag;
+} WfLaneValues;
+
 /* A boundary's vehicles as the kernel sees them. Arrays are indexed by slot and borrowed from the boundary. */
 typedef struct WfLane {
     const WfScenario   *sc;
@@ -76,10 +83,8 @@ typedef struct WfLane {
     uint32_t *grade_seg;            /* grade cache per slot (NULL when flat) */
     uint8_t  *mode;                 /* WF_MODE_* per slot */
     WfAccum   always, window;
-    /* the step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with
-     * WF_PASS_ADVANCE alone; NULL where not kept (the fused step keeps them per block) */
-    double   *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps, *x_old_m;
-    uint8_t  *flag;
+    WfLaneValues out;               /* where a pass exports the step's values */
+    double   *x_old_m;              /* positions at the step's start, per slot (NULL: not kept) */
     int       noisy, stateful, nthreads;
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
     int      *chunk_flags;          /* nthreads + 1 */

@@ -589,13 +589,8 @@ static int lane_init(WfCorridor *c, WfError *err)
 static void lane_exports(WfCorridor *c, int on)
 {
     WfCorridorVehicles *vh = &c->veh;
-    WfLane *ln = &c->lane;
-    ln->a_mps2 = on ? vh->a_mps2 : NULL;
-    ln->gap_m = on ? vh->gap_m : NULL;
-    ln->v_lead_mps = on ? vh->v_lead_mps : NULL;
-    ln->theta_rad = on ? vh->theta_rad : NULL;
-    ln->flag = on ? vh->flag : NULL;
-    ln->fuel_rate_gps = vh->fuel_rate_gps;
+    c->lane.out = on ? (WfLaneValues){vh->a_mps2, vh->gap_m, vh->v_lead_mps, vh->theta_rad, vh->fuel_rate_gps, vh->flag}
+                     : (WfLaneValues){.fuel_rate_gps = vh->fuel_rate_gps};
 }
 
 /* The front vehicle's leader: the virtual leader, or a far one at the vehicle's own speed. */

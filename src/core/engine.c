@@ -115,17 +115,12 @@ static void lane_init(WfSim *s)
                            .hard_brakes = f->hard_brakes, .infeasible = f->infeasible_steps};
 }
 
-/* The step's values go to the fleet's arrays (multi-pass steps) or stay in the kernel's blocks (fused). */
+/* The step's values go to the fleet's arrays (steps in two passes) or stay in the kernel's blocks (fused). */
 static void lane_exports(WfSim *s, int on)
 {
     WfFleet *f = s->f;
-    WfLane *ln = &s->lane;
-    ln->a_mps2 = on ? f->a_mps2 : NULL;
-    ln->gap_m = on ? f->gap_m : NULL;
-    ln->v_lead_mps = on ? f->v_lead_mps : NULL;
-    ln->theta_rad = on ? f->theta_rad : NULL;
-    ln->fuel_rate_gps = on ? f->fuel_rate_gps : NULL;
-    ln->flag = on ? f->flag : NULL;
+    s->lane.out = on ? (WfLaneValues){f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps, f->flag}
+                     : (WfLaneValues){0};
 }
 
 static int ode_init(WfSim *s, WfError *err)
@@ -203,7 +198,7 @@ static int ode_rhs(void *ctx, double t, const double *x, const double *v, double
     ln->x_m = (double *)x, ln->v_mps = (double *)v;
     wf_lane_step(ln, 0, n, NULL, s->cur_step, WF_PASS_ACCEL, 0, NULL);
     ln->x_m = f->x_m, ln->v_mps = f->v_mps;
-    const double *a = f->a_mps2;
+    const double *a = ln->out.a_mps2;
     int bad = 0;
     WF_PAR_FOR(n >= WF_PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, v, a, xdot, vdot) reduction(| : bad)",
     for (size_t i = 0; i < n; i++) {
