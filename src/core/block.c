@@ -203,6 +203,21 @@ AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, cons
     }
 }
 
+/* The acceleration noise of slots [lo, lo + m) at a step: slot i's draw is deviate i mod B of the counter-based
+ * stream keyed (seed, block i / B, step) (wf_rng_normal_block), whatever thread runs it and wherever the range
+ * begins: a vehicle keeps its slot, so its draws depend only on the state. */
+static void lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
+{
+    size_t off = lo % B;
+    if (!off) {
+        wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, m, z);
+        return;
+    }
+    double all[B];
+    wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, off + m, all);
+    memcpy(z, all + off, m * sizeof *z);
+}
+
 /* Inputs at the step's start, accelerations and (WF_PASS_ENERGY) fuel rates of the block in slots [lo, lo + m);
  * its last vehicle's leader is ld. */
 AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass,
@@ -212,7 +227,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     const double *x = ln->x_m + lo, *v = ln->v_mps + lo;
     const uint16_t *cid = ln->class_id + lo;
     double z[B], cap[B];
-    if (ln->noisy) ln->ops->noise(ln->ctx, lo, m, step, z);
+    if (ln->noisy) lane_noise(sc->seed, lo, m, step, z);
     for (size_t k = 0; k + 1 < m; k++) {
         b->gap[k] = x[k + 1] - ln->class_length_m[cid[k + 1]] - x[k];
         b->vl[k] = v[k + 1];
@@ -418,18 +433,6 @@ void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window)
     }
 }
 
-void wf_lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
-{
-    /* Block lo / B's draws from its start, so that a slot's draw does not depend on where the range begins. */
-    size_t off = lo % B;
-    if (!off) {
-        wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, m, z);
-        return;
-    }
-    double all[B];
-    wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, off + m, all);
-    memcpy(z, all + off, m * sizeof *z);
-}
 
 size_t wf_lane_blocks(size_t first, size_t n) { return n ? (n + first % B + B - 1) / B : 0; }
 

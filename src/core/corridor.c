@@ -163,8 +163,9 @@ static double limit_at(const WfCorridor *c, double x)
 
 /* The parameters a vehicle drives with at x: its own, or inside headway zones a copy with the zones' key
  * multiplied (overlapping zones multiply). buf holds WF_MAX_MODEL_PARAMS doubles. */
-static const double *params_at(const WfCorridor *c, size_t group, const double *own, double x, double *buf)
+static const double *params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
 {
+    const WfCorridor *c = ctx;
     const double *p = own;
     for (size_t z = 0; z < c->cs->n_zones; z++) {
         const WfCorridorZone *zn = &c->cs->zones[z];
@@ -533,19 +534,6 @@ static int corridor_cap(const void *ctx, size_t m, const double *x, const double
     return 1;
 }
 
-/* The ring's vectorised draws, keyed by slot block and step: a vehicle keeps its slot, so its draws depend only on
- * the state, never on the thread count. */
-static void corridor_noise(const void *ctx, size_t lo, size_t m, long step, double *z)
-{
-    const WfCorridor *c = ctx;
-    wf_lane_noise(c->sc->seed, lo, m, step, z);
-}
-
-static const double *corridor_params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
-{
-    return params_at(ctx, group, own, x, buf);
-}
-
 /* The vehicle buffer as the kernel sees it. A group without heterogeneity drives with the group's parameters
  * (every vehicle's copy equals them): one shared block, so the model's block form applies across the block. */
 static int lane_init(WfCorridor *c, WfError *err)
@@ -560,7 +548,7 @@ static int lane_init(WfCorridor *c, WfError *err)
     c->has_cap = isfinite(sc->road.speed_limit_mps);
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
-                         .noise = corridor_noise, .params_at = corridor_params_at};
+                         .params_at = params_at};
     WfLane *ln = &c->lane;
     *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = c, .cap = vh->cap, .x_m = vh->x_m, .v_mps = vh->v_mps,
                    .class_id = vh->class_id, .group_id = vh->group_id, .grade_seg = c->grade_seg, .mode = c->mode,

@@ -84,19 +84,13 @@ static int ring_cap(const void *ctx, size_t m, const double *x, const double *v,
     return 1;
 }
 
-static void ring_noise(const void *ctx, size_t lo, size_t m, long step, double *z)
-{
-    const WfSim *s = ctx;
-    wf_lane_noise(s->sc->seed, lo, m, step, z);
-}
-
 /* The fleet as the kernel sees it: every array borrowed from the fleet. */
 static void lane_init(WfSim *s)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     s->ops = (WfRoadOps){.grade = sc->road.n_grade ? ring_grade : NULL,
-                         .cap = isfinite(sc->road.speed_limit_mps) ? ring_cap : NULL, .noise = ring_noise};
+                         .cap = isfinite(sc->road.speed_limit_mps) ? ring_cap : NULL};
     WfLane *ln = &s->lane;
     *ln = (WfLane){.sc = sc, .ig = s->ig, .ops = &s->ops, .ctx = s, .cap = f->n, .period_m = sc->road.length_m,
                    .x_m = f->x_m, .v_mps = f->v_mps, .class_id = f->class_id, .group_id = f->group_id,
