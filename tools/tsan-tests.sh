@@ -4,7 +4,7 @@
 # tree is built with clang -fsanitize=thread -fopenmp, which links LLVM's libomp, and libomp loads Archer
 # (libarcher.so via OMP_TOOL_LIBRARIES: LLVM's OMPT tool that tells TSan about OpenMP's synchronisation).
 # Runs use OMP_NUM_THREADS=2 and halt_on_error, so a race fails the test that triggered it. The engine runs its
-# loops serially below PAR_MIN = 4096 vehicles (src/core/engine.c), so most tests are serial: the last part runs a
+# loops serially below WF_PAR_MIN = 4096 vehicles (src/core/block.h), so most tests are serial: the last part runs a
 # fleet with 4096 vehicles in each of the six car-following models, through every integrator, so that every
 # parallel loop of the step runs on two threads. Usage: tools/tsan-tests.sh   (TSAN_BUILD=build-tsan)
 set -u
@@ -47,7 +47,7 @@ suite=$?
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 cat > "$tmp/parallel.yaml" <<'Y'
-# Every per-vehicle and per-model loop of the step above engine.c's PAR_MIN (4096): 6 x 4096 vehicles.
+# Every per-vehicle and per-model loop of the step above WF_PAR_MIN (4096, src/core/block.h): 6 x 4096 vehicles.
 name: tsan_parallel
 seed: 11
 road:

@@ -2,8 +2,9 @@
  * the gap does not allow them in) and leave at x = L, with a non-periodic grade profile, speed-limit and
  * time-headway zones, a free or prescribed-speed downstream boundary, and the measurements traffic engineers
  * read: per-trip results, virtual detectors and Edie's generalized flow, density and speed on a space-time grid.
- * The corridor engine reuses the car-following models, energy models, integrators and counter-based random
- * numbers of the ring engine; definitions, keys and units: docs/corridors.md. */
+ * The corridor is the open boundary of the engine's block kernel (src/core/block.c), which the ring shares:
+ * the same per-vehicle rules, models, integrators and counter-based random numbers; definitions, keys and units:
+ * docs/corridors.md. */
 #ifndef WAVEFUEL_CORRIDOR_H
 #define WAVEFUEL_CORRIDOR_H
 

@@ -1,7 +1,8 @@
-/* The simulation engine: the step loop over a fleet on a ring. Per step (all vehicles in parallel, each
- * iteration writing only its own index): gaps and grade at the step's start, car-following acceleration plus
- * noise, bounded; fuel rate from each class's energy model; statistics; integration; overlap repair. The
- * engine never parses text and never touches files: results go through a WfOutput. */
+/* The ring: a fleet on the periodic boundary of the engine's block kernel (src/core/block.c, shared with the
+ * corridor). Per step (vehicles in blocks, each writing only its own entries): gaps and grade at the step's start,
+ * car-following acceleration plus noise, bounded; fuel rate from each class's energy model; statistics;
+ * integration; overlap repair. The engine never parses text and never touches files: results go through a
+ * WfOutput. */
 #ifndef WAVEFUEL_ENGINE_H
 #define WAVEFUEL_ENGINE_H
 
@@ -16,11 +17,11 @@
 
 typedef struct WfSim WfSim;
 
-/* Phases of a step whose wall time is measured (docs/output.md: /meta/phase_time). car_following includes the
- * noise draws; integration includes the per-vehicle statistics accumulated with it and the overlap check;
- * statistics is the time-series record; output the writer's callbacks; fused_step the fused one-pass step, which
- * runs car-following, energy, the record's partial sums and integration in one pass (used unless the run has a
- * SUNDIALS integrator or trajectories, or time.fused_step is false; then the first five are timed apart). */
+/* Phases of a step whose wall time is measured (docs/output.md: /meta/phase_time). fused_step: the one-pass step
+ * of the block kernel (noise, car-following, energy, the record's partial sums, statistics, integration). Steps in
+ * two passes (a SUNDIALS integrator, trajectory steps, time.fused_step false): car_following is the first pass
+ * (noise, car-following and energy per block: energy stays 0), integration the second (statistics, integration) and
+ * the overlap check. statistics: combining a time-series record; output: the writer's callbacks. */
 enum { WF_PHASE_CAR_FOLLOWING, WF_PHASE_ENERGY, WF_PHASE_INTEGRATION, WF_PHASE_STATISTICS, WF_PHASE_OUTPUT,
        WF_PHASE_FUSED, WF_N_PHASES };
 extern const char *const wf_phase_names[WF_N_PHASES];

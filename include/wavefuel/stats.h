@@ -10,8 +10,8 @@
 #include "wavefuel/scenario.h"
 #include "wavefuel/summary.h"
 
-/* Vehicles per statistics block; the fused step's block (src/core/engine.c) is the same size, so a record taken by
- * the fused and by the multi-pass step sums the same blocks in the same order. */
+/* Vehicles per statistics block: the block kernel's (src/core/block.c), so a record sums the same blocks in the
+ * same order whichever pass takes it. */
 #define WF_STATS_BLOCK 256
 
 /* Columns of one time-series record, in order (names and units in wf_ts_columns). */

@@ -192,6 +192,21 @@ AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, cons
     }
 }
 
+/* The acceleration noise of slots [lo, lo + m) at a step: slot i's draw is deviate i mod B of the counter-based
+ * stream keyed (seed, block i / B, step) (wf_rng_normal_block), whatever thread runs it and wherever the range
+ * begins: a vehicle keeps its slot, so its draws depend only on the state. */
+static void lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
+{
+    size_t off = lo % B;
+    if (!off) {
+        wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, m, z);
+        return;
+    }
+    double all[B];
+    wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, off + m, all);
+    memcpy(z, all + off, m * sizeof *z);
+}
+
 /* Inputs at the step's start, accelerations and (WF_PASS_ENERGY) fuel rates of the block in slots [lo, lo + m);
  * its last vehicle's leader is ld. */
 AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass,
@@ -201,7 +216,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     const double *x = ln->x_m + lo, *v = ln->v_mps + lo;
     const uint16_t *cid = ln->class_id + lo;
     double z[B], cap[B];
-    if (ln->noisy) ln->ops->noise(ln->ctx, lo, m, step, z);
+    if (ln->noisy) lane_noise(sc->seed, lo, m, step, z);
     for (size_t k = 0; k + 1 < m; k++) {
         b->gap[k] = x[k + 1] - ln->class_length_m[cid[k + 1]] - x[k];
         b->vl[k] = v[k + 1];
@@ -233,15 +248,18 @@ AI void accum_before(const WfAccum *ac, const WfScenario *sc, size_t lo, size_t 
     double dt = sc->dt_s, v_stop = sc->v_stop_mps, hard = -sc->hard_brake_mps2;
     if (ac->fuel_g && with_fuel) {
         double *restrict q = ac->fuel_g + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += fr[k] * dt;
     }
     if (ac->stopped_s) {
         double *restrict q = ac->stopped_s + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += v[k] < v_stop ? dt : 0.0;
     }
     if (ac->sum_v) {
         double *restrict s1 = ac->sum_v + lo, *restrict s2 = ac->sum_v2 + lo;
         double *restrict a1 = ac->sum_a + lo, *restrict a2 = ac->sum_a2 + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) {
             s1[k] += v[k];
             s2[k] += v[k] * v[k];
@@ -251,18 +269,22 @@ AI void accum_before(const WfAccum *ac, const WfScenario *sc, size_t lo, size_t 
     }
     if (ac->stopped_steps) {
         uint32_t *restrict q = ac->stopped_steps + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(v[k] < v_stop);
     }
     if (ac->infeasible) {
         uint32_t *restrict q = ac->infeasible + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(fl[k] == WF_INFEASIBLE_ACCEL);
     }
     if (ac->hard_brakes) {
         uint32_t *restrict q = ac->hard_brakes + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING));
     }
     if (ac->steps) {
         uint32_t *restrict q = ac->steps + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k]++;
     }
 }
@@ -293,10 +315,12 @@ AI void accum_after(const WfAccum *ac, size_t lo, size_t m, const double *restri
 {
     if (ac->stops) {
         uint32_t *restrict q = ac->stops + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += stop[k];
     }
     if (ac->dist_m) {
         double *restrict q = ac->dist_m + lo;
+#pragma omp simd
         for (size_t k = 0; k < m; k++) q[k] += x[k] - xo[k];
     }
 }
@@ -335,7 +359,7 @@ void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v)
         if (!cm->state_size || !cm->update_state) continue;
         double buf[WF_MAX_MODEL_PARAMS];
         cm->update_state(params_of(ln, g, i, ln->x_m[i], buf), ln->state[g] + idx_of(ln, i) * ln->sstride[g],
-                         ln->gap_m[i], v[k], ln->v_lead_mps[i], sc->dt_s);
+                         ln->out.gap_m[i], v[k], ln->out.v_lead_mps[i], sc->dt_s);
     }
 }
 
@@ -369,15 +393,15 @@ static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long ste
 {
     Blk b;
     if (!(pass & WF_PASS_ACCEL))
-        return advance_block(ln, lo, m, ln->a_mps2 + lo, ln->gap_m + lo, ln->v_lead_mps + lo, ln->fuel_rate_gps + lo,
-                             ln->flag + lo, in_window);
+        return advance_block(ln, lo, m, ln->out.a_mps2 + lo, ln->out.gap_m + lo, ln->out.v_lead_mps + lo, ln->out.fuel_rate_gps + lo,
+                             ln->out.flag + lo, in_window);
     inputs_block(ln, lo, m, ld, step, pass, rec, &b);
-    if (ln->a_mps2) memcpy(ln->a_mps2 + lo, b.a, m * sizeof *b.a);
-    if (ln->gap_m) memcpy(ln->gap_m + lo, b.gap, m * sizeof *b.gap);
-    if (ln->v_lead_mps) memcpy(ln->v_lead_mps + lo, b.vl, m * sizeof *b.vl);
-    if (ln->theta_rad) memcpy(ln->theta_rad + lo, b.th, m * sizeof *b.th);
-    if ((pass & WF_PASS_ENERGY) && ln->fuel_rate_gps) memcpy(ln->fuel_rate_gps + lo, b.fr, m * sizeof *b.fr);
-    if ((pass & WF_PASS_ENERGY) && ln->flag) memcpy(ln->flag + lo, b.fl, m * sizeof *b.fl);
+    if (ln->out.a_mps2) memcpy(ln->out.a_mps2 + lo, b.a, m * sizeof *b.a);
+    if (ln->out.gap_m) memcpy(ln->out.gap_m + lo, b.gap, m * sizeof *b.gap);
+    if (ln->out.v_lead_mps) memcpy(ln->out.v_lead_mps + lo, b.vl, m * sizeof *b.vl);
+    if (ln->out.theta_rad) memcpy(ln->out.theta_rad + lo, b.th, m * sizeof *b.th);
+    if ((pass & WF_PASS_ENERGY) && ln->out.fuel_rate_gps) memcpy(ln->out.fuel_rate_gps + lo, b.fr, m * sizeof *b.fr);
+    if ((pass & WF_PASS_ENERGY) && ln->out.flag) memcpy(ln->out.flag + lo, b.fl, m * sizeof *b.fl);
     if (!(pass & WF_PASS_ADVANCE)) return 0;
     return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, in_window);
 }
@@ -386,7 +410,7 @@ void wf_lane_stats_before(WfLane *ln, size_t lo, size_t n, int in_window)
 {
     for (size_t b0 = 0; b0 < n; b0 += B) {
         size_t i = lo + b0, m = n - b0 < B ? n - b0 : B;
-        stats_before(ln, i, m, ln->v_mps + i, ln->a_mps2 + i, ln->fuel_rate_gps + i, ln->flag + i, in_window, 0);
+        stats_before(ln, i, m, ln->v_mps + i, ln->out.a_mps2 + i, ln->out.fuel_rate_gps + i, ln->out.flag + i, in_window, 0);
     }
 }
 
@@ -398,18 +422,6 @@ void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window)
     }
 }
 
-void wf_lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
-{
-    /* Block lo / B's draws from its start, so that a slot's draw does not depend on where the range begins. */
-    size_t off = lo % B;
-    if (!off) {
-        wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, m, z);
-        return;
-    }
-    double all[B];
-    wf_rng_normal_block(seed, WF_RNG_NOISE_BLOCK, lo / B, (uint64_t)step, off + m, all);
-    memcpy(z, all + off, m * sizeof *z);
-}
 
 size_t wf_lane_blocks(size_t first, size_t n) { return n ? (n + first % B + B - 1) / B : 0; }
 

@@ -50,11 +50,16 @@ typedef struct WfRoadOps {
     /* a cap on each acceleration (m/s^2; the rule: a > cap ? max(cap, -decel_max) : a); returns 0 when there is
      * none for these vehicles; NULL: never one */
     int (*cap)(const void *ctx, size_t m, const double *x_m, const double *v_mps, double *cap_mps2);
-    /* standard normal draws of the step (used where a group has noise) */
-    void (*noise)(const void *ctx, size_t lo, size_t m, long step, double *z);
     /* the parameters a vehicle of a zoned group drives with at x (own, or a copy in buf) */
     const double *(*params_at)(const void *ctx, size_t group, const double *own, double x_m, double *buf);
 } WfRoadOps;
+
+/* The step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with
+ * WF_PASS_ADVANCE alone; NULL where not kept (the fused step keeps them per block). */
+typedef struct WfLaneValues {
+    double  *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps;
+    uint8_t *flag;
+} WfLaneValues;
 
 /* A boundary's vehicles as the kernel sees them. Arrays are indexed by slot and borrowed from the boundary. */
 typedef struct WfLane {
@@ -77,10 +82,8 @@ typedef struct WfLane {
     uint32_t *grade_seg;            /* grade cache per slot (NULL when flat) */
     uint8_t  *mode;                 /* WF_MODE_* per slot */
     WfAccum   always, window;
-    /* the step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with
-     * WF_PASS_ADVANCE alone; NULL where not kept (the fused step keeps them per block) */
-    double   *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps, *x_old_m;
-    uint8_t  *flag;
+    WfLaneValues out;               /* where a pass exports the step's values */
+    double   *x_old_m;              /* positions at the step's start, per slot (NULL: not kept) */
     int       noisy, stateful, nthreads;
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
     int      *chunk_flags;          /* nthreads + 1 */
@@ -91,9 +94,6 @@ typedef struct WfLane {
  * NULL. Returns WF_STEP_* flags of an advancing pass (overlaps between blocks included, the open front excluded). */
 int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long step, int pass, int in_window,
                  WfStatsBlock *rec);
-/* The noise of slots [lo, lo + m) at a step: slot i's draw is deviate i mod WF_BLOCK of the counter-based stream
- * keyed (seed, block i / WF_BLOCK, step) (wf_rng_normal_block), whatever thread runs it. */
-void wf_lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z);
 /* Number of blocks of that range (the length of rec). */
 size_t wf_lane_blocks(size_t first, size_t n);
 /* Fuel rate and flag of slots [lo, lo + n) at speeds v and accelerations a (grades theta_rad), class by class. */

@@ -11,7 +11,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -20,6 +19,7 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
 #include "core/block.h"
+#include "core/simd.h"
 
 #define TRIP_BUF 1024 /* trips handed to the output per call */
 
@@ -87,6 +87,7 @@ struct WfCorridor {
     double   L;
     /* per slot */
     double   *xold;
+    uint32_t *cell;         /* the Edie cell of the step when it lies inside one cell, else UINT32_MAX */
     uint32_t *grade_seg;
     uint8_t  *mode;
     double   *t_arr, *t_ent, *v_ent;
@@ -132,7 +133,7 @@ struct WfCorridor {
     X("w_infeasible", win.infeasible)
 #define STEP_SLOT_ARRAYS(X)                                                                                          \
     X("", veh.a_mps2) X("", veh.gap_m) X("", veh.v_lead_mps) X("", veh.theta_rad) X("", veh.fuel_rate_gps)          \
-    X("", veh.flag) X("", xold)
+    X("", veh.flag) X("", xold) X("", cell)
 
 void wf_corridor_destroy(WfCorridor **pc)
 {
@@ -164,8 +165,9 @@ static double limit_at(const WfCorridor *c, double x)
 
 /* The parameters a vehicle drives with at x: its own, or inside headway zones a copy with the zones' key
  * multiplied (overlapping zones multiply). buf holds WF_MAX_MODEL_PARAMS doubles. */
-static const double *params_at(const WfCorridor *c, size_t group, const double *own, double x, double *buf)
+static const double *params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
 {
+    const WfCorridor *c = ctx;
     const double *p = own;
     for (size_t z = 0; z < c->cs->n_zones; z++) {
         const WfCorridorZone *zn = &c->cs->zones[z];
@@ -534,19 +536,6 @@ static int corridor_cap(const void *ctx, size_t m, const double *x, const double
     return 1;
 }
 
-/* The ring's vectorised draws, keyed by slot block and step: a vehicle keeps its slot, so its draws depend only on
- * the state, never on the thread count. */
-static void corridor_noise(const void *ctx, size_t lo, size_t m, long step, double *z)
-{
-    const WfCorridor *c = ctx;
-    wf_lane_noise(c->sc->seed, lo, m, step, z);
-}
-
-static const double *corridor_params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
-{
-    return params_at(ctx, group, own, x, buf);
-}
-
 /* The vehicle buffer as the kernel sees it. A group without heterogeneity drives with the group's parameters
  * (every vehicle's copy equals them): one shared block, so the model's block form applies across the block. */
 static int lane_init(WfCorridor *c, WfError *err)
@@ -561,7 +550,7 @@ static int lane_init(WfCorridor *c, WfError *err)
     c->has_cap = isfinite(sc->road.speed_limit_mps);
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
-                         .noise = corridor_noise, .params_at = corridor_params_at};
+                         .params_at = params_at};
     WfLane *ln = &c->lane;
     *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = c, .cap = vh->cap, .x_m = vh->x_m, .v_mps = vh->v_mps,
                    .class_id = vh->class_id, .group_id = vh->group_id, .grade_seg = c->grade_seg, .mode = c->mode,
@@ -590,13 +579,8 @@ static int lane_init(WfCorridor *c, WfError *err)
 static void lane_exports(WfCorridor *c, int on)
 {
     WfCorridorVehicles *vh = &c->veh;
-    WfLane *ln = &c->lane;
-    ln->a_mps2 = on ? vh->a_mps2 : NULL;
-    ln->gap_m = on ? vh->gap_m : NULL;
-    ln->v_lead_mps = on ? vh->v_lead_mps : NULL;
-    ln->theta_rad = on ? vh->theta_rad : NULL;
-    ln->flag = on ? vh->flag : NULL;
-    ln->fuel_rate_gps = vh->fuel_rate_gps;
+    c->lane.out = on ? (WfLaneValues){vh->a_mps2, vh->gap_m, vh->v_lead_mps, vh->theta_rad, vh->fuel_rate_gps, vh->flag}
+                     : (WfLaneValues){.fuel_rate_gps = vh->fuel_rate_gps};
 }
 
 /* The front vehicle's leader: the virtual leader, or a far one at the vehicle's own speed. */
@@ -697,18 +681,76 @@ static inline void detector_vehicle(WfCorridor *c, size_t jd, size_t q, double x
     }
 }
 
-/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. */
+/* The Edie cell of each step that lies inside one cell (the common case), computed as edie_vehicle does (the same
+ * division and comparisons), else UINT32_MAX; slots [lo, lo + m). A loop without control flow: it vectorises, and
+ * takes the division out of the serial measurement. */
+WF_SIMD_CLONES
+static void step_cells(WfCorridor *c, size_t lo, size_t m)
+{
+    const double *restrict xa = c->xold + lo, *restrict xb = c->veh.x_m + lo;
+    uint32_t *restrict cell = c->cell + lo;
+    double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx;
+    uint32_t last = (uint32_t)(c->edie.nx - 1);
+    for (size_t k = 0; k < m; k++) {
+        double q = (xa[k] > 0.0 ? xa[k] : 0.0) / dx;
+        uint32_t i = q < nxd ? (uint32_t)(int32_t)q : last; /* (size_t)q, clamped to the last cell */
+        double edge = i == last ? L : (double)(i + 1) * dx;
+        int one = (xb[k] > xa[k]) & (xa[k] >= 0.0) & (xb[k] <= L) & !(edge < xb[k]);
+        cell[k] = one ? i : UINT32_MAX;
+    }
+}
+
+/* Running sums of one cell (up to three quantities) kept in registers between vehicles: the same additions in the
+ * same order as adding to the cell in memory, without a store and reload between consecutive vehicles of a cell. */
+typedef struct CellSum {
+    double *p[3]; /* the cell's sums in memory (p[0] NULL: none held; p[2] may be NULL) */
+    double  v[3];
+} CellSum;
+
+static inline void cell_flush(CellSum *cs)
+{
+    for (int q = 0; q < 3 && cs->p[0]; q++)
+        if (cs->p[q]) *cs->p[q] = cs->v[q];
+    cs->p[0] = NULL;
+}
+
+static inline void cell_add(CellSum *cs, double *a, double *b, double *c, double da, double db, double dc)
+{
+    if (a != cs->p[0]) {
+        cell_flush(cs);
+        *cs = (CellSum){{a, b, c}, {*a, *b, c ? *c : 0.0}};
+    }
+    cs->v[0] += da, cs->v[1] += db, cs->v[2] += dc;
+}
+
+/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. The common case, a
+ * step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as edie_vehicle through
+ * running sums of the row's cell and of the vehicle's class. */
 static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
                           size_t q_hi)
 {
     const WfCorridorVehicles *vh = &c->veh;
-    size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0;
+    WfEdie *e = &c->edie;
+    size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0, nx = e->nx;
+    double dt = c->sc->dt_s, *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx;
+    double *erow_f = e->fuel_g + j * nx;
+    CellSum row = {0}, cls = {0};
     for (size_t k = 0; k < vh->n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double xa = c->xold[s], xb = vh->x_m[s];
-        edie_vehicle(c, j, vh->class_id[s], xa, xb, vh->fuel_rate_gps[s] * c->sc->dt_s, in_window, i_lo, i_hi);
+        size_t s = wf_corridor_slot(vh, k), cl = vh->class_id[s], i = c->cell[s];
+        double xa = c->xold[s], xb = vh->x_m[s], fuel = vh->fuel_rate_gps[s] * dt;
+        if (i != UINT32_MAX && (i < i_lo || i >= i_hi)) {
+            /* inside one cell of another thread */
+        } else if (i != UINT32_MAX) {
+            cell_add(&row, &erow_d[i], &erow_t[i], &erow_f[i], xb - xa, dt, fuel);
+            if (in_window)
+                cell_add(&cls, &e->class_dist_m[cl * nx + i], &e->class_fuel_g[cl * nx + i], NULL, xb - xa, fuel, 0.0);
+        } else {
+            cell_flush(&row), cell_flush(&cls);
+            edie_vehicle(c, j, cl, xa, xb, fuel, in_window, i_lo, i_hi);
+        }
         for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
     }
+    cell_flush(&row), cell_flush(&cls);
 }
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
@@ -716,8 +758,11 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
  * owns a range of cells and of detectors and visits every vehicle in road order. */
 static void phase_measure(WfCorridor *c, long step, int in_window)
 {
-    size_t nx = c->edie.nx, nd = c->det.n_det;
-    int nth = c->veh.n >= WF_PAR_MIN ? c->nthreads : 1;
+    const WfCorridorVehicles *vh = &c->veh;
+    size_t nx = c->edie.nx, nd = c->det.n_det, run = vh->cap - vh->first < vh->n ? vh->cap - vh->first : vh->n;
+    int nth = vh->n >= WF_PAR_MIN ? c->nthreads : 1;
+    step_cells(c, vh->first, run);
+    step_cells(c, 0, vh->n - run);
     if (nth <= 1) {
         measure_range(c, step, in_window, 0, nx, 0, nd);
         return;

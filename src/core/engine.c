@@ -11,7 +11,6 @@
 #include <omp.h>
 #endif
 
-#include "wavefuel/rng.h"
 #include "core/block.h"
 #include "core/par.h"
 
@@ -85,19 +84,13 @@ static int ring_cap(const void *ctx, size_t m, const double *x, const double *v,
     return 1;
 }
 
-static void ring_noise(const void *ctx, size_t lo, size_t m, long step, double *z)
-{
-    const WfSim *s = ctx;
-    wf_lane_noise(s->sc->seed, lo, m, step, z);
-}
-
 /* The fleet as the kernel sees it: every array borrowed from the fleet. */
 static void lane_init(WfSim *s)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
     s->ops = (WfRoadOps){.grade = sc->road.n_grade ? ring_grade : NULL,
-                         .cap = isfinite(sc->road.speed_limit_mps) ? ring_cap : NULL, .noise = ring_noise};
+                         .cap = isfinite(sc->road.speed_limit_mps) ? ring_cap : NULL};
     WfLane *ln = &s->lane;
     *ln = (WfLane){.sc = sc, .ig = s->ig, .ops = &s->ops, .ctx = s, .cap = f->n, .period_m = sc->road.length_m,
                    .x_m = f->x_m, .v_mps = f->v_mps, .class_id = f->class_id, .group_id = f->group_id,
@@ -116,17 +109,12 @@ static void lane_init(WfSim *s)
                            .hard_brakes = f->hard_brakes, .infeasible = f->infeasible_steps};
 }
 
-/* The step's values go to the fleet's arrays (multi-pass steps) or stay in the kernel's blocks (fused). */
+/* The step's values go to the fleet's arrays (steps in two passes) or stay in the kernel's blocks (fused). */
 static void lane_exports(WfSim *s, int on)
 {
     WfFleet *f = s->f;
-    WfLane *ln = &s->lane;
-    ln->a_mps2 = on ? f->a_mps2 : NULL;
-    ln->gap_m = on ? f->gap_m : NULL;
-    ln->v_lead_mps = on ? f->v_lead_mps : NULL;
-    ln->theta_rad = on ? f->theta_rad : NULL;
-    ln->fuel_rate_gps = on ? f->fuel_rate_gps : NULL;
-    ln->flag = on ? f->flag : NULL;
+    s->lane.out = on ? (WfLaneValues){f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps, f->flag}
+                     : (WfLaneValues){0};
 }
 
 static int ode_init(WfSim *s, WfError *err)
@@ -204,7 +192,7 @@ static int ode_rhs(void *ctx, double t, const double *x, const double *v, double
     ln->x_m = (double *)x, ln->v_mps = (double *)v;
     wf_lane_step(ln, 0, n, NULL, s->cur_step, WF_PASS_ACCEL, 0, NULL);
     ln->x_m = f->x_m, ln->v_mps = f->v_mps;
-    const double *a = f->a_mps2;
+    const double *a = ln->out.a_mps2;
     int bad = 0;
     WF_PAR_FOR(n >= WF_PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, v, a, xdot, vdot) reduction(| : bad)",
     for (size_t i = 0; i < n; i++) {

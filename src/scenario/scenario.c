@@ -244,10 +244,11 @@ static const WfKeySpec time_rows[] = {
      .doc = "fixed-step schemes: every step (records included) runs car-following, energy, the record's partial sums, "
             "statistics and integration in one pass per block of 256 vehicles, with the per-step values (gap, leader "
             "speed, grade, acceleration, fuel rate) kept per block instead of fleet-wide (less memory and memory "
-            "traffic). Steps that write trajectories take the multi-pass path (it keeps those values fleet-wide, so "
-            "runs with trajectories hold 49 B more per vehicle). Results are bit-identical either way "
-            "(`tests/test_engine_paths.c`: final state, every record, every accumulator, with and without "
-            "trajectories). Set false to get a per-phase breakdown in `/meta/phase_time`"},
+            "traffic). Steps that write trajectories take two passes of the same block kernel, the first exporting "
+            "those values fleet-wide for the writer (so runs with trajectories hold 49 B more per vehicle), the "
+            "second advancing. Results are bit-identical either way (`tests/test_engine_paths.c`: final state, every "
+            "record, every accumulator, with and without trajectories). Set false to time the two passes apart in "
+            "`/meta/phase_time`"},
 };
 static const WfKeyTable time_keys = {"time", time_rows, sizeof time_rows / sizeof *time_rows};
 
