@@ -82,7 +82,9 @@ typedef struct WfCfPluginLib WfCfPluginLib;
 /* dlopen `path` (used as given: relative paths resolve against the working directory, a bare file name is
  * not searched on the library path), call its entry point, validate the description (ABI version, name,
  * accel, parameter table, state functions and size) and build a car-following model from it. Fails
- * (WF_EINPUT, message naming the path) on any of those; nothing stays loaded then. */
+ * (WF_EINPUT, message naming the path) on any of those; nothing stays loaded then. Ownership: *out is the
+ * caller's until wf_cf_plugin_close(), which unloads the library; the model it gives (wf_cf_plugin_model) is
+ * valid until then; path is copied. */
 int wf_cf_plugin_load(const char *path, WfCfPluginLib **out, struct WfError *err);
 /* The model built from the plugin: valid until wf_cf_plugin_close(). */
 const struct WfCfModel *wf_cf_plugin_model(const WfCfPluginLib *lib);

@@ -34,7 +34,8 @@ typedef struct WfCfg {
     size_t     text_len;
 } WfCfg;
 
-/* Parse a YAML file (a mapping at the top). Errors name the file and libyaml's line and reason. */
+/* Parse a YAML file (a mapping at the top). Errors name the file and libyaml's line and reason. Ownership (both
+ * loaders): *out is the caller's until wf_cfg_destroy(), which frees every node; text is copied. */
 int wf_cfg_load_file(const char *path, WfCfg **out, WfError *err);
 /* Parse YAML text held in memory; `name` is used in messages. */
 int wf_cfg_load_string(const char *name, const char *text, size_t len, WfCfg **out, WfError *err);

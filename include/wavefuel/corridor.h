@@ -85,7 +85,8 @@ typedef struct WfCorridorSpec {
 /* Called by the scenario loader (src/scenario/scenario.c) for `road.type: corridor` after the fleet is read: reads
  * road.grade / road.elevation / road.zones and the `corridor` section into a new WfCorridorSpec stored in
  * sc->corridor, and checks what the ring loader read against corridor semantics (fractions, no `initial`,
- * fixed-step integrator). Errors name file, line and key. */
+ * fixed-step integrator). Errors name file, line and key. Ownership: the spec belongs to sc (freed by
+ * wf_scenario_destroy); root is only read. */
 int  wf_corridor_spec_load(WfScenario *sc, struct WfCfgNode *root, WfError *err);
 void wf_corridor_spec_destroy(WfCorridorSpec **spec);
 
@@ -193,7 +194,8 @@ typedef struct WfCorridorOutput {
 
 /* Build the engine for a corridor scenario (sc->corridor set; sc is borrowed and must outlive the engine).
  * Everything is allocated here: the vehicle buffer (capacity floor(L / shortest length) + 2, which no order-
- * keeping state can exceed), the entrance queue, trips buffer, detectors and Edie grid. */
+ * keeping state can exceed), the entrance queue, trips buffer, detectors and Edie grid. Ownership: *out is the
+ * caller's until wf_corridor_destroy(); NULL on failure (nothing to free). */
 int  wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err);
 void wf_corridor_destroy(WfCorridor **c);
 /* Run to the end (from the restored step after wf_corridor_restored), as wf_sim_run: *stop (may be NULL) ends the

@@ -16,7 +16,8 @@ typedef struct WfCsv {
 
 /* Read `path` ("-" is standard input). n_cols columns are required on every row. If `names` is not NULL
  * (n_cols entries), a header line, when present, must spell exactly these names; a header is a first
- * non-comment line whose first field is not a number. */
+ * non-comment line whose first field is not a number. Ownership: out's arrays are the caller's until
+ * wf_csv_free() (the struct itself is the caller's); on failure nothing is left to free. */
 int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv *out, WfError *err);
 void wf_csv_free(WfCsv *csv);
 

@@ -43,6 +43,9 @@ typedef struct WfOutput {
 
 typedef void (*WfProgressFn)(void *ctx, double t_s, double duration_s, long step, long n_steps);
 
+/* Build the ring engine for a scenario (ring road): the fleet and everything a run needs, allocated here and
+ * never during the run. Ownership: sc is borrowed and must outlive the engine; *out is the caller's until
+ * wf_sim_destroy(); NULL on failure (nothing to free). */
 int  wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err);
 void wf_sim_destroy(WfSim **sim);
 

@@ -49,7 +49,8 @@ enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };
 
 /* Allocate and initialise a fleet: class and group placement, parameter draws, initial positions and
  * speeds. Fails (WF_EINPUT) when the vehicles do not fit at their standstill gaps, when a drawn parameter set
- * is rejected by its model, or when a perturbation makes vehicles overlap. */
+ * is rejected by its model, or when a perturbation makes vehicles overlap. Ownership: sc is borrowed (the fleet
+ * keeps no pointer to it); *out is the caller's until wf_fleet_destroy(); NULL on failure. */
 int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err);
 /* Open the statistics window now: positions become the reference of distances and passages. */
 void wf_fleet_open_window(WfFleet *f);

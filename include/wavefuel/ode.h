@@ -37,7 +37,9 @@ typedef struct WfOdeStats {
 
 typedef struct WfOde WfOde;
 
-/* ring_length_m gives the spacing scale of the position tolerances (see ode.c). */
+/* ring_length_m gives the spacing scale of the position tolerances (see ode.c). Ownership: cfg, x0 and v0 are
+ * copied; rhs and ctx are borrowed and called until wf_ode_destroy(); *out is the caller's until then, NULL on
+ * failure. */
 int  wf_ode_create(const WfOdeConfig *cfg, size_t n, double ring_length_m, WfOdeRhs rhs, void *ctx, double t0,
                    const double *x0, const double *v0, WfOde **out, WfError *err);
 /* Advance to t_out; write the state and add each vehicle's fuel over [t, t_out] to fuel_step_g (n entries,

@@ -83,7 +83,9 @@ typedef struct WfScenario {
     struct WfCorridorSpec *corridor;
 } WfScenario;
 
-/* Load, apply `n_set` overrides ("key.path=value"), validate. On error nothing is allocated. */
+/* Load, apply `n_set` overrides ("key.path=value"), validate. On error nothing is allocated. Ownership: *out is
+ * the caller's until wf_scenario_destroy() and holds copies of everything (path, set and the file's text);
+ * the vehicle classes it loaded and the plug-ins it opened live as long as it does. */
 int wf_scenario_load(const char *path, const char *const *set, size_t n_set, WfScenario **out, WfError *err);
 /* Same from the scenario's text (a resumed run uses the text saved in its checkpoint); `path` is used in messages
  * and to resolve relative paths (grade CSV, class files). */

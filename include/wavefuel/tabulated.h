@@ -46,13 +46,15 @@ typedef struct WfTable {
 int wf_table_read_csv(const char *path, WfTable **out, WfError *err);
 /* Build a table from its grid (nv speeds, na accelerations, nt grades, each finite and strictly ascending)
  * and values laid out [iv][ia][it] (fuel finite, g/s; infeasible 0 or 1); everything is copied. `source`
- * labels where the values came from (source_fnv1a64 = 0: no file). For programs that sample a model. */
+ * labels where the values came from (source_fnv1a64 = 0: no file). For programs that sample a model. *out is
+ * owned by the caller (wf_table_destroy). */
 int wf_table_from_grid(size_t nv, const double *v_mps, size_t na, const double *a_mps2, size_t nt,
                        const double *theta_rad, const double *fuel_gps, const uint8_t *infeasible, const char *source,
                        WfTable **out, WfError *err);
 /* Write the table as compressed HDF5 through the .partial protocol (refuses to overwrite unless force). */
 int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *err);
-/* Load a table written by wf_table_write_h5; a format, shape or checksum mismatch is an error (WF_EINPUT). */
+/* Load a table written by wf_table_write_h5; a format, shape or checksum mismatch is an error (WF_EINPUT). *out
+ * is owned by the caller (wf_table_destroy); NULL on failure. */
 int wf_table_load_h5(const char *path, WfTable **out, WfError *err);
 /* CSV -> HDF5 in one call (what `wavefuel table import` runs). */
 int wf_table_import(const char *csv_path, const char *h5_path, int force, WfError *err);
