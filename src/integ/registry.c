@@ -1,8 +1,10 @@
 /* The one list of integrators, fixed-step and adaptive; adding one is one line here (and, for a fixed-step one,
  * its file in src/integ/). The adaptive entries name the SUNDIALS solver that src/integ/ode.c builds. */
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
+#include "util/registry.h"
 #include "wavefuel/integrator.h"
 #include "wavefuel/ode.h"
 
@@ -32,15 +34,8 @@ const char *wf_integ_kind_name(WfIntegKind kind) { return kind == WF_INTEG_ADAPT
 
 int wf_integrator_find(const char *name, const WfIntegrator **out, WfError *err)
 {
-    char known[256] = "";
-    size_t used = 0;
-    for (size_t i = 0; wf_integrators[i]; i++) {
-        if (strcmp(wf_integrators[i]->name, name) == 0) {
-            *out = wf_integrators[i];
-            return 0;
-        }
-        int w = snprintf(known + used, sizeof known - used, "%s%s", i ? ", " : "", wf_integrators[i]->name);
-        if (w > 0 && (size_t)w < sizeof known - used) used += (size_t)w;
-    }
-    return wf_err(err, WF_EINPUT, "unknown integrator '%s' (known: %s)", name, known);
+    long i = wf_registry_find((const void *const *)wf_integrators, offsetof(WfIntegrator, name), name, "integrator", err);
+    if (i < 0) return WF_EINPUT;
+    *out = wf_integrators[i];
+    return 0;
 }

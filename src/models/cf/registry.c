@@ -1,9 +1,11 @@
 /* The list of car-following models and controllers; adding one is one line here. Also the generic
  * equilibrium solver that initial conditions use for every model. */
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <string.h>
 
+#include "util/registry.h"
 #include "wavefuel/cf.h"
 
 /* Automated-vehicle controllers (src/cf/follower_stopper.c, pi_saturation.c, acc.c; docs/controllers.md). */
@@ -16,17 +18,10 @@ const WfCfModel *const wf_cf_models[] = {&wf_cf_idm,           &wf_cf_ovm,      
 
 int wf_cf_model_find(const char *name, const WfCfModel **out, WfError *err)
 {
-    char known[256] = "";
-    size_t used = 0;
-    for (size_t i = 0; wf_cf_models[i]; i++) {
-        if (strcmp(wf_cf_models[i]->name, name) == 0) {
-            *out = wf_cf_models[i];
-            return 0;
-        }
-        int w = snprintf(known + used, sizeof known - used, "%s%s", i ? ", " : "", wf_cf_models[i]->name);
-        if (w > 0 && (size_t)w < sizeof known - used) used += (size_t)w;
-    }
-    return wf_err(err, WF_EINPUT, "unknown car-following model '%s' (known: %s)", name, known);
+    long i = wf_registry_find((const void *const *)wf_cf_models, offsetof(WfCfModel, name), name, "car-following model", err);
+    if (i < 0) return WF_EINPUT;
+    *out = wf_cf_models[i];
+    return 0;
 }
 
 double wf_cf_equilibrium_speed(const WfCfModel *m, const void *params, double gap_m, double v_hi)
