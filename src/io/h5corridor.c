@@ -13,6 +13,7 @@
 #include <time.h>
 
 #include "io/h5ckpt.h"
+#include "io/h5result.h"
 #include "io/h5summary.h"
 #include "io/h5util.h"
 #include "wavefuel/version.h"
@@ -22,38 +23,9 @@
 #define TRAJ_CHUNK 65536 /* ... of /trajectories (512 kB per column, compressed) */
 #define N_SERIES   (WF_CTS_N_COLS + 1 + TR_N + N_TRAJ)
 
-/* Columns of /trips, in the order of WfTrip's fields as written (float64; integers are exact below 2^53). */
-enum { TR_SERIAL, TR_CLASS, TR_GROUP, TR_COMPLETED, TR_ARRIVAL, TR_ENTRY, TR_EXIT, TR_TRAVEL, TR_DELAY, TR_VENTRY,
-       TR_FUEL, TR_DIST, TR_STOPS, TR_STOPPED, TR_HARD, TR_INFEAS, TR_N };
-static const WfColumn trip_cols[TR_N] = {
-    {"serial", "1", "arrival number of the vehicle (0, 1, ...): the key of its random draws"},
-    {"class_id", "1", "index into /classes"},
-    {"group_id", "1", "index into /drivers"},
-    {"completed", "1", "1: the vehicle reached x = L; 0: still on the road at the end"},
-    {"arrival_time", "s", "time the vehicle reached the entrance (joined the queue)"},
-    {"entry_time", "s", "time it was inserted at x = 0"},
-    {"exit_time", "s", "time its front reached x = L (end of that step; NaN when not completed)"},
-    {"travel_time", "s", "exit_time - entry_time (NaN when not completed)"},
-    {"queue_delay", "s", "entry_time - arrival_time"},
-    {"entry_speed", "m/s", "speed at insertion"},
-    {"fuel", "g", "fuel burnt on the road (whole trip, warm-up included)"},
-    {"distance", "m", "distance travelled on the road"},
-    {"stops", "1", "stops (docs/metrics.md) during the trip"},
-    {"time_stopped", "s", "time slower than statistics.v_stop_mps during the trip"},
-    {"hard_brakes", "1", "hard-braking events during the trip"},
-    {"infeasible_steps", "1", "steps whose requested acceleration exceeded the class a_max"},
-};
-
-/* Columns of /trajectories, one row per vehicle on the road per frame. */
-enum { N_TRAJ = 6 };
-static const WfColumn traj_cols[N_TRAJ] = {
-    {"t", "s", "time of each point"},
-    {"serial", "1", "vehicle (trips/serial) of each point"},
-    {"x", "m", "front-bumper position from the entrance"},
-    {"v", "m/s", "speed"},
-    {"a", "m/s^2", "acceleration applied from this instant"},
-    {"fuel_rate", "g/s", "fuel rate"},
-};
+enum { TR_N = WF_TRIP_N_COLS, N_TRAJ = WF_CORRIDOR_TRAJ_N_COLS };
+#define trip_cols wf_trip_columns
+#define traj_cols wf_corridor_traj_columns
 
 /* The series whose rows a checkpoint counts (src/io/h5ckpt.h), and /meta's counter of each. */
 enum { CUR_TS, CUR_TRIPS, CUR_TRAJ, N_CUR };
@@ -90,13 +62,12 @@ static void init_writer(WfH5Corridor *w)
  * record allocated at the start), trips and trajectories appended and compressed. */
 static size_t series_specs(WfH5Corridor *w, const WfScenario *sc, WfCkptSeries *sp)
 {
-    static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class on the road [time x class]"};
     hsize_t ts_rows = (hsize_t)wf_scenario_records(sc, wf_scenario_output_every(sc));
     size_t n = 0;
     for (size_t k = 0; k < WF_CTS_N_COLS; k++)
         sp[n++] = (WfCkptSeries){.s = &w->ts[k], .group = "timeseries", .col = &wf_corridor_columns[k],
                                  .fixed_rows = ts_rows, .cursor = CUR_TS};
-    sp[n++] = (WfCkptSeries){.s = &w->ts_class, .group = "timeseries", .col = &class_col, .cols = sc->n_classes,
+    sp[n++] = (WfCkptSeries){.s = &w->ts_class, .group = "timeseries", .col = &wf_corridor_class_column, .cols = sc->n_classes,
                              .fixed_rows = ts_rows, .cursor = CUR_TS};
     for (size_t k = 0; k < TR_N; k++)
         sp[n++] = (WfCkptSeries){.s = &w->trips[k], .group = "trips", .col = &trip_cols[k], .chunk_rows = TRIP_CHUNK,
@@ -256,121 +227,63 @@ static int write_road(hid_t fid, const WfCorridor *c, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-static int write_detectors(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
+/* A gridded observer's group from its column table: `fields` fills the values into scratch (`n_scratch` doubles). */
+static int write_grid(hid_t fid, const char *group, const WfObsColumn *cols, size_t n, size_t n_scratch,
+                      void (*fields)(const void *obs, const WfScenario *sc, double *scratch, WfObsData *out),
+                      const void *obs, const WfScenario *sc, WfH5Pass pass, WfError *err)
 {
-    const WfDetectors *d = wf_corridor_detectors(c);
-    const WfScenario *sc = wf_corridor_scenario(c);
-    if (!d->n_det) return 0;
-    size_t ni = d->n_int, nd = d->n_det, n = ni * nd;
-    hid_t g = wf_h5_group_pass(fid, "detectors", pass, err);
+    hid_t g = wf_h5_group_pass(fid, group, pass, err);
     if (g < 0) return WF_ESYS;
-    double *buf = malloc((n + ni + 1) * 5 * sizeof *buf);
-    if (!buf) {
-        H5Gclose(g);
-        return wf_err(err, WF_ESYS, "out of memory");
+    double *buf = malloc(n_scratch * sizeof *buf);
+    WfObsData data[WF_EDIE_N_COLS];
+    int rc = !buf ? wf_err(err, WF_ESYS, "out of memory") : 0;
+    if (!rc) {
+        fields(obs, sc, buf, data);
+        rc = wf_h5_put_columns(g, cols, data, n, pass, err);
     }
-    double *t0 = buf, *t1 = t0 + ni, *flow = t1 + ni, *vt = flow + n, *vh = vt + n, *occ = vh + n;
-    for (size_t j = 0; j < ni; j++) {
-        t0[j] = (double)j * d->interval_s;
-        t1[j] = fmin((double)(j + 1) * d->interval_s, sc->duration_s);
-    }
-    for (size_t j = 0; j < ni; j++)
-        for (size_t q = 0; q < nd; q++) {
-            size_t i = j * nd + q;
-            double len = t1[j] - t0[j], cnt = (double)d->count[i];
-            flow[i] = cnt / len * 3600.0;
-            vt[i] = cnt > 0 ? d->sum_v_mps[i] / cnt : NAN;
-            vh[i] = cnt > 0 ? cnt / d->sum_inv_v_spm[i] : NAN;
-            occ[i] = d->occupied_s[i] / len;
-        }
-    hsize_t dims[2] = {ni, nd}, dn = nd, dt = ni;
-    int fill = pass == WF_H5_FILL;
-    /* Positions and intervals are known from the start; the counts and what derives from them at the end. */
-    int rc = fill ? 0
-                  : wf_h5_write_f64(g, "x", 1, &dn, d->x_m, "m", "detector positions", err) ||
-                        wf_h5_write_f64(g, "t_start", 1, &dt, t0, "s", "start of each interval", err) ||
-                        wf_h5_write_f64(g, "t_end", 1, &dt, t1, "s", "end of each interval", err);
-    rc = rc ||
-         wf_h5_put_i64(g, "count", pass, 2, dims, d->count, "1",
-                       "front-bumper passages [interval x detector] (a passage: x_before <= x_d < x_after)", err) ||
-         wf_h5_put_f64(g, "flow", pass, 2, dims, flow, "1/h", "passages per hour [interval x detector]", err) ||
-         wf_h5_put_f64(g, "speed_time_mean", pass, 2, dims, vt, "m/s",
-                       "arithmetic mean speed of the passages (NaN without passages)", err) ||
-         wf_h5_put_f64(g, "speed_harmonic_mean", pass, 2, dims, vh, "m/s",
-                       "harmonic mean speed of the passages (space-mean estimate; NaN without passages)", err) ||
-         wf_h5_put_f64(g, "occupancy", pass, 2, dims, occ, "1",
-                       "share of the interval during which a vehicle body covered the detector point", err);
     free(buf);
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
 }
 
+static void detector_fields(const void *d, const WfScenario *sc, double *scratch, WfObsData *out)
+{
+    wf_detectors_fields(d, sc, scratch, out);
+}
+
+static void edie_fields(const void *e, const WfScenario *sc, double *scratch, WfObsData *out)
+{
+    wf_edie_fields(e, sc, scratch, out);
+}
+
+static int write_detectors(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
+{
+    const WfDetectors *d = wf_corridor_detectors(c);
+    if (!d->n_det) return 0;
+    return write_grid(fid, "detectors", wf_detector_columns, WF_DET_N_COLS, wf_detectors_scratch(d), detector_fields,
+                      d, wf_corridor_scenario(c), pass, err);
+}
+
+/* /edie, its grid and the axes of its fields said in attributes when the file is created. */
 static int write_edie(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
 {
     const WfEdie *e = wf_corridor_edie(c);
     const WfScenario *sc = wf_corridor_scenario(c);
-    size_t nx = e->nx, nt = e->nt, n = nx * nt, nc = sc->n_classes;
-    double L = sc->road.length_m;
-    hid_t g = wf_h5_group_pass(fid, "edie", pass, err);
-    if (g < 0) return WF_ESYS;
-    double *buf = malloc((4 * n + 2 * (nx + 1) + 2 * (nt + 1) + nc * nx + 1) * sizeof *buf);
-    if (!buf) {
-        H5Gclose(g);
-        return wf_err(err, WF_ESYS, "out of memory");
-    }
-    double *xe = buf, *te = xe + nx + 1, *xc = te + nt + 1, *tc = xc + nx + 1, *q = tc + nt + 1, *k = q + n,
-           *v = k + n, *f = v + n, *cpk = f + n;
-    for (size_t i = 0; i <= nx; i++) xe[i] = i == nx ? L : (double)i * e->dx_m;
-    for (size_t j = 0; j <= nt; j++) te[j] = j == nt ? sc->duration_s : (double)j * e->dt_s;
-    for (size_t i = 0; i < nx; i++) xc[i] = 0.5 * (xe[i] + xe[i + 1]);
-    for (size_t j = 0; j < nt; j++) tc[j] = 0.5 * (te[j] + te[j + 1]);
-    /* |A| of each cell in m s (the last row and column may be shorter than dx, dt). */
-    for (size_t j = 0; j < nt; j++)
-        for (size_t i = 0; i < nx; i++) {
-            size_t a = j * nx + i;
-            double area = (xe[i + 1] - xe[i]) * (te[j + 1] - te[j]);
-            q[a] = e->dist_m[a] / area * 3600.0;       /* veh/s -> veh/h */
-            k[a] = e->time_s[a] / area * 1000.0;       /* veh/m -> veh/km */
-            v[a] = e->time_s[a] > 0 ? e->dist_m[a] / e->time_s[a] : NAN;
-            f[a] = e->fuel_g[a] / area * 3.6e6;        /* g/(m s) -> g/(km h) */
-        }
-    for (size_t a = 0; a < nc * nx; a++)
-        cpk[a] = e->class_dist_m[a] > 0 ? e->class_fuel_g[a] / (e->class_dist_m[a] / 1000.0) : NAN;
-    hsize_t d2[2] = {nt, nx}, dc[2] = {nc, nx}, dxe = nx + 1, dte = nt + 1, dx = nx, dt = nt;
-    /* The grid and the grade are known from the start; the fields at the end. */
-    int fill = pass == WF_H5_FILL;
-    int rc = fill ? 0
-                  : wf_h5_write_f64(g, "x_edges", 1, &dxe, xe, "m", "cell edges along the road", err) ||
-                        wf_h5_write_f64(g, "t_edges", 1, &dte, te, "s", "cell edges in time", err) ||
-                        wf_h5_write_f64(g, "x", 1, &dx, xc, "m", "cell centres along the road", err) ||
-                        wf_h5_write_f64(g, "t", 1, &dt, tc, "s", "cell centres in time", err) ||
-                        wf_h5_write_f64(g, "grade", 1, &dx, e->grade_mean_rad, "rad", "mean grade of each cell column",
-                                        err) ||
-                        wf_h5_attr_f64(g, "dx_m", e->dx_m, err) || wf_h5_attr_f64(g, "dt_s", e->dt_s, err);
-    rc = rc ||
-         wf_h5_put_f64(g, "flow", pass, 2, d2, q, "1/h", "Edie flow q = sum of distances / |A| [t x x]", err) ||
-         wf_h5_put_f64(g, "density", pass, 2, d2, k, "1/km", "Edie density k = sum of times / |A| [t x x]", err) ||
-         wf_h5_put_f64(g, "speed", pass, 2, d2, v, "m/s", "Edie speed v = q / k [t x x] (NaN where k = 0)", err) ||
-         wf_h5_put_f64(g, "fuel", pass, 2, d2, f, "g/(km h)", "fuel burnt in the cell per km of road per hour [t x x]",
-                       err) ||
-         wf_h5_put_f64(g, "distance", pass, 2, d2, e->dist_m, "m", "sum of distances travelled in the cell", err) ||
-         wf_h5_put_f64(g, "time", pass, 2, d2, e->time_s, "s", "sum of times spent in the cell", err) ||
-         wf_h5_put_f64(g, "fuel_mass", pass, 2, d2, e->fuel_g, "g", "fuel burnt in the cell", err) ||
-         wf_h5_put_f64(g, "class_fuel", pass, 2, dc, e->class_fuel_g, "g",
-                       "fuel burnt per class and cell column in the statistics window [class x x]", err) ||
-         wf_h5_put_f64(g, "class_distance", pass, 2, dc, e->class_dist_m, "m",
-                       "distance per class and cell column in the statistics window [class x x]", err) ||
-         wf_h5_put_f64(g, "class_fuel_per_km", pass, 2, dc, cpk, "g/km",
-                       "fuel per vehicle-km per class and cell column in the window (NaN: no distance)", err);
-    const char *fields[] = {"flow", "density", "speed", "fuel", "distance", "time", "fuel_mass"};
-    for (size_t i = 0; !rc && !fill && i < sizeof fields / sizeof fields[0]; i++) {
-        hid_t ds = H5Dopen2(g, fields[i], H5P_DEFAULT);
-        if (ds < 0) rc = wf_err(err, WF_ESYS, "HDF5: cannot reopen /edie/%s", fields[i]);
+    if (write_grid(fid, "edie", wf_edie_columns, WF_EDIE_N_COLS, wf_edie_scratch(e, sc->n_classes), edie_fields, e,
+                   sc, pass, err))
+        return WF_ESYS;
+    if (pass == WF_H5_FILL) return 0;
+    hid_t g = H5Gopen2(fid, "edie", H5P_DEFAULT);
+    int rc = g < 0 ? wf_err(err, WF_ESYS, "HDF5: cannot reopen /edie")
+                   : wf_h5_attr_f64(g, "dx_m", e->dx_m, err) || wf_h5_attr_f64(g, "dt_s", e->dt_s, err);
+    for (size_t k = 0; !rc && k < WF_EDIE_N_COLS; k++) {
+        if (!wf_edie_is_field(k)) continue;
+        hid_t ds = H5Dopen2(g, wf_edie_columns[k].col.name, H5P_DEFAULT);
+        if (ds < 0) rc = wf_err(err, WF_ESYS, "HDF5: cannot reopen /edie/%s", wf_edie_columns[k].col.name);
         else rc = wf_h5_attr_str(ds, "axes", "t_edges, x_edges (rows: time cells; columns: space cells)", err);
         if (ds >= 0) H5Dclose(ds);
     }
-    free(buf);
-    H5Gclose(g);
+    if (g >= 0) H5Gclose(g);
     return rc ? WF_ESYS : 0;
 }
 
@@ -472,42 +385,12 @@ static int h5_trajectory(void *ctx, const WfCorridor *c, double t, WfError *err)
 {
     WfH5Corridor *w = ctx;
     if (group_failed(w, w->traj_failed, err)) return WF_ESYS;
-    const WfCorridorVehicles *vh = wf_corridor_vehicles(c);
-    size_t n = vh->n;
-    double *col[N_TRAJ];
-    for (size_t k = 0; k < N_TRAJ; k++) col[k] = w->frame + k * w->tcap;
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        col[0][k] = t, col[1][k] = (double)vh->serial[s], col[2][k] = vh->x_m[s], col[3][k] = vh->v_mps[s];
-        col[4][k] = vh->a_mps2[s], col[5][k] = vh->fuel_rate_gps[s];
-    }
-    const double *const data[N_TRAJ] = {col[0], col[1], col[2], col[3], col[4], col[5]};
+    const double *data[N_TRAJ];
+    size_t n = wf_corridor_traj_frame(wf_corridor_vehicles(c), t, w->frame, w->tcap, data);
     if (wf_h5_series_append(w->file, w->traj_s, N_TRAJ, n, data, "/trajectories", err) ||
         write_counts(w, WF_H5_FILL, err))
         return write_failed(w, &w->traj_failed, err);
     return 0;
-}
-
-static double trip_value(const WfTrip *t, size_t k)
-{
-    switch (k) {
-    case TR_SERIAL: return (double)t->serial;
-    case TR_CLASS: return t->class_id;
-    case TR_GROUP: return t->group_id;
-    case TR_COMPLETED: return t->completed;
-    case TR_ARRIVAL: return t->t_arrival_s;
-    case TR_ENTRY: return t->t_entry_s;
-    case TR_EXIT: return t->t_exit_s;
-    case TR_TRAVEL: return t->t_exit_s - t->t_entry_s;
-    case TR_DELAY: return t->t_entry_s - t->t_arrival_s;
-    case TR_VENTRY: return t->v_entry_mps;
-    case TR_FUEL: return t->fuel_g;
-    case TR_DIST: return t->dist_m;
-    case TR_STOPS: return t->stops;
-    case TR_STOPPED: return t->time_stopped_s;
-    case TR_HARD: return t->hard_brakes;
-    default: return t->infeasible_steps;
-    }
 }
 
 /* Trips, a row at a time, into their chunk; complete chunks are written, then counted. */
@@ -519,7 +402,7 @@ static int h5_trips(void *ctx, const WfCorridor *c, const WfTrip *tr, size_t n, 
     for (size_t i = 0; i < n; i++) {
         double row[TR_N];
         const double *cols[TR_N];
-        for (size_t k = 0; k < TR_N; k++) row[k] = trip_value(&tr[i], k), cols[k] = &row[k];
+        for (size_t k = 0; k < TR_N; k++) row[k] = wf_trip_value(&tr[i], k), cols[k] = &row[k];
         if (wf_h5_series_append(w->file, w->trip_s, TR_N, 1, cols, "/trips", err))
             return write_failed(w, &w->trips_failed, err);
     }

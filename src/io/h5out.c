@@ -13,21 +13,15 @@
 #include <time.h>
 
 #include "io/h5ckpt.h"
+#include "io/h5result.h"
 #include "io/h5summary.h"
 #include "io/h5util.h"
 #include "wavefuel/version.h"
 
 #define TS_BUF 256
 
-/* Columns of /trajectories, in the order of the group appended together: the arrays, then the frame times. */
-enum { N_TRAJ = 5 };
-static const WfColumn traj_cols[N_TRAJ] = {
-    {"x", "m", "unwrapped front-bumper position [time x vehicle]"},
-    {"v", "m/s", "speed [time x vehicle]"},
-    {"a", "m/s^2", "acceleration applied from this instant"},
-    {"fuel_rate", "g/s", "fuel rate [time x vehicle]"},
-    {"t", "s", "time of each frame"},
-};
+enum { N_TRAJ = WF_RING_TRAJ_N_COLS };
+#define traj_cols wf_ring_traj_columns
 
 /* The series whose rows a checkpoint counts (src/io/h5ckpt.h), and /meta's counter of each. */
 enum { CUR_TS, CUR_TRAJ, N_CUR };
@@ -74,14 +68,13 @@ static hsize_t frames_of(const WfScenario *sc)
  * every 10 steps 5x slower (10^6 vehicles, 2 threads: 7.3e6 against 3.7e7 vehicle-steps/s, bench/README.md). */
 static size_t series_specs(WfH5Out *w, const WfSim *sim, WfCkptSeries *sp)
 {
-    static const WfColumn class_col = {"class_fuel_rate", "g/s", "fuel rate of each class [time x class]"};
     const WfScenario *sc = wf_sim_scenario(sim);
     hsize_t n = wf_sim_fleet(sim)->n, ts_rows = ts_rows_of(sc), frames = frames_of(sc);
     size_t k = 0;
     for (size_t c = 0; c < WF_TS_N_COLS; c++)
         sp[k++] = (WfCkptSeries){.s = &w->ts[c], .group = "timeseries", .col = &wf_ts_columns[c],
                                  .fixed_rows = ts_rows, .cursor = CUR_TS};
-    sp[k++] = (WfCkptSeries){.s = &w->ts_class, .group = "timeseries", .col = &class_col, .cols = sc->n_classes,
+    sp[k++] = (WfCkptSeries){.s = &w->ts_class, .group = "timeseries", .col = &wf_ts_class_column, .cols = sc->n_classes,
                              .fixed_rows = ts_rows, .cursor = CUR_TS};
     hsize_t cr = wf_h5_series_chunk_rows(n, frames < 16 ? frames : 16);
     for (size_t i = 0; sc->trajectories && i < N_TRAJ; i++)
@@ -223,69 +216,36 @@ static int write_classes_drivers(hid_t fid, const WfSim *sim, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-/* /vehicles. ALLOCATE writes what is fixed from the start (class, group, length, drawn driver parameters) and
- * allocates the end-of-run statistics; FILL writes those. */
+/* /vehicles from its column table (src/observe/vehicles.c), then every driver-model parameter drawn for each vehicle
+ * (fixed from the start). ALLOCATE writes what is known from the start and allocates the end-of-run statistics;
+ * FILL writes those. */
 static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     const WfScenario *sc = wf_sim_scenario(sim);
     const WfFleet *f = wf_sim_fleet(sim);
-    const WfSummary *s = wf_sim_summary(sim);
+    WfVehicleView view = {.f = f, .sc = sc, .window_s = wf_sim_summary(sim)->window_s};
     size_t n = f->n;
-    hsize_t dn = n;
-    double win_steps = s->window_s / sc->dt_s;
     int fill = pass == WF_H5_FILL;
     hid_t g = wf_h5_group_pass(fid, "vehicles", pass, err);
     if (g < 0) return WF_ESYS;
     /* One buffer for both element types (8 bytes each): at 10^7 vehicles a second one would be 80 MB more peak. */
     double *d = malloc((n ? n : 1) * sizeof *d);
-    int64_t *k = (int64_t *)d;
     int rc = !d ? wf_err(err, WF_ESYS, "out of memory") : 0;
-#define FIXED_I64(name, expr, units, desc)                                             \
-    if (!rc && !fill) {                                                                \
-        for (size_t i = 0; i < n; i++) k[i] = (int64_t)(expr);                         \
-        rc = wf_h5_write_i64(g, name, 1, &dn, k, units, desc, err);                    \
+    for (size_t c = 0; !rc && c < WF_VEH_N_COLS; c++) {
+        const WfObsColumn *col = &wf_vehicle_columns[c];
+        if (col->at_start && fill) continue;
+        for (size_t i = 0; (col->at_start || fill) && i < n; i++) {
+            double x = wf_vehicle_value(&view, c, i);
+            if (col->type == WF_COL_I64) {
+                int64_t k = (int64_t)x;
+                memcpy(&d[i], &k, sizeof k);
+            } else d[i] = x;
+        }
+        WfObsData data = {d, 1, {n, 0}};
+        rc = wf_h5_put_columns(g, col, &data, 1, pass, err);
     }
-#define FIXED_F64(name, expr, units, desc)                                             \
-    if (!rc && !fill) {                                                                \
-        for (size_t i = 0; i < n; i++) d[i] = (expr);                                  \
-        rc = wf_h5_write_f64(g, name, 1, &dn, d, units, desc, err);                    \
-    }
-#define I64(name, expr, units, desc)                                                   \
-    if (!rc) {                                                                         \
-        for (size_t i = 0; fill && i < n; i++) k[i] = (int64_t)(expr);                 \
-        rc = wf_h5_put_i64(g, name, pass, 1, &dn, k, units, desc, err);                \
-    }
-#define F64(name, expr, units, desc)                                                   \
-    if (!rc) {                                                                         \
-        for (size_t i = 0; fill && i < n; i++) d[i] = (expr);                          \
-        rc = wf_h5_put_f64(g, name, pass, 1, &dn, d, units, desc, err);                \
-    }
-    FIXED_I64("class_id", f->class_id[i], "1", "index into /classes");
-    FIXED_I64("group_id", f->group_id[i], "1", "index into /drivers");
-    FIXED_F64("length", wf_fleet_length(f, i), "m", "vehicle length");
-    F64("distance", wf_fleet_distance(f, i), "m", "distance travelled in the statistics window");
-    F64("fuel", f->fuel_g[i], "g", "fuel burnt in the statistics window");
-    F64("l_per_100km", wf_l_per_100km(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], wf_fleet_distance(f, i)), "L/100km",
-        "fuel economy (volume per distance)");
-    F64("mpg", wf_mpg(&sc->classes[f->class_id[i]].vc, f->fuel_g[i], wf_fleet_distance(f, i)), "mi/gal",
-        "fuel economy (US miles per US gallon)");
-    I64("stops", f->stops[i], "1", "stops: speed fell below v_stop after exceeding v_go");
-    F64("time_stopped", (double)f->stopped_steps[i] * sc->dt_s, "s", "time spent slower than v_stop");
-    F64("mean_speed", s->window_s > 0 ? wf_fleet_distance(f, i) / s->window_s : 0.0, "m/s", "distance / window length");
-    F64("speed_var",
-        win_steps > 0 ? fmax(0.0, f->sum_v2[i] / win_steps - (f->sum_v[i] / win_steps) * (f->sum_v[i] / win_steps))
-                      : 0.0,
-        "m^2/s^2", "variance of the vehicle's speed over time (step samples)");
-    F64("accel_var",
-        win_steps > 0 ? fmax(0.0, f->sum_a2[i] / win_steps - (f->sum_a[i] / win_steps) * (f->sum_a[i] / win_steps))
-                      : 0.0,
-        "m^2/s^4", "variance of the vehicle's acceleration over time (step samples)");
-    I64("hard_brakes", f->hard_brakes[i], "1", "hard-braking events: a fell below -statistics.hard_brake_mps2");
-    I64("infeasible_steps", f->infeasible_steps[i], "1", "steps whose acceleration exceeded the class a_max");
-    F64("final_x", f->x_m[i], "m", "unwrapped position at the end");
-    F64("final_v", f->v_mps[i], "m/s", "speed at the end");
-    /* Every driver-model parameter drawn for each vehicle (fixed from the start); NaN for vehicles whose model
-     * lacks the key. A key shared by several groups' models is written once. */
+    /* NaN for vehicles whose model lacks the key; a key shared by several groups' models is written once. */
+    hsize_t dn = n;
     for (size_t gi = 0; !rc && !fill && gi < sc->n_groups; gi++) {
         const WfCfModel *m = sc->groups[gi].model;
         for (size_t p = 0; !rc && p < m->n_spec; p++) {
@@ -300,10 +260,6 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
             rc = wf_h5_write_f64(g, name, 1, &dn, d, m->spec[p].unit, m->spec[p].doc, err);
         }
     }
-#undef FIXED_I64
-#undef FIXED_F64
-#undef I64
-#undef F64
     free(d);
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
@@ -423,7 +379,8 @@ static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
 {
     WfH5Out *w = ctx;
     const WfFleet *f = wf_sim_fleet(sim);
-    const double *const frame[N_TRAJ] = {f->x_m, f->v_mps, f->a_mps2, f->fuel_rate_gps, &t};
+    const double *frame[N_TRAJ];
+    wf_ring_traj_frame(f, &t, frame);
     if (wf_h5_series_append(w->file, w->traj, N_TRAJ, 1, frame, "/trajectories", err) ||
         write_counts(w, WF_H5_FILL, err))
         return write_failed(w, &w->traj_failed, err);
