@@ -8,7 +8,8 @@
 #include "wavefuel/corridor.h"
 #include "wavefuel/err.h"
 
-typedef struct WfH5Corridor WfH5Corridor;
+/* The one result writer (src/io/h5result.c) bound to the corridor. */
+typedef struct WfH5Result WfH5Corridor;
 
 /* Create the writer for `path` (refuses to replace an existing result unless force) and fill *ops with
  * callbacks bound to it. */

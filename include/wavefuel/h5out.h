@@ -9,7 +9,8 @@
 #include "wavefuel/engine.h"
 #include "wavefuel/err.h"
 
-typedef struct WfH5Out WfH5Out;
+/* The one result writer (src/io/h5result.c) bound to the ring. */
+typedef struct WfH5Result WfH5Out;
 
 /* Create the writer for `path` (refuses to replace an existing result unless force). The returned WfOutput
  * is filled with callbacks bound to the writer. */
