@@ -218,23 +218,7 @@ static const WfH5Boundary corridor = {
 
 /* ---- the engine's output callbacks ---- */
 
-static int h5_begin(void *ctx, const WfCorridor *c, WfError *err)
-{
-    WfH5Run r = run_of(c);
-    return wf_h5r_begin(ctx, &r, err);
-}
-
-static int h5_record(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
-{
-    (void)c;
-    return wf_h5r_record(ctx, row->v, row->class_fuel_rate_gps, err);
-}
-
-static int h5_trajectory(void *ctx, const WfCorridor *c, double t, WfError *err)
-{
-    WfH5Run r = run_of(c);
-    return wf_h5r_trajectory(ctx, &r, t, err);
-}
+WF_H5R_CALLBACKS(WfCorridor, WfCorridorRow, run_of)
 
 /* Trips, a row at a time, into their chunk; complete chunks are written, then counted. */
 static int h5_trips(void *ctx, const WfCorridor *c, const WfTrip *tr, size_t n, WfError *err)
@@ -247,18 +231,6 @@ static int h5_trips(void *ctx, const WfCorridor *c, const WfTrip *tr, size_t n, 
         if (wf_h5r_append(ctx, CUR_TRIPS, 1, cols, err)) return WF_ESYS;
     }
     return 0;
-}
-
-static int h5_checkpoint(void *ctx, const WfCorridor *c, WfError *err)
-{
-    WfH5Run r = run_of(c);
-    return wf_h5r_checkpoint(ctx, &r, (WfCorridor *)c, err);
-}
-
-static int h5_end(void *ctx, const WfCorridor *c, int completed, const char *reason, WfError *err)
-{
-    WfH5Run r = run_of(c);
-    return wf_h5r_end(ctx, &r, completed, reason, err);
 }
 
 static WfCorridorOutput ops_of(WfH5Corridor *w)

@@ -7,23 +7,6 @@
 #include "io/h5util.h"
 #include "wavefuel/h5out.h"
 
-static int read_str_attr(hid_t obj, const char *name, char *buf, size_t len)
-{
-    buf[0] = '\0';
-    if (H5Aexists(obj, name) <= 0) return -1;
-    hid_t a = H5Aopen(obj, name, H5P_DEFAULT), t = H5Aget_type(a);
-    int rc = -1;
-    size_t sz = H5Tget_size(t);
-    if (a >= 0 && t >= 0 && H5Tget_class(t) == H5T_STRING && !H5Tis_variable_str(t) && sz < len) {
-        hid_t mt = H5Tcopy(t);
-        if (H5Aread(a, mt, buf) >= 0) rc = 0, buf[sz] = '\0';
-        H5Tclose(mt);
-    }
-    if (t >= 0) H5Tclose(t);
-    if (a >= 0) H5Aclose(a);
-    return rc;
-}
-
 typedef struct InfoCtx {
     FILE *out;
     hid_t grp;
@@ -38,7 +21,8 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
     if (d < 0) return 0;
     hid_t sp = H5Dget_space(d), t = H5Dget_type(d);
     char units[64];
-    read_str_attr(d, "units", units, sizeof units);
+    WfError ignored = {0}; /* a dataset without units prints none */
+    if (wf_h5_read_attr_str(d, "", "units", units, sizeof units, &ignored)) units[0] = '\0';
     hssize_t n = H5Sget_simple_extent_npoints(sp);
     if (H5Tget_class(t) == H5T_STRING && n == 1) {
         char *s = NULL;

@@ -217,35 +217,7 @@ static const WfH5Boundary ring = {
 
 /* ---- the engine's output callbacks ---- */
 
-static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
-{
-    WfH5Run r = run_of(sim);
-    return wf_h5r_begin(ctx, &r, err);
-}
-
-static int h5_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
-{
-    (void)sim;
-    return wf_h5r_record(ctx, row->v, row->class_fuel_rate_gps, err);
-}
-
-static int h5_trajectory(void *ctx, const WfSim *sim, double t, WfError *err)
-{
-    WfH5Run r = run_of(sim);
-    return wf_h5r_trajectory(ctx, &r, t, err);
-}
-
-static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
-{
-    WfH5Run r = run_of(sim);
-    return wf_h5r_checkpoint(ctx, &r, (WfSim *)sim, err);
-}
-
-static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err)
-{
-    WfH5Run r = run_of(sim);
-    return wf_h5r_end(ctx, &r, completed, reason, err);
-}
+WF_H5R_CALLBACKS(WfSim, WfTsRow, run_of)
 
 static WfOutput ops_of(WfH5Out *w)
 {

@@ -93,4 +93,36 @@ int wf_h5r_append(WfH5Result *w, size_t cur, size_t n_rows, const double *const 
 int wf_h5r_checkpoint(WfH5Result *w, const WfH5Run *r, void *eng, WfError *err);
 int wf_h5r_end(WfH5Result *w, const WfH5Run *r, int completed, const char *reason, WfError *err);
 
+/* The engine callbacks h5_begin, h5_record, h5_trajectory, h5_checkpoint and h5_end of an engine type Eng whose
+ * records are of type Row (with members v and class_fuel_rate_gps), calling the functions above with the WfH5Run
+ * that run_of(const Eng *) makes: the ring's WfOutput and the corridor's WfCorridorOutput differ only in these
+ * types, so a boundary file defines its callbacks with this one line instead of a copy. */
+#define WF_H5R_CALLBACKS(Eng, Row, run_of)                                                                  \
+    static int h5_begin(void *ctx, const Eng *e, WfError *err)                                              \
+    {                                                                                                        \
+        WfH5Run r = run_of(e);                                                                               \
+        return wf_h5r_begin(ctx, &r, err);                                                                   \
+    }                                                                                                        \
+    static int h5_record(void *ctx, const Eng *e, const Row *row, WfError *err)                             \
+    {                                                                                                        \
+        (void)e;                                                                                             \
+        return wf_h5r_record(ctx, row->v, row->class_fuel_rate_gps, err);                                    \
+    }                                                                                                        \
+    static int h5_trajectory(void *ctx, const Eng *e, double t_s, WfError *err)                             \
+    {                                                                                                        \
+        WfH5Run r = run_of(e);                                                                               \
+        return wf_h5r_trajectory(ctx, &r, t_s, err);                                                         \
+    }                                                                                                        \
+    /* The engine's state functions only read it (they pack its scalars first). */                          \
+    static int h5_checkpoint(void *ctx, const Eng *e, WfError *err)                                         \
+    {                                                                                                        \
+        WfH5Run r = run_of(e);                                                                               \
+        return wf_h5r_checkpoint(ctx, &r, (Eng *)e, err);                                                    \
+    }                                                                                                        \
+    static int h5_end(void *ctx, const Eng *e, int completed, const char *reason, WfError *err)             \
+    {                                                                                                        \
+        WfH5Run r = run_of(e);                                                                               \
+        return wf_h5r_end(ctx, &r, completed, reason, err);                                                  \
+    }
+
 #endif
