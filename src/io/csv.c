@@ -73,6 +73,60 @@ static int grow(WfCsv *c, size_t *cap, WfError *err)
     return 0;
 }
 
+/* A header line when its first field is not a number (*is_header = 1): its names must be `names` (when given)
+ * and as many as n_cols. Returns 0 or the error. */
+static int parse_header(char *s, size_t n_cols, const char *const *names, const char *shown, int lineno,
+                        int *is_header, WfError *err)
+{
+    char first[256], fs[64];
+    size_t k = strcspn(s, ",");
+    if (k > sizeof first - 1) k = sizeof first - 1;
+    memcpy(first, s, k);
+    first[k] = '\0';
+    double dummy;
+    if (wf_parse_double(trim(first), &dummy) == 0) return 0;
+    *is_header = 1;
+    size_t col = 0;
+    /* Split at every comma by hand (strtok_r would skip empty names and accept "v,,a,theta"). */
+    for (char *tok = s, *next = NULL; tok; tok = next, col++) {
+        char *comma = strchr(tok, ',');
+        next = comma ? comma + 1 : NULL;
+        if (comma) *comma = '\0';
+        if (names && col < n_cols && strcmp(trim(tok), names[col]) != 0)
+            return wf_err(err, WF_EINPUT, "%s:%d: header column %zu is '%s', expected '%s'", shown, lineno, col + 1,
+                          shown_field(trim(tok), fs, sizeof fs), names[col]);
+    }
+    if (col != n_cols)
+        return wf_err(err, WF_EINPUT, "%s:%d: header has %zu columns, expected %zu", shown, lineno, col, n_cols);
+    return 0;
+}
+
+/* A data line: exactly n_cols finite numbers into row. Returns 0 or the error. */
+static int parse_row(char *s, size_t n_cols, const char *const *names, double *row, const char *shown, int lineno,
+                     WfError *err)
+{
+    char fs[64];
+    size_t col = 0;
+    for (char *p = s;;) {
+        char *comma = strchr(p, ',');
+        if (comma) *comma = '\0';
+        if (col >= n_cols)
+            return wf_err(err, WF_EINPUT, "%s:%d: field %zu: more than %zu fields", shown, lineno, col + 1, n_cols);
+        char *field = trim(p);
+        if (wf_parse_double(field, &row[col]))
+            return wf_err(err, WF_EINPUT, "%s:%d: field %zu%s%s%s: expected a finite number (got '%s')", shown,
+                          lineno, col + 1, names ? " (" : "", names ? names[col] : "", names ? ")" : "",
+                          shown_field(field, fs, sizeof fs));
+        col++;
+        if (!comma) break;
+        p = comma + 1;
+    }
+    if (col != n_cols)
+        return wf_err(err, WF_EINPUT, "%s:%d: %zu fields, expected %zu%s%s", shown, lineno, col, n_cols,
+                      names ? " after field " : "", names ? names[col - 1] : "");
+    return 0;
+}
+
 int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv *out, WfError *err)
 {
     memset(out, 0, sizeof *out);
@@ -91,7 +145,6 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
     size_t bufcap = 0, cap = 0;
     int lineno = 0, rc = 0, seen_data = 0;
     long len;
-    char fs[64];
     while ((len = read_line(f, &buf, &bufcap)) > 0) {
         if (lineno == INT_MAX) {
             rc = wf_err(err, WF_EINPUT, "%s: more than %d lines", shown, INT_MAX);
@@ -117,62 +170,12 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
         }
         /* Header: only before the first data row, recognised by a non-numeric first field. */
         if (!seen_data && !out->had_header) {
-            char first[256];
-            size_t k = strcspn(s, ",");
-            if (k > sizeof first - 1) k = sizeof first - 1;
-            memcpy(first, s, k);
-            first[k] = '\0';
-            double dummy;
-            if (wf_parse_double(trim(first), &dummy) != 0) {
-                out->had_header = 1;
-                size_t col = 0;
-                /* Split at every comma by hand (strtok_r would skip empty names and accept "v,,a,theta"). */
-                for (char *tok = s, *next = NULL; tok; tok = next, col++) {
-                    char *comma = strchr(tok, ',');
-                    next = comma ? comma + 1 : NULL;
-                    if (comma) *comma = '\0';
-                    if (names && col < n_cols && strcmp(trim(tok), names[col]) != 0) {
-                        rc = wf_err(err, WF_EINPUT, "%s:%d: header column %zu is '%s', expected '%s'", shown, lineno,
-                                    col + 1, shown_field(trim(tok), fs, sizeof fs), names[col]);
-                        goto done;
-                    }
-                }
-                if (col != n_cols) {
-                    rc = wf_err(err, WF_EINPUT, "%s:%d: header has %zu columns, expected %zu", shown, lineno, col,
-                                n_cols);
-                    goto done;
-                }
-                continue;
-            }
+            if ((rc = parse_header(s, n_cols, names, shown, lineno, &out->had_header, err))) goto done;
+            if (out->had_header) continue;
         }
         seen_data = 1;
         if (out->n_rows == cap && (rc = grow(out, &cap, err))) goto done;
-        double *row = out->data + out->n_rows * n_cols;
-        size_t col = 0;
-        char *p = s;
-        for (;;) {
-            char *comma = strchr(p, ',');
-            if (comma) *comma = '\0';
-            if (col >= n_cols) {
-                rc = wf_err(err, WF_EINPUT, "%s:%d: field %zu: more than %zu fields", shown, lineno, col + 1, n_cols);
-                goto done;
-            }
-            char *field = trim(p);
-            if (wf_parse_double(field, &row[col])) {
-                rc = wf_err(err, WF_EINPUT, "%s:%d: field %zu%s%s%s: expected a finite number (got '%s')", shown,
-                            lineno, col + 1, names ? " (" : "", names ? names[col] : "", names ? ")" : "",
-                            shown_field(field, fs, sizeof fs));
-                goto done;
-            }
-            col++;
-            if (!comma) break;
-            p = comma + 1;
-        }
-        if (col != n_cols) {
-            rc = wf_err(err, WF_EINPUT, "%s:%d: %zu fields, expected %zu%s%s", shown, lineno, col, n_cols,
-                        names ? " after field " : "", names ? names[col - 1] : "");
-            goto done;
-        }
+        if ((rc = parse_row(s, n_cols, names, out->data + out->n_rows * n_cols, shown, lineno, err))) goto done;
         out->line[out->n_rows++] = lineno;
     }
     if (len == -1) rc = wf_err(err, WF_EINPUT, "%s:%d: line longer than %d bytes: not a numeric table", shown,
