@@ -1,7 +1,7 @@
 /* Checkpoints of interrupted runs (docs/output.md): FILE.h5.ckpt, next to FILE.h5.partial, holds the scenario text
  * and --set overrides, the kind of run (ring or corridor), the rows written so far to each appended dataset of the
- * result, and the engine's complete state, under a checksum. The result writers (src/io/h5out.c, src/io/h5corridor.c)
- * save and load them; `wavefuel run --resume` rebuilds the scenario from what this reader returns. */
+ * result, and the engine's complete state, under a checksum. The result writer (src/io/h5result.c)
+ * saves and loads them; `wavefuel run --resume` rebuilds the scenario from what this reader returns. */
 #ifndef WAVEFUEL_CHECKPOINT_H
 #define WAVEFUEL_CHECKPOINT_H
 

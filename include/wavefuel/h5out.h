@@ -9,14 +9,17 @@
 #include "wavefuel/engine.h"
 #include "wavefuel/err.h"
 
-typedef struct WfH5Out WfH5Out;
+/* The one result writer (src/io/h5result.c) bound to the ring. */
+typedef struct WfH5Result WfH5Out;
 
-/* Create the writer for `path` (refuses to replace an existing result unless force). The returned WfOutput
- * is filled with callbacks bound to the writer. */
+/* Create the writer for `path` (refuses to replace an existing result unless force): PATH.partial is created now.
+ * *ops is filled with callbacks bound to the writer, valid until it is destroyed. The caller owns *out and frees it
+ * with wf_h5out_destroy, after the run (the engine borrows *ops during wf_sim_run). */
 int  wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, WfError *err);
-/* Free the writer; if the run never reached end(), the partial file is removed (nothing was produced). */
+/* Free the writer and clear *w (NULL accepted); if the run never reached end(), the partial file is removed (nothing
+ * was produced), unless it was resumed. */
 void wf_h5out_destroy(WfH5Out **w);
-/* Final path written ("x.h5" when completed, "x.h5.partial" otherwise). */
+/* Final path written ("x.h5" when completed, "x.h5.partial" otherwise; empty before end()); owned by w. */
 const char *wf_h5out_path(const WfH5Out *w);
 
 /* Load the checkpoint FILE.h5.ckpt (wavefuel/checkpoint.h) into `sim`, built from the scenario it holds, and
@@ -24,7 +27,7 @@ const char *wf_h5out_path(const WfH5Out *w);
  * /trajectories cut to the whole chunks the checkpoint counts; later time-series rows and the end-of-run results
  * are written again in place. WF_EINPUT (nothing changed) when the checkpoint is damaged, of a corridor run or of
  * another scenario, or the partial file is not this run's or of another layout; WF_ESYS when setting it back fails
- * (a write error). */
+ * (a write error). Ownership and lifetime of *out and *ops as for wf_h5out_create. */
 int  wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err);
 /* `wavefuel info`: print a result file's /meta status and every /summary value with its units. Works on
  * .partial files too. WF_EINPUT if the file is not a wavefuel result. */

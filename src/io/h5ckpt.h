@@ -1,4 +1,4 @@
-/* Checkpoints FILE.h5.ckpt of the ring (src/io/h5out.c) and corridor (src/io/h5corridor.c) result writers, and the
+/* Checkpoints FILE.h5.ckpt of the result writer (src/io/h5result.c: rings and corridors), and the
  * resumption of the partial result FILE.h5.partial they belong to. A checkpoint has the attributes `kind` (ring
  * or corridor), `scenario_path`, `steps_done`, `rows_NAME` (the cursor of each group of series: rows written,
  * those still in memory included, when it was taken) and `checksum` (FNV-1a over everything restored), and the

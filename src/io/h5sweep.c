@@ -251,19 +251,6 @@ static int shape(hid_t d, hsize_t *rows, hsize_t *cols)
     return rank >= 1 && rank <= 2 ? 0 : -1;
 }
 
-static int read_scalar_str(hid_t loc, const char *name, char **out)
-{
-    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), t = H5Tcopy(H5T_C_S1);
-    char *s = NULL;
-    int rc = d < 0 || t < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0 ||
-             H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) < 0 || !s;
-    if (!rc && !(*out = strdup(s))) rc = 1;
-    if (s) H5free_memory(s);
-    if (t >= 0) H5Tclose(t);
-    if (d >= 0) H5Dclose(d);
-    return rc;
-}
-
 /* A 1-D string column of exactly n rows; fn(i, text) is called for each. */
 static int read_strings(hid_t loc, const char *name, size_t n, void (*fn)(WfSweepSaved *, size_t, const char *),
                         WfSweepSaved *sv)
@@ -411,9 +398,11 @@ int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
     char *kind = NULL;
     hid_t runs = H5I_INVALID_HID, met = H5I_INVALID_HID, cm = H5I_INVALID_HID, tim = H5I_INVALID_HID;
     hsize_t n = 0, one = 0;
-    if (read_scalar_str(f, "meta/kind", &kind) || strcmp(kind, "wavefuel sweep") != 0) rc = bad(err, path, "/meta/kind");
-    if (!rc && (read_scalar_str(f, "meta/scenario_text", &sv->scenario_text) ||
-                read_scalar_str(f, "meta/scenario_path", &sv->scenario_path)))
+    /* The messages of the readers are replaced by one naming what is missing. */
+    if (wf_h5_read_scalar_str(f, path, "meta/kind", &kind, err) || strcmp(kind, "wavefuel sweep") != 0)
+        rc = bad(err, path, "/meta/kind");
+    if (!rc && (wf_h5_read_scalar_str(f, path, "meta/scenario_text", &sv->scenario_text, err) ||
+                wf_h5_read_scalar_str(f, path, "meta/scenario_path", &sv->scenario_path, err)))
         rc = bad(err, path, "/meta/scenario_text");
     if (!rc && ((runs = H5Gopen2(f, "runs", H5P_DEFAULT)) < 0 || (met = H5Gopen2(f, "metrics", H5P_DEFAULT)) < 0 ||
                 (cm = H5Gopen2(f, "class_metrics", H5P_DEFAULT)) < 0 || (tim = H5Gopen2(f, "timing", H5P_DEFAULT)) < 0))

@@ -1,0 +1,85 @@
+/* The observers' column tables: every dataset group a result file holds from per-vehicle or per-record data
+ * declares its columns here once (name, units, description, type, and whether the values are known when the file
+ * is created or only at the end), next to the code that computes them (src/observe/vehicles.c, trips.c,
+ * trajectories.c, detectors.c, edie.c; the time series' columns: wf_ts_columns in stats.c and
+ * wf_corridor_columns in src/core/corridor.c). The HDF5 writer (src/io/h5result.c) loops over these tables, and
+ * tests/t_units_docs.sh compares what it writes with docs/output.md. Internal to wavefuel (not installed). */
+#ifndef WAVEFUEL_OBSERVE_COLUMNS_H
+#define WAVEFUEL_OBSERVE_COLUMNS_H
+
+#include <stddef.h>
+
+#include "wavefuel/corridor.h"
+#include "wavefuel/fleet.h"
+#include "wavefuel/scenario.h"
+#include "wavefuel/stats.h"
+
+typedef enum { WF_COL_F64 = 0, WF_COL_I64 = 1 } WfColType;
+/* A column of an observer: at_start 1 when its values are known when the file is created (written once then),
+ * 0 when they are results allocated at the start and written at the end. */
+typedef struct WfObsColumn {
+    WfColumn  col;
+    WfColType type;
+    int       at_start;
+} WfObsColumn;
+/* The values of one column of a gridded observer (detectors, Edie): rank 1 or 2, dims in rows x columns; data is
+ * double or int64_t as the column's type says (borrowed). */
+typedef struct WfObsData {
+    const void *data;
+    int         rank;
+    size_t      dims[2];
+} WfObsData;
+
+/* ---- /timeseries: the per-class column that follows the scalar columns of a record */
+extern const WfColumn wf_ts_class_column;       /* ring */
+extern const WfColumn wf_corridor_class_column; /* corridor */
+
+/* ---- /vehicles (ring): one value per vehicle */
+enum { WF_VEH_N_COLS = 16 };
+extern const WfObsColumn wf_vehicle_columns[WF_VEH_N_COLS];
+/* What the per-vehicle values are computed from (borrowed). */
+typedef struct WfVehicleView {
+    const WfFleet    *f;
+    const WfScenario *sc;
+    double            window_s;   /* length of the statistics window */
+} WfVehicleView;
+/* Value of column `col` of vehicle i (integers as exact doubles). */
+double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t i);
+
+/* ---- /trips (corridor): one row per trip, float64 (integers are exact below 2^53) */
+enum { WF_TRIP_N_COLS = 16 };
+extern const WfColumn wf_trip_columns[WF_TRIP_N_COLS];
+double wf_trip_value(const WfTrip *t, size_t col);
+
+/* ---- /trajectories: ring frames [time x vehicle] (the arrays, then the frame times); corridor points, one row
+ * per vehicle on the road per frame */
+enum { WF_RING_TRAJ_N_COLS = 5, WF_CORRIDOR_TRAJ_N_COLS = 6 };
+extern const WfColumn wf_ring_traj_columns[WF_RING_TRAJ_N_COLS];
+extern const WfColumn wf_corridor_traj_columns[WF_CORRIDOR_TRAJ_N_COLS];
+/* The ring's frame at time t: the columns' arrays (the fleet's, borrowed; &t for the time). */
+void wf_ring_traj_frame(const WfFleet *f, const double *t_s, const double **cols);
+/* The corridor's frame at time t_s in road order (front first) into frame (WF_CORRIDOR_TRAJ_N_COLS columns of
+ * cap values each; cap >= the vehicles on the road); cols receives the columns' starts. Returns the points. */
+size_t wf_corridor_traj_frame(const WfCorridorVehicles *vh, double t_s, double *frame, size_t cap,
+                              const double **cols);
+
+/* ---- /detectors (corridor) */
+enum { WF_DET_N_COLS = 8 };
+extern const WfObsColumn wf_detector_columns[WF_DET_N_COLS];
+/* Doubles of scratch wf_detectors_fields needs. */
+size_t wf_detectors_scratch(const WfDetectors *d);
+/* Every column's values (intervals, flows, mean speeds, occupancy) from the detectors' sums, into out[k] for
+ * column k; derived values live in scratch, the others are borrowed from d. */
+void wf_detectors_fields(const WfDetectors *d, const WfScenario *sc, double *scratch, WfObsData *out);
+
+/* ---- /edie (corridor) */
+enum { WF_EDIE_N_COLS = 15 };
+extern const WfObsColumn wf_edie_columns[WF_EDIE_N_COLS];
+/* Columns of /edie indexed [t x x] (they carry an `axes` attribute). */
+int    wf_edie_is_field(size_t col);
+size_t wf_edie_scratch(const WfEdie *e, size_t n_classes);
+/* Every column's values (cell edges and centres, Edie's q, k, v, the fuel field, per-class fuel per km) into
+ * out[k] for column k; derived values live in scratch, the others are borrowed from e. */
+void wf_edie_fields(const WfEdie *e, const WfScenario *sc, double *scratch, WfObsData *out);
+
+#endif

@@ -1,0 +1,43 @@
+/* Trajectories (/trajectories): the columns of ring frames and corridor points, and how a frame is taken from the
+ * engine's arrays. Also the per-class column of the time series, which has no scalar table of its own. */
+#include "observe/columns.h"
+
+const WfColumn wf_ts_class_column = {"class_fuel_rate", "g/s", "fuel rate of each class [time x class]"};
+const WfColumn wf_corridor_class_column = {"class_fuel_rate", "g/s",
+                                           "fuel rate of each class on the road [time x class]"};
+
+/* In the order of the group appended together: the arrays, then the frame times. */
+const WfColumn wf_ring_traj_columns[WF_RING_TRAJ_N_COLS] = {
+    {"x", "m", "unwrapped front-bumper position [time x vehicle]"},
+    {"v", "m/s", "speed [time x vehicle]"},
+    {"a", "m/s^2", "acceleration applied from this instant"},
+    {"fuel_rate", "g/s", "fuel rate [time x vehicle]"},
+    {"t", "s", "time of each frame"},
+};
+
+const WfColumn wf_corridor_traj_columns[WF_CORRIDOR_TRAJ_N_COLS] = {
+    {"t", "s", "time of each point"},
+    {"serial", "1", "vehicle (trips/serial) of each point"},
+    {"x", "m", "front-bumper position from the entrance"},
+    {"v", "m/s", "speed"},
+    {"a", "m/s^2", "acceleration applied from this instant"},
+    {"fuel_rate", "g/s", "fuel rate"},
+};
+
+void wf_ring_traj_frame(const WfFleet *f, const double *t_s, const double **cols)
+{
+    cols[0] = f->x_m, cols[1] = f->v_mps, cols[2] = f->a_mps2, cols[3] = f->fuel_rate_gps, cols[4] = t_s;
+}
+
+size_t wf_corridor_traj_frame(const WfCorridorVehicles *vh, double t_s, double *frame, size_t cap,
+                              const double **cols)
+{
+    double *col[WF_CORRIDOR_TRAJ_N_COLS];
+    for (size_t k = 0; k < WF_CORRIDOR_TRAJ_N_COLS; k++) cols[k] = col[k] = frame + k * cap;
+    for (size_t k = 0; k < vh->n; k++) {
+        size_t s = wf_corridor_slot(vh, k);
+        col[0][k] = t_s, col[1][k] = (double)vh->serial[s], col[2][k] = vh->x_m[s], col[3][k] = vh->v_mps[s];
+        col[4][k] = vh->a_mps2[s], col[5][k] = vh->fuel_rate_gps[s];
+    }
+    return vh->n;
+}
