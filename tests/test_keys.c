@@ -131,7 +131,7 @@ static void test_every_typed_key_checked(void)
         if (strcmp(t->name, "top")) {
             /* "fleet.drivers[i]" -> "fleet.drivers[0]." */
             size_t o = 0;
-            for (const char *p = t->name; *p && o + 3 < sizeof prefix; p++) prefix[o++] = *p == 'i' && p[-1] == '[' ? '0' : *p;
+            for (const char *p = t->name; *p && o + 3 < sizeof prefix; p++) prefix[o++] = *p == 'i' && p > t->name && p[-1] == '[' ? '0' : *p;
             prefix[o++] = '.', prefix[o] = '\0';
         }
         check_table(t, prefix, !strcmp(t->name, "solver") ? "time.integrator=cvode" : NULL);
