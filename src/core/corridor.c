@@ -723,6 +723,43 @@ static inline void cell_add(CellSum *cs, double *a, double *b, double *c, double
     cs->v[0] += da, cs->v[1] += db, cs->v[2] += dc;
 }
 
+/* First index k in [lo, hi) whose position pos (x_m or xold, by slot) is below x (or at most x unless strict), by
+ * bisection: k runs from the front vehicle backwards, so positions fall along k, before and after the step. */
+static size_t first_below(const WfCorridor *c, const double *pos, double x, int strict, size_t lo, size_t hi)
+{
+    while (lo < hi) {
+        size_t mid = lo + (hi - lo) / 2;
+        double p = pos[wf_corridor_slot(&c->veh, mid)];
+        if (strict ? p < x : p <= x) hi = mid;
+        else lo = mid + 1;
+    }
+    return lo;
+}
+
+/* The vehicles [*k0, *k1) whose step can add to Edie cells [i_lo, i_hi) or detectors [q_lo, q_hi): a step from xa to
+ * xb adds only to cells it meets and to detectors within a vehicle length behind xb, so vehicles that start the step
+ * beyond the range and the longest length, or end it before the range, add nothing (a 1 m margin covers the
+ * rounding of cell indices). Visiting only these, still in road order, gives every sum the same additions in the
+ * same order, and lets the threads of the parallel measurement share the vehicles instead of each visiting all. */
+static void measure_span(const WfCorridor *c, size_t i_lo, size_t i_hi, size_t q_lo, size_t q_hi, size_t *k0,
+                         size_t *k1)
+{
+    const WfScenario *sc = c->sc;
+    double x_lo = INFINITY, x_hi = -INFINITY, len = 0.0;
+    for (size_t k = 0; k < sc->n_classes; k++) len = sc->classes[k].length_m > len ? sc->classes[k].length_m : len;
+    if (i_lo < i_hi) {
+        x_lo = (double)i_lo * c->edie.dx_m;
+        x_hi = i_hi >= c->edie.nx ? INFINITY : (double)i_hi * c->edie.dx_m;
+    }
+    for (size_t q = q_lo; q < q_hi; q++) {
+        double xd = c->det.x_m[q];
+        x_lo = xd < x_lo ? xd : x_lo;
+        x_hi = xd + len > x_hi ? xd + len : x_hi;
+    }
+    *k0 = first_below(c, c->xold, x_hi + 1.0, 0, 0, c->veh.n);
+    *k1 = first_below(c, c->veh.x_m, x_lo - 1.0, 1, *k0, c->veh.n);
+}
+
 /* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. The common case, a
  * step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as edie_vehicle through
  * running sums of the row's cell and of the vehicle's class. */
@@ -735,7 +772,9 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
     double dt = c->sc->dt_s, *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx;
     double *erow_f = e->fuel_g + j * nx;
     CellSum row = {0}, cls = {0};
-    for (size_t k = 0; k < vh->n; k++) {
+    size_t k0, k1;
+    measure_span(c, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
+    for (size_t k = k0; k < k1; k++) {
         size_t s = wf_corridor_slot(vh, k), cl = vh->class_id[s], i = c->cell[s];
         double xa = c->xold[s], xb = vh->x_m[s], fuel = vh->fuel_rate_gps[s] * dt;
         if (i != UINT32_MAX && (i < i_lo || i >= i_hi)) {
