@@ -794,7 +794,8 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
  * add to one cell, so each cell's sum runs in road order whatever the thread count: on a large road each thread
- * owns a range of cells and of detectors and visits every vehicle in road order. */
+ * owns a range of cells and of detectors and visits, in road order, the vehicles that can reach them
+ * (measure_span). */
 static void phase_measure(WfCorridor *c, long step, int in_window)
 {
     const WfCorridorVehicles *vh = &c->veh;
