@@ -92,8 +92,6 @@ extern const size_t         wf_summary_n_class_fields;
 
 /* A field's value as a double (integers converted), from a WfSummary (fleet fields) or a WfClassSummary. */
 double wf_summary_value(const void *base, const WfSummaryField *f);
-/* Store a double into a field (integers rounded), e.g. when a sweep table is read back. */
-void wf_summary_set(void *base, const WfSummaryField *f, double value);
 
 /* The summary table `wavefuel run` prints: the class table with its fleet row, then the line of fleet values.
  * names[k]: class k's name. */

@@ -2,7 +2,6 @@
  * table, the meaning on each boundary, and how `wavefuel run` prints them. Definitions: docs/metrics.md. */
 #include "wavefuel/summary.h"
 
-#include <math.h>
 #include <string.h>
 
 #define R WF_SUMMARY_RING
@@ -107,16 +106,6 @@ double wf_summary_value(const void *base, const WfSummaryField *f)
     case WF_SUMMARY_I64: return (double)*(const int64_t *)p;
     case WF_SUMMARY_LONG: return (double)*(const long *)p;
     default: return *(const double *)p;
-    }
-}
-
-void wf_summary_set(void *base, const WfSummaryField *f, double value)
-{
-    char *p = (char *)base + f->offset;
-    switch (f->type) {
-    case WF_SUMMARY_I64: *(int64_t *)p = (int64_t)llround(value); break;
-    case WF_SUMMARY_LONG: *(long *)p = lround(value); break;
-    default: *(double *)p = value;
     }
 }
 
