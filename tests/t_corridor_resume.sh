@@ -14,7 +14,7 @@ ok() { echo "PASS $1"; }
 ko() { echo "FAIL $1: $2"; }
 
 S=tests/data/corridor_resume.yaml
-# Long enough (several seconds) that a kill after the first checkpoint lands midway.
+# Long enough (about 2 s here) that a signal after the first checkpoint (0.2 s) lands midway.
 L="--set time.duration_s=9000 --set seed=23"
 
 # Every object of file 1 and 2: the same groups and datasets, the same attributes, the same bytes (dtype, shape
@@ -50,13 +50,13 @@ assert b["trips/serial"].shape[0] > 1000 and b["trajectories/x"].shape[0] > 1000
 PY
 compare() { $PY "$tmp/compare.py" "$1" "$2"; }
 
-# Start a run in the background and wait until it has written a checkpoint (and a bit more), or gave up.
+. tests/interrupt.sh
+# Start a run in the background (pid) and wait until it has written a checkpoint while stepping.
 start_until_checkpoint() { # result, extra args...
   local out=$1; shift
   $BIN run $S -q -o "$out" $L "$@" & pid=$!
   pids+=("$pid")
-  for _ in $(seq 300); do [ -f "$out.ckpt" ] && break; sleep 0.05; done
-  sleep 0.4
+  wait_checkpoint "$out" $pid
 }
 
 $BIN run $S -q -o "$tmp/ref.h5" $L || ko reference_run "rc=$?"
@@ -64,11 +64,12 @@ $BIN run $S -q -o "$tmp/ref_euler.h5" $L --set time.integrator=euler || ko refer
 
 # SIGTERM: the run stops after a step, keeps its partial result and checkpoint (exit 3); resumed with one thread,
 # interrupted again, resumed again, it completes with the uninterrupted run's bytes and removes the checkpoint.
-start_until_checkpoint "$tmp/t.h5" --checkpoint-every 0.5
-kill -TERM $pid; wait $pid; rc1=$?
-$BIN run --resume "$tmp/t.h5" -q --threads 1 --checkpoint-every 0.2 & pid=$!
+start_until_checkpoint "$tmp/t.h5" --checkpoint-every 0.2
+signal_running TERM $pid; wait $pid; rc1=$?
+ino=$(ckpt_inode "$tmp/t.h5")
+$BIN run --resume "$tmp/t.h5" -q --threads 1 --checkpoint-every 0.1 & pid=$!
 pids+=("$pid")
-sleep 1.0; kill -TERM $pid; wait $pid; rc2=$?
+wait_checkpoint "$tmp/t.h5" $pid "$ino"; signal_running TERM $pid; wait $pid; rc2=$?
 if [ $rc1 -eq 3 ] && [ $rc2 -eq 3 ] && [ -f "$tmp/t.h5.ckpt" ] && [ -f "$tmp/t.h5.partial" ] &&
    $BIN run --resume "$tmp/t.h5" -q && [ -f "$tmp/t.h5" ] && [ ! -e "$tmp/t.h5.ckpt" ] &&
    [ ! -e "$tmp/t.h5.partial" ] && compare "$tmp/ref.h5" "$tmp/t.h5"
@@ -78,7 +79,7 @@ else ko corridor_resume_after_sigterm_twice_bit_identical "rc=$rc1,$rc2"; fi
 # SIGKILL after a checkpoint (euler): nothing is written at the end; the resumed run truncates the partial result to
 # the checkpoint's rows and completes with the uninterrupted run's bytes.
 start_until_checkpoint "$tmp/k.h5" --set time.integrator=euler --checkpoint-every 0.2
-kill -KILL $pid; wait $pid 2>/dev/null
+sleep 0.1; signal_running KILL $pid; wait $pid 2>/dev/null  # a little past the checkpoint
 if [ -f "$tmp/k.h5.ckpt" ] && [ -f "$tmp/k.h5.partial" ] && $BIN run --resume "$tmp/k.h5" -q &&
    compare "$tmp/ref_euler.h5" "$tmp/k.h5"
 then ok corridor_resume_after_sigkill_bit_identical; else ko corridor_resume_after_sigkill_bit_identical "see above"; fi
@@ -89,13 +90,12 @@ else ko corridor_resume_refuses_complete "rc=$rc $msg"; fi
 
 # Refused checkpoints: each resume must fail with status 2 and the expected message, and leave the partial
 # result and the checkpoint as they were.
-$BIN run $S -q -o "$tmp/c.h5" $L & pid=$!
-pids+=("$pid")
-sleep 1.2; kill -TERM $pid; wait $pid
+start_until_checkpoint "$tmp/c.h5" --checkpoint-every 0.2
+signal_running TERM $pid; wait $pid
 $BIN run tests/data/tiny_ring.yaml -q -o "$tmp/ring.h5" --set time.duration_s=200000 --set fleet.vehicles=2000 \
-  --set road.length_m=40000 & pid=$!
+  --set road.length_m=40000 --checkpoint-every 0.2 & pid=$!
 pids+=("$pid")
-sleep 1.5; kill -TERM $pid; wait $pid
+wait_checkpoint "$tmp/ring.h5" $pid; signal_running TERM $pid; wait $pid
 cp "$tmp/c.h5.ckpt" "$tmp/c.ckpt.good"
 refused() { # name, expected message, result to resume
   local name=$1 want=$2 res=$3 before after msg rc
@@ -142,9 +142,8 @@ f['state/mode']=np.zeros(7,'u1')" "$tmp/c.h5.ckpt"
   head -c 5000 /dev/urandom > "$tmp/c.h5.ckpt"
   refused corridor_refuses_garbage "not a readable checkpoint" "$tmp/c.h5"
   # The checkpoint of another corridor run (another seed) next to this run's partial result.
-  $BIN run $S -q -o "$tmp/o.h5" $L --set seed=24 & pid=$!
-  pids+=("$pid")
-  sleep 1.2; kill -TERM $pid; wait $pid
+  start_until_checkpoint "$tmp/o.h5" --set seed=24 --checkpoint-every 0.2
+  signal_running TERM $pid; wait $pid
   cp "$tmp/o.h5.ckpt" "$tmp/c.h5.ckpt"
   refused corridor_refuses_other_run "is the result of another run than $tmp/c.h5.ckpt" "$tmp/c.h5"
   # With its own checkpoint back, the run resumes and completes as the uninterrupted one.

@@ -5,6 +5,7 @@ set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 PY=/usr/bin/python3
 tmp=$(mktemp -d)
+. tests/interrupt.sh
 trap 'rm -rf "$tmp"' EXIT
 ok() { echo "PASS $1"; }
 ko() { echo "FAIL $1: $2"; }
@@ -64,10 +65,9 @@ then ok hdf5_round_trip_documented; else ko hdf5_round_trip_documented "see abov
 
 # SIGTERM: the run stops at the end of a step, keeps a readable partial file marked incomplete, exits 3.
 $BIN run $S -o "$tmp/k.h5" -q --set time.duration_s=200000 --set fleet.vehicles=2000 --set road.length_m=40000 \
-  --set output.trajectories=false &
+  --set output.trajectories=false --checkpoint-every 0.2 &
 pid=$!
-sleep 1.5
-kill -TERM $pid
+wait_checkpoint "$tmp/k.h5" $pid; signal_running TERM $pid
 wait $pid; rc=$?
 if [ $rc -eq 3 ] && [ -f "$tmp/k.h5.partial" ] && [ ! -e "$tmp/k.h5" ] && $PY - "$tmp/k.h5.partial" <<'PY'
 import sys, h5py
@@ -129,13 +129,13 @@ assert not bad, f"datasets differ: {bad}"
 assert b["meta/completed"][()] == 1
 PY
 }
-$BIN run $S -q -o "$tmp/r1.h5" $L & pid=$!
-sleep 1.5; kill -TERM $pid; wait $pid; rc=$?
+$BIN run $S -q -o "$tmp/r1.h5" $L --checkpoint-every 0.2 & pid=$!
+wait_checkpoint "$tmp/r1.h5" $pid; signal_running TERM $pid; wait $pid; rc=$?
 if [ $rc -eq 3 ] && [ -f "$tmp/r1.h5.ckpt" ] && [ -f "$tmp/r1.h5.partial" ] && $BIN run --resume "$tmp/r1.h5" -q &&
    [ -f "$tmp/r1.h5" ] && [ ! -e "$tmp/r1.h5.ckpt" ] && [ ! -e "$tmp/r1.h5.partial" ] && compare_all "$tmp/r1.h5"
 then ok resume_after_sigterm_bit_identical; else ko resume_after_sigterm_bit_identical "rc=$rc"; fi
-$BIN run $S -q -o "$tmp/r2.h5" $L --checkpoint-every 0.3 & pid=$!
-sleep 1.5; kill -KILL $pid; wait $pid 2>/dev/null
+$BIN run $S -q -o "$tmp/r2.h5" $L --checkpoint-every 0.2 & pid=$!
+wait_checkpoint "$tmp/r2.h5" $pid; sleep 0.1; signal_running KILL $pid; wait $pid 2>/dev/null
 if [ -f "$tmp/r2.h5.ckpt" ] && $BIN run --resume "$tmp/r2.h5" -q && compare_all "$tmp/r2.h5"
 then ok resume_after_sigkill_bit_identical; else ko resume_after_sigkill_bit_identical "see above"; fi
 msg=$($BIN run --resume "$tmp/r2.h5" -q 2>&1); rc=$?
