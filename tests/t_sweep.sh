@@ -131,6 +131,17 @@ assert t["meta/runs_failed"][()] == 4 and t["meta/runs_ok"][()] == 4 and t["meta
 PY
 then ok failed_run_recorded; else ko failed_run_recorded "rc $rc: $(head -3 "$tmp/f.err")"; fi
 
+# A corridor base scenario: every run is recorded as failed with the reason (the table holds ring metrics).
+cat >"$tmp/cor.yaml" <<EOF
+scenario: $PWD/tests/data/corridor_resume.yaml
+set: {time.duration_s: 60, time.warmup_s: 0}
+seeds: 2
+EOF
+$BIN sweep "$tmp/cor.yaml" -o "$tmp/cor.h5" 2>"$tmp/cor.err" >/dev/null; rc=$?
+if [ $rc -eq 1 ] && grep -q "road.type corridor: sweeps tabulate ring metrics" "$tmp/cor.err" &&
+   $PY -c "import h5py,sys; t=h5py.File(sys.argv[1]); assert [s.decode() for s in t['runs/status'][()]] == ['failed'] * 2" "$tmp/cor.h5"
+then ok corridor_sweep_refused; else ko corridor_sweep_refused "rc $rc: $(head -3 "$tmp/cor.err")"; fi
+
 # Rerun of a finished table: nothing runs, the file is untouched; --retry-failed runs the failed rows only.
 sum1=$(md5sum <"$tmp/f.h5")
 out=$($BIN sweep "$tmp/s2.yaml" -o "$tmp/f.h5" 2>&1); rc=$?

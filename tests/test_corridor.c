@@ -32,7 +32,7 @@ typedef struct Rec {
     int            check;    /* check the invariants at every record */
 } Rec;
 
-static int rec_row(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
+static int rec_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
 {
     Rec *r = ctx;
     if (r->n == r->cap) {
@@ -41,11 +41,12 @@ static int rec_row(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfE
         if (!p) return wf_err(err, WF_ESYS, "test: out of memory");
         r->rows = p, r->cap = cap;
     }
-    r->rows[r->n++] = *row;
+    WfCorridorRow *row = &r->rows[r->n++];
+    WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(c)->n_classes);
     if (!r->check) return 0;
     /* Conservation and road order at this instant, recomputed from the vehicles. */
-    const WfCorridorVehicles *vh = wf_corridor_vehicles(c);
-    const WfCorridorCounts *k = wf_corridor_counts(c);
+    const WfCorridorVehicles *vh = wf_corridor_vehicles(wf_sim_corridor(c));
+    const WfCorridorCounts *k = wf_corridor_counts(wf_sim_corridor(c));
     double t = row->v[WF_CTS_T];
     long bad = 0;
     bad += k->entered != k->exited + (int64_t)vh->n;
@@ -67,7 +68,7 @@ static int rec_row(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfE
     return 0;
 }
 
-static int rec_trips(void *ctx, const WfCorridor *c, const WfTrip *t, size_t n, WfError *err)
+static int rec_trips(void *ctx, const WfSim *c, const WfTrip *t, size_t n, WfError *err)
 {
     (void)c;
     Rec *r = ctx;
@@ -113,18 +114,18 @@ static WfScenario *load_text(const char *name, const char *text)
 }
 
 /* Run a corridor; returns the engine (caller destroys) or NULL after a failed CHECK. */
-static WfCorridor *run_corridor(const WfScenario *sc, Rec *rec)
+static WfSim *run_corridor(const WfScenario *sc, Rec *rec)
 {
-    WfCorridor *c = NULL;
+    WfSim *c = NULL;
     WfError err = {0};
     rec->L = sc->road.length_m;
-    int rc = wf_corridor_create(sc, &c, &err);
-    CHECK(rc == 0, "wf_corridor_create: %s", err.msg);
+    int rc = wf_sim_create(sc, &c, &err);
+    CHECK(rc == 0, "wf_sim_create: %s", err.msg);
     if (rc) return NULL;
-    WfCorridorOutput out = {.record = rec_row, .trips = rec_trips, .ctx = rec};
-    rc = wf_corridor_run(c, &out, NULL, NULL, NULL, &err);
-    CHECK(rc == 0, "wf_corridor_run: %s", err.msg);
-    if (rc) wf_corridor_destroy(&c);
+    WfOutput out = {.record = rec_row, .trips = rec_trips, .ctx = rec};
+    rc = wf_sim_run(c, &out, NULL, NULL, NULL, &err);
+    CHECK(rc == 0, "wf_sim_run: %s", err.msg);
+    if (rc) wf_sim_destroy(&c);
     return c;
 }
 
@@ -256,10 +257,10 @@ static void test_conservation(void)
     WfScenario *sa = load_text("cons_a.yaml", conservation_yaml("inflow_a.csv"));
     WfScenario *sb = load_text("cons_b.yaml", conservation_yaml("inflow_b.csv"));
     Rec ra = {.check = 1}, rb = {0};
-    WfCorridor *ca = sa ? run_corridor(sa, &ra) : NULL;
-    WfCorridor *cb = sb ? run_corridor(sb, &rb) : NULL;
+    WfSim *ca = sa ? run_corridor(sa, &ra) : NULL;
+    WfSim *cb = sb ? run_corridor(sb, &rb) : NULL;
     if (ca && cb) {
-        const WfCorridorSummary *s = wf_corridor_summary(ca);
+        const WfSummary *s = wf_sim_summary(ca);
         const WfCorridorCounts *k = &s->counts;
         double max_q = 0;
         for (size_t i = 0; i < ra.n; i++) max_q = fmax(max_q, ra.rows[i].v[WF_CTS_QUEUED]);
@@ -267,7 +268,7 @@ static void test_conservation(void)
         CHECK(ra.bad == 0, "%ld invariant violations at records", ra.bad);
         CHECK(k->delayed > 50 && max_q > 10, "the scenario must queue entries (delayed %lld, longest queue %g)",
               (long long)k->delayed, max_q);
-        CHECK(k->arrived == k->entered + k->queued && k->entered == k->exited + (int64_t)wf_corridor_vehicles(ca)->n,
+        CHECK(k->arrived == k->entered + k->queued && k->entered == k->exited + (int64_t)wf_corridor_vehicles(wf_sim_corridor(ca))->n,
               "final counts: arrived %lld entered %lld exited %lld queued %lld", (long long)k->arrived,
               (long long)k->entered, (long long)k->exited, (long long)k->queued);
         /* Every entered vehicle has exactly one trip; completed ones are the exits. */
@@ -297,14 +298,14 @@ static void test_conservation(void)
         CHECK_REL(fuel, s->fuel_g, 1e-9); /* no warm-up: the window is the whole run */
         /* Edie: Σ distance is every trip's distance inside [0, L]; Σ time differs from the trips' time on the road
          * only by the part of each exit step spent beyond L (< dt per exit). */
-        const WfEdie *e = wf_corridor_edie(ca);
+        const WfEdie *e = wf_corridor_edie(wf_sim_corridor(ca));
         double ed = 0, et = 0;
         for (size_t i = 0; i < e->nx * e->nt; i++) ed += e->dist_m[i], et += e->time_s[i];
         CHECK_REL(ed, dist, 1e-9);
         CHECK(et <= time_lo + 1e-6 && et >= time_lo - 0.1 * (double)k->exited - 1e-6,
               "Edie time %.9g s, trips %.9g s, %lld exits", et, time_lo, (long long)k->exited);
         /* Detectors: every passage counted once. */
-        const WfDetectors *d = wf_corridor_detectors(ca);
+        const WfDetectors *d = wf_corridor_detectors(wf_sim_corridor(ca));
         for (size_t q = 0; q < 3; q++) {
             int64_t cnt = 0;
             for (size_t j = 0; j < d->n_int; j++) cnt += d->count[j * d->n_det + q];
@@ -325,8 +326,8 @@ static void test_conservation(void)
                ra.n, (long long)k->arrived, (long long)k->entered, (long long)k->delayed, max_q, (long long)k->exited,
                (long long)k->overlaps, same);
     }
-    wf_corridor_destroy(&ca);
-    wf_corridor_destroy(&cb);
+    wf_sim_destroy(&ca);
+    wf_sim_destroy(&cb);
     rec_free(&ra);
     rec_free(&rb);
     wf_scenario_destroy(&sa);
@@ -341,7 +342,7 @@ static const Idm IDM_FF = {30.0, 1.0, 2.0, 1.0, 1.5};
 
 /* One run of the free-flow corridor: 720 veh/h of identical IDM sedans on a flat 4 km road. outflow_speed < 0:
  * free outflow; otherwise vehicles that leave drive on at that speed (the road continues in the same state). */
-static WfCorridor *free_flow_run(const char *name, double outflow_speed, WfScenario **sc, Rec *rec)
+static WfSim *free_flow_run(const char *name, double outflow_speed, WfScenario **sc, Rec *rec)
 {
     char yaml[2048], outflow[128] = "";
     if (outflow_speed >= 0) snprintf(outflow, sizeof outflow, "  outflow: {type: speed, speed_mps: %.17g}\n", outflow_speed);
@@ -400,16 +401,16 @@ static void test_free_flow(void)
      * detectors. */
     WfScenario *sc = NULL;
     Rec rec = {0};
-    WfCorridor *c = free_flow_run("free.yaml", -1.0, &sc, &rec);
+    WfSim *c = free_flow_run("free.yaml", -1.0, &sc, &rec);
     if (c) {
-        const WfCorridorSummary *s = wf_corridor_summary(c);
+        const WfSummary *s = wf_sim_summary(c);
         CHECK(rec.bad == 0, "%ld invariant violations", rec.bad);
         CHECK(s->counts.delayed == 0 && s->counts.max_queue <= 1, "free flow must not queue (delayed %lld)",
               (long long)s->counts.delayed);
         CHECK(s->stops_per_vkm == 0.0, "stops in free flow: %g /vkm", s->stops_per_vkm);
         double wv, wt, wf;
         size_t n = check_stationary_trips(&rec, vs, fs, 0.01, &wv, &wt, &wf);
-        const WfEdie *e = wf_corridor_edie(c);
+        const WfEdie *e = wf_corridor_edie(wf_sim_corridor(c));
         double fuel = 0, time = 0, dist = 0;
         for (size_t j = 3; j < e->nt; j++)
             for (size_t i = 5; i < 35; i++) {
@@ -418,7 +419,7 @@ static void test_free_flow(void)
             }
         CHECK_REL(fuel / time, fs, 1e-6);
         CHECK_REL(fuel / dist, fs / vs, 1e-6);
-        const WfDetectors *d = wf_corridor_detectors(c);
+        const WfDetectors *d = wf_corridor_detectors(wf_sim_corridor(c));
         for (size_t j = 4; j < d->n_int; j++)
             for (size_t q = 0; q < d->n_det; q++) {
                 size_t i = j * d->n_det + q;
@@ -432,7 +433,7 @@ static void test_free_flow(void)
                "time (exit effect); interior Edie fuel %.9f g/s per vehicle\n",
                FF_Q_VPH, vs, fs, n, wv, wt, wf, fuel / time);
     }
-    wf_corridor_destroy(&c);
+    wf_sim_destroy(&c);
     rec_free(&rec);
     wf_scenario_destroy(&sc);
     /* The road continuing downstream in the same state (vehicles that leave drive on at v*): every trip after the
@@ -441,12 +442,12 @@ static void test_free_flow(void)
     if (c) {
         double wv, wt, wf;
         size_t n = check_stationary_trips(&rec, vs, fs, 1e-6, &wv, &wt, &wf);
-        CHECK(wf_corridor_summary(c)->counts.delayed == 0, "delayed entries");
+        CHECK(wf_sim_summary(c)->counts.delayed == 0, "delayed entries");
         printf("  free flow, downstream at v*: %zu trips: entry speed within %.2g, travel time within %.3g s, fuel "
                "within %.2g (relative) of f(v*) x travel time\n", n, wv, wt, wf);
     }
     (void)L, (void)T;
-    wf_corridor_destroy(&c);
+    wf_sim_destroy(&c);
     rec_free(&rec);
     wf_scenario_destroy(&sc);
 }
@@ -471,9 +472,9 @@ static void test_fundamental_diagram_free(void)
              L, T, FF_LEN, IDM_FF.v0, IDM_FF.T, IDM_FF.s0, IDM_FF.a, IDM_FF.b, qv);
     WfScenario *sc = load_text("fd_free.yaml", yaml);
     Rec rec = {0};
-    WfCorridor *c = sc ? run_corridor(sc, &rec) : NULL;
+    WfSim *c = sc ? run_corridor(sc, &rec) : NULL;
     if (c) {
-        const WfEdie *e = wf_corridor_edie(c);
+        const WfEdie *e = wf_corridor_edie(wf_sim_corridor(c));
         Idm zone = IDM_FF;
         zone.T *= 1.5;
         struct { const char *name; double x0, x1; const Idm *p; } reg[3] = {
@@ -495,7 +496,7 @@ static void test_fundamental_diagram_free(void)
         }
         CHECK(kk[1] > 1.05 * kk[0], "the headway zone must be denser (k %.4g vs %.4g veh/km)", kk[1] * 1000, kk[0] * 1000);
     }
-    wf_corridor_destroy(&c);
+    wf_sim_destroy(&c);
     rec_free(&rec);
     wf_scenario_destroy(&sc);
 }
@@ -523,9 +524,9 @@ static void test_fundamental_diagram_congested(void)
              L, T, FF_LEN, IDM_CG.v0, IDM_CG.T, IDM_CG.s0, IDM_CG.a, IDM_CG.b, v_out);
     WfScenario *sc = load_text("fd_cong.yaml", yaml);
     Rec rec = {0};
-    WfCorridor *c = sc ? run_corridor(sc, &rec) : NULL;
+    WfSim *c = sc ? run_corridor(sc, &rec) : NULL;
     if (c) {
-        const WfEdie *e = wf_corridor_edie(c);
+        const WfEdie *e = wf_corridor_edie(wf_sim_corridor(c));
         double q, k;
         edie_region(e, L, T, 200, 1800, t0, T, &q, &k);
         double Qk = idm_Q(&IDM_CG, k, FF_LEN), k_out = 1.0 / (idm_se(&IDM_CG, v_out) + FF_LEN);
@@ -541,13 +542,13 @@ static void test_fundamental_diagram_congested(void)
                     vmin = fmin(vmin, v), vmax = fmax(vmax, v);
                 }
         CHECK(vmax - vmin < 0.05 * v_out, "not homogeneous: cell speeds %.4g .. %.4g m/s", vmin, vmax);
-        CHECK(wf_corridor_counts(c)->queued > 100, "the demand must exceed the discharge (queue %lld)",
-              (long long)wf_corridor_counts(c)->queued);
+        CHECK(wf_corridor_counts(wf_sim_corridor(c))->queued > 100, "the demand must exceed the discharge (queue %lld)",
+              (long long)wf_corridor_counts(wf_sim_corridor(c))->queued);
         printf("  FD congested (v_out %.0f m/s): Edie q %8.3f veh/h, k %7.4f veh/km (equilibrium at v_out %7.4f); model "
                "Q(k) %8.3f veh/h (rel. diff %.2g); cell speeds %.4f..%.4f m/s\n",
                v_out, q * 3600, k * 1000, k_out * 1000, Qk * 3600, (q - Qk) / Qk, vmin, vmax);
     }
-    wf_corridor_destroy(&c);
+    wf_sim_destroy(&c);
     rec_free(&rec);
     wf_scenario_destroy(&sc);
 }
@@ -594,7 +595,7 @@ static void grade_case(int elevation)
              L, v, elevation ? "elevation: {csv: hill_z.csv}" : grade, dt);
     WfScenario *sc = load_text(elevation ? "hill_z.yaml" : "hill.yaml", yaml);
     Rec rec = {0};
-    WfCorridor *c = sc ? run_corridor(sc, &rec) : NULL;
+    WfSim *c = sc ? run_corridor(sc, &rec) : NULL;
     if (c) {
         CHECK(rec.n_trips == 1 && rec.trips[0].completed, "expected one completed trip (%zu)", rec.n_trips);
         const WfTrip *t = rec.n_trips ? &rec.trips[0] : NULL;
@@ -624,7 +625,7 @@ static void grade_case(int elevation)
             if (cell_th[i] > 1e-4) fu += cell_f[i], nu++;
             else if (cell_th[i] < -1e-4) fd += cell_f[i], nd++;
         }
-        const WfCorridorSummary *s = wf_corridor_summary(c);
+        const WfSummary *s = wf_sim_summary(c);
         if (t) {
             CHECK_REL(t->fuel_g, sum, 1e-9);
             CHECK(fabs(t->fuel_g - integ) <= 1e-3 * integ, "trip fuel %.9g g, integral over the profile %.9g g",
@@ -641,7 +642,7 @@ static void grade_case(int elevation)
                t ? (t->fuel_g - integ) / integ : NAN, s->cls[0].g_per_km_up, s->cls[0].g_per_km_down,
                s->cls[0].g_per_km_flat);
     }
-    wf_corridor_destroy(&c);
+    wf_sim_destroy(&c);
     rec_free(&rec);
     wf_scenario_destroy(&sc);
 }
@@ -671,22 +672,22 @@ typedef struct Snap {
     size_t         n_vars;
 } Snap;
 
-static int snap_row(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
+static int snap_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
 {
     Snap *sn = ctx;
-    if (row->v[WF_CTS_T] >= sn->stop_at_s) sn->stop = SIGTERM;
-    return rec_row(&sn->rec, c, row, err);
+    if (rec->v[WF_CTS_T] >= sn->stop_at_s) sn->stop = SIGTERM;
+    return rec_row(&sn->rec, c, rec, err);
 }
 
-static int snap_trips(void *ctx, const WfCorridor *c, const WfTrip *t, size_t n, WfError *err)
+static int snap_trips(void *ctx, const WfSim *c, const WfTrip *t, size_t n, WfError *err)
 {
     return rec_trips(&((Snap *)ctx)->rec, c, t, n, err);
 }
 
-static int snap_checkpoint(void *ctx, const WfCorridor *c, WfError *err)
+static int snap_checkpoint(void *ctx, const WfSim *c, WfError *err)
 {
     Snap *sn = ctx;
-    sn->n_vars = wf_corridor_state((WfCorridor *)c, sn->vars, WF_MAX_STATE_VARS);
+    sn->n_vars = wf_sim_state((WfSim *)c, sn->vars, WF_MAX_STATE_VARS);
     for (size_t i = 0; i < sn->n_vars; i++) {
         if (!sn->bytes[i]) sn->bytes[i] = malloc(sn->vars[i].size + 1); /* block sizes are fixed for a corridor */
         if (!sn->bytes[i]) return wf_err(err, WF_ESYS, "test: out of memory");
@@ -728,45 +729,45 @@ static void test_state_restore(void)
                                "  edie: {dx_m: 100, dt_s: 30}\n");
     if (!sc) return;
     Rec ra = {0};
-    WfCorridor *ca = run_corridor(sc, &ra), *cb = NULL, *cc = NULL;
+    WfSim *ca = run_corridor(sc, &ra), *cb = NULL, *cc = NULL;
     WfError err = {0};
     Snap sn = {.stop_at_s = 517.0};
     Rec rc_ = {0};
-    int rc = wf_corridor_create(sc, &cb, &err);
+    int rc = wf_sim_create(sc, &cb, &err);
     CHECK(rc == 0, "create: %s", err.msg);
     if (ca && !rc) {
-        WfCorridorOutput ob = {.record = snap_row, .trips = snap_trips, .checkpoint = snap_checkpoint, .ctx = &sn};
-        wf_corridor_set_checkpoint_interval(cb, 1e-9); /* every step: the last one taken is the interruption's */
-        rc = wf_corridor_run(cb, &ob, NULL, NULL, &sn.stop, &err);
+        WfOutput ob = {.record = snap_row, .trips = snap_trips, .checkpoint = snap_checkpoint, .ctx = &sn};
+        wf_sim_set_checkpoint_interval(cb, 1e-9); /* every step: the last one taken is the interruption's */
+        rc = wf_sim_run(cb, &ob, NULL, NULL, &sn.stop, &err);
         CHECK(rc == WF_EINTR, "the stopped run: rc %d (%s)", rc, err.msg);
         CHECK(sn.taken > 100 && sn.rows == 518, "checkpoints %d, records %zu at the last", sn.taken, sn.rows);
-        rc = wf_corridor_create(sc, &cc, &err);
+        rc = wf_sim_create(sc, &cc, &err);
         CHECK(rc == 0, "create: %s", err.msg);
     }
     if (ca && cc && sn.taken) {
         WfStateVar v[WF_MAX_STATE_VARS];
-        size_t nv = wf_corridor_state(cc, v, WF_MAX_STATE_VARS);
+        size_t nv = wf_sim_state(cc, v, WF_MAX_STATE_VARS);
         CHECK(nv == sn.n_vars && nv <= WF_MAX_STATE_VARS, "%zu blocks, %zu saved", nv, sn.n_vars);
         for (size_t i = 0; i < nv && i < sn.n_vars; i++) {
             CHECK(v[i].size == sn.vars[i].size && !strcmp(v[i].name, sn.vars[i].name), "block %zu differs", i);
             if (v[i].size == sn.vars[i].size) memcpy(v[i].data, sn.bytes[i], v[i].size);
         }
         /* A state that cannot belong to this corridor is refused; the saved one is accepted. */
-        size_t first = wf_corridor_vehicles(cc)->first;
+        size_t first = wf_corridor_vehicles(wf_sim_corridor(cc))->first;
         for (size_t i = 0; i < nv; i++)
-            if (!strcmp(v[i].name, "first")) *(size_t *)v[i].data = wf_corridor_vehicles(cc)->cap;
-        rc = wf_corridor_restored(cc, &err);
+            if (!strcmp(v[i].name, "first")) *(size_t *)v[i].data = wf_corridor_vehicles(wf_sim_corridor(cc))->cap;
+        rc = wf_sim_restored(cc, &err);
         CHECK(rc == WF_EINPUT && strstr(err.msg, "vehicle buffer indices"), "bad state: rc %d '%s'", rc, err.msg);
         for (size_t i = 0; i < nv; i++)
             if (!strcmp(v[i].name, "first")) *(size_t *)v[i].data = first;
-        rc = wf_corridor_restored(cc, &err);
+        rc = wf_sim_restored(cc, &err);
         CHECK(rc == 0, "restored: %s", err.msg);
-        WfCorridorOutput oc = {.record = rec_row, .trips = rec_trips, .ctx = &rc_};
-        rc = rc ? rc : wf_corridor_run(cc, &oc, NULL, NULL, NULL, &err);
+        WfOutput oc = {.record = rec_row, .trips = rec_trips, .ctx = &rc_};
+        rc = rc ? rc : wf_sim_run(cc, &oc, NULL, NULL, NULL, &err);
         CHECK(rc == 0, "the resumed run: %s", err.msg);
     }
     if (ca && cc && !rc) {
-        const WfCorridorCounts *k = wf_corridor_counts(ca);
+        const WfCorridorCounts *k = wf_corridor_counts(wf_sim_corridor(ca));
         CHECK(sn.rows + rc_.n == ra.n, "records: %zu before, %zu after, %zu uninterrupted", sn.rows, rc_.n, ra.n);
         CHECK(sn.trips + rc_.n_trips == ra.n_trips, "trips: %zu + %zu, %zu uninterrupted", sn.trips, rc_.n_trips,
               ra.n_trips);
@@ -784,8 +785,8 @@ static void test_state_restore(void)
         }
         CHECK(same_rows == ra.n && same_trips == ra.n_trips, "%zu of %zu records, %zu of %zu trips identical",
               same_rows, ra.n, same_trips, ra.n_trips);
-        const WfEdie *ea = wf_corridor_edie(ca), *ec = wf_corridor_edie(cc);
-        const WfDetectors *da = wf_corridor_detectors(ca), *dc = wf_corridor_detectors(cc);
+        const WfEdie *ea = wf_corridor_edie(wf_sim_corridor(ca)), *ec = wf_corridor_edie(wf_sim_corridor(cc));
+        const WfDetectors *da = wf_corridor_detectors(wf_sim_corridor(ca)), *dc = wf_corridor_detectors(wf_sim_corridor(cc));
         size_t ne = ea->nx * ea->nt, nd = da->n_int * da->n_det;
         CHECK(!memcmp(ea->dist_m, ec->dist_m, ne * 8) && !memcmp(ea->time_s, ec->time_s, ne * 8) &&
                   !memcmp(ea->fuel_g, ec->fuel_g, ne * 8) &&
@@ -795,15 +796,15 @@ static void test_state_restore(void)
         CHECK(!memcmp(da->count, dc->count, nd * 8) && !memcmp(da->occupied_s, dc->occupied_s, nd * 8) &&
                   !memcmp(da->sum_inv_v_spm, dc->sum_inv_v_spm, nd * 8),
               "detector sums differ");
-        CHECK(!memcmp(wf_corridor_summary(ca), wf_corridor_summary(cc), sizeof(WfCorridorSummary)), "summaries differ");
+        CHECK(!memcmp(wf_sim_summary(ca), wf_sim_summary(cc), sizeof(WfSummary)), "summaries differ");
         printf("  state restore: stopped at t = %.0f s after %d checkpoints (%zu blocks), %zu records and %zu trips "
                "identical to the uninterrupted run\n",
                sn.stop_at_s + 0.1, sn.taken, sn.n_vars, same_rows, same_trips);
     }
     for (size_t i = 0; i < WF_MAX_STATE_VARS; i++) free(sn.bytes[i]);
-    wf_corridor_destroy(&ca);
-    wf_corridor_destroy(&cb);
-    wf_corridor_destroy(&cc);
+    wf_sim_destroy(&ca);
+    wf_sim_destroy(&cb);
+    wf_sim_destroy(&cc);
     wf_scenario_destroy(&sc);
     rec_free(&ra);
     rec_free(&sn.rec);

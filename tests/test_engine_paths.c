@@ -43,11 +43,14 @@ typedef struct Out {
     size_t state_size;
 } Out;
 
-static int keep_row(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
+static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
-    (void)sim, (void)err;
+    (void)err;
     Out *o = ctx;
-    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) o->rows[o->n_rows++] = *row;
+    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) {
+        WfTsRow *row = &o->rows[o->n_rows++];
+        WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(sim)->n_classes);
+    }
     return 0;
 }
 
@@ -205,17 +208,20 @@ typedef struct COut {
     double max_on_road;
 } COut;
 
-static int c_row(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err)
+static int c_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
 {
-    (void)c, (void)err;
+    (void)err;
     COut *o = ctx;
-    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) o->rows[o->n_rows++] = *row;
-    if (row->v[WF_CTS_VEHICLES] > o->max_on_road) o->max_on_road = row->v[WF_CTS_VEHICLES];
+    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) {
+        WfCorridorRow *row = &o->rows[o->n_rows++];
+        WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(c)->n_classes);
+    }
+    if (rec->v[WF_CTS_VEHICLES] > o->max_on_road) o->max_on_road = rec->v[WF_CTS_VEHICLES];
     return 0;
 }
 
 /* Trips copied field by field (the struct's padding is not part of the result). */
-static int c_trips(void *ctx, const WfCorridor *c, const WfTrip *t, size_t n, WfError *err)
+static int c_trips(void *ctx, const WfSim *c, const WfTrip *t, size_t n, WfError *err)
 {
     (void)c;
     COut *o = ctx;
@@ -236,20 +242,20 @@ static int run_corridor(const char *path, int threads, COut *o)
 {
     WfError err = {0};
     WfScenario *sc = NULL;
-    WfCorridor *c = NULL;
+    WfSim *c = NULL;
 #ifdef _OPENMP
     omp_set_num_threads(threads);
 #else
     (void)threads;
 #endif
     int rc = wf_scenario_load(path, NULL, 0, &sc, &err);
-    if (!rc) rc = wf_corridor_create(sc, &c, &err);
-    WfCorridorOutput out = {.record = c_row, .trips = c_trips, .ctx = o};
-    if (!rc) rc = wf_corridor_run(c, &out, NULL, NULL, NULL, &err);
+    if (!rc) rc = wf_sim_create(sc, &c, &err);
+    WfOutput out = {.record = c_row, .trips = c_trips, .ctx = o};
+    if (!rc) rc = wf_sim_run(c, &out, NULL, NULL, NULL, &err);
     if (rc) printf("  %s\n", err.msg);
     if (!rc) {
         WfStateVar vars[WF_MAX_STATE_VARS];
-        size_t nv = wf_corridor_state(c, vars, WF_MAX_STATE_VARS);
+        size_t nv = wf_sim_state(c, vars, WF_MAX_STATE_VARS);
         for (size_t k = 0; k < nv; k++) o->state_size += vars[k].size;
         o->state = malloc(o->state_size);
         for (size_t k = 0, off = 0; o->state && k < nv; k++) {
@@ -257,7 +263,7 @@ static int run_corridor(const char *path, int threads, COut *o)
             off += vars[k].size;
         }
     }
-    wf_corridor_destroy(&c);
+    wf_sim_destroy(&c);
     wf_scenario_destroy(&sc);
     return rc;
 }

@@ -31,7 +31,7 @@ typedef struct Recorder {
     void    *check_ctx;
 } Recorder;
 
-static int rec_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err)
+static int rec_record(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
     Recorder *r = ctx;
     if (r->n == r->cap) {
@@ -40,7 +40,8 @@ static int rec_record(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *
         if (!p) return wf_err(err, WF_ESYS, "test recorder: out of memory");
         r->rows = p, r->cap = cap;
     }
-    r->rows[r->n++] = *row;
+    WfTsRow *row = &r->rows[r->n++];
+    WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(sim)->n_classes);
     if (r->check) r->check(r->check_ctx, sim, row);
     return 0;
 }

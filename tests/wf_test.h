@@ -62,6 +62,16 @@ static void wf_test_setup_(void)
         fflush(stdout);                                                           \
     } while (0)
 
+/* A run's record (engine.h: WfRecord) kept in a row struct with members v and class_fuel_rate_gps (WfTsRow,
+ * WfCorridorRow): the values, each class's fuel rate, zeros past the classes (rows are compared whole). dst is
+ * evaluated more than once. */
+#define WF_TEST_KEEP_RECORD(dst, rec, n_classes)                                                   \
+    do {                                                                                            \
+        memset((dst), 0, sizeof *(dst));                                                            \
+        memcpy((dst)->v, (rec)->v, (rec)->n * sizeof *(rec)->v);                                    \
+        memcpy((dst)->class_fuel_rate_gps, (rec)->class_fuel_rate_gps, (n_classes) * sizeof(double)); \
+    } while (0)
+
 #define TEST_EXIT() return wf_test_fail_total_ ? 1 : 0
 
 #endif

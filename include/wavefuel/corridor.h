@@ -8,7 +8,6 @@
 #ifndef WAVEFUEL_CORRIDOR_H
 #define WAVEFUEL_CORRIDOR_H
 
-#include <signal.h>
 #include <stddef.h>
 #include <stdint.h>
 
@@ -101,6 +100,9 @@ double wf_corridor_grade_mean(const WfCorridorSpec *cs, double a_m, double b_m);
 
 /* --------------------------------------------------------------------------------------- engine part */
 
+/* The open boundary's engine, created by wf_sim_create (engine.h) for a corridor scenario: vehicle capacity
+ * floor(L / shortest length) + 2 (no order-keeping state can exceed it), the entrance queue, the trips buffer,
+ * detectors and Edie grid, all allocated then. */
 typedef struct WfCorridor WfCorridor;
 
 /* Vehicles on the road: a circular buffer of fixed capacity (a multiple of the kernel's block), in road order.
@@ -174,59 +176,12 @@ typedef struct WfEdie {
     double *class_dist_m, *class_fuel_g;
 } WfEdie;
 
-/* A corridor's summary is the common WfSummary (wavefuel/summary.h): the fields a ring does not have stay 0. */
-typedef WfClassSummary WfCorridorClassSummary;
-typedef WfSummary WfCorridorSummary;
 
-/* Output sink (HDF5 in src/io/h5corridor.c; tests use their own). Each callback may be NULL and returns 0 or an
- * error code. trips() receives completed trips in blocks as they happen and, at the end, the unfinished ones. */
-typedef struct WfCorridorOutput {
-    int (*begin)(void *ctx, const WfCorridor *c, WfError *err);
-    int (*record)(void *ctx, const WfCorridor *c, const WfCorridorRow *row, WfError *err);
-    int (*trajectory)(void *ctx, const WfCorridor *c, double t_s, WfError *err);
-    int (*trips)(void *ctx, const WfCorridor *c, const WfTrip *trips, size_t n, WfError *err);
-    /* Save everything needed to resume (every checkpoint interval of wall time, and when the run is interrupted):
-     * called between steps, after every completed trip so far has gone to trips(); may be NULL. */
-    int (*checkpoint)(void *ctx, const WfCorridor *c, WfError *err);
-    int (*end)(void *ctx, const WfCorridor *c, int completed, const char *reason, WfError *err);
-    void *ctx;
-} WfCorridorOutput;
-
-/* Build the engine for a corridor scenario (sc->corridor set; sc is borrowed and must outlive the engine).
- * Everything is allocated here: the vehicle buffer (capacity floor(L / shortest length) + 2, which no order-
- * keeping state can exceed), the entrance queue, trips buffer, detectors and Edie grid. Ownership: *out is the
- * caller's until wf_corridor_destroy(); NULL on failure (nothing to free). */
-int  wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err);
-void wf_corridor_destroy(WfCorridor **c);
-/* Run to the end (from the restored step after wf_corridor_restored), as wf_sim_run: *stop (may be NULL) ends the
- * run after the current step with out->checkpoint, out->end(completed = 0) and WF_EINTR; progress may be NULL. */
-int  wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
-                     volatile sig_atomic_t *stop, WfError *err);
-
-/* Call out->checkpoint every `wall_s` seconds of wall time (0: only when the run is interrupted). */
-void wf_corridor_set_checkpoint_interval(WfCorridor *c, double wall_s);
-/* The complete state of a run between two steps as named byte blocks (WfStateVar, engine.h), at most max of
- * them, returning their number (at most WF_MAX_STATE_VARS): the vehicles' slots (positions, speeds, drawn
- * parameters, controller memory, serials, trip and window accumulators), the entrance queue and the drawn
- * candidate at its head, the virtual leader, the counters and totals, the detector and Edie sums and the step,
- * which with the vehicle serials and arrival numbers keys every random draw still to come. Blocks have fixed
- * sizes for a given scenario. After saved bytes are written back into them, wf_corridor_restored() checks
- * them and makes the next wf_corridor_run continue from the saved step. */
-size_t wf_corridor_state(WfCorridor *c, WfStateVar *vars, size_t max);
-/* WF_EINPUT naming the first inconsistency (a slot, queue or step index out of range, an unknown class or driver
- * group on the road) when the restored blocks cannot be a state of this scenario. */
-int    wf_corridor_restored(WfCorridor *c, WfError *err);
-
-const WfScenario         *wf_corridor_scenario(const WfCorridor *c);
+/* The corridor of a run (wf_sim_corridor, engine.h) and what it measures; borrowed from the run, valid while it
+ * lives (the arrays change as it steps). */
 const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c);
 const WfCorridorCounts   *wf_corridor_counts(const WfCorridor *c);
-const WfCorridorSummary  *wf_corridor_summary(const WfCorridor *c); /* valid after wf_corridor_run */
 const WfDetectors        *wf_corridor_detectors(const WfCorridor *c);
 const WfEdie             *wf_corridor_edie(const WfCorridor *c);
-/* Virtual leader (leader and speed outflows): rear-bumper position and speed now; returns 0 for free outflow. */
-int    wf_corridor_leader(const WfCorridor *c, double *x_m, double *v_mps);
-double wf_corridor_wall_s(const WfCorridor *c);
-long   wf_corridor_steps_done(const WfCorridor *c);
-int    wf_corridor_threads(const WfCorridor *c);
 
 #endif

@@ -1,8 +1,8 @@
-/* The ring: a fleet on the periodic boundary of the engine's block kernel (src/core/block.c, shared with the
- * corridor). Per step (vehicles in blocks, each writing only its own entries): gaps and grade at the step's start,
- * car-following acceleration plus noise, bounded; fuel rate from each class's energy model; statistics;
- * integration; overlap repair. The engine never parses text and never touches files: results go through a
- * WfOutput. */
+/* The engine: a run of one road, a ring (the periodic boundary) or a corridor (the open boundary), stepped by one
+ * block kernel (src/core/block.c). Per step (vehicles in blocks, each writing only its own entries): gaps and grade
+ * at the step's start, car-following acceleration plus noise, bounded; fuel rate from each class's energy model;
+ * statistics; integration; overlap repair; on a corridor also the entrance, exits, detectors and Edie fields. The
+ * engine never parses text and never touches files: results go through a WfOutput. */
 #ifndef WAVEFUEL_ENGINE_H
 #define WAVEFUEL_ENGINE_H
 
@@ -26,15 +26,29 @@ enum { WF_PHASE_CAR_FOLLOWING, WF_PHASE_ENERGY, WF_PHASE_INTEGRATION, WF_PHASE_S
        WF_PHASE_FUSED, WF_N_PHASES };
 extern const char *const wf_phase_names[WF_N_PHASES];
 
-/* Output sink (HDF5 in src/io/h5out.c; tests use their own). Each callback returns 0 or an error code. */
+/* One time-series record: n values (the road's record columns, in the order its writer's column table gives:
+ * wf_ts_columns on a ring, wf_corridor_columns on a corridor) and each class's fuel rate (g/s). Borrowed for the
+ * call. */
+typedef struct WfRecord {
+    const double *v;
+    size_t        n;
+    const double *class_fuel_rate_gps;
+} WfRecord;
+
+struct WfTrip;
+
+/* Output sink of a run (HDF5 in src/io/h5result.c; tests use their own). Each callback may be NULL and returns 0
+ * or an error code. */
 typedef struct WfOutput {
     int (*begin)(void *ctx, const WfSim *sim, WfError *err);
-    /* row describes the instant row->v[WF_TS_T]; the fleet may already be one step further (the fused step takes
-     * the record and the step in one pass), so a sink that needs the fleet at that instant uses trajectory. */
-    int (*record)(void *ctx, const WfSim *sim, const WfTsRow *row, WfError *err);
+    /* rec describes the instant rec->v[0]; the vehicles may already be one step further (the fused step takes the
+     * record and the step in one pass), so a sink that needs them at that instant uses trajectory. */
+    int (*record)(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err);
     int (*trajectory)(void *ctx, const WfSim *sim, double t_s, WfError *err); /* x, v, a, fuel rate now */
-    /* Save everything needed to resume (called every checkpoint interval of wall time, and when the run is
-     * interrupted); may be NULL. */
+    /* Open roads: completed trips in blocks as they happen and, at the end, the unfinished ones. */
+    int (*trips)(void *ctx, const WfSim *sim, const struct WfTrip *trips, size_t n, WfError *err);
+    /* Save everything needed to resume (every checkpoint interval of wall time, and when the run is interrupted),
+     * called between steps after every completed trip so far has gone to trips(). */
     int (*checkpoint)(void *ctx, const WfSim *sim, WfError *err);
     /* completed: 1 when the run reached its end; reason otherwise ("interrupted by SIGINT"...). */
     int (*end)(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err);
@@ -43,40 +57,50 @@ typedef struct WfOutput {
 
 typedef void (*WfProgressFn)(void *ctx, double t_s, double duration_s, long step, long n_steps);
 
-/* Build the ring engine for a scenario (ring road): the fleet and everything a run needs, allocated here and
- * never during the run. Ownership: sc is borrowed and must outlive the engine; *out is the caller's until
- * wf_sim_destroy(); NULL on failure (nothing to free). */
+/* Build the run of a scenario's road, a ring (road.type ring: the fleet placed on the periodic road) or a corridor
+ * (road.type corridor: wavefuel/corridor.h), with everything it needs allocated here and never during the run.
+ * Ownership: sc is borrowed and must outlive the run; *out is the caller's until wf_sim_destroy(); NULL on failure
+ * (nothing to free). */
 int  wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err);
 void wf_sim_destroy(WfSim **sim);
 
-/* Run to the end. Checks *stop (may be NULL) once per step and, when it is set, finishes the current step,
- * calls out->end(completed = 0) and returns WF_EINTR. progress (may be NULL) is called about 5 times a
- * second of wall time from the calling thread. */
+/* Run to the end (from the restored step after wf_sim_restored). Checks *stop (may be NULL) once per step and, when
+ * it is set, finishes the current step, saves a checkpoint through out->checkpoint, calls out->end(completed = 0)
+ * and returns WF_EINTR. progress (may be NULL) is called about 5 times a second of wall time from the calling
+ * thread. out may be NULL. */
 int wf_sim_run(WfSim *sim, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
                WfError *err);
 
 const WfScenario *wf_sim_scenario(const WfSim *sim);
+/* "ring" or "corridor": the boundary (checkpoints and /meta/road_type name it). */
+const char       *wf_sim_kind(const WfSim *sim);
+/* The ring's fleet (NULL on a corridor); the corridor's engine for its accessors (wavefuel/corridor.h; NULL on a
+ * ring). Borrowed from the run. */
 const WfFleet    *wf_sim_fleet(const WfSim *sim);
+const struct WfCorridor *wf_sim_corridor(const WfSim *sim);
 const WfSummary  *wf_sim_summary(const WfSim *sim); /* valid after wf_sim_run */
 double            wf_sim_wall_s(const WfSim *sim);  /* wall time of the step loop */
 long              wf_sim_steps_done(const WfSim *sim);
 int               wf_sim_threads(const WfSim *sim);
-/* Wall time spent in each phase so far (WF_N_PHASES entries, seconds). */
+/* Wall time spent in each phase so far (WF_N_PHASES entries, seconds); NULL when the road does not measure them
+ * (corridors). */
 const double     *wf_sim_phase_times(const WfSim *sim);
 /* The complete state of a run, as named byte blocks: positions, speeds, accumulators, controller memory, step
  * counter and the running sums of the statistics (the random numbers are counter-based: the step counter is their
- * state). wf_sim_state() fills `vars` (at most max) and returns their number; the blocks can be saved, and after
- * writing saved bytes back into them, wf_sim_restored() makes the run continue from the saved step. */
+ * state), and on a corridor its entrance queue, virtual leader, detectors and Edie sums. wf_sim_state() fills
+ * `vars` (at most max) and returns their number (blocks have fixed sizes for a given scenario); the blocks can be
+ * saved, and after writing saved bytes back into them, wf_sim_restored() checks them (WF_EINPUT naming the first
+ * inconsistency) and makes the next wf_sim_run continue from the saved step. */
 typedef struct WfStateVar {
     const char *name;
     void       *data;
     size_t      size; /* bytes */
 } WfStateVar;
-/* Room for the blocks of a checkpoint: the ring engine has at most 16 + WF_MAX_GROUPS, the corridor engine at
- * most 39, and the result writers add at most 22 (rows of compressed datasets still in memory). */
+/* Room for the blocks of a checkpoint: a ring has at most 16 + WF_MAX_GROUPS, a corridor at most 39, and the
+ * result writer adds at most 22 (rows of compressed datasets still in memory). */
 #define WF_MAX_STATE_VARS 64
 size_t wf_sim_state(WfSim *sim, WfStateVar *vars, size_t max);
-void   wf_sim_restored(WfSim *sim);
+int    wf_sim_restored(WfSim *sim, WfError *err);
 /* Call out->checkpoint every `wall_s` seconds of wall time (0: only when interrupted). */
 void   wf_sim_set_checkpoint_interval(WfSim *sim, double wall_s);
 /* Solver statistics of a SUNDIALS run: returns 1 and fills *st, or 0 for a fixed-step integrator. */

@@ -10,9 +10,9 @@
 #endif
 
 #include "cli/commands.h"
-#include "cli/run_corridor.h"
 #include "util/clock.h"
 #include "wavefuel/checkpoint.h"
+#include "wavefuel/corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
 #include "wavefuel/scenario.h"
@@ -40,19 +40,39 @@ static void help(FILE *out)
             "                      run, is refused with exit status 2\n");
 }
 
+/* The run's first line: what was simulated and how fast; a corridor adds its vehicle counts. */
+static void print_header(const WfSim *sim)
+{
+    const WfScenario *sc = wf_sim_scenario(sim);
+    const WfCorridor *c = wf_sim_corridor(sim);
+    double wall = wf_sim_wall_s(sim);
+    if (!c) {
+        size_t n = wf_sim_fleet(sim)->n;
+        printf("wavefuel run: %s  (%zu vehicles, %.6g s simulated, %s dt = %.6g s, %d threads, wall %.3f s, %.3g "
+               "vehicle-steps/s)\n",
+               sc->name, n, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wall,
+               wall > 0 ? (double)n * (double)wf_sim_steps_done(sim) / wall : 0.0);
+        return;
+    }
+    const WfSummary *s = wf_sim_summary(sim);
+    const WfCorridorCounts *n = &s->counts;
+    printf("wavefuel run: %s  (corridor %.6g m, %.6g s simulated, %s dt = %.6g s, %d threads, wall %.3f s)\n", sc->name,
+           sc->road.length_m, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wall);
+    printf("vehicles: %lld arrived, %lld entered, %lld exited, %lld on the road, %lld queued at the end; %lld entries "
+           "delayed (mean wait %.3g s, longest queue %lld)\n",
+           (long long)n->arrived, (long long)n->entered, (long long)n->exited, (long long)(n->entered - n->exited),
+           (long long)n->queued, (long long)n->delayed, s->mean_queue_delay_s, (long long)n->max_queue);
+}
+
 static void print_summary(const WfSim *sim, const char *path)
 {
     const WfSummary *s = wf_sim_summary(sim);
     const WfScenario *sc = wf_sim_scenario(sim);
-    const WfFleet *f = wf_sim_fleet(sim);
-    printf("wavefuel run: %s  (%zu vehicles, %.6g s simulated, %s dt = %.6g s, %d threads, wall %.3f s, %.3g "
-           "vehicle-steps/s)\n",
-           sc->name, f->n, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wf_sim_wall_s(sim),
-           wf_sim_wall_s(sim) > 0 ? (double)f->n * (double)wf_sim_steps_done(sim) / wf_sim_wall_s(sim) : 0.0);
+    print_header(sim);
     printf("statistics window: %.6g s after %.6g s warm-up\n\n", s->window_s, sc->warmup_s);
     const char *names[WF_MAX_CLASSES];
     for (size_t c = 0; c < sc->n_classes; c++) names[c] = sc->classes[c].vc.name;
-    wf_summary_print(stdout, s, WF_SUMMARY_RING, names, sc->n_classes);
+    wf_summary_print(stdout, s, wf_sim_corridor(sim) ? WF_SUMMARY_CORRIDOR : WF_SUMMARY_RING, names, sc->n_classes);
     printf("result: %s\n", path);
 }
 
@@ -154,16 +174,11 @@ int wf_cmd_run(int argc, char **argv)
     const char *resume = a.resume;
     double ckpt_s = a.ckpt_s;
     int force = a.force, quiet = a.quiet;
-    if (!rc && sc->corridor) {
-        /* Open corridors have their own engine and writer (src/core/corridor.c, src/io/h5corridor.c). */
-        int st = wf_cli_run_corridor(sc, resume, ckpt_s, force, quiet);
-        wf_scenario_destroy(&sc);
-        return st;
-    }
-    /* Scenario and fleet errors come before the result file exists: nothing is left behind. */
+    /* Scenario and fleet errors come before the result file exists: nothing is left behind. A resumed run
+     * continues the checkpoint's state in the partial file it reopens. */
     if (!rc) rc = wf_sim_create(sc, &sim, &err);
     if (!rc) rc = resume ? wf_h5out_resume(resume, sim, &h5, &ops, &err)
-                         : wf_h5out_create(sc->output_path, force, &h5, &ops, &err);
+                         : wf_h5out_create(sim, sc->output_path, force, &h5, &ops, &err);
     if (!rc && ckpt_s > 0) wf_sim_set_checkpoint_interval(sim, ckpt_s);
     if (rc) {
         wf_sim_destroy(&sim);
@@ -179,7 +194,9 @@ int wf_cmd_run(int argc, char **argv)
     if (rc) {
         status = wf_cli_fail(&err);
         if (wf_h5out_path(h5)[0])
-            wf_cli_note_partial(wf_h5out_path(h5), sc->output_path, "/meta/timeseries_rows and trajectory_rows");
+            wf_cli_note_partial(wf_h5out_path(h5), sc->output_path,
+                                wf_sim_corridor(sim) ? "/meta/timeseries_rows, trip_rows and trajectory_rows"
+                                                     : "/meta/timeseries_rows and trajectory_rows");
     } else if (!quiet) {
         print_summary(sim, wf_h5out_path(h5));
     }

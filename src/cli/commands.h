@@ -45,7 +45,7 @@ void wf_cli_h5_quiet_thread(void);
 /* From now on SIGINT and SIGTERM set wf_cli_stop instead of killing the process. */
 void wf_cli_catch_stop(void);
 
-/* A WfProgressFn for wf_sim_run and wf_corridor_run: the progress line on stderr (src/cli/progress.c). ctx points
+/* A WfProgressFn for wf_sim_run: the progress line on stderr (src/cli/progress.c). ctx points
  * to the run's start, a double from wf_wall_now(). */
 void wf_cli_run_progress(void *ctx, double t_s, double duration_s, long step, long n_steps);
 

@@ -19,6 +19,7 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
 #include "core/block.h"
+#include "core/sim.h"
 #include "core/simd.h"
 
 #define TRIP_BUF 1024 /* trips handed to the output per call */
@@ -44,9 +45,9 @@ const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
     {"delayed", "1", "entries so far that waited at least one step"},
 };
 
-/* The run's state outside the per-slot arrays: a checkpoint saves this struct verbatim (wf_corridor_state), so
+/* The run's state outside the per-slot arrays: a checkpoint saves this struct verbatim (corridor_state), so
  * every scalar that changes during the run lives here; what WfCorridor keeps outside it and outside the arrays
- * listed in wf_corridor_state is derived from the scenario or recomputed at every step. */
+ * listed in corridor_state is derived from the scenario or recomputed at every step. */
 typedef struct CorridorRunState {
     /* window totals of vehicles that have left (and, after the run, of those still on the road) */
     double   cls_fuel[WF_MAX_CLASSES], cls_dist[WF_MAX_CLASSES], cls_stops[WF_MAX_CLASSES],
@@ -78,10 +79,10 @@ typedef struct CorridorRunState {
 } CorridorRunState;
 
 struct WfCorridor {
-    const WfScenario     *sc; /* borrowed */
-    const WfCorridorSpec *cs; /* borrowed: sc->corridor */
+    WfSim                *sim; /* the run this engine is the boundary of (outputs, threads, summary) */
+    const WfScenario     *sc;  /* borrowed */
+    const WfCorridorSpec *cs;  /* borrowed: sc->corridor */
     const WfIntegrator   *ig;
-    const WfCorridorOutput *out; /* borrowed, during wf_corridor_run */
     WfCorridorVehicles    veh;
     size_t   pstride, sstride; /* doubles of parameters, bytes of controller state, per slot */
     double   L;
@@ -109,7 +110,6 @@ struct WfCorridor {
     long     det_every, edie_every;
     /* run */
     long     n_steps, out_every, traj_every, warm_steps;
-    double   wall_s, checkpoint_every_s;
     int      nthreads;
     long     fault_slot;
     /* the vehicles as the kernel sees them */
@@ -118,7 +118,6 @@ struct WfCorridor {
     double  *bound_x, *bound_v;
     int     *chunk_flags;
     int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
-    WfCorridorSummary summary;
 };
 
 /* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names; the others
@@ -135,10 +134,9 @@ struct WfCorridor {
     X("", veh.a_mps2) X("", veh.gap_m) X("", veh.v_lead_mps) X("", veh.theta_rad) X("", veh.fuel_rate_gps)          \
     X("", veh.flag) X("", xold) X("", cell)
 
-void wf_corridor_destroy(WfCorridor **pc)
+static void corridor_destroy(void *eng)
 {
-    if (!pc || !*pc) return;
-    WfCorridor *c = *pc;
+    WfCorridor *c = eng;
 #define FREE(nm, field) free(c->field);
     SAVED_SLOT_ARRAYS(FREE) STEP_SLOT_ARRAYS(FREE)
 #undef FREE
@@ -147,7 +145,6 @@ void wf_corridor_destroy(WfCorridor **pc)
                       c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunk_flags};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     free(c);
-    *pc = NULL;
 }
 
 /* ------------------------------------------------------------------------------------------ road */
@@ -305,12 +302,15 @@ static void init_boundary(WfCorridor *c)
 
 static int lane_init(WfCorridor *c, WfError *err);
 
-int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
+static int corridor_create(WfSim *sim, WfError *err)
 {
-    *out = NULL;
-    if (!sc->corridor) return wf_err(err, WF_EINPUT, "%s: not a corridor scenario (road.type: corridor)", sc->path);
+    const WfScenario *sc = sim->sc;
     WfCorridor *c = calloc(1, sizeof *c);
     if (!c) return wf_err(err, WF_ESYS, "out of memory");
+    sim->eng = c;
+    sim->steps_done = &c->st.steps_done;
+    c->sim = sim;
+    c->nthreads = sim->nthreads;
     c->sc = sc;
     c->cs = sc->corridor;
     c->L = sc->road.length_m;
@@ -322,23 +322,13 @@ int wf_corridor_create(const WfScenario *sc, WfCorridor **out, WfError *err)
     c->out_every = wf_scenario_output_every(sc);
     c->traj_every = wf_scenario_trajectory_every(sc);
     c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
-#ifdef _OPENMP
-    c->nthreads = omp_get_max_threads();
-#else
-    c->nthreads = 1;
-#endif
     int rc = wf_integrator_find(sc->integrator, &c->ig, err);
     if (!rc) rc = alloc_vehicles(c, err);
     if (!rc) rc = alloc_entrance(c, err);
     if (!rc) rc = alloc_measure(c, err);
     if (!rc) init_boundary(c);
     if (!rc) rc = lane_init(c, err);
-    if (rc) {
-        wf_corridor_destroy(&c);
-        return rc;
-    }
-    *out = c;
-    return 0;
+    return rc;
 }
 
 /* --------------------------------------------------------------------------------------- entrance */
@@ -440,7 +430,7 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
 {
     if (c->st.counts.queued == 0) return 0;
     WfCorridorVehicles *vh = &c->veh;
-    if (vh->n >= vh->cap) return 0; /* cannot happen while gaps stay >= 0 (see wf_corridor_create) */
+    if (vh->n >= vh->cap) return 0; /* cannot happen while gaps stay >= 0 (see corridor_create) */
     if (!c->st.have_cand) {
         int rc = draw_candidate(c, err);
         if (rc) return rc;
@@ -682,15 +672,17 @@ static inline void detector_vehicle(WfCorridor *c, size_t jd, size_t q, double x
 }
 
 /* The Edie cell of each step that lies inside one cell (the common case), computed as edie_vehicle does (the same
- * division and comparisons), else UINT32_MAX; slots [lo, lo + m). A loop without control flow: it vectorises, and
- * takes the division out of the serial measurement. */
+ * division and comparisons), else UINT32_MAX; slots [lo, lo + m), on nth threads. A loop without control flow: it
+ * vectorises, and takes the division out of the measurement. */
 WF_SIMD_CLONES
-static void step_cells(WfCorridor *c, size_t lo, size_t m)
+static void step_cells(WfCorridor *c, size_t lo, size_t m, int nth)
 {
     const double *restrict xa = c->xold + lo, *restrict xb = c->veh.x_m + lo;
     uint32_t *restrict cell = c->cell + lo;
     double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx;
     uint32_t last = (uint32_t)(c->edie.nx - 1);
+#pragma omp parallel for simd num_threads(nth) if (nth > 1) schedule(static) default(none) \
+    shared(xa, xb, cell, dx, L, nxd, last, m, nth)
     for (size_t k = 0; k < m; k++) {
         double q = (xa[k] > 0.0 ? xa[k] : 0.0) / dx;
         uint32_t i = q < nxd ? (uint32_t)(int32_t)q : last; /* (size_t)q, clamped to the last cell */
@@ -762,16 +754,19 @@ static void measure_span(const WfCorridor *c, size_t i_lo, size_t i_hi, size_t q
 
 /* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. The common case, a
  * step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as edie_vehicle through
- * running sums of the row's cell and of the vehicle's class. */
+ * running sums of the row's cell and of each class's cell (one per class: in a mixed fleet consecutive vehicles
+ * alternate classes, and one running sum for all would be flushed at every change). */
 static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
                           size_t q_hi)
 {
     const WfCorridorVehicles *vh = &c->veh;
     WfEdie *e = &c->edie;
     size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0, nx = e->nx;
+    size_t ncl = c->sc->n_classes;
     double dt = c->sc->dt_s, *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx;
     double *erow_f = e->fuel_g + j * nx;
-    CellSum row = {0}, cls = {0};
+    CellSum row = {0}, cls[WF_MAX_CLASSES];
+    for (size_t k = 0; k < ncl; k++) cls[k].p[0] = NULL; /* none held */
     size_t k0, k1;
     measure_span(c, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
     for (size_t k = k0; k < k1; k++) {
@@ -782,14 +777,16 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
         } else if (i != UINT32_MAX) {
             cell_add(&row, &erow_d[i], &erow_t[i], &erow_f[i], xb - xa, dt, fuel);
             if (in_window)
-                cell_add(&cls, &e->class_dist_m[cl * nx + i], &e->class_fuel_g[cl * nx + i], NULL, xb - xa, fuel, 0.0);
+                cell_add(&cls[cl], &e->class_dist_m[cl * nx + i], &e->class_fuel_g[cl * nx + i], NULL, xb - xa, fuel,
+                         0.0);
         } else {
-            cell_flush(&row), cell_flush(&cls);
+            cell_flush(&row), cell_flush(&cls[cl]);
             edie_vehicle(c, j, cl, xa, xb, fuel, in_window, i_lo, i_hi);
         }
         for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
     }
-    cell_flush(&row), cell_flush(&cls);
+    cell_flush(&row);
+    for (size_t k = 0; k < ncl; k++) cell_flush(&cls[k]);
 }
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
@@ -801,8 +798,8 @@ static void phase_measure(WfCorridor *c, long step, int in_window)
     const WfCorridorVehicles *vh = &c->veh;
     size_t nx = c->edie.nx, nd = c->det.n_det, run = vh->cap - vh->first < vh->n ? vh->cap - vh->first : vh->n;
     int nth = vh->n >= WF_PAR_MIN ? c->nthreads : 1;
-    step_cells(c, vh->first, run);
-    step_cells(c, 0, vh->n - run);
+    step_cells(c, vh->first, run, nth);
+    step_cells(c, 0, vh->n - run, nth);
     if (nth <= 1) {
         measure_range(c, step, in_window, 0, nx, 0, nd);
         return;
@@ -818,17 +815,19 @@ static void phase_measure(WfCorridor *c, long step, int in_window)
     }
 }
 
-static int flush_trips(WfCorridor *c, const WfCorridorOutput *out, WfError *err)
+/* Hand the completed trips to the output (before a checkpoint, and when the buffer is full). */
+static int flush_trips(void *eng, WfError *err)
 {
+    WfCorridor *c = eng;
+    const WfOutput *out = c->sim->out;
     int rc = 0;
-    if (c->n_trips && out && out->trips) rc = out->trips(out->ctx, c, c->trips, c->n_trips, err);
+    if (c->n_trips && out && out->trips) rc = out->trips(out->ctx, c->sim, c->trips, c->n_trips, err);
     c->n_trips = 0;
     return rc;
 }
 
 /* A vehicle's window totals join its class's; its trip joins the buffer. */
-static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed, const WfCorridorOutput *out,
-                          WfError *err)
+static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed, WfError *err)
 {
     const WfCorridorVehicles *vh = &c->veh;
     size_t cl = vh->class_id[s];
@@ -853,17 +852,17 @@ static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed,
                    .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = c->v_ent[s], .fuel_g = c->trip.fuel_g[s],
                    .dist_m = c->trip.dist_m[s], .time_stopped_s = c->trip.stopped_s[s], .stops = c->trip.stops[s],
                    .hard_brakes = c->trip.hard_brakes[s], .infeasible_steps = c->trip.infeasible[s]};
-    return c->n_trips == TRIP_BUF ? flush_trips(c, out, err) : 0;
+    return c->n_trips == TRIP_BUF ? flush_trips(c, err) : 0;
 }
 
 /* Vehicles whose front has reached L leave (front first); with the speed outflow each one becomes the virtual
  * leader: its rear bumper drives on at the prescribed speed. */
-static int phase_exits(WfCorridor *c, double t_end, int in_window, const WfCorridorOutput *out, WfError *err)
+static int phase_exits(WfCorridor *c, double t_end, int in_window, WfError *err)
 {
     WfCorridorVehicles *vh = &c->veh;
     while (vh->n > 0 && vh->x_m[wf_corridor_slot(vh, 0)] >= c->L) {
         size_t s = wf_corridor_slot(vh, 0);
-        int rc = finish_vehicle(c, s, t_end, 1, out, err);
+        int rc = finish_vehicle(c, s, t_end, 1, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
             size_t seg = c->st.vl_seg;
             c->st.vl_xref = vh->x_m[s] - vh->length_m[s];
@@ -935,14 +934,14 @@ static void record(const WfCorridor *c, double t, WfCorridorRow *row)
 static void summarize(WfCorridor *c)
 {
     const WfScenario *sc = c->sc;
-    WfCorridorSummary *s = &c->summary;
+    WfSummary *s = &c->sim->summary;
     memset(s, 0, sizeof *s);
     long window = c->st.steps_done - c->warm_steps;
     s->window_s = window > 0 ? (double)window * sc->dt_s : 0.0;
     double litres = 0, gallons = 0, stops = 0, infeas = 0, steps = 0;
     const WfEdie *e = &c->edie;
     for (size_t k = 0; k < sc->n_classes; k++) {
-        WfCorridorClassSummary *cs = &s->cls[k];
+        WfClassSummary *cs = &s->cls[k];
         const WfVehicleClass *vc = &sc->classes[k].vc;
         cs->entered = c->st.cls_entered[k];
         cs->trips = c->st.cls_trips[k];
@@ -1005,18 +1004,13 @@ static int numerical_fault(const WfCorridor *c, long step, WfError *err)
                   c->sc->classes[vh->class_id[s]].vc.name, vh->x_m[s], vh->v_mps[s]);
 }
 
-/* A checkpoint between steps: the completed trips go out first, so the output's row counts are the state's. */
-static int checkpoint(WfCorridor *c, const WfCorridorOutput *out, WfError *err)
-{
-    int rc = flush_trips(c, out, err);
-    return rc ? rc : out->checkpoint(out->ctx, c, err);
-}
-
 /* One step: the kernel's pass that computes the step's values (fused with the advance unless a record or a
  * trajectory must see them first), then the open boundary: the virtual leader, overlap repair, Edie and detectors,
  * exits. Returns WF_LOOP_END after the final instant (recorded without a step), 0 after a step, or an error code. */
-static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, WfError *err)
+static int corridor_step(void *eng, long step, WfError *err)
 {
+    WfCorridor *c = eng;
+    const WfOutput *out = c->sim->out;
     const WfScenario *sc = c->sc;
     WfCorridorVehicles *vh = &c->veh;
     double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
@@ -1032,9 +1026,10 @@ static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, 
             WfCorridorRow row;
             record(c, t, &row);
             if (in_window && vh->n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
-            if (out && out->record && (rc = out->record(out->ctx, c, &row, err))) return rc;
+            WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
+            if (out && out->record && (rc = out->record(out->ctx, c->sim, &rec, err))) return rc;
         }
-        if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c, t, err))) return rc;
+        if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c->sim, t, err))) return rc;
         if (last) return WF_LOOP_END;
         flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ADVANCE, in_window, NULL);
     } else {
@@ -1044,67 +1039,29 @@ static int corridor_step(WfCorridor *c, long step, const WfCorridorOutput *out, 
     phase_overlaps(c, in_window, flags ? vh->n : c->has_vl ? 1 : 0);
     if (c->fault_slot >= 0) return numerical_fault(c, step, err);
     phase_measure(c, step, in_window);
-    return phase_exits(c, t_next, in_window, out, err);
-}
-
-static int corridor_step_cb(void *ctx, long step, WfError *err)
-{
-    WfCorridor *c = ctx;
-    return corridor_step(c, step, c->out, err);
-}
-
-static int corridor_checkpoint_cb(void *ctx, WfError *err)
-{
-    WfCorridor *c = ctx;
-    return checkpoint(c, c->out, err);
+    return phase_exits(c, t_next, in_window, err);
 }
 
 /* The vehicles still on the road: their window totals count, their trips are reported as unfinished. */
-static int corridor_close_cb(void *ctx, WfError *err)
+static int corridor_close(void *eng, WfError *err)
 {
-    WfCorridor *c = ctx;
-    int rc = flush_trips(c, c->out, err);
-    for (size_t k = 0; !rc && k < c->veh.n; k++) rc = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, c->out, err);
-    if (!rc) rc = flush_trips(c, c->out, err);
+    WfCorridor *c = eng;
+    int rc = flush_trips(c, err);
+    for (size_t k = 0; !rc && k < c->veh.n; k++) rc = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, err);
+    if (!rc) rc = flush_trips(c, err);
     summarize(c);
     return rc;
 }
 
-static int corridor_end_cb(void *ctx, int completed, const char *reason, WfError *err)
-{
-    WfCorridor *c = ctx;
-    return c->out->end(c->out->ctx, c, completed, reason, err);
-}
-
-int wf_corridor_run(WfCorridor *c, const WfCorridorOutput *out, WfProgressFn progress, void *pctx,
-                    volatile sig_atomic_t *stop, WfError *err)
-{
-    const WfScenario *sc = c->sc;
-    int rc = out && out->begin ? out->begin(out->ctx, c, err) : 0;
-    if (rc) return rc;
-    c->out = out;
-    WfLoop lp = {.ctx = c, .step = corridor_step_cb,
-                 .checkpoint = out && out->checkpoint ? corridor_checkpoint_cb : NULL, .close = corridor_close_cb,
-                 .end = out && out->end ? corridor_end_cb : NULL, .steps_done = &c->st.steps_done,
-                 .wall_s = &c->wall_s, .n_steps = c->n_steps, .dt_s = sc->dt_s, .duration_s = sc->duration_s,
-                 .checkpoint_every_s = c->checkpoint_every_s, .progress = progress, .pctx = pctx, .stop = stop};
-    return wf_loop_run(&lp, err);
-}
-
-const WfScenario *wf_corridor_scenario(const WfCorridor *c) { return c->sc; }
+const WfCorridor *wf_sim_corridor(const WfSim *sim) { return sim->b == &wf_boundary_open ? sim->eng : NULL; }
 const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->veh; }
 const WfCorridorCounts *wf_corridor_counts(const WfCorridor *c) { return &c->st.counts; }
-const WfCorridorSummary *wf_corridor_summary(const WfCorridor *c) { return &c->summary; }
 const WfDetectors *wf_corridor_detectors(const WfCorridor *c) { return &c->det; }
 const WfEdie *wf_corridor_edie(const WfCorridor *c) { return &c->edie; }
-double wf_corridor_wall_s(const WfCorridor *c) { return c->wall_s; }
-long wf_corridor_steps_done(const WfCorridor *c) { return c->st.steps_done; }
-int wf_corridor_threads(const WfCorridor *c) { return c->nthreads; }
 
-void wf_corridor_set_checkpoint_interval(WfCorridor *c, double wall_s) { c->checkpoint_every_s = wall_s; }
-
-size_t wf_corridor_state(WfCorridor *c, WfStateVar *vars, size_t max)
+static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
 {
+    WfCorridor *c = eng;
     WfCorridorVehicles *vh = &c->veh;
     size_t cap = vh->cap, k = 0, nd = c->det.n_int * c->det.n_det, ne = c->edie.nx * c->edie.nt;
     size_t ncx = c->edie.nx * c->sc->n_classes;
@@ -1137,8 +1094,9 @@ size_t wf_corridor_state(WfCorridor *c, WfStateVar *vars, size_t max)
     return k;
 }
 
-int wf_corridor_restored(WfCorridor *c, WfError *err)
+static int corridor_restored(void *eng, WfError *err)
 {
+    WfCorridor *c = eng;
     const WfScenario *sc = c->sc;
     const WfCorridorVehicles *vh = &c->veh;
     const CorridorRunState *st = &c->st;
@@ -1161,10 +1119,6 @@ int wf_corridor_restored(WfCorridor *c, WfError *err)
     return 0;
 }
 
-int wf_corridor_leader(const WfCorridor *c, double *x_m, double *v_mps)
-{
-    if (!c->has_vl) return 0;
-    *x_m = c->st.vl_x;
-    *v_mps = c->st.vl_v;
-    return 1;
-}
+const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,
+                                     .step = corridor_step, .flush = flush_trips, .close = corridor_close,
+                                     .state = corridor_state, .restored = corridor_restored};

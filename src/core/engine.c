@@ -7,18 +7,16 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "core/block.h"
 #include "core/par.h"
+#include "core/sim.h"
 
-struct WfSim {
-    const WfScenario   *sc; /* borrowed */
+typedef struct WfRing {
+    WfSim              *sim;  /* the run this engine is the boundary of (outputs, threads, summary) */
+    const WfScenario   *sc;   /* borrowed */
     WfFleet            *f;
     const WfIntegrator *ig;
-    const WfOutput     *out;  /* borrowed, during wf_sim_run */
     WfLane   lane;          /* the fleet as the kernel sees it */
     WfRoadOps ops;
     long     n_steps, out_every, traj_every, warm_steps, steps_done, cur_step;
@@ -32,7 +30,6 @@ struct WfSim {
     double   phase_s[WF_N_PHASES]; /* wall time per phase */
     double  *bound_x, *bound_v;    /* each chunk's first vehicle at the step's start */
     int     *chunk_flags;          /* flags raised by each thread's chunk */
-    double   checkpoint_every_s;
     long     fault_vehicle;         /* first vehicle with a non-finite state, or -1 */
     struct {                       /* scalars of the state, packed for wf_sim_state */
         int64_t steps_done, overlaps, n_sd, repaired, window_open;
@@ -41,16 +38,13 @@ struct WfSim {
     int      stateful;      /* some driver model keeps per-vehicle memory */
     double   sd_sum;
     long     n_sd;
-    double   wall_s;
-    WfSummary summary;
-};
+} WfRing;
 
 static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel);
 
-void wf_sim_destroy(WfSim **ps)
+static void ring_destroy(void *eng)
 {
-    if (!ps || !*ps) return;
-    WfSim *s = *ps;
+    WfRing *s = eng;
     wf_fleet_destroy(&s->f);
     free(s->stat_blocks);
     free(s->chunk_flags);
@@ -62,14 +56,13 @@ void wf_sim_destroy(WfSim **ps)
     free(s->fuel_step);
     free(s->vplus);
     free(s);
-    *ps = NULL;
 }
 
 /* ------------------------------------------------------------------------------------- the ring's road */
 
 static void ring_grade(const void *ctx, size_t lo, size_t m, const double *x, double *th)
 {
-    const WfSim *s = ctx;
+    const WfRing *s = ctx;
     for (size_t k = 0; k < m; k++) th[k] = wf_road_grade(&s->sc->road, x[k], &s->f->grade_seg[lo + k]);
 }
 
@@ -77,7 +70,7 @@ static void ring_grade(const void *ctx, size_t lo, size_t m, const double *x, do
 static int ring_cap(const void *ctx, size_t m, const double *x, const double *v, double *cap)
 {
     (void)x;
-    const WfSim *s = ctx;
+    const WfRing *s = ctx;
     double vlim = s->sc->road.speed_limit_mps, dt = s->sc->dt_s;
 #pragma omp simd
     for (size_t k = 0; k < m; k++) cap[k] = (vlim - v[k]) / dt;
@@ -85,7 +78,7 @@ static int ring_cap(const void *ctx, size_t m, const double *x, const double *v,
 }
 
 /* The fleet as the kernel sees it: every array borrowed from the fleet. */
-static void lane_init(WfSim *s)
+static void lane_init(WfRing *s)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
@@ -110,14 +103,14 @@ static void lane_init(WfSim *s)
 }
 
 /* The step's values go to the fleet's arrays (steps in two passes) or stay in the kernel's blocks (fused). */
-static void lane_exports(WfSim *s, int on)
+static void lane_exports(WfRing *s, int on)
 {
     WfFleet *f = s->f;
     s->lane.out = on ? (WfLaneValues){f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps, f->flag}
                      : (WfLaneValues){0};
 }
 
-static int ode_init(WfSim *s, WfError *err)
+static int ode_init(WfRing *s, WfError *err)
 {
     const WfScenario *sc = s->sc;
     size_t n = s->f->n;
@@ -131,33 +124,25 @@ static int ode_init(WfSim *s, WfError *err)
     return wf_ode_create(&cfg, n, sc->road.length_m, ode_rhs, s, 0.0, s->f->x_m, s->f->v_mps, &s->ode, err);
 }
 
-int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
+static int ring_create(WfSim *sim, WfError *err)
 {
-    *out = NULL;
-    /* Corridors have their own boundary (src/core/corridor.c): refuse rather than simulate a ring of nominal
-     * vehicles. */
-    if (sc->corridor)
-        return wf_err(err, WF_EINPUT, "%s: road.type corridor runs with `wavefuel run` (src/core/corridor.c); the ring "
-                      "engine, and so `wavefuel sweep`, does not take corridors yet", sc->path);
-    WfSim *s = calloc(1, sizeof *s);
+    const WfScenario *sc = sim->sc;
+    WfRing *s = calloc(1, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
+    sim->eng = s;
+    sim->steps_done = &s->steps_done;
+    sim->phase_s = s->phase_s;
+    s->sim = sim;
     s->sc = sc;
+    s->nthreads = sim->nthreads;
     int rc = sc->adaptive ? 0 : wf_integrator_find(sc->integrator, &s->ig, err);
     if (!rc) rc = wf_fleet_create(sc, &s->f, err);
-    if (rc) {
-        wf_sim_destroy(&s);
-        return rc;
-    }
+    if (rc) return rc;
     s->n_steps = wf_scenario_n_steps(sc);
     s->out_every = wf_scenario_output_every(sc);
     s->traj_every = wf_scenario_trajectory_every(sc);
     s->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
     s->fault_vehicle = -1;
-#ifdef _OPENMP
-    s->nthreads = omp_get_max_threads();
-#else
-    s->nthreads = 1;
-#endif
     s->stat_blocks = malloc((wf_lane_blocks(0, s->f->n) + 1) * sizeof *s->stat_blocks);
     for (size_t g = 0; g < sc->n_groups; g++) s->noisy |= sc->groups[g].noise_mps2 > 0.0;
     for (size_t g = 0; g < sc->n_groups; g++) s->stateful |= sc->groups[g].model->state_size > 0;
@@ -167,13 +152,8 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     if (!s->stat_blocks || !s->bound_x || !s->bound_v || !s->chunk_flags)
         rc = wf_err(err, WF_ESYS, "out of memory");
     if (!rc && sc->adaptive) rc = ode_init(s, err);
-    if (rc) {
-        wf_sim_destroy(&s);
-        return rc;
-    }
-    lane_init(s);
-    *out = s;
-    return 0;
+    if (!rc) lane_init(s);
+    return rc;
 }
 
 /* ------------------------------------------------------------------------------------------- the step */
@@ -185,7 +165,7 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel)
 {
     (void)t;
-    WfSim *s = ctx;
+    WfRing *s = ctx;
     WfFleet *f = s->f;
     WfLane *ln = &s->lane;
     size_t n = f->n;
@@ -216,7 +196,7 @@ static int ode_rhs(void *ctx, double t, const double *x, const double *v, double
  * its exact integral (quadrature) instead of the left-point rule. The right-hand side jumps where the noise or the
  * controller memory changes, and the state jumps at an overlap repair: the solver restarts there rather than
  * integrate across the discontinuity. */
-static int advance_ode(WfSim *s, long step, int in_window, WfError *err)
+static int advance_ode(WfRing *s, long step, int in_window, WfError *err)
 {
     WfFleet *f = s->f;
     WfLane *ln = &s->lane;
@@ -241,7 +221,7 @@ static int advance_ode(WfSim *s, long step, int in_window, WfError *err)
     return 0;
 }
 
-static long phase_overlaps(WfSim *s)
+static long phase_overlaps(WfRing *s)
 {
     WfFleet *f = s->f;
     size_t n = f->n;
@@ -287,7 +267,7 @@ static long phase_overlaps(WfSim *s)
 }
 
 /* The error of a numerical fault: which vehicle, when, its model and the inputs of the step that failed. */
-static int numerical_fault(WfSim *s, long step, WfError *err)
+static int numerical_fault(WfRing *s, long step, WfError *err)
 {
     const WfFleet *f = s->f;
     size_t i = (size_t)s->fault_vehicle, n = f->n, lead = i + 1 < n ? i + 1 : 0;
@@ -301,7 +281,7 @@ static int numerical_fault(WfSim *s, long step, WfError *err)
 }
 
 
-static void lap(WfSim *s, int phase, double *tp)
+static void lap(WfRing *s, int phase, double *tp)
 {
     double tq = wf_wall_now();
     s->phase_s[phase] += tq - *tp;
@@ -311,8 +291,10 @@ static void lap(WfSim *s, int phase, double *tp)
 /* One step: the pass that computes the step's values (and, fused, advances), the record and the trajectory at the
  * step's start, then the advance when it is a pass of its own, and the overlap repair. Returns WF_LOOP_END after
  * the final instant (recorded without a step), 0 after a step, or an error code. */
-static int sim_step(WfSim *s, long step, const WfOutput *out, WfError *err)
+static int ring_step(void *eng, long step, WfError *err)
 {
+    WfRing *s = eng;
+    const WfOutput *out = s->sim->out;
     const WfScenario *sc = s->sc;
     WfLane *ln = &s->lane;
     size_t n = s->f->n;
@@ -330,10 +312,11 @@ static int sim_step(WfSim *s, long step, const WfOutput *out, WfError *err)
         wf_stats_combine(s->stat_blocks, wf_lane_blocks(0, n), s->f->n_classes, sc, t, s->overlaps, &row);
         if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
         lap(s, WF_PHASE_STATISTICS, &tp);
-        if (out && out->record && (rc = out->record(out->ctx, s, &row, err))) return rc;
+        WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
+        if (out && out->record && (rc = out->record(out->ctx, s->sim, &rec, err))) return rc;
         lap(s, WF_PHASE_OUTPUT, &tp);
     }
-    if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, s, t, err))) return rc;
+    if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, s->sim, t, err))) return rc;
     lap(s, WF_PHASE_OUTPUT, &tp);
     if (last) return WF_LOOP_END;
     if (s->ode) {
@@ -348,57 +331,25 @@ static int sim_step(WfSim *s, long step, const WfOutput *out, WfError *err)
     return 0;
 }
 
-static int sim_step_cb(void *ctx, long step, WfError *err)
-{
-    WfSim *s = ctx;
-    return sim_step(s, step, s->out, err);
-}
-
-static int sim_checkpoint_cb(void *ctx, WfError *err)
-{
-    WfSim *s = ctx;
-    return s->out->checkpoint(s->out->ctx, s, err);
-}
-
-static int sim_close_cb(void *ctx, WfError *err)
+/* The run's totals (also after an interruption or an error). */
+static int ring_close(void *eng, WfError *err)
 {
     (void)err;
-    WfSim *s = ctx;
+    WfRing *s = eng;
     long window = s->steps_done - s->warm_steps;
-    wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->summary);
+    wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->sim->summary);
     return 0;
 }
 
-static int sim_end_cb(void *ctx, int completed, const char *reason, WfError *err)
+const WfFleet *wf_sim_fleet(const WfSim *sim)
 {
-    WfSim *s = ctx;
-    return s->out->end(s->out->ctx, s, completed, reason, err);
+    return sim->b == &wf_boundary_periodic ? ((const WfRing *)sim->eng)->f : NULL;
 }
 
-int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
-               WfError *err)
+int wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st)
 {
-    const WfScenario *sc = s->sc;
-    int rc = out && out->begin ? out->begin(out->ctx, s, err) : 0;
-    if (rc) return rc;
-    s->out = out;
-    WfLoop lp = {.ctx = s, .step = sim_step_cb, .checkpoint = out && out->checkpoint ? sim_checkpoint_cb : NULL,
-                 .close = sim_close_cb, .end = out && out->end ? sim_end_cb : NULL, .steps_done = &s->steps_done,
-                 .wall_s = &s->wall_s, .n_steps = s->n_steps, .dt_s = sc->dt_s, .duration_s = sc->duration_s,
-                 .checkpoint_every_s = s->checkpoint_every_s, .progress = progress, .pctx = pctx, .stop = stop};
-    return wf_loop_run(&lp, err);
-}
-
-const WfScenario *wf_sim_scenario(const WfSim *s) { return s->sc; }
-const WfFleet *wf_sim_fleet(const WfSim *s) { return s->f; }
-const WfSummary *wf_sim_summary(const WfSim *s) { return &s->summary; }
-double wf_sim_wall_s(const WfSim *s) { return s->wall_s; }
-long wf_sim_steps_done(const WfSim *s) { return s->steps_done; }
-int wf_sim_threads(const WfSim *s) { return s->nthreads; }
-
-int wf_sim_ode_stats(const WfSim *s, WfOdeStats *st)
-{
-    if (!s->ode) return 0;
+    const WfRing *s = sim->b == &wf_boundary_periodic ? sim->eng : NULL;
+    if (!s || !s->ode) return 0;
     wf_ode_stats(s->ode, st);
     return 1;
 }
@@ -406,12 +357,9 @@ int wf_sim_ode_stats(const WfSim *s, WfOdeStats *st)
 const char *const wf_phase_names[WF_N_PHASES] = {"car_following", "energy", "integration", "statistics", "output",
                                                   "fused_step"};
 
-const double *wf_sim_phase_times(const WfSim *s) { return s->phase_s; }
-
-void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s) { s->checkpoint_every_s = wall_s; }
-
-size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
+static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
 {
+    WfRing *s = eng;
     WfFleet *f = s->f;
     size_t n = f->n, k = 0;
     s->ck.steps_done = s->steps_done;
@@ -451,8 +399,10 @@ size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
     return k;
 }
 
-void wf_sim_restored(WfSim *s)
+static int ring_restored(void *eng, WfError *err)
 {
+    (void)err;
+    WfRing *s = eng;
     s->steps_done = (long)s->ck.steps_done;
     s->overlaps = s->ck.overlaps;
     s->n_sd = (long)s->ck.n_sd;
@@ -465,4 +415,9 @@ void wf_sim_restored(WfSim *s)
         WfError e = {0};
         wf_ode_reinit(s->ode, (double)s->steps_done * s->sc->dt_s, s->f->x_m, s->f->v_mps, &e);
     }
+    return 0;
 }
+
+const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
+                                         .step = ring_step, .close = ring_close, .state = ring_state,
+                                         .restored = ring_restored};

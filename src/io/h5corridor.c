@@ -2,14 +2,13 @@
  * the corridor's observers: time series (wf_corridor_columns), trips and trajectory points appended as the run goes
  * (src/observe/trips.c, trajectories.c), detectors and Edie fields at the end (src/observe/detectors.c, edie.c),
  * and its own datasets: /road, the shares of each class and group, the road type. */
-#include "wavefuel/h5corridor.h"
-
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "io/h5result.h"
+#include "wavefuel/corridor.h"
 
 #define TRIP_CHUNK 4096  /* rows per chunk of /trips (32 kB per column, compressed) */
 #define TRAJ_CHUNK 65536 /* ... of /trajectories (512 kB per column, compressed) */
@@ -20,13 +19,6 @@ static const WfH5Cursor cursors[N_CUR] = {
     {"trips", "trip_rows", "rows of /trips that hold data"},
     {"trajectories", "trajectory_rows", "points of /trajectories that hold data (0 without trajectories)"},
 };
-
-static WfH5Run run_of(const WfCorridor *c)
-{
-    return (WfH5Run){.eng = c, .sc = wf_corridor_scenario(c), .summary = wf_corridor_summary(c),
-                     .wall_s = wf_corridor_wall_s(c), .steps_done = wf_corridor_steps_done(c),
-                     .threads = wf_corridor_threads(c)};
-}
 
 /* Trips and trajectories, appended and compressed. */
 static size_t corridor_series(const WfH5Run *r, WfCkptSeries *sp)
@@ -44,8 +36,8 @@ static size_t corridor_series(const WfH5Run *r, WfCkptSeries *sp)
 /* Trips and trajectories cannot be estimated: each chunk is checked as it is added. */
 static void corridor_size(const WfH5Run *r, double *appended, double *end)
 {
-    const WfDetectors *det = wf_corridor_detectors(r->eng);
-    const WfEdie *e = wf_corridor_edie(r->eng);
+    const WfDetectors *det = wf_corridor_detectors(wf_sim_corridor(r->sim));
+    const WfEdie *e = wf_corridor_edie(wf_sim_corridor(r->sim));
     *appended = -1;
     *end = ((double)det->n_int * (double)det->n_det * 5.0 + (double)e->nt * (double)e->nx * 7.0 +
             (double)e->nx * (double)r->sc->n_classes * 3.0) * 8.0;
@@ -76,9 +68,8 @@ static int corridor_traj_attrs(hid_t g, const WfH5Run *r, WfError *err)
                           "(front first)", err);
 }
 
-static int write_road(hid_t fid, const WfCorridor *c, WfError *err)
+static int write_road(hid_t fid, const WfScenario *sc, WfError *err)
 {
-    const WfScenario *sc = wf_corridor_scenario(c);
     const WfCorridorSpec *cs = sc->corridor;
     hid_t g = wf_h5_group(fid, "road", err);
     if (g < 0) return WF_ESYS;
@@ -152,19 +143,19 @@ static void edie_fields(const void *e, const WfScenario *sc, double *scratch, Wf
     wf_edie_fields(e, sc, scratch, out);
 }
 
-static int write_detectors(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
+static int write_detectors(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
-    const WfDetectors *d = wf_corridor_detectors(c);
+    const WfDetectors *d = wf_corridor_detectors(wf_sim_corridor(r->sim));
     if (!d->n_det) return 0;
     return write_grid(fid, "detectors", wf_detector_columns, WF_DET_N_COLS, wf_detectors_scratch(d), detector_fields,
-                      d, wf_corridor_scenario(c), pass, err);
+                      d, r->sc, pass, err);
 }
 
 /* /edie, its grid and the axes of its fields said in attributes when the file is created. */
-static int write_edie(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *err)
+static int write_edie(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
-    const WfEdie *e = wf_corridor_edie(c);
-    const WfScenario *sc = wf_corridor_scenario(c);
+    const WfEdie *e = wf_corridor_edie(wf_sim_corridor(r->sim));
+    const WfScenario *sc = r->sc;
     if (write_grid(fid, "edie", wf_edie_columns, WF_EDIE_N_COLS, wf_edie_scratch(e, sc->n_classes), edie_fields, e,
                    sc, pass, err))
         return WF_ESYS;
@@ -185,76 +176,40 @@ static int write_edie(hid_t fid, const WfCorridor *c, WfH5Pass pass, WfError *er
 
 static int corridor_results(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
-    return (pass == WF_H5_ALLOCATE && write_road(fid, r->eng, err)) || write_detectors(fid, r->eng, pass, err) ||
-                   write_edie(fid, r->eng, pass, err)
+    return (pass == WF_H5_ALLOCATE && write_road(fid, r->sc, err)) || write_detectors(fid, r, pass, err) ||
+                   write_edie(fid, r, pass, err)
                ? WF_ESYS
                : 0;
 }
 
 static size_t corridor_frame_len(const WfH5Run *r)
 {
-    return r->sc->trajectories ? WF_CORRIDOR_TRAJ_N_COLS * wf_corridor_vehicles(r->eng)->cap : 0;
+    return r->sc->trajectories ? WF_CORRIDOR_TRAJ_N_COLS * wf_corridor_vehicles(wf_sim_corridor(r->sim))->cap : 0;
 }
 
 static size_t corridor_frame(const WfH5Run *r, const double *t_s, double *scratch, const double **cols)
 {
-    const WfCorridorVehicles *vh = wf_corridor_vehicles(r->eng);
+    const WfCorridorVehicles *vh = wf_corridor_vehicles(wf_sim_corridor(r->sim));
     return wf_corridor_traj_frame(vh, *t_s, scratch, vh->cap, cols);
 }
 
-static size_t corridor_state(void *eng, WfStateVar *vars, size_t max) { return wf_corridor_state(eng, vars, max); }
+/* Trips, a row at a time, into their chunk; complete chunks are written, then counted. */
+static int corridor_trips(WfH5Result *w, const WfTrip *tr, size_t n, WfError *err)
+{
+    for (size_t i = 0; i < n; i++) {
+        double row[WF_TRIP_N_COLS];
+        const double *cols[WF_TRIP_N_COLS];
+        for (size_t k = 0; k < WF_TRIP_N_COLS; k++) row[k] = wf_trip_value(&tr[i], k), cols[k] = &row[k];
+        if (wf_h5r_append(w, CUR_TRIPS, 1, cols, err)) return WF_ESYS;
+    }
+    return 0;
+}
 
-static int corridor_restored(void *eng, WfError *err) { return wf_corridor_restored(eng, err); }
-
-static const WfH5Boundary corridor = {
+const WfH5Boundary wf_h5_corridor = {
     .kind = "corridor", .summary = WF_SUMMARY_CORRIDOR, .road_length_desc = "corridor length L",
     .warmup_desc = "warm-up excluded from the window statistics", .cursor = cursors, .n_cursors = N_CUR,
     .traj_cursor = CUR_TRAJ, .ts_cols = wf_corridor_columns, .n_ts_cols = WF_CTS_N_COLS,
     .ts_class_col = &wf_corridor_class_column, .grows = "trips and trajectories", .series = corridor_series,
     .size = corridor_size, .meta = corridor_meta, .fleet = corridor_fleet, .traj_attrs = corridor_traj_attrs,
-    .results = corridor_results, .frame_len = corridor_frame_len, .frame = corridor_frame, .state = corridor_state,
-    .restored = corridor_restored,
+    .results = corridor_results, .frame_len = corridor_frame_len, .frame = corridor_frame, .trips = corridor_trips,
 };
-
-/* ---- the engine's output callbacks ---- */
-
-WF_H5R_CALLBACKS(WfCorridor, WfCorridorRow, run_of)
-
-/* Trips, a row at a time, into their chunk; complete chunks are written, then counted. */
-static int h5_trips(void *ctx, const WfCorridor *c, const WfTrip *tr, size_t n, WfError *err)
-{
-    (void)c;
-    for (size_t i = 0; i < n; i++) {
-        double row[WF_TRIP_N_COLS];
-        const double *cols[WF_TRIP_N_COLS];
-        for (size_t k = 0; k < WF_TRIP_N_COLS; k++) row[k] = wf_trip_value(&tr[i], k), cols[k] = &row[k];
-        if (wf_h5r_append(ctx, CUR_TRIPS, 1, cols, err)) return WF_ESYS;
-    }
-    return 0;
-}
-
-static WfCorridorOutput ops_of(WfH5Corridor *w)
-{
-    return (WfCorridorOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
-                              .trips = h5_trips, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
-}
-
-int wf_h5corridor_create(const char *path, int force, WfH5Corridor **out, WfCorridorOutput *ops, WfError *err)
-{
-    int rc = wf_h5r_create(path, force, &corridor, out, err);
-    if (!rc) *ops = ops_of(*out);
-    return rc;
-}
-
-int wf_h5corridor_resume(const char *result, WfCorridor *c, WfH5Corridor **out, WfCorridorOutput *ops,
-                         WfError *err)
-{
-    WfH5Run r = run_of(c);
-    int rc = wf_h5r_resume(result, &corridor, &r, c, out, err);
-    if (!rc) *ops = ops_of(*out);
-    return rc;
-}
-
-void wf_h5corridor_destroy(WfH5Corridor **w) { wf_h5r_destroy(w); }
-
-const char *wf_h5corridor_path(const WfH5Corridor *w) { return wf_h5r_path(w); }

@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "io/h5summary.h"
+#include "wavefuel/h5out.h"
 #include "wavefuel/vehicle.h"
 #include "wavefuel/version.h"
 
@@ -37,6 +38,14 @@ struct WfH5Result {
     double     *frame;  /* scratch of the boundary's trajectory frame */
     size_t      n_buf, n_classes;
 };
+
+/* What the writer reads of the run, at every callback (the phase times only while the run goes on). */
+static WfH5Run run_of(const WfSim *sim)
+{
+    return (WfH5Run){.sim = sim, .sc = wf_sim_scenario(sim), .summary = wf_sim_summary(sim),
+                     .wall_s = wf_sim_wall_s(sim), .steps_done = wf_sim_steps_done(sim),
+                     .threads = wf_sim_threads(sim), .phase_s = wf_sim_phase_times(sim)};
+}
 
 int wf_h5_put_columns(hid_t g, const WfObsColumn *cols, const WfObsData *data, size_t n, WfH5Pass pass,
                       WfError *err)
@@ -226,8 +235,10 @@ static int create_structure(WfH5Result *w, const WfH5Run *r, WfError *err)
     return rc || wf_ckpt_series_create(fid, w->sp, w->ns, err) || wf_h5_flush(w->file, err);
 }
 
-int wf_h5r_begin(WfH5Result *w, const WfH5Run *r, WfError *err)
+static int h5_begin(void *ctx, const WfSim *sim, WfError *err)
 {
+    WfH5Result *w = ctx;
+    WfH5Run run = run_of(sim), *r = &run;
     const WfH5Boundary *b = w->b;
     size_t nf = b->frame_len(r);
     w->n_classes = r->sc->n_classes;
@@ -235,7 +246,7 @@ int wf_h5r_begin(WfH5Result *w, const WfH5Run *r, WfError *err)
     w->cls = malloc(TS_BUF * (w->n_classes ? w->n_classes : 1) * sizeof *w->cls);
     w->frame = malloc((nf ? nf : 1) * sizeof *w->frame);
     if (!w->buf || !w->cls || !w->frame) return wf_err(err, WF_ESYS, "out of memory");
-    if (w->resume) return 0; /* wf_h5r_resume reopened the file and set it back to the checkpoint */
+    if (w->resume) return 0; /* wf_h5out_resume reopened the file and set it back to the checkpoint */
     time_t now = time(NULL);
     struct tm tmv;
     gmtime_r(&now, &tmv);
@@ -265,13 +276,15 @@ static int group_failed(const WfH5Result *w, size_t cur, WfError *err)
                           : 0;
 }
 
-int wf_h5r_record(WfH5Result *w, const double *v, const double *cls, WfError *err)
+static int h5_record(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
+    (void)sim;
+    WfH5Result *w = ctx;
     if (group_failed(w, 0, err)) return WF_ESYS;
     size_t nc = w->b->n_ts_cols;
     double *dst = w->buf + w->n_buf * (nc + w->n_classes);
-    memcpy(dst, v, nc * sizeof(double));
-    memcpy(dst + nc, cls, w->n_classes * sizeof(double));
+    memcpy(dst, rec->v, nc * sizeof(double));
+    memcpy(dst + nc, rec->class_fuel_rate_gps, w->n_classes * sizeof(double));
     if (++w->n_buf == TS_BUF && flush_ts(w, err)) return write_failed(w, 0, err);
     return 0;
 }
@@ -288,10 +301,12 @@ int wf_h5r_append(WfH5Result *w, size_t cur, size_t n_rows, const double *const 
 }
 
 /* One frame of the boundary's trajectory observer; a complete chunk is written (src/io/h5util.h), then counted. */
-int wf_h5r_trajectory(WfH5Result *w, const WfH5Run *r, double t_s, WfError *err)
+static int h5_trajectory(void *ctx, const WfSim *sim, double t_s, WfError *err)
 {
+    WfH5Result *w = ctx;
+    WfH5Run r = run_of(sim);
     const double *cols[WF_H5_MAX_SERIES];
-    size_t n = w->b->frame(r, &t_s, w->frame, cols);
+    size_t n = w->b->frame(&r, &t_s, w->frame, cols);
     return wf_h5r_append(w, w->b->traj_cursor, n, cols, err);
 }
 
@@ -318,8 +333,17 @@ static int flush_all(WfH5Result *w, WfError *err)
     return write_counts(w, WF_H5_FILL, err);
 }
 
-int wf_h5r_end(WfH5Result *w, const WfH5Run *r, int completed, const char *reason, WfError *err)
+static int h5_trips(void *ctx, const WfSim *sim, const struct WfTrip *trips, size_t n, WfError *err)
 {
+    (void)sim;
+    WfH5Result *w = ctx;
+    return w->b->trips(w, trips, n, err);
+}
+
+static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err)
+{
+    WfH5Result *w = ctx;
+    WfH5Run run = run_of(sim), *r = &run;
     w->ended = 1;
     hid_t fid = w->file->fid;
     /* The end-of-run results and the status are written whatever happened: in place, they cannot damage the
@@ -350,8 +374,9 @@ int wf_h5r_end(WfH5Result *w, const WfH5Run *r, int completed, const char *reaso
 
 /* ---- checkpoints (FILE.h5.ckpt, src/io/h5ckpt.h) and resumption ---- */
 
-int wf_h5r_checkpoint(WfH5Result *w, const WfH5Run *r, void *eng, WfError *err)
+static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
 {
+    WfH5Result *w = ctx;
     /* The result file must hold every row the checkpoint counts (but the pending rows it saves) before the
      * checkpoint exists. */
     if (flush_ts(w, err)) return write_failed(w, 0, err);
@@ -362,10 +387,10 @@ int wf_h5r_checkpoint(WfH5Result *w, const WfH5Run *r, void *eng, WfError *err)
     const char *cur[WF_H5_MAX_CURSORS];
     for (size_t c = 0; c < w->b->n_cursors; c++) cur[c] = w->b->cursor[c].group;
     WfStateVar vars[WF_MAX_STATE_VARS];
-    /* The state functions pack the engine's scalars before listing the blocks; they are only read here. */
-    size_t nv = w->b->state(eng, vars, WF_MAX_STATE_VARS);
-    return wf_ckpt_save(w->file->path, w->b->kind, r->sc, r->steps_done, cur, w->b->n_cursors, w->sp, w->ns, vars,
-                        nv, err);
+    /* The state function packs the engine's scalars before listing the blocks; they are only read here. */
+    size_t nv = wf_sim_state((WfSim *)sim, vars, WF_MAX_STATE_VARS);
+    return wf_ckpt_save(w->file->path, w->b->kind, wf_sim_scenario(sim), wf_sim_steps_done(sim), cur,
+                        w->b->n_cursors, w->sp, w->ns, vars, nv, err);
 }
 
 /* The reopened file back at the checkpoint: the counters at its rows (lowering a counter is always safe), the
@@ -380,46 +405,67 @@ static int resume_file(WfH5Result *w, const WfH5Run *r, WfError *err)
     return rc ? wf_err_prefix(err, "%s: ", w->file->partial) : 0;
 }
 
-int wf_h5r_resume(const char *result, const WfH5Boundary *b, const WfH5Run *r, void *eng, WfH5Result **out,
-                  WfError *err)
+/* The writer of the run's kind of road (its observers: src/io/h5ring.c, src/io/h5corridor.c). */
+static const WfH5Boundary *boundary_of(const WfSim *sim, WfError *err)
+{
+    static const WfH5Boundary *const all[] = {&wf_h5_ring, &wf_h5_corridor};
+    for (size_t k = 0; k < sizeof all / sizeof all[0]; k++)
+        if (!strcmp(all[k]->kind, wf_sim_kind(sim))) return all[k];
+    wf_err(err, WF_EINPUT, "no result writer for a %s run", wf_sim_kind(sim));
+    return NULL;
+}
+
+static WfOutput ops_of(WfH5Result *w)
+{
+    return (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
+                      .trips = w->b->trips ? h5_trips : NULL, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
+}
+
+int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err)
 {
     *out = NULL;
-    WfH5Result *w = new_writer(b);
-    if (!w) return wf_err(err, WF_ESYS, "out of memory");
+    const WfH5Boundary *b = boundary_of(sim, err);
+    WfH5Result *w = b ? new_writer(b) : NULL;
+    if (!w) return b ? wf_err(err, WF_ESYS, "out of memory") : WF_EINPUT;
+    WfH5Run r = run_of(sim);
     w->resume = 1;
-    build_series(w, r);
+    build_series(w, &r);
     const char *cur[WF_H5_MAX_CURSORS];
     for (size_t c = 0; c < b->n_cursors; c++) cur[c] = b->cursor[c].group;
     WfStateVar vars[WF_MAX_STATE_VARS];
-    size_t nv = b->state(eng, vars, WF_MAX_STATE_VARS);
+    size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS);
     /* The checkpoint and the partial file are read and verified completely before the file is changed. */
-    int rc = wf_ckpt_restore(result, b->kind, r->sc, cur, b->n_cursors, w->sp, w->ns, vars, nv, err);
-    if (!rc) rc = b->restored(eng, err);
-    if (!rc) rc = wf_ckpt_reopen(result, r->sc, w->sp, w->ns, &w->file, err);
-    if (!rc) rc = resume_file(w, r, err);
+    int rc = wf_ckpt_restore(result, b->kind, r.sc, cur, b->n_cursors, w->sp, w->ns, vars, nv, err);
+    if (!rc) rc = wf_sim_restored(sim, err);
+    r = run_of(sim);
+    if (!rc) rc = wf_ckpt_reopen(result, r.sc, w->sp, w->ns, &w->file, err);
+    if (!rc) rc = resume_file(w, &r, err);
     if (rc) {
-        wf_h5r_destroy(&w);
+        wf_h5out_destroy(&w);
         return rc;
     }
     *out = w;
+    *ops = ops_of(w);
     return 0;
 }
 
-int wf_h5r_create(const char *path, int force, const WfH5Boundary *b, WfH5Result **out, WfError *err)
+int wf_h5out_create(const WfSim *sim, const char *path, int force, WfH5Out **out, WfOutput *ops, WfError *err)
 {
     *out = NULL;
-    WfH5Result *w = new_writer(b);
-    if (!w) return wf_err(err, WF_ESYS, "out of memory");
+    const WfH5Boundary *b = boundary_of(sim, err);
+    WfH5Result *w = b ? new_writer(b) : NULL;
+    if (!w) return b ? wf_err(err, WF_ESYS, "out of memory") : WF_EINPUT;
     int rc = wf_h5_create(path, force, &w->file, err);
     if (rc) {
         free(w);
         return rc;
     }
     *out = w;
+    *ops = ops_of(w);
     return 0;
 }
 
-void wf_h5r_destroy(WfH5Result **pw)
+void wf_h5out_destroy(WfH5Out **pw)
 {
     if (!pw || !*pw) return;
     WfH5Result *w = *pw;
@@ -434,4 +480,4 @@ void wf_h5r_destroy(WfH5Result **pw)
     *pw = NULL;
 }
 
-const char *wf_h5r_path(const WfH5Result *w) { return w->final_path; }
+const char *wf_h5out_path(const WfH5Out *w) { return w->final_path; }

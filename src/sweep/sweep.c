@@ -690,7 +690,10 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
                              sc->classes[c].vc.name);
             if (n > 0 && (size_t)n < sizeof res->classes - used) used += (size_t)n;
         }
-        rc = wf_sim_create(sc, &sim, &err);
+        /* The sweep table holds the ring's summary fields (src/io/h5sweep.c). */
+        rc = sc->corridor ? wf_err(&err, WF_EINPUT, "%s: road.type corridor: sweeps tabulate ring metrics; run "
+                                   "corridors with `wavefuel run` for now", sc->path)
+                          : wf_sim_create(sc, &sim, &err);
     }
     if (!rc && o->per_run_dir) {
         char *ov = NULL;
@@ -703,7 +706,7 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
         }
         free(ov);
         /* force: the table does not hold this run as complete, so a file left by an earlier attempt is stale. */
-        if (!rc) rc = wf_h5out_create(sc->output_path, 1, &h5, &ops, &err);
+        if (!rc) rc = wf_h5out_create(sim, sc->output_path, 1, &h5, &ops, &err);
         if (!rc) out = &ops;
     }
     if (!rc) rc = wf_sim_run(sim, out, NULL, NULL, stop, &err);

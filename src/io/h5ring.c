@@ -2,8 +2,6 @@
  * time series (wf_ts_columns), trajectory frames [time x vehicle] and the per-vehicle statistics (/vehicles, from
  * src/observe/vehicles.c), and the ring's own datasets: /solver, the energy-model parameters of each class, the
  * class and group counts, the initial speed and the phase times. */
-#include "wavefuel/h5out.h"
-
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,13 +15,6 @@ static const WfH5Cursor cursors[N_CUR] = {
     {"trajectories", "trajectory_rows", "frames of /trajectories that hold data (0 without trajectories)"},
 };
 
-static WfH5Run run_of(const WfSim *sim)
-{
-    return (WfH5Run){.eng = sim, .sc = wf_sim_scenario(sim), .summary = wf_sim_summary(sim),
-                     .wall_s = wf_sim_wall_s(sim), .steps_done = wf_sim_steps_done(sim),
-                     .threads = wf_sim_threads(sim), .phase_s = wf_sim_phase_times(sim)};
-}
-
 static hsize_t frames_of(const WfScenario *sc)
 {
     return sc->trajectories ? (hsize_t)wf_scenario_records(sc, wf_scenario_trajectory_every(sc)) : 0;
@@ -34,7 +25,7 @@ static hsize_t frames_of(const WfScenario *sc)
  * (10^6 vehicles, 2 threads: 7.3e6 against 3.7e7 vehicle-steps/s, bench/README.md). */
 static size_t ring_series(const WfH5Run *r, WfCkptSeries *sp)
 {
-    hsize_t n = wf_sim_fleet(r->eng)->n, frames = frames_of(r->sc);
+    hsize_t n = wf_sim_fleet(r->sim)->n, frames = frames_of(r->sc);
     hsize_t cr = wf_h5_series_chunk_rows(n, frames < 16 ? frames : 16);
     size_t k = 0;
     for (size_t i = 0; r->sc->trajectories && i < WF_RING_TRAJ_N_COLS; i++)
@@ -45,7 +36,7 @@ static size_t ring_series(const WfH5Run *r, WfCkptSeries *sp)
 
 static void ring_size(const WfH5Run *r, double *appended, double *end)
 {
-    double n = (double)wf_sim_fleet(r->eng)->n;
+    double n = (double)wf_sim_fleet(r->sim)->n;
     *appended = (double)frames_of(r->sc) * (1.0 + 4.0 * n) * 8.0;
     *end = n * 16.0 * 8.0;
 }
@@ -53,7 +44,7 @@ static void ring_size(const WfH5Run *r, double *appended, double *end)
 static int ring_meta(hid_t g, const WfH5Run *r, WfError *err)
 {
     hsize_t np = WF_N_PHASES;
-    return wf_h5_scalar_f64(g, "initial_speed", wf_sim_fleet(r->eng)->v_init_mps, "m/s",
+    return wf_h5_scalar_f64(g, "initial_speed", wf_sim_fleet(r->sim)->v_init_mps, "m/s",
                             "common speed of the initial equilibrium (0 when starting at rest)", err) ||
            wf_h5_write_strings(g, "phase_name", np, wf_phase_names, "phases of phase_time", err);
 }
@@ -63,7 +54,7 @@ static int ring_meta(hid_t g, const WfH5Run *r, WfError *err)
 static int ring_fleet(hid_t g, hid_t drivers, const WfH5Run *r, WfError *err)
 {
     const WfScenario *sc = r->sc;
-    const WfFleet *f = wf_sim_fleet(r->eng);
+    const WfFleet *f = wf_sim_fleet(r->sim);
     int64_t counts[WF_MAX_CLASSES], gc[WF_MAX_GROUPS];
     hsize_t nc = sc->n_classes, ng = sc->n_groups;
     for (size_t c = 0; c < sc->n_classes; c++) counts[c] = (int64_t)f->class_n[c];
@@ -180,7 +171,7 @@ static int write_solver(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err
 
 static int ring_results(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
-    return write_vehicles(fid, r->eng, pass, err) || write_solver(fid, r->eng, pass, err) ? WF_ESYS : 0;
+    return write_vehicles(fid, r->sim, pass, err) || write_solver(fid, r->sim, pass, err) ? WF_ESYS : 0;
 }
 
 static size_t ring_frame_len(const WfH5Run *r)
@@ -193,53 +184,14 @@ static size_t ring_frame_len(const WfH5Run *r)
 static size_t ring_frame(const WfH5Run *r, const double *t_s, double *scratch, const double **cols)
 {
     (void)scratch;
-    wf_ring_traj_frame(wf_sim_fleet(r->eng), t_s, cols);
+    wf_ring_traj_frame(wf_sim_fleet(r->sim), t_s, cols);
     return 1;
 }
 
-static int ring_restored(void *eng, WfError *err)
-{
-    (void)err;
-    wf_sim_restored(eng);
-    return 0;
-}
-
-static size_t ring_state(void *eng, WfStateVar *vars, size_t max) { return wf_sim_state(eng, vars, max); }
-
-static const WfH5Boundary ring = {
+const WfH5Boundary wf_h5_ring = {
     .kind = "ring", .summary = WF_SUMMARY_RING, .road_length_desc = "ring length",
     .warmup_desc = "warm-up excluded from statistics", .cursor = cursors, .n_cursors = N_CUR,
     .traj_cursor = CUR_TRAJ, .ts_cols = wf_ts_columns, .n_ts_cols = WF_TS_N_COLS, .ts_class_col = &wf_ts_class_column,
     .series = ring_series, .size = ring_size, .meta = ring_meta, .fleet = ring_fleet, .traj_attrs = ring_traj_attrs,
-    .results = ring_results, .frame_len = ring_frame_len, .frame = ring_frame, .state = ring_state,
-    .restored = ring_restored,
+    .results = ring_results, .frame_len = ring_frame_len, .frame = ring_frame,
 };
-
-/* ---- the engine's output callbacks ---- */
-
-WF_H5R_CALLBACKS(WfSim, WfTsRow, run_of)
-
-static WfOutput ops_of(WfH5Out *w)
-{
-    return (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
-                      .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
-}
-
-int wf_h5out_create(const char *path, int force, WfH5Out **out, WfOutput *ops, WfError *err)
-{
-    int rc = wf_h5r_create(path, force, &ring, out, err);
-    if (!rc) *ops = ops_of(*out);
-    return rc;
-}
-
-int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err)
-{
-    WfH5Run r = run_of(sim);
-    int rc = wf_h5r_resume(result, &ring, &r, sim, out, err);
-    if (!rc) *ops = ops_of(*out);
-    return rc;
-}
-
-void wf_h5out_destroy(WfH5Out **w) { wf_h5r_destroy(w); }
-
-const char *wf_h5out_path(const WfH5Out *w) { return wf_h5r_path(w); }

@@ -1,0 +1,42 @@
+/* A run of one road (wavefuel/engine.h: WfSim) and the boundaries that make the road a ring or a corridor. What
+ * every boundary shares lives in WfSim: the scenario, the output, the step loop (src/core/block.c: wf_loop_run), the
+ * wall time, threads, checkpoint interval and the summary. What differs is a WfBoundary: how the vehicles are
+ * stored and stepped (both on the block kernel), what a step observes, the state a checkpoint saves. Adding a
+ * boundary is one file defining a WfBoundary and one line in src/core/sim.c's table. Internal (not installed). */
+#ifndef WAVEFUEL_CORE_SIM_H
+#define WAVEFUEL_CORE_SIM_H
+
+#include "wavefuel/engine.h"
+
+typedef struct WfBoundary {
+    const char *kind;                                   /* "ring", "corridor": checkpoints and /meta/road_type */
+    /* Build the boundary's engine for sim->sc into sim->eng, and point sim->steps_done at its step counter (which
+     * its state blocks save). Everything the run needs is allocated here. */
+    int    (*create)(WfSim *sim, WfError *err);
+    void   (*destroy)(void *eng);
+    /* One step (wf_loop_run's step): 0, WF_LOOP_END after the final instant, or an error. Outputs go through
+     * sim->out, which may be NULL. */
+    int    (*step)(void *eng, long step, WfError *err);
+    /* Before sim->out->checkpoint: hand the output what it must hold at a checkpoint (NULL: nothing). */
+    int    (*flush)(void *eng, WfError *err);
+    /* After the last step (or an interruption or error): the run's totals into sim->summary. */
+    int    (*close)(void *eng, WfError *err);
+    size_t (*state)(void *eng, WfStateVar *vars, size_t max);
+    int    (*restored)(void *eng, WfError *err);
+} WfBoundary;
+
+extern const WfBoundary wf_boundary_periodic, wf_boundary_open;
+
+struct WfSim {
+    const WfScenario *sc;       /* borrowed */
+    const WfBoundary *b;
+    void             *eng;      /* the boundary's engine: owned */
+    const WfOutput   *out;      /* borrowed, during wf_sim_run */
+    long             *steps_done;
+    const double     *phase_s;  /* WF_N_PHASES wall times, or NULL when the boundary does not measure them */
+    double            wall_s, checkpoint_every_s;
+    int               nthreads;
+    WfSummary         summary;
+};
+
+#endif
