@@ -464,6 +464,7 @@ static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, s
         else
             ld = (WfLead){ln->x_m[nx] - ln->class_length_m[ln->class_id[nx]], ln->v_mps[nx], 0.0};
         fl |= run_block(ln, lo, m, &ld, step, pass, in_window, rec ? rec + b : NULL);
+        if ((pass & WF_PASS_ADVANCE) && ln->ops->moved) ln->ops->moved(ln->ctx, lo, m);
         /* The previous block's edge, while both blocks are in cache. */
         if ((pass & WF_PASS_ADVANCE) && b > b0) fl |= edge_overlap(ln, prev_last, lo, 0.0);
         prev_last = lo + m - 1;

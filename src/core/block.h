@@ -52,6 +52,9 @@ typedef struct WfRoadOps {
     int (*cap)(const void *ctx, size_t m, const double *x_m, const double *v_mps, double *cap_mps2);
     /* the parameters a vehicle of a zoned group drives with at x (own, or a copy in buf) */
     const double *(*params_at)(const void *ctx, size_t group, const double *own, double x_m, double *buf);
+    /* after a block advanced (x_old_m to x_m): the boundary's per-vehicle bookkeeping of the step, on the thread
+     * that stepped the block while it is in cache; NULL: none */
+    void (*moved)(const void *ctx, size_t lo, size_t m);
 } WfRoadOps;
 
 /* The step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with

@@ -19,9 +19,11 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
 #include "core/block.h"
+#include "core/par.h"
 #include "core/sim.h"
 #include "core/simd.h"
 
+#define AI static inline __attribute__((always_inline))
 #define TRIP_BUF 1024 /* trips handed to the output per call */
 
 const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
@@ -528,6 +530,27 @@ static int corridor_cap(const void *ctx, size_t m, const double *x, const double
 
 /* The vehicle buffer as the kernel sees it. A group without heterogeneity drives with the group's parameters
  * (every vehicle's copy equals them): one shared block, so the model's block form applies across the block. */
+/* The Edie cell of each step that lies inside one cell (the common case), computed as edie_vehicle does (the same
+ * division and comparisons), else UINT32_MAX; slots [lo, lo + m). The kernel calls it for each block it advanced
+ * (WfRoadOps.moved), on the block's thread; an overlap repair calls it again for the vehicle it moves. A loop without
+ * control flow: it vectorises, and takes the division out of the measurement. */
+WF_SIMD_CLONES
+static void step_cells(const void *ctx, size_t lo, size_t m)
+{
+    const WfCorridor *c = ctx;
+    const double *restrict xa = c->xold + lo, *restrict xb = c->veh.x_m + lo;
+    uint32_t *restrict cell = c->cell + lo;
+    double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx;
+    uint32_t last = (uint32_t)(c->edie.nx - 1);
+    for (size_t k = 0; k < m; k++) {
+        double q = (xa[k] > 0.0 ? xa[k] : 0.0) / dx;
+        uint32_t i = q < nxd ? (uint32_t)(int32_t)q : last; /* (size_t)q, clamped to the last cell */
+        double edge = i == last ? L : (double)(i + 1) * dx;
+        int one = (xb[k] > xa[k]) & (xa[k] >= 0.0) & (xb[k] <= L) & !(edge < xb[k]);
+        cell[k] = one ? i : UINT32_MAX;
+    }
+}
+
 static int lane_init(WfCorridor *c, WfError *err)
 {
     const WfScenario *sc = c->sc;
@@ -540,6 +563,7 @@ static int lane_init(WfCorridor *c, WfError *err)
     c->has_cap = isfinite(sc->road.speed_limit_mps);
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
+                         .moved = step_cells,
                          .params_at = params_at};
     WfLane *ln = &c->lane;
     *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = c, .cap = vh->cap, .x_m = vh->x_m, .v_mps = vh->v_mps,
@@ -608,6 +632,7 @@ static void phase_overlaps(WfCorridor *c, int in_window, size_t upto)
             vh->x_m[s] = limit;
             vh->v_mps[s] = 0.0;
             c->st.counts.overlaps++;
+            step_cells(c, s, 1);
         }
     }
 }
@@ -671,27 +696,6 @@ static inline void detector_vehicle(WfCorridor *c, size_t jd, size_t q, double x
     }
 }
 
-/* The Edie cell of each step that lies inside one cell (the common case), computed as edie_vehicle does (the same
- * division and comparisons), else UINT32_MAX; slots [lo, lo + m), on nth threads. A loop without control flow: it
- * vectorises, and takes the division out of the measurement. */
-WF_SIMD_CLONES
-static void step_cells(WfCorridor *c, size_t lo, size_t m, int nth)
-{
-    const double *restrict xa = c->xold + lo, *restrict xb = c->veh.x_m + lo;
-    uint32_t *restrict cell = c->cell + lo;
-    double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx;
-    uint32_t last = (uint32_t)(c->edie.nx - 1);
-#pragma omp parallel for simd num_threads(nth) if (nth > 1) schedule(static) default(none) \
-    shared(xa, xb, cell, dx, L, nxd, last, m, nth)
-    for (size_t k = 0; k < m; k++) {
-        double q = (xa[k] > 0.0 ? xa[k] : 0.0) / dx;
-        uint32_t i = q < nxd ? (uint32_t)(int32_t)q : last; /* (size_t)q, clamped to the last cell */
-        double edge = i == last ? L : (double)(i + 1) * dx;
-        int one = (xb[k] > xa[k]) & (xa[k] >= 0.0) & (xb[k] <= L) & !(edge < xb[k]);
-        cell[k] = one ? i : UINT32_MAX;
-    }
-}
-
 /* Running sums of one cell (up to three quantities) kept in registers between vehicles: the same additions in the
  * same order as adding to the cell in memory, without a store and reload between consecutive vehicles of a cell. */
 typedef struct CellSum {
@@ -752,12 +756,56 @@ static void measure_span(const WfCorridor *c, size_t i_lo, size_t i_hi, size_t q
     *k1 = first_below(c, c->veh.x_m, x_lo - 1.0, 1, *k0, c->veh.n);
 }
 
-/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. The common case, a
- * step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as edie_vehicle through
- * running sums of the row's cell and of each class's cell (one per class: in a mixed fleet consecutive vehicles
- * alternate classes, and one running sum for all would be flushed at every change). */
-static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
-                          size_t q_hi)
+/* Running sums of the class profiles of one cell (class_dist_m, class_fuel_g) for up to 4 ng classes, lane l of
+ * vector g holding class 4 g + l. A vehicle adds its values to its class's lane and +0.0 to the others, which
+ * leaves them unchanged (a sum that starts at +0.0 is never -0.0), so each class's sum takes the same additions in
+ * the same order as a sum per class in memory, without a store and reload between vehicles (in a mixed fleet,
+ * consecutive vehicles alternate classes). */
+typedef double  v4d __attribute__((vector_size(32)));
+typedef int64_t v4i __attribute__((vector_size(32)));
+typedef struct ClassSums {
+    v4d    d[4], f[4];
+    size_t cell; /* SIZE_MAX: none held */
+} ClassSums;
+
+/* The sums held back to the cell's memory. Lanes move through a local array with constant vector indices, so that
+ * the sums themselves can stay in registers. */
+AI void class_flush(ClassSums *cs, const WfEdie *e, size_t ncl, int ng)
+{
+    if (cs->cell == SIZE_MAX) return;
+    double td[16], tf[16];
+#pragma GCC unroll 4
+    for (int g = 0; g < ng; g++) memcpy(&td[4 * g], &cs->d[g], sizeof cs->d[g]), memcpy(&tf[4 * g], &cs->f[g], sizeof cs->f[g]);
+    for (size_t k = 0; k < ncl; k++)
+        e->class_dist_m[k * e->nx + cs->cell] = td[k], e->class_fuel_g[k * e->nx + cs->cell] = tf[k];
+    cs->cell = SIZE_MAX;
+}
+
+AI void class_add(ClassSums *cs, const WfEdie *e, size_t ncl, int ng, size_t i, size_t cl, double d, double fuel)
+{
+    if (i != cs->cell) {
+        class_flush(cs, e, ncl, ng);
+        double td[16] = {0}, tf[16] = {0};
+        for (size_t k = 0; k < ncl; k++) td[k] = e->class_dist_m[k * e->nx + i], tf[k] = e->class_fuel_g[k * e->nx + i];
+#pragma GCC unroll 4
+        for (int g = 0; g < ng; g++) memcpy(&cs->d[g], &td[4 * g], sizeof cs->d[g]), memcpy(&cs->f[g], &tf[4 * g], sizeof cs->f[g]);
+        cs->cell = i;
+    }
+    v4d dv = {d, d, d, d}, fv = {fuel, fuel, fuel, fuel};
+#pragma GCC unroll 4
+    for (int g = 0; g < ng; g++) {
+        int64_t b = 4 * (int64_t)g;
+        v4i lane = {b, b + 1, b + 2, b + 3}, on = lane == (int64_t)cl;
+        cs->d[g] += (v4d)((v4i)dv & on);
+        cs->f[g] += (v4d)((v4i)fv & on);
+    }
+}
+
+/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, for up to 4 ng
+ * classes. The common case, a step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as
+ * edie_vehicle through running sums of the row's cell and of the classes' cell. */
+AI void measure_range_ng(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo, size_t q_hi,
+                         int ng)
 {
     const WfCorridorVehicles *vh = &c->veh;
     WfEdie *e = &c->edie;
@@ -765,8 +813,8 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
     size_t ncl = c->sc->n_classes;
     double dt = c->sc->dt_s, *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx;
     double *erow_f = e->fuel_g + j * nx;
-    CellSum row = {0}, cls[WF_MAX_CLASSES];
-    for (size_t k = 0; k < ncl; k++) cls[k].p[0] = NULL; /* none held */
+    CellSum row = {0};
+    ClassSums cls = {.cell = SIZE_MAX};
     size_t k0, k1;
     measure_span(c, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
     for (size_t k = k0; k < k1; k++) {
@@ -776,17 +824,26 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
             /* inside one cell of another thread */
         } else if (i != UINT32_MAX) {
             cell_add(&row, &erow_d[i], &erow_t[i], &erow_f[i], xb - xa, dt, fuel);
-            if (in_window)
-                cell_add(&cls[cl], &e->class_dist_m[cl * nx + i], &e->class_fuel_g[cl * nx + i], NULL, xb - xa, fuel,
-                         0.0);
+            if (in_window) class_add(&cls, e, ncl, ng, i, cl, xb - xa, fuel);
         } else {
-            cell_flush(&row), cell_flush(&cls[cl]);
+            cell_flush(&row), class_flush(&cls, e, ncl, ng);
             edie_vehicle(c, j, cl, xa, xb, fuel, in_window, i_lo, i_hi);
         }
         for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
     }
-    cell_flush(&row);
-    for (size_t k = 0; k < ncl; k++) cell_flush(&cls[k]);
+    cell_flush(&row), class_flush(&cls, e, ncl, ng);
+}
+
+/* measure_range_ng with the number of class vectors known to the compiler (the sums then stay in registers). */
+WF_SIMD_CLONES
+static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
+                          size_t q_hi)
+{
+    _Static_assert(WF_MAX_CLASSES <= 16, "ClassSums holds 16 classes");
+    size_t ng = (c->sc->n_classes + 3) / 4;
+    if (ng <= 1) measure_range_ng(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 1);
+    else if (ng == 2) measure_range_ng(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 2);
+    else measure_range_ng(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 4);
 }
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
@@ -796,10 +853,8 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
 static void phase_measure(WfCorridor *c, long step, int in_window)
 {
     const WfCorridorVehicles *vh = &c->veh;
-    size_t nx = c->edie.nx, nd = c->det.n_det, run = vh->cap - vh->first < vh->n ? vh->cap - vh->first : vh->n;
+    size_t nx = c->edie.nx, nd = c->det.n_det;
     int nth = vh->n >= WF_PAR_MIN ? c->nthreads : 1;
-    step_cells(c, vh->first, run, nth);
-    step_cells(c, 0, vh->n - run, nth);
     if (nth <= 1) {
         measure_range(c, step, in_window, 0, nx, 0, nd);
         return;
