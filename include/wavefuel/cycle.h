@@ -114,7 +114,7 @@ typedef struct WfCycleOut WfCycleOut;
  * set *out to NULL; command_line is copied into the file. */
 int wf_cycle_out_create(const char *path, int force, const char *command_line, WfCycleOut **out, WfError *err);
 /* One run: attributes and totals, and with `series` the arrays at its samples (r->samples); the protocol leaves
- * them out (at 100 Hz they would make the file about 0.7 GB). */
+ * them out (at 100 Hz they would make the file close to 1 GB). */
 int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, const WfCycleRun *r, int series,
                      WfError *err);
 /* Protocol summary of one class at /CLASS/summary: cycle names (+ "ALL"), their durations, grades, model names,

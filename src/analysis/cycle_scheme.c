@@ -109,11 +109,11 @@ static int sample_release(const WfCycle *c, double rate_hz, WfCycleSamples *s, W
 }
 
 static const WfCycleScheme schemes[] = {
-    {"spline", "the spline trace at 100 Hz, its exact derivative, trapezoid sum (the most accurate; default)", 100.0,
+    {"spline", "spline trace at 100 Hz, its exact derivative, trapezoid sum; the most accurate (default)", 100.0,
      sample_spline},
-    {"release", "the spline trace at 10 Hz, central differences, trapezoid sum (the CIRCLES release's script)", 10.0,
+    {"release", "spline trace at 10 Hz, central differences, trapezoid sum; the CIRCLES release's script", 10.0,
      sample_release},
-    {"first-order", "the trace's own samples, forward differences, sum f(v[i], a[i]) dt_i (earlier wavefuel)", 0.0,
+    {"first-order", "the trace's own samples, forward differences, sum f(v[i], a[i]) dt_i; earlier wavefuel", 0.0,
      sample_first_order},
 };
 

@@ -362,7 +362,7 @@ static void print_protocol(const Entry *entries, size_t n_entries, const ClassRe
     printf("# wavefuel cycle --protocol\n\n");
     printf("Fuel in g per drive cycle (rows) and road grade in rad (columns). rel. diff = (explicit - tabulated) / "
            "tabulated. ALL: fuel summed over the cycles; rel. diff both as the duration-weighted mean of the cycles' "
-           "values (the paper's ALL rows) and as total fuel over total fuel. Scheme: %s (%s). Projection: %s. "
+           "values (the paper's ALL rows) and as total fuel over total fuel. Scheme %s: %s. Projection: %s. "
            "Cycles from %s/cycles. HHDDT high speed is not run: no public 1 Hz file exists (docs/cycles.md).\n\n",
            scheme->name, scheme->summary,
            project_choice == 0 ? "off for every model (--no-project)"
