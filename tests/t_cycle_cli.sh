@@ -208,10 +208,12 @@ else
 fi
 
 # ---- command-line errors -----------------------------------------------------------------------------------------
+printf 'time_s,speed_mps\n0,1\n2000000,1\n' >"$tmp/long.csv"  # 2e8 samples at 100 Hz: refused
 bad=""
 for args in "--protocol --grade 0.01" "--class midsize_suv --table nope udds" "--class midsize_suv --table x=y.h5 udds" \
             "--class midsize_suv udds hwfet" "udds" "--class midsize_suv --grade abc udds" "--protocol udds" \
-            "--class midsize_suv --table midsize_suv=$tmp/none.h5 udds" "--class midsize_suv --scheme central udds"; do
+            "--class midsize_suv --table midsize_suv=$tmp/none.h5 udds" "--class midsize_suv --scheme central udds" \
+            "--class midsize_suv $tmp/long.csv"; do
   $BIN cycle $args >/dev/null 2>"$tmp/err"; rc=$?
   [ $rc -eq 2 ] && [ -s "$tmp/err" ] || bad="$bad [$args: rc=$rc]"
 done

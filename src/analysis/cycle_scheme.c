@@ -51,7 +51,10 @@ static int resample_grid(const WfCycle *c, double rate_hz, WfCycleSamples *s, Wf
 {
     double t0 = c->t_s[0], dur = c->t_s[c->n - 1] - t0;
     double steps = floor(dur * rate_hz + 1e-9);
-    if (!(steps < 1e9)) return wf_err(err, WF_EINPUT, "%s: %.17g s at %g Hz is too many samples", c->name, dur, rate_hz);
+    /* 1e8 samples hold 3.2 GB (four doubles each): 11.6 days of trace at 100 Hz. */
+    if (!(steps < 1e8))
+        return wf_err(err, WF_EINPUT, "cycle %s: %.17g s at %g Hz is more than 1e8 samples (--scheme first-order uses "
+                      "the trace's own)", c->name, dur, rate_hz);
     size_t k_max = (size_t)steps;
     int tail = (double)k_max / rate_hz < dur - 1e-9 * (dur > 1.0 ? dur : 1.0);
     size_t n = k_max + 1 + (size_t)tail;
