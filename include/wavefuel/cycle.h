@@ -1,7 +1,8 @@
 /* Drive cycles: one vehicle follows a speed trace (CSV `time_s,speed_mps`, any sample rate, uneven steps
- * allowed). Acceleration is the forward difference a[i] = (v[i+1] - v[i]) / dt_i (0 at the last sample),
- * fuel is sum_i f(v[i], a[i], theta) dt_i and distance sum_i v[i] dt_i, with dt_i = t[i+1] - t[i] and
- * dt = 0 at the last sample, so both sums cover exactly the cycle's duration t[n-1] - t[0]. */
+ * allowed). A scheme (the table wf_cycle_schemes(), docs/cycles.md) turns the trace into quadrature samples
+ * (time, speed, acceleration, weight); fuel is sum_i f(v[i], a[i], theta) w_i and distance sum_i v[i] w_i, the
+ * weights covering exactly the cycle's duration t[n-1] - t[0]. The `first-order` scheme is the trace's own samples
+ * with the forward difference a[i] = (v[i+1] - v[i]) / dt_i and w_i = dt_i (0 at the last sample). */
 #ifndef WAVEFUEL_CYCLE_H
 #define WAVEFUEL_CYCLE_H
 
@@ -46,26 +47,56 @@ int wf_cycle_data_dir(const char *dir, const char *dir_from, const char *default
  * DATA_DIR/cycles/NAME.csv. Unknown names list the cycles present. data_dir may be "" (none found). */
 int wf_cycle_resolve(const char *name_or_path, const char *data_dir, char *out, size_t len, WfError *err);
 
+/* Quadrature samples of a cycle: where the model is evaluated and with what weight. */
+typedef struct WfCycleScheme WfCycleScheme;
+typedef struct WfCycleSamples {
+    const WfCycleScheme *scheme; /* borrowed: the table entry that made them */
+    size_t  n;                   /* samples, >= 2 */
+    /* Owned, one allocation (wf_cycle_samples_free): */
+    double *t_s;                 /* increasing, from t[0] to t[n-1] of the cycle, s */
+    double *v_mps;               /* >= 0, m/s */
+    double *a_mps2;              /* m/s^2 */
+    double *w_s;                 /* quadrature weights >= 0, summing to the duration, s */
+} WfCycleSamples;
+
+/* A scheme: one row of the table. `sample` fills *s (owned by it until wf_cycle_samples_free; nothing to free on
+ * failure) from the cycle at rate_hz (the row's rate; 0 for the trace's own samples). Errors: out of memory. */
+struct WfCycleScheme {
+    const char *name;        /* as on the command line: "release" */
+    const char *summary;     /* one line: the samples, the acceleration, the sum */
+    double      rate_hz;     /* resampling rate, 1/s; 0: the trace's own samples */
+    int (*sample)(const WfCycle *c, double rate_hz, WfCycleSamples *s, WfError *err);
+};
+
+/* The schemes (first the default). The table is static; n gets its length. */
+const WfCycleScheme *wf_cycle_schemes(size_t *n);
+/* A scheme by name; unknown names are WF_EINPUT listing the known ones. */
+const WfCycleScheme *wf_cycle_scheme_find(const char *name, WfError *err);
+/* scheme->sample(c, scheme->rate_hz, s, err) with s->scheme set. */
+int wf_cycle_samples(const WfCycle *c, const WfCycleScheme *scheme, WfCycleSamples *s, WfError *err);
+void wf_cycle_samples_free(WfCycleSamples *s);
+
 /* One run of a class over a cycle at a constant grade. */
 typedef struct WfCycleRun {
+    const WfCycleSamples *samples; /* borrowed: what the model was evaluated on */
     double   theta_rad;
     int      project;        /* the value used (the caller resolves the model's default) */
-    size_t   n;              /* samples */
+    size_t   n;              /* samples (samples->n) */
     double  *fuel_gps;       /* owned; fuel rate at each sample, g/s */
     uint8_t *flag;           /* owned; WF_FEASIBLE, WF_INFEASIBLE_ACCEL... at each sample */
-    double   fuel_g;         /* sum fuel_gps[i] dt_i, g */
-    double   distance_m;     /* sum v[i] dt_i, m */
+    double   fuel_g;         /* sum fuel_gps[i] w_i, g */
+    double   distance_m;     /* sum v[i] w_i, m */
     double   duration_s;
-    double   infeasible_s;   /* sum of dt_i over flagged samples, s */
+    double   infeasible_s;   /* sum of w_i over flagged samples, s */
     size_t   n_infeasible;   /* flagged samples */
     size_t   n_outside;      /* evaluations clamped to a table's edge (0 for explicit models) */
     double   l_per_100km, mpg;
 } WfCycleRun;
 
-/* Evaluate the class's model along the cycle. Deterministic (sums in sample order). *r is owned by the
- * caller: wf_cycle_run_free. Errors: out of memory. */
-int wf_cycle_run(const WfCycle *c, const WfVehicleClass *vc, double theta_rad, int project, WfCycleRun *r,
-                 WfError *err);
+/* Evaluate the class's model at the samples s of cycle c (s must outlive *r). Deterministic (sums in sample
+ * order). *r is owned by the caller: wf_cycle_run_free. Errors: out of memory. */
+int wf_cycle_run(const WfCycle *c, const WfCycleSamples *s, const WfVehicleClass *vc, double theta_rad, int project,
+                 WfCycleRun *r, WfError *err);
 void wf_cycle_run_free(WfCycleRun *r);
 
 /* The paper's validation protocol for a duty: the cycles (names resolved in DATA_DIR/cycles) and the grades
@@ -75,19 +106,25 @@ const char *const *wf_protocol_cycles(WfDuty duty, size_t *n);
 size_t wf_protocol_grades(WfDuty duty, double *theta_rad, size_t cap);
 
 /* HDF5 output of cycle runs (src/io/cycle_out.c): PATH.partial renamed on commit, refuses to overwrite an
- * existing file unless force. Each run goes to the group /CLASS/CYCLE/theta_<+0.0000>/MODEL with the time
- * series (t, v, a, fuel, power, flag) and the totals as scalars; see docs/cycles.md. */
+ * existing file unless force. Each run goes to the group /CLASS/CYCLE/theta_<+0.0000>/MODEL with the totals as
+ * scalars and (single runs) the series at the scheme's samples (t, v, a, weight, fuel, power, flag); see
+ * docs/cycles.md. */
 typedef struct WfCycleOut WfCycleOut;
 /* *out is the caller's (NULL on failure) until wf_cycle_out_commit() or wf_cycle_out_abandon(), which free it and
  * set *out to NULL; command_line is copied into the file. */
 int wf_cycle_out_create(const char *path, int force, const char *command_line, WfCycleOut **out, WfError *err);
-int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, const WfCycleRun *r, WfError *err);
-/* Protocol summary of one class at /CLASS/summary: cycle names (+ "ALL"), grades, model names, fuel_g per
- * model as [n_cycles + 1, n_grades] (last row: all cycles combined), and rel_diff (same shape) when not NULL.
- * fuel_g is laid out [model][cycle (ALL last)][grade]. */
+/* One run: attributes and totals, and with `series` the arrays at its samples (r->samples); the protocol leaves
+ * them out (at 100 Hz they would make the file close to 1 GB). */
+int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, const WfCycleRun *r, int series,
+                     WfError *err);
+/* Protocol summary of one class at /CLASS/summary: cycle names (+ "ALL"), their durations, grades, model names,
+ * fuel_g per model as [n_cycles + 1, n_grades] (last row: the sum over cycles), laid out [model][cycle (ALL
+ * last)][grade]; when rel_diff is not NULL, rel_diff of the same shape (last row: the duration-weighted mean of the
+ * cycles' rows) and rel_total [n_grades] (total over total). */
 int wf_cycle_out_summary(WfCycleOut *o, const char *class_name, size_t n_cycles, const char *const *cycles,
-                         size_t n_grades, const double *grades_rad, size_t n_models, const char *const *models,
-                         const double *fuel_g, const double *rel_diff, WfError *err);
+                         const double *durations_s, size_t n_grades, const double *grades_rad, size_t n_models,
+                         const char *const *models, const double *fuel_g, const double *rel_diff,
+                         const double *rel_total, WfError *err);
 int wf_cycle_out_commit(WfCycleOut **o, WfError *err);
 /* Close and delete the partial file (nothing is left half-written). */
 void wf_cycle_out_abandon(WfCycleOut **o);

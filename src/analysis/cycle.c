@@ -1,6 +1,6 @@
-/* Drive cycles: loading a speed trace, forward-difference acceleration, the fuel and distance sums of one run,
- * the data directory and the paper's protocol grid (cycles and grades per duty). Units: s, m/s, m/s^2, rad,
- * g/s, g, m. */
+/* Drive cycles: loading a speed trace, forward-difference acceleration, the fuel and distance sums of one run over
+ * a scheme's samples (cycle_scheme.c), the data directory and the paper's protocol grid (cycles and grades per
+ * duty). Units: s, m/s, m/s^2, rad, g/s, g, m. */
 #include "wavefuel/cycle.h"
 
 #include <dirent.h>
@@ -210,11 +210,11 @@ void wf_cycle_run_free(WfCycleRun *r)
     r->flag = NULL;
 }
 
-int wf_cycle_run(const WfCycle *c, const WfVehicleClass *vc, double theta_rad, int project, WfCycleRun *r,
-                 WfError *err)
+int wf_cycle_run(const WfCycle *c, const WfCycleSamples *s, const WfVehicleClass *vc, double theta_rad, int project,
+                 WfCycleRun *r, WfError *err)
 {
     memset(r, 0, sizeof *r);
-    size_t n = c->n;
+    size_t n = s->n;
     double *theta = malloc(n * sizeof *theta);
     r->fuel_gps = malloc(n * sizeof *r->fuel_gps);
     r->flag = malloc(n);
@@ -224,18 +224,19 @@ int wf_cycle_run(const WfCycle *c, const WfVehicleClass *vc, double theta_rad, i
         return wf_err(err, WF_ESYS, "out of memory for a run of %zu samples", n);
     }
     for (size_t i = 0; i < n; i++) theta[i] = theta_rad;
+    r->samples = s;
     r->theta_rad = theta_rad;
     r->project = project;
     r->n = n;
-    wf_vehicle_fuel(vc, n, c->v_mps, c->a_mps2, theta, project, r->fuel_gps, r->flag);
-    if (vc->model->n_outside) r->n_outside = vc->model->n_outside(vc->params, n, c->v_mps, c->a_mps2, theta, project);
+    wf_vehicle_fuel(vc, n, s->v_mps, s->a_mps2, theta, project, r->fuel_gps, r->flag);
+    if (vc->model->n_outside) r->n_outside = vc->model->n_outside(vc->params, n, s->v_mps, s->a_mps2, theta, project);
     free(theta);
     /* Sums in sample order: the same cycle gives the same bits on any machine and thread count. */
     for (size_t i = 0; i < n; i++) {
-        r->fuel_g += r->fuel_gps[i] * c->dt_s[i];
-        r->distance_m += c->v_mps[i] * c->dt_s[i];
+        r->fuel_g += r->fuel_gps[i] * s->w_s[i];
+        r->distance_m += s->v_mps[i] * s->w_s[i];
         if (r->flag[i] != WF_FEASIBLE) {
-            r->infeasible_s += c->dt_s[i];
+            r->infeasible_s += s->w_s[i];
             r->n_infeasible++;
         }
     }

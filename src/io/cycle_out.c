@@ -43,21 +43,40 @@ static void grade_group(double theta, char *out, size_t len)
     snprintf(out, len, "theta_%+.4f", theta == 0.0 ? 0.0 : theta);
 }
 
-int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, const WfCycleRun *r, WfError *err)
+/* The series at the scheme's samples. */
+static int write_series(hid_t g, const WfVehicleClass *vc, const WfCycleRun *r, WfError *err)
 {
+    const WfCycleSamples *s = r->samples;
+    hsize_t n = s->n;
+    double *power = malloc((s->n ? s->n : 1) * sizeof *power);
+    if (!power) return wf_err(err, WF_ESYS, "out of memory");
+    for (size_t i = 0; i < s->n; i++) power[i] = r->fuel_gps[i] * vc->kw_per_gps;
+    int rc;
+    if ((rc = wf_h5_write_f64(g, "time_s", 1, &n, s->t_s, "s", "sample time (the scheme's samples)", err)) ||
+        (rc = wf_h5_write_f64(g, "speed_mps", 1, &n, s->v_mps, "m/s", "cycle speed at the samples", err)) ||
+        (rc = wf_h5_write_f64(g, "accel_mps2", 1, &n, s->a_mps2, "m/s^2", "acceleration as the scheme forms it",
+                              err)) ||
+        (rc = wf_h5_write_f64(g, "weight_s", 1, &n, s->w_s, "s", "quadrature weight of each sample", err)) ||
+        (rc = wf_h5_write_f64(g, "fuel_gps", 1, &n, r->fuel_gps, "g/s", "fuel rate", err)) ||
+        (rc = wf_h5_write_f64(g, "power_kw", 1, &n, power, "kW", "equivalent power: fuel rate x kw_per_gps", err)) ||
+        (rc = wf_h5_write_u8(g, "flag", 1, &n, r->flag, "1", "0 feasible, 1 acceleration infeasible, 2 negative speed",
+                             err))) {
+        /* rc set by the failing call */
+    }
+    free(power);
+    return rc;
+}
+
+int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, const WfCycleRun *r, int series,
+                     WfError *err)
+{
+    const WfCycleSamples *s = r->samples;
     char gname[512], gg[32];
     grade_group(r->theta_rad, gg, sizeof gg);
     int w = snprintf(gname, sizeof gname, "/%s/%s/%s/%s", vc->name, c->name, gg, vc->model->name);
     if (w < 0 || (size_t)w >= sizeof gname) return wf_err(err, WF_EINPUT, "HDF5 group name too long: %s", gname);
     hid_t g = wf_h5_group(o->f->fid, gname, err);
     if (g < 0) return WF_ESYS;
-    hsize_t n = c->n;
-    double *power = malloc((c->n ? c->n : 1) * sizeof *power);
-    if (!power) {
-        H5Gclose(g);
-        return wf_err(err, WF_ESYS, "out of memory");
-    }
-    for (size_t i = 0; i < c->n; i++) power[i] = r->fuel_gps[i] * vc->kw_per_gps;
     const char *table = vc->model == &wf_energy_tabulated
                             ? ((const WfTabulatedParams *)vc->params)->table->source
                             : "";
@@ -73,16 +92,12 @@ int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, 
         (rc = wf_h5_attr_str(g, "cycle", c->name, err)) || (rc = wf_h5_attr_str(g, "cycle_file", c->path, err)) ||
         (rc = wf_h5_attr_f64(g, "grade_rad", r->theta_rad, err)) ||
         (rc = wf_h5_attr_i64(g, "project", r->project, err)) ||
-        (rc = wf_h5_write_f64(g, "time_s", 1, &n, c->t_s, "s", "sample time", err)) ||
-        (rc = wf_h5_write_f64(g, "speed_mps", 1, &n, c->v_mps, "m/s", "cycle speed", err)) ||
-        (rc = wf_h5_write_f64(g, "accel_mps2", 1, &n, c->a_mps2, "m/s^2",
-                              "forward difference (v[i+1]-v[i])/dt_i, 0 at the last sample", err)) ||
-        (rc = wf_h5_write_f64(g, "fuel_gps", 1, &n, r->fuel_gps, "g/s", "fuel rate", err)) ||
-        (rc = wf_h5_write_f64(g, "power_kw", 1, &n, power, "kW", "equivalent power: fuel rate x kw_per_gps", err)) ||
-        (rc = wf_h5_write_u8(g, "flag", 1, &n, r->flag, "1", "0 feasible, 1 acceleration infeasible, 2 negative speed",
-                             err)) ||
-        (rc = wf_h5_scalar_f64(g, "fuel_g", r->fuel_g, "g", "sum fuel_gps[i] dt_i", err)) ||
-        (rc = wf_h5_scalar_f64(g, "distance_m", r->distance_m, "m", "sum speed_mps[i] dt_i", err)) ||
+        (rc = wf_h5_attr_str(g, "scheme", s->scheme->name, err)) ||
+        (rc = wf_h5_attr_str(g, "scheme_summary", s->scheme->summary, err)) ||
+        (rc = wf_h5_scalar_i64(g, "n_samples", (int64_t)s->n, "1", "samples the model was evaluated at", err)) ||
+        (series && (rc = write_series(g, vc, r, err))) ||
+        (rc = wf_h5_scalar_f64(g, "fuel_g", r->fuel_g, "g", "sum fuel_gps[i] weight_s[i]", err)) ||
+        (rc = wf_h5_scalar_f64(g, "distance_m", r->distance_m, "m", "sum speed_mps[i] weight_s[i]", err)) ||
         (rc = wf_h5_scalar_f64(g, "duration_s", r->duration_s, "s", "last time minus first time", err)) ||
         (rc = wf_h5_scalar_f64(g, "l_per_100km", r->l_per_100km, "L/100km", "fuel_g / density per distance", err)) ||
         (rc = wf_h5_scalar_f64(g, "mpg", r->mpg, "mi/gal", "miles per US gallon", err)) ||
@@ -92,14 +107,14 @@ int wf_cycle_out_run(WfCycleOut *o, const WfVehicleClass *vc, const WfCycle *c, 
                                "evaluations clamped to the table's edge (tabulated models)", err))) {
         /* rc set by the failing call */
     }
-    free(power);
     H5Gclose(g);
     return rc;
 }
 
 int wf_cycle_out_summary(WfCycleOut *o, const char *class_name, size_t n_cycles, const char *const *cycles,
-                         size_t n_grades, const double *grades, size_t n_models, const char *const *models,
-                         const double *fuel_g, const double *rel_diff, WfError *err)
+                         const double *durations_s, size_t n_grades, const double *grades, size_t n_models,
+                         const char *const *models, const double *fuel_g, const double *rel_diff,
+                         const double *rel_total, WfError *err)
 {
     char gname[256];
     int w = snprintf(gname, sizeof gname, "/%s/summary", class_name);
@@ -113,9 +128,11 @@ int wf_cycle_out_summary(WfCycleOut *o, const char *class_name, size_t n_cycles,
     }
     for (size_t i = 0; i < n_cycles; i++) rows[i] = cycles[i];
     rows[n_cycles] = "ALL";
-    hsize_t ng = n_grades, dims[2] = {n_cycles + 1, n_grades};
+    hsize_t ng = n_grades, nc = n_cycles, dims[2] = {n_cycles + 1, n_grades};
     int rc = 0;
     if ((rc = wf_h5_write_strings(g, "cycles", n_cycles + 1, rows, "row names of the tables; ALL = all cycles", err)) ||
+        (rc = wf_h5_write_f64(g, "durations_s", 1, &nc, durations_s, "s", "duration of each cycle (the weights of "
+                              "the ALL row of rel_diff)", err)) ||
         (rc = wf_h5_write_f64(g, "grades_rad", 1, &ng, grades, "rad", "column grades of the tables", err)) ||
         (rc = wf_h5_write_strings(g, "models", n_models, models, "energy models compared", err)))
         goto done;
@@ -127,8 +144,11 @@ int wf_cycle_out_summary(WfCycleOut *o, const char *class_name, size_t n_cycles,
             goto done;
     }
     if (rel_diff &&
-        (rc = wf_h5_write_f64(g, "rel_diff", 2, dims, rel_diff, "1",
-                              "(explicit - tabulated) / tabulated fuel; last row: total over total", err)))
+        ((rc = wf_h5_write_f64(g, "rel_diff", 2, dims, rel_diff, "1",
+                               "(explicit - tabulated) / tabulated fuel; last row ALL: the duration-weighted mean of "
+                               "the cycles' rows (the paper's rule)", err)) ||
+         (rc = wf_h5_write_f64(g, "rel_diff_total", 1, &ng, rel_total, "1",
+                               "all cycles: (total explicit - total tabulated) / total tabulated fuel", err))))
         goto done;
 done:
     free(rows);
