@@ -6,6 +6,7 @@
 # or heavy-duty (class8_tractor) class file, `wavefuel energy`, `cycle` and `run` (each loads the class) must
 # exit 2 with a message naming the file, line, key and value, and write nothing. Zero stays accepted (shipped
 # classes have c2: 0, q0: 0, z2: 0, h0: 0), and so do the coefficients that are negative by design (a0..a4).
+# 2) `energy --list` shows both masses where a class carries two (docs/energy.md, "Two masses").
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 ROOT=$PWD
@@ -80,3 +81,12 @@ for c in compact_sedan midsize_sedan midsize_suv midsize_pickup; do
   "$BIN" energy --class "$c" points.csv >/dev/null 2>&1 || bad+=" $c"
 done
 [ -z "$bad" ] && ok "negative_fuel_cut_coefficients_accepted" || ko "negative_fuel_cut_coefficients_accepted" "$bad"
+
+# 2) Both masses: `energy --list` shows the release header's and, where the class gives it, the paper's.
+list=$("$BIN" energy --list 2>&1); bad=""
+for row in "compact_sedan 1543 1379" "class4_pnd 5943 6842" "midsize_sedan 1743 -" "class8_tractor 25104 -"; do
+  set -- $row
+  echo "$list" | awk -v c="$1" -v m="$2" -v p="$3" '$1 == c && $4 == m && $5 == p { f = 1 } END { exit !f }' || bad+=" $1"
+done
+head=$(echo "$list" | head -1 | awk '{print $4, $5}')
+[ -z "$bad" ] && [ "$head" = "mass_kg paper_mass_kg" ] && ok "list_both_masses" || ko "list_both_masses" "rows:$bad head '$head'"
