@@ -645,13 +645,15 @@ static void test_duty_and_errors(void)
     WfError err = {0};
     WfFitResult r;
     if (tt) {
-        CHECK(wf_fit_table(tt, &(WfFitOptions){.duty = WF_FIT_DUTY_LIGHT}, &r, &err) == WF_EINPUT && strstr(err.msg, "no fuel cut"), "%s",
+        CHECK(wf_fit_table(tt, &(WfFitOptions){.duty = WF_FIT_DUTY_LIGHT},
+                           &r, &err) == WF_EINPUT && strstr(err.msg, "no fuel cut"), "%s",
               err.msg);
     }
     if (ts) {
         /* Forced heavy duty on a light-duty table: h0 + h1 v >= 0 fitted to f(v, -3, 0), which is beta below
          * v_c and 0 above; no fuel-cut keys. */
-        CHECK(wf_fit_table(ts, &(WfFitOptions){.duty = WF_FIT_DUTY_HEAVY}, &r, &err) == 0, "%s", err.msg);
+        CHECK(wf_fit_table(ts, &(WfFitOptions){.duty = WF_FIT_DUTY_HEAVY},
+                           &r, &err) == 0, "%s", err.msg);
         CHECK(r.duty == WF_DUTY_HEAVY && !r.duty_detected && isinf(r.params.v_c) && r.params.h0 >= 0 &&
                   r.params.h1 >= 0 && !r.step[WF_FIT_STEP_CUT_ACCEL].done && r.step[WF_FIT_STEP_LOWER_BOUND].done,
               "forced heavy duty");
@@ -660,7 +662,8 @@ static void test_duty_and_errors(void)
         uint8_t inf[27] = {0};
         WfTable *small = NULL;
         CHECK(wf_table_from_grid(3, v, 3, a, 3, th, f, inf, "small", &small, &err) == 0, "%s", err.msg);
-        CHECK(wf_fit_table(small, &(WfFitOptions){.duty = WF_FIT_DUTY_AUTO}, &r, &err) == WF_EINPUT && strstr(err.msg, "must span"), "%s",
+        CHECK(wf_fit_table(small, &(WfFitOptions){.duty = WF_FIT_DUTY_AUTO},
+                           &r, &err) == WF_EINPUT && strstr(err.msg, "must span"), "%s",
               err.msg);
         wf_table_destroy(&small);
     }

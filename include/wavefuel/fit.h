@@ -80,8 +80,8 @@ typedef struct WfFitResult {
  * is read only; its grid (any spacing) must span v [0, 35] m/s, a [-3, 3] m/s^2 and theta [-0.03, 0.03] rad,
  * the ranges the steps read (the release's does). Fails (WF_EINPUT) when it does not, when a step has too few
  * usable points or points that do not determine its coefficients (the message names the step), or when light
- * duty is forced on a table with no fuel cut below WF_FIT_V_MAX; WF_ESYS when a nonlinear fit does not converge or memory runs out.
- * *out is filled on success only. Single-threaded; deterministic. */
+ * duty is forced on a table with no fuel cut below WF_FIT_V_MAX; WF_ESYS when a nonlinear fit does not converge
+ * or memory runs out. *out is filled on success only. Single-threaded; deterministic. */
 int wf_fit_table(const WfTable *t, const WfFitOptions *opt, WfFitResult *out, WfError *err);
 
 /* The metadata a class file needs that a table does not hold. */

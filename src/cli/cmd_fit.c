@@ -18,9 +18,9 @@
 static void help(FILE *out)
 {
     fprintf(out,
-            "usage: wavefuel fit TABLE [--duty light|heavy|auto] [--pq paper|joint] [-o vehicles/NAME.yaml [--force]]\n"
-            "                      [--like CLASS] [--name LABEL] [--fuel gasoline|diesel] [--mass-kg M]\n"
-            "                      [--length-m L] [--kw-per-gps K]\n\n"
+            "usage: wavefuel fit TABLE [--duty light|heavy|auto] [--pq paper|joint]\n"
+            "                      [-o vehicles/NAME.yaml [--force]] [--like CLASS] [--name LABEL]\n"
+            "                      [--fuel gasoline|diesel] [--mass-kg M] [--length-m L] [--kw-per-gps K]\n\n"
             "Fits the CIRCLES explicit (physics-like) model to a tabulated model, as Khoudari et al. do:\n"
             "fuel cut (v_c, beta, a0..a4), C(v), P(v), Q(v), Z(v) by non-negative least squares, the\n"
             "feasible-acceleration bound (b1..b6, nonlinear), f_idle; heavy duty (no fuel cut below 35 m/s, or\n"
@@ -119,7 +119,8 @@ static int parse_args(int argc, char **argv, FitArgs *a)
                                          {"kw-per-gps", required_argument, 0, 'k'},
                                          {"help", no_argument, 0, 'h'},
                                          {0, 0, 0, 0}};
-    *a = (FitArgs){.opt = {.duty = WF_FIT_DUTY_AUTO, .pq = WF_FIT_PQ_PAPER}, .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
+    *a = (FitArgs){.opt = {.duty = WF_FIT_DUTY_AUTO, .pq = WF_FIT_PQ_PAPER},
+                   .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
     int o;
     optind = 1;
     while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
