@@ -7,6 +7,7 @@
 # exit 2 with a message naming the file, line, key and value, and write nothing. Zero stays accepted (shipped
 # classes have c2: 0, q0: 0, z2: 0, h0: 0), and so do the coefficients that are negative by design (a0..a4).
 # 2) `energy --list` shows both masses where a class carries two (docs/energy.md, "Two masses").
+# 3) A run with both masses of its classes changed gives the same fuel, bit for bit.
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 ROOT=$PWD
@@ -90,3 +91,24 @@ for row in "compact_sedan 1543 1379" "class4_pnd 5943 6842" "midsize_sedan 1743 
 done
 head=$(echo "$list" | head -1 | awk '{print $4, $5}')
 [ -z "$bad" ] && [ "$head" = "mass_kg paper_mass_kg" ] && ok "list_both_masses" || ko "list_both_masses" "rows:$bad head '$head'"
+
+# 3) Mass enters no fuel value, in a run: tests/data/tiny_ring.yaml with its two classes replaced by copies whose
+#    mass_kg is tripled and paper_mass_kg set gives every fuel dataset bit for bit as with the shipped classes.
+mkdir mass
+sed 's/^mass_kg: 1743/mass_kg: 5229/' "$ROOT/vehicles/midsize_sedan.yaml" > mass/heavy_sedan.yaml
+printf 'paper_mass_kg: 4321\n' >> mass/heavy_sedan.yaml
+sed 's/^mass_kg: [0-9]*/mass_kg: 77777/' "$ROOT/vehicles/class8_tractor.yaml" > mass/heavy_c8.yaml
+scen="$ROOT/tests/data/tiny_ring.yaml"
+"$BIN" run "$scen" -q -o ship.h5 >/dev/null 2>&1; rc1=$?
+"$BIN" run "$scen" -q -o mass.h5 --set "fleet.classes[0].class=$tmp/mass/heavy_sedan.yaml" \
+  --set "fleet.classes[1].class=$tmp/mass/heavy_c8.yaml" >/dev/null 2>&1; rc2=$?
+m1=$(WAVEFUEL_VEHICLES="$tmp/mass" "$BIN" energy --list 2>&1 | awk '$1 == "heavy_sedan" { print $4, $5 }')
+if [ $rc1 -eq 0 ] && [ $rc2 -eq 0 ] && [ "$m1" = "5229 4321" ] && /usr/bin/python3 - ship.h5 mass.h5 <<'PY'
+import sys, h5py, numpy as np
+a, b = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
+for d in ["timeseries/fuel_rate", "timeseries/class_fuel_rate", "trajectories/fuel_rate", "summary/fuel",
+          "summary/class_fuel", "summary/l_per_100km", "summary/class_l_per_100km"]:
+    x, y = a[d][()], b[d][()]
+    assert np.asarray(x).tobytes() == np.asarray(y).tobytes(), d
+PY
+then ok "mass_enters_no_fuel_in_a_run"; else ko "mass_enters_no_fuel_in_a_run" "rc=$rc1/$rc2 masses '$m1'"; fi
