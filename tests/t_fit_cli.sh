@@ -90,7 +90,22 @@ else
   ko fit_heavy_h5 "rc=$rc/$rc2: $out"
 fi
 
+# --pq joint: P and Q in one step (reported as PQ) give back the shipped class 8's p0..q1 (to 4 digits here;
+# tests/test_fit.c holds the tolerance), where the default (the paper's steps) gives p0 0.160 for 0.205.
+out=$($BIN fit "$tmp/c8.h5" --pq joint --mass-kg 25104 --length-m 21 -o "$tmp/c8_joint.yaml"); rc=$?
+p0=$(awk '$1 == "p0:" { print $2 }' "$tmp/c8_joint.yaml"); q1=$(awk '$1 == "q1:" { print $2 }' "$tmp/c8_joint.yaml")
+p0_paper=$(awk '$1 == "p0:" { print $2 }' "$tmp/c8_fit.yaml")
+if [ $rc -eq 0 ] && echo "$out" | grep -q '^PQ  *p0 p1 p2 q0 q1 ' && ! echo "$out" | grep -q '^Q  ' \
+   && grep -q 'pq joint' "$tmp/c8_joint.yaml" && close "$p0" 0.20476 1e-4 && close "$q1" 0.14424 1e-4 \
+   && ! close "$p0_paper" 0.20476 0.1; then
+  ok fit_pq_joint
+else
+  ko fit_pq_joint "rc=$rc p0 $p0 q1 $q1 (paper steps p0 $p0_paper): $out"
+fi
+
 # ---- errors ------------------------------------------------------------------------------------------------
+err=$($BIN fit "$tmp/c8.h5" --pq both 2>&1 >/dev/null); rc=$?
+if [ $rc -eq 2 ] && echo "$err" | grep -q -- '--pq must be paper or joint'; then ok fit_bad_pq; else ko fit_bad_pq "rc=$rc $err"; fi
 err=$($BIN fit "$tmp/c8.h5" --duty light 2>&1 >/dev/null); rc=$?
 if [ $rc -eq 2 ] && echo "$err" | grep -q 'no fuel cut to fit'; then ok fit_forced_light; else ko fit_forced_light "rc=$rc $err"; fi
 err=$($BIN fit "$tmp/c8.h5" -o "$tmp/x.yaml" 2>&1 >/dev/null); rc=$?

@@ -17,6 +17,19 @@
 
 typedef enum { WF_FIT_DUTY_AUTO = 0, WF_FIT_DUTY_LIGHT = 1, WF_FIT_DUTY_HEAVY = 2 } WfFitDuty;
 
+/* How P(v) and Q(v) are fitted. WF_FIT_PQ_PAPER (the default): the paper's steps 3 and 4, P on a in [-0.3, 0.3]
+ * (heavy duty [0, 0.3]) without Q, then Q with P fixed; on a one-sided range P absorbs part of Q (the shipped
+ * class 8 comes back as p0 0.160 for 0.205). WF_FIT_PQ_JOINT: p0..p2, q0, q1 in one NNLS of P a + Q a^2 to
+ * f(v, a, 0) - C(v) on a in [0, 3], where a+ = a and the model is linear in all five: recovers the shipped
+ * classes, heavy duty included, to the polynomial tolerance (docs/fit.md). */
+typedef enum { WF_FIT_PQ_PAPER = 0, WF_FIT_PQ_JOINT = 1 } WfFitPQ;
+
+/* Choices of a fit; zero-initialised = the paper's pipeline with the duty detected. */
+typedef struct WfFitOptions {
+    WfFitDuty duty;
+    WfFitPQ   pq;
+} WfFitOptions;
+
 /* The fit's fixed ranges (the paper's): speeds [0, 35] m/s for every polynomial step, the fuel-cut speed
  * searched over [0, WF_FIT_V_MAX]; heavy duty is detected when that search reaches the top. */
 #define WF_FIT_V_MAX 35.0
@@ -26,8 +39,8 @@ enum {
     WF_FIT_STEP_CUT_SPEED = 0, /* 1a. v_c (bisection) and beta (light duty); heavy: the detection */
     WF_FIT_STEP_CUT_ACCEL,     /* 1b. a0..a4: least squares on the zero-fuel accelerations (light duty) */
     WF_FIT_STEP_C,             /* 2.  c0..c3 >= 0 */
-    WF_FIT_STEP_P,             /* 3.  p0..p2 >= 0 */
-    WF_FIT_STEP_Q,             /* 4.  q0, q1 >= 0 */
+    WF_FIT_STEP_P,             /* 3.  p0..p2 >= 0 (WF_FIT_PQ_JOINT: p0..p2, q0, q1 together, key "PQ") */
+    WF_FIT_STEP_Q,             /* 4.  q0, q1 >= 0 (not done with WF_FIT_PQ_JOINT) */
     WF_FIT_STEP_Z,             /* 5.  z0..z2 >= 0 */
     WF_FIT_STEP_AMAX_FLAT,     /* 6a. b1..b3 (nonlinear) */
     WF_FIT_STEP_AMAX_GRADE,    /* 6b. b4..b6 (nonlinear) */
@@ -53,6 +66,7 @@ typedef struct WfFitResult {
                                  * wf_circles_fuel(). Light duty: v_c, beta, a0..a4 set, h0/h1 NaN;
                                  * heavy duty the reverse. */
     WfDuty          duty;
+    WfFitPQ         pq;            /* how P and Q were fitted */
     int             duty_detected; /* 1: chosen by the v_c search (auto), 0: forced by the caller */
     WfFitStep       step[WF_FIT_N_STEPS];
     double          fuel_rms_gps;  /* fitted model (no projection) - table, over the points of steps 2-5 */
@@ -62,13 +76,13 @@ typedef struct WfFitResult {
     uint64_t        table_checksum;     /* the table's data checksum (wf_table_checksum) */
 } WfFitResult;
 
-/* Run the whole pipeline on a table. The table is read only; its grid (any spacing) must span v [0, 35] m/s,
- * a [-3, 3] m/s^2 and theta [-0.03, 0.03] rad, the ranges the steps read (the release's does). Fails
- * (WF_EINPUT) when it does not, when a step has too few usable points or points that do not determine its
- * coefficients (the message names the step), or when light duty is forced on a table with no fuel cut below
- * WF_FIT_V_MAX; WF_ESYS when a nonlinear fit does not converge or memory runs out.
- * *out is filled on success only. Single-threaded; deterministic. */
-int wf_fit_table(const WfTable *t, WfFitDuty duty, WfFitResult *out, WfError *err);
+/* Run the whole pipeline on a table with the options *opt (NULL: the paper's steps, duty detected). The table
+ * is read only; its grid (any spacing) must span v [0, 35] m/s, a [-3, 3] m/s^2 and theta [-0.03, 0.03] rad,
+ * the ranges the steps read (the release's does). Fails (WF_EINPUT) when it does not, when a step has too few
+ * usable points or points that do not determine its coefficients (the message names the step), or when light
+ * duty is forced on a table with no fuel cut below WF_FIT_V_MAX; WF_ESYS when a nonlinear fit does not converge
+ * or memory runs out. *out is filled on success only. Single-threaded; deterministic. */
+int wf_fit_table(const WfTable *t, const WfFitOptions *opt, WfFitResult *out, WfError *err);
 
 /* The metadata a class file needs that a table does not hold. */
 typedef struct WfFitClassInfo {

@@ -17,7 +17,8 @@ typedef struct WfVehicleClass {
     char                 path[1024];     /* file it was loaded from */
     WfDuty               duty;
     WfFuelType           fuel;
-    double               mass_kg;
+    double               mass_kg;        /* test mass of the release's model header (enters no fuel rate) */
+    double               paper_mass_kg;  /* the paper's Table 1 where it differs; NaN when the file omits it */
     double               length_m;       /* default vehicle length */
     double               fuel_density_g_per_l; /* converts g to L for L/100 km and mpg */
     double               kw_per_gps;     /* equivalent power per unit fuel rate, kW/(g/s) */
@@ -31,6 +32,12 @@ typedef struct WfVehicleClass {
 #define WF_DIESEL_G_PER_GAL   3217.0
 #define WF_L_PER_US_GAL       3.785411784
 #define WF_M_PER_MILE         1609.344
+
+/* The numeric top-level keys of a class file (mass_kg, paper_mass_kg, length_m, kw_per_gps,
+ * fuel_density_g_per_l): key, offset in WfVehicleClass, range, unit, required or optional, meaning. The loader
+ * reads them from this table; docs/energy.md lists them (tests/test_vehicle.c checks). */
+extern const WfParamSpec wf_vehicle_keys[];
+extern const size_t      wf_vehicle_n_keys;
 
 /* Load a class file into *vc (name = the file stem). vc->params is owned by *vc: free it with wf_vehicle_free()
  * (the struct itself is the caller's); vc->model is borrowed from the registry, valid for the process. On failure

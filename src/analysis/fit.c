@@ -547,13 +547,22 @@ static void keep_design(Keep *k, const Design *d)
 }
 
 /* One NNLS step on a (v, second coordinate) grid. kind: 'C' (f(v,0,0), basis 1 v v^2 v^3), 'P' (f(v,a,0) -
- * C, basis a, a v, a v^2), 'Q' (f(v,a,0) - C - P a, basis a^2, a^2 v), 'Z' (f(v,0,th) - C, basis th, th v,
- * th v^2). */
+ * C, basis a, a v, a v^2), 'Q' (f(v,a,0) - C - P a, basis a^2, a^2 v), 'J' (P and Q jointly: f(v,a,0) - C,
+ * basis a, a v, a v^2, a^2, a^2 v), 'Z' (f(v,0,th) - C, basis th, th v, th v^2). */
 static int nnls_step(const FitCtx *c, int kind, double lo2, double hi2, WfCirclesParams *p, WfFitStep *s, Keep *keep,
                      WfError *err)
 {
     size_t n1 = N_V, n2 = kind == 'C' ? 1 : (kind == 'Z' ? N_TH : N_A);
-    size_t n = kind == 'C' ? 4 : kind == 'Q' ? 2 : 3;
+    /* The joint step reads the table at its own acceleration nodes in [lo2, hi2]: there the table holds the
+     * model's values in a, not a linear interpolation of a^2 between nodes (whose error, up to Q h_a^2 / 4, a
+     * basis without a constant term cannot absorb: it moved the class 4 truck's q1 by 0.6 %). */
+    size_t a_first = 0;
+    if (kind == 'J') {
+        const WfTableAxis *ax = &c->t->a;
+        while (a_first < ax->n && ax->x[a_first] < lo2) a_first++;
+        for (n2 = 0; a_first + n2 < ax->n && ax->x[a_first + n2] <= hi2;) n2++;
+    }
+    size_t n = kind == 'C' ? 4 : kind == 'Q' ? 2 : kind == 'J' ? 5 : 3;
     /* Step 3's model, C + P a, leaves out Q a^2. Over an a-range symmetric about 0, a^2 is orthogonal to
      * a, a v, a v^2 only if the points used are symmetric too; the filter removes fuel-cut and lower-bound
      * points at negative a alone, which would bias P by a share of Q (up to 2x on p1 for the midsize
@@ -565,13 +574,14 @@ static int nnls_step(const FitCtx *c, int kind, double lo2, double hi2, WfCircle
     s->n_points = n1 * n2;
     for (size_t i = 0; i < n1; i++)
         for (size_t j = 0; j < n2; j++) {
-            double v = linspace(0.0, WF_FIT_V_MAX, n1, i), x2 = kind == 'C' ? 0.0 : linspace(lo2, hi2, n2, j);
-            double a = kind == 'P' || kind == 'Q' ? x2 : 0.0, th = kind == 'Z' ? x2 : 0.0;
+            double v = linspace(0.0, WF_FIT_V_MAX, n1, i);
+            double x2 = kind == 'C' ? 0.0 : kind == 'J' ? c->t->a.x[a_first + j] : linspace(lo2, hi2, n2, j);
+            double a = kind == 'P' || kind == 'Q' || kind == 'J' ? x2 : 0.0, th = kind == 'Z' ? x2 : 0.0;
             uint8_t flag = 0;
             double f = tab(c->t, v, a, th, &flag);
             if (flag != WF_FEASIBLE || !on_polynomial(c, v, a, th)) continue;
             if (symmetric && !usable(c, v, -a, th)) continue;
-            double row[4], y;
+            double row[5], y;
             switch (kind) {
             case 'C':
                 row[0] = 1.0, row[1] = v, row[2] = v * v, row[3] = v * v * v;
@@ -586,6 +596,10 @@ static int nnls_step(const FitCtx *c, int kind, double lo2, double hi2, WfCircle
                 row[0] = a * a, row[1] = a * a * v;
                 y = f - C_of(p, v) - P_of(p, v) * a;
                 break;
+            case 'J': /* a >= 0 again: a+ = a, linear in all five */
+                row[0] = a, row[1] = a * v, row[2] = a * v * v, row[3] = a * a, row[4] = a * a * v;
+                y = f - C_of(p, v);
+                break;
             default:
                 row[0] = th, row[1] = th * v, row[2] = th * v * v;
                 y = f - C_of(p, v);
@@ -593,7 +607,7 @@ static int nnls_step(const FitCtx *c, int kind, double lo2, double hi2, WfCircle
             }
             design_row(&d, row, y, v, a, th, f);
         }
-    double x[4] = {0};
+    double x[5] = {0};
     if (!(rc = need_points(s, d.m, n, err)) && !(rc = wf_nnls(d.m, n, d.A, d.b, x, NULL, err))) {
         design_residuals(&d, x, s);
         keep_design(keep, &d);
@@ -601,6 +615,7 @@ static int nnls_step(const FitCtx *c, int kind, double lo2, double hi2, WfCircle
         case 'C': p->c0 = x[0], p->c1 = x[1], p->c2 = x[2], p->c3 = x[3]; break;
         case 'P': p->p0 = x[0], p->p1 = x[1], p->p2 = x[2]; break;
         case 'Q': p->q0 = x[0], p->q1 = x[1]; break;
+        case 'J': p->p0 = x[0], p->p1 = x[1], p->p2 = x[2], p->q0 = x[3], p->q1 = x[4]; break;
         default: p->z0 = x[0], p->z1 = x[1], p->z2 = x[2]; break;
         }
     }
@@ -664,8 +679,25 @@ static void overall_error(const WfCirclesParams *p, const Keep *keep, WfFitResul
     r->fuel_max_gps = mx;
 }
 
-int wf_fit_table(const WfTable *t, WfFitDuty duty, WfFitResult *out, WfError *err)
+/* 3-4. P and Q: the paper's two steps, or one joint step (WfFitPQ). */
+static int fit_pq(const FitCtx *c, WfFitPQ pq, WfCirclesParams *p, WfFitResult *r, Keep *keep, WfError *err)
 {
+    WfFitStep *sp = &r->step[WF_FIT_STEP_P];
+    if (pq == WF_FIT_PQ_JOINT) {
+        sp->key = "PQ";
+        sp->params = "p0 p1 p2 q0 q1";
+        sp->target = "NNLS of P(v) a + Q(v) a^2 to f(v, a, 0) - C(v), 100 speeds x the table's acceleration nodes "
+                     "in [0, 3] (--pq joint)";
+        return nnls_step(c, 'J', 0.0, 3.0, p, sp, keep, err);
+    }
+    /* Heavy duty: a in [0, 0.3] for P (the paper's heavy-duty range). */
+    int rc = nnls_step(c, 'P', c->light ? -0.3 : 0.0, 0.3, p, sp, keep, err);
+    return rc ? rc : nnls_step(c, 'Q', 0.0, 3.0, p, &r->step[WF_FIT_STEP_Q], keep, err);
+}
+
+int wf_fit_table(const WfTable *t, const WfFitOptions *opt, WfFitResult *out, WfError *err)
+{
+    WfFitDuty duty = opt ? opt->duty : WF_FIT_DUTY_AUTO;
     WfFitResult *r = calloc(1, sizeof *r);
     Keep keep = {0};
     if (!r) return wf_err(err, WF_ESYS, "fit: out of memory");
@@ -674,10 +706,11 @@ int wf_fit_table(const WfTable *t, WfFitDuty duty, WfFitResult *out, WfError *er
     wf_param_defaults(wf_energy_circles.spec, wf_energy_circles.n_spec, p); /* NaN everywhere */
     snprintf(r->table_source, sizeof r->table_source, "%s", t->source);
     r->table_checksum = t->data_fnv1a64;
+    r->pq = opt ? opt->pq : WF_FIT_PQ_PAPER;
     int rc = 0;
     FitCtx c = {.t = t, .light = 0, .v_c = INFINITY, .beta = 0.0};
     if ((rc = check_grid(t, err))) goto done;
-    double a_lo_p = 0.0, th_hi_z = 0.02;
+    double th_hi_z = 0.02;
 
     /* 1a. Fuel-cut speed and duty. */
     size_t n_eval = 0;
@@ -713,12 +746,10 @@ int wf_fit_table(const WfTable *t, WfFitDuty duty, WfFitResult *out, WfError *er
     keep.a = keep.v + keep.cap;
     keep.th = keep.v + 2 * keep.cap;
     keep.f = keep.v + 3 * keep.cap;
-    /* Heavy duty: a in [0, 0.3] for P and theta in [0, 0.02] for Z (the paper's heavy-duty ranges). */
-    a_lo_p = c.light ? -0.3 : 0.0;
+    /* Heavy duty: theta in [0, 0.02] for Z (the paper's heavy-duty range). */
     th_hi_z = c.light ? 0.03 : 0.02;
     if ((rc = nnls_step(&c, 'C', 0, 0, p, &r->step[WF_FIT_STEP_C], &keep, err)) ||
-        (rc = nnls_step(&c, 'P', a_lo_p, 0.3, p, &r->step[WF_FIT_STEP_P], &keep, err)) ||
-        (rc = nnls_step(&c, 'Q', 0.0, 3.0, p, &r->step[WF_FIT_STEP_Q], &keep, err)) ||
+        (rc = fit_pq(&c, r->pq, p, r, &keep, err)) ||
         (rc = nnls_step(&c, 'Z', 0.0, th_hi_z, p, &r->step[WF_FIT_STEP_Z], &keep, err)))
         goto done;
 

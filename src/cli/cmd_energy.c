@@ -1,5 +1,6 @@
 /* `wavefuel energy`: the CIRCLES model (or any class's model) evaluated at CSV points v,a,theta. */
 #include <getopt.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -27,10 +28,13 @@ static int list_classes(void)
     size_t n = 0;
     WfError err = {0};
     if (wf_vehicle_list(&all, &n, &err)) return wf_cli_fail(&err);
-    printf("%-16s %-6s %-9s %9s %8s  %s\n", "class", "duty", "fuel", "mass_kg", "length_m", "file");
+    printf("%-16s %-6s %-9s %9s %13s %8s  %s\n", "class", "duty", "fuel", "mass_kg", "paper_mass_kg", "length_m",
+           "file");
     for (size_t i = 0; i < n; i++) {
-        printf("%-16s %-6s %-9s %9.0f %8.1f  %s\n", all[i].name, wf_duty_name(all[i].duty), wf_fuel_name(all[i].fuel),
-               all[i].mass_kg, all[i].length_m, all[i].path);
+        char paper[32] = "-"; /* only where the paper's Table 1 differs from the release's header */
+        if (!isnan(all[i].paper_mass_kg)) snprintf(paper, sizeof paper, "%.0f", all[i].paper_mass_kg);
+        printf("%-16s %-6s %-9s %9.0f %13s %8.1f  %s\n", all[i].name, wf_duty_name(all[i].duty),
+               wf_fuel_name(all[i].fuel), all[i].mass_kg, paper, all[i].length_m, all[i].path);
         wf_vehicle_free(&all[i]);
     }
     free(all);

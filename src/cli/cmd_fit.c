@@ -18,15 +18,19 @@
 static void help(FILE *out)
 {
     fprintf(out,
-            "usage: wavefuel fit TABLE [--duty light|heavy|auto] [-o vehicles/NAME.yaml [--force]]\n"
-            "                      [--like CLASS] [--name LABEL] [--fuel gasoline|diesel] [--mass-kg M]\n"
-            "                      [--length-m L] [--kw-per-gps K]\n\n"
+            "usage: wavefuel fit TABLE [--duty light|heavy|auto] [--pq paper|joint]\n"
+            "                      [-o vehicles/NAME.yaml [--force]] [--like CLASS] [--name LABEL]\n"
+            "                      [--fuel gasoline|diesel] [--mass-kg M] [--length-m L] [--kw-per-gps K]\n\n"
             "Fits the CIRCLES explicit (physics-like) model to a tabulated model, as Khoudari et al. do:\n"
             "fuel cut (v_c, beta, a0..a4), C(v), P(v), Q(v), Z(v) by non-negative least squares, the\n"
             "feasible-acceleration bound (b1..b6, nonlinear), f_idle; heavy duty (no fuel cut below 35 m/s, or\n"
             "--duty heavy) fits the lower bound h0 + h1 v instead. TABLE is an imported table (.h5, `wavefuel\n"
             "table import`) or a CSV in the release's format. Prints each step's parameters, RMS residual and\n"
             "points used.\n\n"
+            "--pq paper (default): the paper's steps, P(v) on a in [-0.3, 0.3] (heavy duty [0, 0.3]) without Q,\n"
+            "then Q(v) with P fixed. --pq joint: p0..p2, q0, q1 in one NNLS on a in [0, 3] (recovers the\n"
+            "heavy-duty classes' P and Q, which the paper's one-sided heavy-duty range trades against each\n"
+            "other).\n\n"
             "-o writes the vehicle class file (never over an existing one without --force). A table holds no\n"
             "mass or length: give --mass-kg and --length-m, or --like CLASS to copy fuel, mass, length, kW per\n"
             "g/s and fuel density from a class (options given explicitly win). Defaults: fuel gasoline for\n"
@@ -67,8 +71,8 @@ static void print_report(const WfTable *t, const char *table_path, const WfFitRe
         if (isnan(x)) continue;
         printf("  %-6s %-14.8g %s\n", sp->key, x, sp->unit);
     }
-    printf("\nfuel rate, fitted model - table, over the %zu points of steps C, P, Q, Z: RMS %.4g g/s, max %.4g g/s\n",
-           r->fuel_n, r->fuel_rms_gps, r->fuel_max_gps);
+    printf("\nfuel rate, fitted model - table, over the %zu points of steps C, %s, Z: RMS %.4g g/s, max %.4g g/s\n",
+           r->fuel_n, r->pq == WF_FIT_PQ_JOINT ? "PQ" : "P, Q", r->fuel_rms_gps, r->fuel_max_gps);
 }
 
 /* The command line as one string, for the class file's provenance. */
@@ -95,7 +99,7 @@ static int parse_num(const char *opt, const char *s, double *out)
 
 typedef struct FitArgs {
     const char *out, *like, *label, *table_path;
-    WfFitDuty   duty;
+    WfFitOptions opt;
     int         force, fuel; /* fuel: a WfFuelType, or -1 when not given */
     double      mass, length, kw; /* NAN when not given */
 } FitArgs;
@@ -104,6 +108,7 @@ typedef struct FitArgs {
 static int parse_args(int argc, char **argv, FitArgs *a)
 {
     static const struct option opts[] = {{"duty", required_argument, 0, 'd'},
+                                         {"pq", required_argument, 0, 'P'},
                                          {"output", required_argument, 0, 'o'},
                                          {"force", no_argument, 0, 'f'},
                                          {"like", required_argument, 0, 'L'},
@@ -114,17 +119,26 @@ static int parse_args(int argc, char **argv, FitArgs *a)
                                          {"kw-per-gps", required_argument, 0, 'k'},
                                          {"help", no_argument, 0, 'h'},
                                          {0, 0, 0, 0}};
-    *a = (FitArgs){.duty = WF_FIT_DUTY_AUTO, .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
+    *a = (FitArgs){.opt = {.duty = WF_FIT_DUTY_AUTO, .pq = WF_FIT_PQ_PAPER},
+                   .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
     int o;
     optind = 1;
     while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
         switch (o) {
         case 'd':
-            if (!strcmp(optarg, "auto")) a->duty = WF_FIT_DUTY_AUTO;
-            else if (!strcmp(optarg, "light")) a->duty = WF_FIT_DUTY_LIGHT;
-            else if (!strcmp(optarg, "heavy")) a->duty = WF_FIT_DUTY_HEAVY;
+            if (!strcmp(optarg, "auto")) a->opt.duty = WF_FIT_DUTY_AUTO;
+            else if (!strcmp(optarg, "light")) a->opt.duty = WF_FIT_DUTY_LIGHT;
+            else if (!strcmp(optarg, "heavy")) a->opt.duty = WF_FIT_DUTY_HEAVY;
             else {
                 fprintf(stderr, "wavefuel fit: --duty must be light, heavy or auto (got '%s')\n", optarg);
+                return 2;
+            }
+            break;
+        case 'P':
+            if (!strcmp(optarg, "paper")) a->opt.pq = WF_FIT_PQ_PAPER;
+            else if (!strcmp(optarg, "joint")) a->opt.pq = WF_FIT_PQ_JOINT;
+            else {
+                fprintf(stderr, "wavefuel fit: --pq must be paper or joint (got '%s')\n", optarg);
                 return 2;
             }
             break;
@@ -229,7 +243,7 @@ int wf_cmd_fit(int argc, char **argv)
     int rc = len > 4 && !strcmp(table_path + len - 4, ".csv") ? wf_table_read_csv(table_path, &t, &err)
                                                              : wf_table_load_h5(table_path, &t, &err);
     WfFitResult r;
-    if (!rc) rc = wf_fit_table(t, a.duty, &r, &err);
+    if (!rc) rc = wf_fit_table(t, &a.opt, &r, &err);
     if (rc) {
         wf_table_destroy(&t);
         if (have_base) wf_vehicle_free(&base);

@@ -17,36 +17,43 @@
     { #field, offsetof(WfCirclesParams, field), NAN, -1e6, 1e6, unit, WF_PARAM_REQUIRED, doc }
 #define O(field, unit, doc) \
     { #field, offsetof(WfCirclesParams, field), NAN, -1e6, 1e6, unit, WF_PARAM_OPTIONAL, doc }
+/* Coefficients the paper requires to be >= 0 (its structural properties: f >= 0, convex in a and in v for
+ * a, theta >= 0, a lower bound and idle rate that are fuel rates): refused below 0 when a class loads, since a
+ * negative one gives negative fuel (f_idle: -5 ran at -72 L/100 km). */
+#define PN(field, unit, doc) \
+    { #field, offsetof(WfCirclesParams, field), NAN, 0, 1e6, unit, WF_PARAM_REQUIRED, doc }
+#define ON(field, unit, doc) \
+    { #field, offsetof(WfCirclesParams, field), NAN, 0, 1e6, unit, WF_PARAM_OPTIONAL, doc }
 
 static const WfParamSpec circles_spec[] = {
-    P(f_idle, "g/s", "fuel rate at idle"),
+    PN(f_idle, "g/s", "fuel rate at idle"),
     P(b1, "m/s^2", "traction-limited acceleration"),
     P(b2, "m^2/s^2", "power-limited acceleration factor"),
     P(b3, "1/m", "drag reduction of a_max"),
     P(b4, "m/(s^2 rad)", "grade effect cap on a_max"),
     P(b5, "m/(s^2 rad)", "grade effect on a_max"),
     P(b6, "1/(s rad)", "speed-dependent grade effect on a_max"),
-    P(c0, "g/s", "C(v): constant"),
-    P(c1, "g/m", "C(v): linear"),
-    P(c2, "g s/m^2", "C(v): quadratic"),
-    P(c3, "g s^2/m^3", "C(v): cubic"),
-    P(p0, "g s/m", "P(v): constant"),
-    P(p1, "g s^2/m^2", "P(v): linear"),
-    P(p2, "g s^3/m^3", "P(v): quadratic"),
-    P(q0, "g s^3/m^2", "Q(v): constant"),
-    P(q1, "g s^4/m^3", "Q(v): linear"),
-    P(z0, "g/(s rad)", "Z(v): constant"),
-    P(z1, "g/(m rad)", "Z(v): linear"),
-    P(z2, "g s/(m^2 rad)", "Z(v): quadratic"),
+    PN(c0, "g/s", "C(v): constant"),
+    PN(c1, "g/m", "C(v): linear"),
+    PN(c2, "g s/m^2", "C(v): quadratic"),
+    PN(c3, "g s^2/m^3", "C(v): cubic"),
+    PN(p0, "g s/m", "P(v): constant"),
+    PN(p1, "g s^2/m^2", "P(v): linear"),
+    PN(p2, "g s^3/m^3", "P(v): quadratic"),
+    PN(q0, "g s^3/m^2", "Q(v): constant"),
+    PN(q1, "g s^4/m^3", "Q(v): linear"),
+    PN(z0, "g/(s rad)", "Z(v): constant"),
+    PN(z1, "g/(m rad)", "Z(v): linear"),
+    PN(z2, "g s/(m^2 rad)", "Z(v): quadratic"),
     O(v_c, "m/s", "light duty: fuel-cut speed"),
-    O(beta, "g/s", "light duty: lower bound below v_c"),
+    ON(beta, "g/s", "light duty: lower bound below v_c"),
     O(a0, "m/s^2", "light duty: fuel-cut acceleration, constant"),
     O(a1, "1/s", "light duty: fuel-cut acceleration, v"),
     O(a2, "m/(s^2 rad)", "light duty: fuel-cut acceleration, theta"),
     O(a3, "1/m", "light duty: fuel-cut acceleration, v^2"),
     O(a4, "1/(s rad)", "light duty: fuel-cut acceleration, v theta"),
-    O(h0, "g/s", "heavy duty: lower bound, constant"),
-    O(h1, "g/m", "heavy duty: lower bound, linear"),
+    ON(h0, "g/s", "heavy duty: lower bound, constant"),
+    ON(h1, "g/m", "heavy duty: lower bound, linear"),
 };
 
 static int circles_check(void *params, WfError *err)

@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <limits.h>
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -48,6 +49,36 @@ static int unknown_energy_key(const WfCfgNode *energy, const WfEnergyModel *m, W
     return 0;
 }
 
+#define K(field, min, max, unit, flags, doc) {#field, offsetof(WfVehicleClass, field), NAN, min, max, unit, flags, doc}
+/* The numeric top-level keys of a class file, in file order. None of them enters a fuel rate: the model's
+ * parameters are under `energy` (tests/test_vehicle.c changes both masses and compares fuel bit for bit). */
+const WfParamSpec wf_vehicle_keys[] = {
+    K(mass_kg, 100, 100000, "kg", WF_PARAM_REQUIRED, "test mass stated in the release's model header"),
+    K(paper_mass_kg, 100, 100000, "kg", WF_PARAM_OPTIONAL,
+      "mass in the paper's Table 1, where it differs from the release's header"),
+    K(length_m, 1, 30, "m", WF_PARAM_REQUIRED, "default vehicle length in simulations"),
+    K(kw_per_gps, 1, 100, "kW/(g/s)", WF_PARAM_REQUIRED, "equivalent power per unit fuel rate"),
+    K(fuel_density_g_per_l, 500, 1200, "g/L", WF_PARAM_OPTIONAL,
+      "fuel density for L/100 km and mpg; default from the fuel type"),
+};
+#undef K
+const size_t wf_vehicle_n_keys = sizeof wf_vehicle_keys / sizeof wf_vehicle_keys[0];
+
+/* Required keys through the required-key getter (its message names a misspelt key beside the missing one);
+ * optional ones stay NaN when absent. */
+static int read_numeric_keys(WfCfgNode *root, WfVehicleClass *vc, WfError *err)
+{
+    for (size_t i = 0; i < wf_vehicle_n_keys; i++) {
+        const WfParamSpec *k = &wf_vehicle_keys[i];
+        double *out = wf_param_ptr(vc, k);
+        *out = NAN;
+        int rc = (k->flags & WF_PARAM_REQUIRED) ? wf_cfg_double(root, k->key, k->min, k->max, k->unit, out, err)
+                                                : wf_cfg_double_opt(root, k->key, k->min, k->max, k->unit, out, err);
+        if (rc) return rc;
+    }
+    return 0;
+}
+
 int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
 {
     memset(vc, 0, sizeof *vc);
@@ -59,7 +90,6 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
     int duty = -1, fuel = -1;
     static const char *const duties[] = {"light", "heavy", NULL};
     static const char *const fuels[] = {"gasoline", "diesel", NULL};
-    double density = NAN;
 
     stem_of(path, vc->name, sizeof vc->name);
     snprintf(vc->path, sizeof vc->path, "%s", path);
@@ -76,13 +106,10 @@ int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
     }
     vc->duty = (WfDuty)duty;
     vc->fuel = (WfFuelType)fuel;
-    if ((rc = wf_cfg_double(root, "mass_kg", 100, 100000, "kg", &vc->mass_kg, err))) goto fail;
-    if ((rc = wf_cfg_double(root, "length_m", 1, 30, "m", &vc->length_m, err))) goto fail;
-    if ((rc = wf_cfg_double(root, "kw_per_gps", 1, 100, "kW/(g/s)", &vc->kw_per_gps, err))) goto fail;
-    if ((rc = wf_cfg_double_opt(root, "fuel_density_g_per_l", 500, 1200, "g/L", &density, err))) goto fail;
-    vc->fuel_density_g_per_l =
-        isnan(density) ? (fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL
-                       : density;
+    if ((rc = read_numeric_keys(root, vc, err))) goto fail;
+    if (isnan(vc->fuel_density_g_per_l))
+        vc->fuel_density_g_per_l =
+            (fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL;
     /* Provenance is documentation for people: accepted as free text, not interpreted. */
     if ((rc = wf_cfg_map_opt(root, "source", &source, err))) goto fail;
     if (source) wf_cfg_mark_used(source);
