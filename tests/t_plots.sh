@@ -21,14 +21,10 @@ sed 's/    - {model: idm, fraction: 1.0, noise_mps2: 0.3}/    - {model: idm, cou
   tests/data/tiny_ring.yaml >"$tmp/ring_av.yaml"
 sed 's/    - {model: idm, fraction: 1.0, noise_mps2: 0.2}/    - {model: idm, fraction: 0.9, noise_mps2: 0.2}\n    - {name: av, model: follower_stopper, fraction: 0.1, params: {U_mps: 12}}/' \
   tests/data/tiny_corridor.yaml >"$tmp/corridor_av.yaml"
-cat >"$tmp/sweep.yaml" <<EOF
-scenario: $PWD/tests/data/tiny_ring.yaml
-set: {time.duration_s: 6, output.trajectories: false}
-axes:
-  - key: fleet.drivers[0].noise_mps2
-    values: [0.1, 0.2]
-seeds: 2
-EOF
+# The sweep: the AV ring, its AVs' desired speed against the humans' time gap, 2 seeds.
+printf '%s\n' "scenario: $tmp/ring_av.yaml" "set: {time.duration_s: 8, output.trajectories: false}" "axes:" \
+  '  - {key: "fleet.drivers[1].params.U_mps", values: [2, 3]}' '  - {key: "fleet.drivers[0].params.T_s", values: [1.2]}' \
+  "seeds: 2" >"$tmp/sweep.yaml"
 run() { "$BIN" run "$@" -q --force >"$tmp/run.log" 2>&1 || { ko "plots_setup" "$(cat "$tmp/run.log")"; exit 1; }; }
 run "$tmp/ring_av.yaml" -o "$tmp/ring.h5" --set time.duration_s=60
 run tests/data/tiny_ring.yaml -o "$tmp/notraj.h5" --set output.trajectories=false
@@ -59,7 +55,7 @@ msg timespace_corridor plot_timespace.py "$tmp/corridor.h5" "corridor.h5: a corr
 msg timespace_no_trajectories plot_timespace.py "$tmp/notraj.h5" "notraj.h5: no trajectories"
 msg corridor_ring plot_corridor.py "$tmp/ring.h5" "ring.h5: a ring result (wavefuel run), not a corridor result"
 msg sweep_corridor plot_sweep.py "$tmp/corridor.h5" "corridor.h5: a corridor result"
-msg sweep_bad_where plot_sweep.py "$tmp/sweep.h5" "'x' is not a number" --metric fuel --where noise_mps2=x
+msg sweep_bad_where plot_sweep.py "$tmp/sweep.h5" "'x' is not a number" --metric fuel --where U_mps=x
 msg timespace_bad_vmax plot_timespace.py "$tmp/ring.h5" "argument --vmax: invalid positive value: '-3'" --vmax -3
 
 # Each plot draws, and what it draws.
@@ -179,7 +175,7 @@ fig = draw("plot_corridor", cor, "--edie", "-o", os.path.join(tmp, "corridor_edi
 check("plots_corridor_edie", len(black_lines(fig.axes[0])) == n_av, "AV lines over the Edie field")
 
 # Sweep.
-fig = draw("plot_sweep", os.path.join(tmp, "sweep.h5"), "--metric", "l_per_100km", "--x", "noise_mps2",
+fig = draw("plot_sweep", os.path.join(tmp, "sweep.h5"), "--metric", "l_per_100km", "--x", "U_mps", "--lines", "T_s",
            "-o", os.path.join(tmp, "sweep.png"))
 check("plots_sweep_legends_clear", legends_clear(fig), "a legend overlaps the axes")
 PY
