@@ -202,6 +202,8 @@ def shell(cmd, cwd, env):
 def run_block(steps, opts, work, env):
     """None when every command gives its expected output, else why not."""
     cwd = os.path.join(work, opts["cwd"])
+    if not os.path.isdir(cwd):
+        return f"cwd={opts['cwd']}: no such directory in the document's directory"
     if opts["setup"]:
         rc, out = shell(opts["setup"], cwd, env)
         if rc != 0:

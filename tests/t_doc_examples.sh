@@ -17,7 +17,8 @@ expect() {
   local name=$1 want=$2 mark=$3 cmd=$4; shift 4
   { echo "text"; echo "$mark"; echo '```'; echo "\$ $cmd"; printf '%s\n' "$@"; echo '```'; } >"$tmp/$name.md"
   out=$($PY $DOCEX "$tmp/$name.md" 2>&1); rc=$?
-  if [ "$rc" -eq "$want" ]; then ok "docex_$name"; else ko "docex_$name" "exit $rc, expected $want: $out"; fi
+  if [ "$rc" -eq "$want" ] && ! grep -q Traceback <<<"$out"; then ok "docex_$name"
+  else ko "docex_$name" "exit $rc, expected $want: $out"; fi
 }
 m='<!-- example -->'
 expect exact 0 "$m" "printf 'fleet 22 3728.84 15.675\n'" 'fleet 22 3728.84 15.675'
@@ -42,13 +43,15 @@ expect exit_status 1 "$m" "printf 'a\n'; false" 'a'
 expect status_option 0 '<!-- example status=3 -->' "printf 'a\n'; exit 3" 'a'
 expect pipefail 1 "$m" "false | cat" ''
 expect continued_command 0 "$m" "printf '%s\n' 'a" "  b' | cat" 'a' '  b'
+expect cwd_option 0 '<!-- example cwd=output -->' "basename \"\$PWD\"" 'output'
+expect cwd_missing 1 '<!-- example cwd=nowhere -->' "true"
 expect setup_option 0 '<!-- example setup="echo 7 > f" -->' "cat f" '7'
 expect unknown_option 2 '<!-- example tolerence=1 -->' "true"
 # doc FILE STATUS TEXT: a document written with printf; docex must exit with STATUS.
 doc() {
   printf "$3" >"$tmp/$1.md"
   out=$($PY $DOCEX "$tmp/$1.md" 2>&1); rc=$?
-  if [ "$rc" -eq "$2" ]; then ok "docex_$1"; else ko "docex_$1" "exit $rc, expected $2: $out"; fi
+  if [ "$rc" -eq "$2" ] && ! grep -q Traceback <<<"$out"; then ok "docex_$1"; else ko "docex_$1" "exit $rc, expected $2: $out"; fi
 }
 doc output_before_command 2 '<!-- example -->\n```\nx\n$ true\n```\n'
 doc mark_without_block 2 '<!-- example -->\ntext\n'
