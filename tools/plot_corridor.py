@@ -19,7 +19,8 @@ MAX_AV_LINES = 200   # automated vehicles drawn as lines (evenly chosen among th
 
 
 def automated_paths(f, rows):
-    """[(t, x)] of the automated vehicles' trajectory points (the serials whose trip's driver group is automated)."""
+    """([(t, x)] per automated vehicle, sorted in time; the automated models): the trajectory points of the serials
+    whose trip is in an automated driver group (at most MAX_AV_LINES of them)."""
     auto = wfplot.automated_groups(f)
     if not auto or "trips/serial" not in f:
         return [], []
@@ -31,6 +32,8 @@ def automated_paths(f, rows):
         av = av[:: -(-len(av) // MAX_AV_LINES)]
     ps = f["trajectories/serial"][:rows]
     pick = np.isin(ps, av)
+    if not pick.any():
+        return [], models
     t, x, ps = f["trajectories/t"][:rows][pick], f["trajectories/x"][:rows][pick], ps[pick]
     order = np.lexsort((t, ps))
     t, x, ps = t[order], x[order], ps[order]
