@@ -2,7 +2,7 @@
 # The command-and-output examples of README.md and docs/*.md marked `<!-- example -->` (convention and comparison
 # rules: tests/docex.py) run and give the output the docs show: a change that moves a quoted figure fails here until
 # the doc follows. First the runner's own rules, on small documents whose commands are `printf` (each rule once
-# passing and once failing), then a real example with one quoted figure changed, then every marked example.
+# passing and once failing; one run of the runner over one document of them), then a real example with one quoted figure changed, then every marked example.
 set -u
 cd "$(dirname "$0")/.." || exit 1
 PY=/usr/bin/python3
@@ -12,13 +12,14 @@ trap 'rm -rf "$tmp"' EXIT
 ok() { echo "PASS $1"; }
 ko() { echo "FAIL $1: $2"; }
 
-# expect NAME STATUS MARK COMMAND EXPECTED...: a one-block document; docex must exit with STATUS.
+# expect NAME RESULT MARK COMMAND EXPECTED...: appends a block to one document of the runner's rules; after all of
+# them, docex runs that document once and each block must give RESULT (0: PASS, 1: FAIL).
+rules="$tmp/rules.md"; cases=()
 expect() {
   local name=$1 want=$2 mark=$3 cmd=$4; shift 4
-  { echo "text"; echo "$mark"; echo '```'; echo "\$ $cmd"; printf '%s\n' "$@"; echo '```'; } >"$tmp/$name.md"
-  out=$($PY $DOCEX "$tmp/$name.md" 2>&1); rc=$?
-  if [ "$rc" -eq "$want" ] && ! grep -q Traceback <<<"$out"; then ok "docex_$name"
-  else ko "docex_$name" "exit $rc, expected $want: $out"; fi
+  { echo "text"; echo "$mark"; } >>"$rules"
+  cases+=("$name $want $(($(wc -l <"$rules") + 1))")
+  { echo '```'; echo "\$ $cmd"; printf '%s\n' "$@"; echo '```'; } >>"$rules"
 }
 m='<!-- example -->'
 expect exact 0 "$m" "printf 'fleet 22 3728.84 15.675\n'" 'fleet 22 3728.84 15.675'
@@ -46,13 +47,23 @@ expect continued_command 0 "$m" "printf '%s\n' 'a" "  b' | cat" 'a' '  b'
 expect cwd_option 0 '<!-- example cwd=output -->' "basename \"\$PWD\"" 'output'
 expect cwd_missing 1 '<!-- example cwd=nowhere -->' "true"
 expect setup_option 0 '<!-- example setup="echo 7 > f" -->' "cat f" '7'
-expect unknown_option 2 '<!-- example tolerence=1 -->' "true"
+out=$($PY $DOCEX "$rules" 2>&1); rc=$?
+for c in "${cases[@]}"; do
+  read -r name want line <<<"$c"
+  res=$(grep -o "^[A-Z]* example $rules:$line\b" <<<"$out" | cut -d' ' -f1)
+  if { [ "$want" -eq 0 ] && [ "$res" = PASS ]; } || { [ "$want" -eq 1 ] && [ "$res" = FAIL ]; }; then ok "docex_$name"
+  else ko "docex_$name" "${res:-no result} for the block at line $line, expected $([ "$want" -eq 0 ] && echo PASS || echo FAIL)"; fi
+done
+if [ "$rc" -eq 1 ] && ! grep -q Traceback <<<"$out"; then ok "docex_rules_exit_status"
+else ko "docex_rules_exit_status" "exit $rc, expected 1 (some blocks fail): $out"; fi
+
 # doc FILE STATUS TEXT: a document written with printf; docex must exit with STATUS.
 doc() {
   printf "$3" >"$tmp/$1.md"
   out=$($PY $DOCEX "$tmp/$1.md" 2>&1); rc=$?
   if [ "$rc" -eq "$2" ] && ! grep -q Traceback <<<"$out"; then ok "docex_$1"; else ko "docex_$1" "exit $rc, expected $2: $out"; fi
 }
+doc unknown_option 2 '<!-- example tolerence=1 -->\n```\n$ true\n```\n'
 doc output_before_command 2 '<!-- example -->\n```\nx\n$ true\n```\n'
 doc mark_without_block 2 '<!-- example -->\ntext\n'
 doc block_not_closed 2 '<!-- example -->\n```\n$ true\n'
