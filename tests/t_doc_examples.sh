@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The command-and-output examples of README.md and docs/*.md marked `<!-- example -->` (convention and comparison
 # rules: tests/docex.py) run and give the output the docs show: a change that moves a quoted figure fails here until
-# the doc follows. First the runner's own rules, on small documents whose commands are `printf` (each rule once
-# passing and once failing; one run of the runner over one document of them), then a real example with one quoted figure changed, then every marked example.
+# the doc follows. First the runner's own rules, on blocks whose commands are `printf` (each rule once passing and
+# once failing; all in one document, run once), then a real example with one quoted figure changed, then every
+# marked example.
 set -u
 cd "$(dirname "$0")/.." || exit 1
 PY=/usr/bin/python3
