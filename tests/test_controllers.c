@@ -429,14 +429,12 @@ static void test_group_placement(void)
 
 #define SUGIYAMA_FS "scenarios/sugiyama_followerstopper.yaml"
 
-/* One FollowerStopper AV (U = 2.5 m/s, below the 2.84 m/s mean speed of the humans' wave) against the same
- * seed without it. Measured at seed 2008: time-averaged spatial speed s.d. 2.926 -> 0.141 m/s (-95.2 %), fleet
- * fuel 16.060 -> 14.079 L/100km (-12.3 %). Over seeds 1..10 the s.d. falls by 94-95 % every time; the fuel by
- * 7.5-14.4 %, except at seed 3, where the humans' own wave was weak (s.d. 2.46 m/s, 14.57 L/100km) and the AV,
- * slower than it, saves 3.4 %. The assertions (s.d. at least -80 %, fuel at least -5 %) keep half of the
- * measured effect at this seed. The control that they can fail: the same slot driven by an ACC with
- * Milanés & Shladover's string-unstable production gains leaves the wave in place (measured +5.4 % s.d.,
- * +5.3 % fuel). */
+/* One FollowerStopper AV (U = 2.5 m/s, below the 2.88 m/s mean speed of the humans' wave) against the same
+ * seed without it. Measured at seed 2008: time-averaged spatial speed s.d. 2.818 -> 0.141 m/s (-95.0 %), fleet
+ * fuel 15.675 -> 14.077 L/100km (-10.2 %). Over seeds 1..10 the s.d. falls by 94.7-95.5 % every time, the fuel by
+ * 10.0-13.7 %. The assertions (s.d. at least -80 %, fuel at least -5 %) keep half of the measured effect at this
+ * seed. The control that they can fail: the same slot driven by an ACC with Milanés & Shladover's string-unstable
+ * production gains leaves the wave in place (measured over seeds 1-4: +4.5 % s.d., +5.2 % fuel). */
 static int summary_of(const char *path, const char *const *set_, size_t n_set, WfSummary *out)
 {
     WfError err = {0};

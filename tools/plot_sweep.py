@@ -13,8 +13,10 @@ import argparse
 import os
 import sys
 
-import h5py
-import numpy as np
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import wfplot  # noqa: E402
+
+import numpy as np  # noqa: E402
 
 
 def text(a):
@@ -22,9 +24,7 @@ def text(a):
 
 
 def load(path):
-    f = h5py.File(path, "r")
-    if f.get("meta/kind") is None or f["meta/kind"][()].decode() != "wavefuel sweep":
-        sys.exit(f"plot_sweep: {path}: not a wavefuel sweep table")
+    f = wfplot.open_file(path, ("sweep",), sys.argv[0])
     axes = {}
     for name, d in f["params"].items():
         v = d[()]
@@ -83,7 +83,7 @@ def main():
         label = a.metric
     elif a.metric in class_metrics:
         if not a.cls:
-            sys.exit(f"plot_sweep: {a.metric} is per class: give --class (see --list)")
+            wfplot.fail(sys.argv[0], f"{a.metric} is per class: give --class (see --list)")
         data, yunits = class_metrics[a.metric]
         y = np.full(len(ok), np.nan)
         for i, cl in enumerate(runs["classes"]):
@@ -92,28 +92,34 @@ def main():
         ok &= ~np.isnan(y)
         label = f"{a.metric} ({a.cls})"
     else:
-        sys.exit(f"plot_sweep: no metric '{a.metric}'; known: {', '.join(list(metrics) + list(class_metrics))}")
+        wfplot.fail(sys.argv[0], f"no metric '{a.metric}'; known: {', '.join(list(metrics) + list(class_metrics))}")
 
     for w in a.where:
         name, _, value = w.partition("=")
         if name not in axes:
-            sys.exit(f"plot_sweep: --where {w}: no axis '{name}' (axes: {', '.join(axes)})")
+            wfplot.fail(sys.argv[0], f"--where {w}: no axis '{name}' (axes: {', '.join(axes)})")
         v = axes[name][0]
-        ok &= (v == float(value)) if v.dtype.kind == "f" else (v == value)
+        if v.dtype.kind == "f":
+            try:
+                ok &= v == float(value)
+            except ValueError:
+                wfplot.fail(sys.argv[0], f"--where {w}: axis '{name}' is numeric, '{value}' is not a number")
+        else:
+            ok &= v == value
     x_name = a.x or next((n for n, (v, _, _) in axes.items() if v.dtype.kind == "f"), None)
     if x_name not in axes:
-        sys.exit(f"plot_sweep: --x: no axis '{x_name}' (axes: {', '.join(axes)})")
+        wfplot.fail(sys.argv[0], f"--x: no axis '{x_name}' (axes: {', '.join(axes)})")
     if a.lines and a.lines not in axes:
-        sys.exit(f"plot_sweep: --lines: no axis '{a.lines}' (axes: {', '.join(axes)})")
+        wfplot.fail(sys.argv[0], f"--lines: no axis '{a.lines}' (axes: {', '.join(axes)})")
     for n, (v, _, _) in axes.items():
         if n in (x_name, a.lines):
             continue
         vals = np.unique(v[ok])
         if len(vals) > 1:
-            sys.exit(f"plot_sweep: axis '{n}' has {len(vals)} values among the rows: fix one with --where "
-                     f"{n}=VALUE, or plot it with --x/--lines")
+            wfplot.fail(sys.argv[0], f"axis '{n}' has {len(vals)} values among the rows: fix one with --where "
+                        f"{n}=VALUE, or plot it with --x/--lines")
     if not ok.any():
-        sys.exit("plot_sweep: no row with status ok matches")
+        wfplot.fail(sys.argv[0], "no row with status ok matches")
 
     xv = axes[x_name][0]
     lv = axes[a.lines][0] if a.lines else np.array([""] * len(ok))
@@ -163,12 +169,12 @@ def main():
     spread = {"sd": "± 1 s.d.", "minmax": "min-max", "none": "mean"}[a.spread]
     ax.set_title(f"{os.path.basename(a.table)}: mean over {seeds} seed{'s' if seeds > 1 else ''}, {spread}",
                  fontsize=9)
-    if a.lines:
-        ax.legend(fontsize=8)
+    if a.lines:   # beside the axes, clear of the lines and error bars
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.02, 1.0), frameon=False)
     ax.grid(alpha=0.3)
     fig.tight_layout()
     out = a.output or f"{os.path.splitext(a.table)[0]}_{a.metric}_vs_{x_name}.png"
-    fig.savefig(out, dpi=120)
+    fig.savefig(out, dpi=120, bbox_inches="tight")
     print(f"plot: {out}")
 
 
