@@ -71,6 +71,18 @@ void wf_sim_destroy(WfSim **sim);
 int wf_sim_run(WfSim *sim, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
                WfError *err);
 
+/* The same run a piece at a time (the Python interface, external controllers): wf_sim_begin (out may be NULL),
+ * then wf_sim_step as often as wanted. Each call takes up to n steps; the step that reaches duration_s also takes
+ * the final instant's record and ends the run (summary, out->end), as does an error or a stop (WF_EINTR, partial
+ * results and a checkpoint as in wf_sim_run). Chunks change nothing: any sequence of calls gives the bits of
+ * wf_sim_run. wf_sim_finish ends a run before its end ("stopped by the caller": a partial result and a checkpoint
+ * that --resume continues) and returns WF_EINTR; nothing after the end. A run is begun once. */
+int    wf_sim_begin(WfSim *sim, const WfOutput *out, WfError *err);
+int    wf_sim_step(WfSim *sim, long n, WfError *err);
+int    wf_sim_finish(WfSim *sim, WfError *err);
+int    wf_sim_done(const WfSim *sim);      /* 1 once the run has ended */
+double wf_sim_time_s(const WfSim *sim);    /* simulated time now: steps done x dt */
+
 const WfScenario *wf_sim_scenario(const WfSim *sim);
 /* "ring" or "corridor": the boundary (checkpoints and /meta/road_type name it). */
 const char       *wf_sim_kind(const WfSim *sim);

@@ -18,29 +18,43 @@
 #define B WF_BLOCK
 #define AI static inline __attribute__((always_inline))
 
-int wf_loop_run(const WfLoop *lp, WfError *err)
+void wf_loop_start(WfLoopState *st)
 {
-    double t0 = wf_wall_now(), last_progress = t0, last_ckpt = t0;
-    const char *reason = NULL;
+    double now = wf_wall_now();
+    *st = (WfLoopState){.last_progress = now, .last_ckpt = now};
+}
+
+int wf_loop_advance(const WfLoop *lp, WfLoopState *st, long n, WfError *err)
+{
+    double t0 = wf_wall_now();
     int rc = 0;
-    for (long step = *lp->steps_done; step <= lp->n_steps; step++) {
-        if ((rc = lp->step(lp->ctx, step, err))) break;
-        *lp->steps_done = step + 1;
-        if (lp->stop && *lp->stop) {
-            reason = *lp->stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+    for (long k = 0; k < n && !st->at_end && !st->reason; k++) {
+        long step = *lp->steps_done;
+        if ((rc = lp->step(lp->ctx, step, err))) {
+            if (rc == WF_LOOP_END) st->at_end = 1, rc = 0;
             break;
         }
-        if (lp->checkpoint_every_s > 0 && lp->checkpoint && wf_wall_now() - last_ckpt >= lp->checkpoint_every_s) {
-            if ((rc = lp->checkpoint(lp->ctx, err))) break;
-            last_ckpt = wf_wall_now();
+        *lp->steps_done = step + 1;
+        if (lp->stop && *lp->stop) {
+            st->reason = *lp->stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
+            break;
         }
-        if (lp->progress && (step & 63) == 0 && wf_wall_now() - last_progress >= 0.2) {
+        if (lp->checkpoint_every_s > 0 && lp->checkpoint && wf_wall_now() - st->last_ckpt >= lp->checkpoint_every_s) {
+            if ((rc = lp->checkpoint(lp->ctx, err))) break;
+            st->last_ckpt = wf_wall_now();
+        }
+        if (lp->progress && (step & 63) == 0 && wf_wall_now() - st->last_progress >= 0.2) {
             lp->progress(lp->pctx, (double)(step + 1) * lp->dt_s, lp->duration_s, step + 1, lp->n_steps);
-            last_progress = wf_wall_now();
+            st->last_progress = wf_wall_now();
         }
     }
-    *lp->wall_s = wf_wall_now() - t0;
-    if (rc == WF_LOOP_END) rc = 0;
+    *lp->wall_s += wf_wall_now() - t0;
+    return rc;
+}
+
+int wf_loop_finish(const WfLoop *lp, WfLoopState *st, int rc, WfError *err)
+{
+    const char *reason = st->reason;
     /* The checkpoint comes before the close, which may change the totals (a corridor closes the trips of the
      * vehicles still on the road, which a resumed run drops). */
     if (!rc && reason && lp->checkpoint) rc = lp->checkpoint(lp->ctx, err);
@@ -56,6 +70,13 @@ int wf_loop_run(const WfLoop *lp, WfError *err)
         return wf_err(err, WF_EINTR, "%s at t = %.6g s: partial results written", reason,
                       (double)*lp->steps_done * lp->dt_s);
     return 0;
+}
+
+int wf_loop_run(const WfLoop *lp, WfError *err)
+{
+    WfLoopState st;
+    wf_loop_start(&st);
+    return wf_loop_finish(lp, &st, wf_loop_advance(lp, &st, lp->n_steps + 1, err), err);
 }
 
 static inline size_t idx_of(const WfLane *ln, size_t i) { return ln->slot ? ln->slot[i] : i; }

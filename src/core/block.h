@@ -127,7 +127,20 @@ typedef struct WfLoop {
     void  *pctx;
     volatile sig_atomic_t *stop;                       /* may be NULL */
 } WfLoop;
-/* 0 when the run reached its end; WF_EINTR when a signal stopped it; else the first error. */
+/* Where a run stands between calls of wf_loop_advance. */
+typedef struct WfLoopState {
+    double      last_progress, last_ckpt; /* wall clock of the last progress call and checkpoint */
+    const char *reason;                   /* set when a signal stopped the run */
+    int         at_end;                   /* the final instant was recorded */
+} WfLoopState;
+void wf_loop_start(WfLoopState *st);
+/* Up to n more iterations of the loop (a step each, the last one the final instant); stops early at the end, on a
+ * signal (st->reason) or an error, which it returns. Adds its wall time to *lp->wall_s. */
+int wf_loop_advance(const WfLoop *lp, WfLoopState *st, long n, WfError *err);
+/* After the last wf_loop_advance (rc: what it returned): the checkpoint of an interrupted run, the close, the end.
+ * 0 when the run reached its end; WF_EINTR when a signal stopped it; else the first error. */
+int wf_loop_finish(const WfLoop *lp, WfLoopState *st, int rc, WfError *err);
+/* wf_loop_start, wf_loop_advance to the end, wf_loop_finish. */
 int wf_loop_run(const WfLoop *lp, WfError *err);
 
 #endif

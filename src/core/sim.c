@@ -7,7 +7,6 @@
 #include <omp.h>
 #endif
 
-#include "core/block.h"
 
 int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 {
@@ -61,19 +60,57 @@ static int end_cb(void *ctx, int completed, const char *reason, WfError *err)
     return s->out->end(s->out->ctx, s, completed, reason, err);
 }
 
-int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
-               WfError *err)
+int wf_sim_begin(WfSim *s, const WfOutput *out, WfError *err)
 {
     const WfScenario *sc = s->sc;
+    if (s->begun) return wf_err(err, WF_EINPUT, "%s: this run has already begun (a run is stepped once)", sc->path);
     int rc = out && out->begin ? out->begin(out->ctx, s, err) : 0;
     if (rc) return rc;
     s->out = out;
-    WfLoop lp = {.ctx = s, .step = step_cb, .checkpoint = out && out->checkpoint ? checkpoint_cb : NULL,
-                 .close = close_cb, .end = out && out->end ? end_cb : NULL, .steps_done = s->steps_done,
-                 .wall_s = &s->wall_s, .n_steps = wf_scenario_n_steps(sc), .dt_s = sc->dt_s,
-                 .duration_s = sc->duration_s, .checkpoint_every_s = s->checkpoint_every_s, .progress = progress,
-                 .pctx = pctx, .stop = stop};
-    return wf_loop_run(&lp, err);
+    s->begun = 1;
+    s->loop = (WfLoop){.ctx = s, .step = step_cb, .checkpoint = out && out->checkpoint ? checkpoint_cb : NULL,
+                       .close = close_cb, .end = out && out->end ? end_cb : NULL, .steps_done = s->steps_done,
+                       .wall_s = &s->wall_s, .n_steps = wf_scenario_n_steps(sc), .dt_s = sc->dt_s,
+                       .duration_s = sc->duration_s, .checkpoint_every_s = s->checkpoint_every_s};
+    wf_loop_start(&s->ls);
+    return 0;
+}
+
+/* The run's end: a stop, an error or the final instant closes it (summary, output end). */
+static int finish(WfSim *s, int rc, WfError *err)
+{
+    s->finished = 1;
+    return wf_loop_finish(&s->loop, &s->ls, rc, err);
+}
+
+int wf_sim_step(WfSim *s, long n, WfError *err)
+{
+    if (!s->begun || s->finished)
+        return wf_err(err, WF_EINPUT, "%s: %s", s->sc->path,
+                      s->finished ? "the run has ended: no step is left" : "wf_sim_begin first");
+    int rc = wf_loop_advance(&s->loop, &s->ls, n, err);
+    /* Reaching duration_s takes the final instant's record too, as wf_sim_run does. */
+    if (!rc && !s->ls.reason && *s->steps_done == s->loop.n_steps) rc = wf_loop_advance(&s->loop, &s->ls, 1, err);
+    return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
+}
+
+int wf_sim_finish(WfSim *s, WfError *err)
+{
+    if (!s->begun || s->finished) return 0;
+    s->ls.reason = "stopped by the caller";
+    return finish(s, 0, err);
+}
+
+int wf_sim_done(const WfSim *s) { return s->finished; }
+double wf_sim_time_s(const WfSim *s) { return (double)*s->steps_done * s->sc->dt_s; }
+
+int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
+               WfError *err)
+{
+    int rc = wf_sim_begin(s, out, err);
+    if (rc) return rc;
+    s->loop.progress = progress, s->loop.pctx = pctx, s->loop.stop = stop;
+    return wf_sim_step(s, s->loop.n_steps + 1, err);
 }
 
 const WfScenario *wf_sim_scenario(const WfSim *s) { return s->sc; }

@@ -6,6 +6,7 @@
 #ifndef WAVEFUEL_CORE_SIM_H
 #define WAVEFUEL_CORE_SIM_H
 
+#include "core/block.h"
 #include "wavefuel/engine.h"
 
 typedef struct WfBoundary {
@@ -37,6 +38,9 @@ struct WfSim {
     double            wall_s, checkpoint_every_s;
     int               nthreads;
     WfSummary         summary;
+    WfLoop            loop;     /* set by wf_sim_begin */
+    WfLoopState       ls;
+    int               begun, finished;
 };
 
 #endif
