@@ -9,6 +9,7 @@
 
 #include "cli/commands.h"
 #include "wavefuel/cycle.h"
+#include "wavefuel/domain.h"
 #include "wavefuel/tabulated.h"
 
 enum { MAX_TABLES = 64, MAX_GRADES = 16 };
@@ -407,9 +408,10 @@ int wf_cmd_cycle(int argc, char **argv)
             fprintf(stderr, "wavefuel cycle: --grade does not apply to --protocol (it runs the paper's grades)\n");
             return 2;
         }
-        if (wf_parse_double(grade_arg, &theta) || fabs(theta) > 0.5) {
-            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [-0.5, 0.5] rad (got '%s')\n",
-                    grade_arg);
+        const WfRange *g = &wf_point_range[WF_POINT_GRADE]; /* the grades `wavefuel energy` accepts too */
+        if (wf_parse_double(grade_arg, &theta) || !(theta >= g->min && theta <= g->max)) {
+            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [%g, %g] %s (got '%s')\n", g->min,
+                    g->max, g->unit, grade_arg);
             return 2;
         }
         if (theta == 0.0) theta = 0.0; /* -0 and 0 are the same grade: one group name in HDF5 */

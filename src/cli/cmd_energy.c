@@ -6,7 +6,11 @@
 
 #include "cli/commands.h"
 #include "wavefuel/csv.h"
+#include "wavefuel/domain.h"
 #include "wavefuel/vehicle.h"
+
+/* The input columns, in WfPointVar order (domain.h). */
+static const char *const columns[WF_N_POINT_VARS] = {"v", "a", "theta"};
 
 static void help(FILE *out)
 {
@@ -16,9 +20,14 @@ static void help(FILE *out)
             "Reads CSV rows v,a,theta (speed m/s, acceleration m/s^2, road grade rad; header optional, blank\n"
             "lines and '#' comments skipped) from FILE or standard input, and writes CSV\n"
             "v,a,theta,fuel_gps,power_kw,flag with 17 significant digits. flag: 0 feasible, 1 acceleration\n"
-            "above a_max(v, theta), 2 negative speed. --project clips a to a_max before evaluating.\n"
+            "above a_max(v, theta). --project clips a to a_max before evaluating.\n"
             "Classes are found in $WAVEFUEL_VEHICLES (colon-separated), then in PREFIX/vehicles for this program\n"
             "PREFIX/bin/wavefuel (the repository's vehicles/).\n");
+    /* The accepted ranges come from the table that `wavefuel cycle` checks too. */
+    fprintf(out, "Numbers are decimal;");
+    for (int k = 0; k < WF_N_POINT_VARS; k++)
+        fprintf(out, " %s in [%g, %g] %s%s", columns[k], wf_point_range[k].min, wf_point_range[k].max,
+                wf_point_range[k].unit, k + 1 < WF_N_POINT_VARS ? "," : ".\n");
 }
 
 static int list_classes(void)
@@ -67,9 +76,11 @@ int wf_cmd_energy(int argc, char **argv)
     WfError err = {0};
     WfVehicleClass vc;
     if (wf_vehicle_find(cls, &vc, &err)) return wf_cli_fail(&err);
-    static const char *const names[] = {"v", "a", "theta"};
     WfCsv csv;
-    if (wf_csv_read(in, 3, names, &csv, &err)) {
+    /* The columns are the model's point variables in WfPointVar order: v, a, theta. */
+    static const WfRange *const ranges[] = {&wf_point_range[WF_POINT_SPEED], &wf_point_range[WF_POINT_ACCEL],
+                                            &wf_point_range[WF_POINT_GRADE]};
+    if (wf_csv_read(in, 3, columns, &csv, &err) || wf_csv_check_ranges(&csv, in, columns, ranges, &err)) {
         wf_vehicle_free(&vc);
         return wf_cli_fail(&err);
     }

@@ -1,0 +1,92 @@
+#!/usr/bin/env bash
+# Inputs that wavefuel used to accept and must refuse (issue 19, section 2): out-of-range and non-decimal numbers in
+# CSV rows, YAML values and options; outputs that are an input or a directory; scenario names that are not a plain
+# file name; sweep override keys. Each refusal must exit with status 2, print a message containing the expected
+# text (file, row, key and value) and touch no file (inputs unchanged, no result or partial file left).
+# Prints "PASS name" / "FAIL name: why".
+set -u
+BIN=${WAVEFUEL_BIN:-bin/wavefuel}
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+mkdir "$tmp/w" && cd "$tmp/w" || exit 1
+case "$BIN" in /*) ;; *) BIN="$OLDPWD/$BIN" ;; esac
+ok() { echo "PASS $1"; }
+ko() { echo "FAIL $1: $2"; }
+
+# Every path under the working directory with the checksum of each file.
+snapshot() { find . -exec sh -c 'printf "%s " "$1"; if [ -f "$1" ]; then cksum <"$1"; else echo; fi' _ {} \; | sort; }
+# refuse NAME WANT -- COMMAND...: COMMAND must exit 2 with every @@-separated part of WANT in its stderr, print
+# nothing on stdout, and leave the directory's listing and every file's bytes as they were.
+refuse() {
+  local name=$1 want=$2; shift 3
+  local before after msg rc part rest=$want@@
+  before=$(snapshot)
+  msg=$("$@" 2>&1 >"$tmp/stdout" </dev/null); rc=$?
+  after=$(snapshot)
+  if [ -s "$tmp/stdout" ]; then ko "$name" "printed on stdout: $(head -c 200 "$tmp/stdout")"; return; fi
+  if [ "$rc" -ne 2 ]; then ko "$name" "rc=$rc (want 2): $msg"; return; fi
+  if [ "$before" != "$after" ]; then ko "$name" "files changed: $(diff <(echo "$before") <(echo "$after") | head -5)"
+    return; fi
+  while [ -n "$rest" ]; do
+    part=${rest%%@@*} rest=${rest#*@@}
+    printf '%s' "$msg" | grep -qF -- "$part" || { ko "$name" "want '$part', got: $msg"; return; }
+  done
+  ok "$name"; [ -n "${SHOW_MSG:-}" ] && echo "    $msg"
+  return 0
+}
+
+# ---------------------------------------------------------------- numbers: ranges and decimal notation
+printf 'v,a,theta\n10,0,0\n1e308,0,0\n' > e_huge_v.csv
+refuse energy_speed_out_of_range "e_huge_v.csv:3: field 1 (v) must be in [0, 150] m/s (got 1e+308)" -- \
+  "$BIN" energy --class midsize_sedan e_huge_v.csv
+printf '10,0,100000\n' > e_grade.csv
+refuse energy_grade_out_of_range "e_grade.csv:1: field 3 (theta) must be in [-0.5, 0.5] rad (got 100000)" -- \
+  "$BIN" energy --class midsize_sedan e_grade.csv
+printf '10,-25,0\n' > e_accel.csv
+refuse energy_accel_out_of_range "e_accel.csv:1: field 2 (a) must be in [-20, 20] m/s^2 (got -25)" -- \
+  "$BIN" energy --class midsize_sedan e_accel.csv
+printf '10,0,0\n-0.5,0,0\n' > e_neg.csv
+refuse energy_negative_speed "e_neg.csv:2: field 1 (v) must be in [0, 150] m/s (got -0.5)" -- \
+  "$BIN" energy --class midsize_sedan e_neg.csv
+printf '0x10,0,0\n' > e_hex.csv
+refuse energy_hex_first_row "e_hex.csv:1: field 1 (v): expected a finite number (got '0x10')" -- \
+  "$BIN" energy --class midsize_sedan e_hex.csv
+printf 'v,a,theta\n10,0x1p-2,0\n' > e_hex2.csv
+refuse energy_hex_float "e_hex2.csv:2: field 2 (a): expected a finite number (got '0x1p-2')" -- \
+  "$BIN" energy --class midsize_sedan e_hex2.csv
+# The bounds themselves are accepted (inclusive), and 0.3 is still 0.3.
+printf '150,20,0.5\n0,-20,-0.5\n' > e_edges.csv
+if out=$("$BIN" energy --class midsize_sedan e_edges.csv) && [ "$(echo "$out" | wc -l)" -eq 3 ]; then
+  ok energy_bounds_inclusive; else ko energy_bounds_inclusive "$out"; fi
+
+printf 'time_s,speed_mps\n0,0\n0x1,1\n2,0\n' > c_hex.csv
+refuse cycle_hex_time "c_hex.csv:3: field 1 (time_s): expected a finite number (got '0x1')" -- \
+  "$BIN" cycle --class midsize_sedan -o c_hex.h5 c_hex.csv
+printf 'time_s,speed_mps\n0,0\n1,150.5\n2,0\n' > c_fast.csv
+refuse cycle_speed_out_of_range "c_fast.csv:3: field 2 (speed_mps) must be in [0, 150] m/s (got 150.5)" -- \
+  "$BIN" cycle --class midsize_sedan -o c_fast.h5 c_fast.csv
+printf 'time_s,speed_mps\n0,0\n1,1\n2,0\n' > c_ok.csv
+refuse cycle_grade_hex "--grade expects a road grade angle in [-0.5, 0.5] rad (got '0x0')" -- \
+  "$BIN" cycle --class midsize_sedan --grade 0x0 c_ok.csv
+refuse cycle_grade_out_of_range "--grade expects a road grade angle in [-0.5, 0.5] rad (got '0.6')" -- \
+  "$BIN" cycle --class midsize_sedan --grade 0.6 c_ok.csv
+
+cat > s.yaml <<'Y'
+name: s
+seed: 3
+road:
+  length_m: 230
+time:
+  duration_s: 2
+  dt_s: 0.1
+fleet:
+  vehicles: 22
+  classes:
+    - {class: midsize_sedan, fraction: 1.0}
+  drivers:
+    - {model: idm, fraction: 1.0}
+Y
+sed 's/length_m: 230/length_m: 0xE6/' s.yaml > s_hex.yaml
+refuse yaml_hex "s_hex.yaml:4: road.length_m: expected a number" -- "$BIN" run s_hex.yaml -o s_hex.h5 -q
+refuse set_hex "--set: time.duration_s: expected a number" -- "$BIN" run s.yaml --set time.duration_s=0x2 -o x.h5 -q
+refuse option_hex "--threads expects an integer" -- "$BIN" run s.yaml --threads 0x2 -o x.h5 -q
