@@ -6,6 +6,7 @@
 # Prints "PASS name" / "FAIL name: why".
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
+REPO=$PWD
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 mkdir "$tmp/w" && cd "$tmp/w" || exit 1
@@ -90,3 +91,79 @@ sed 's/length_m: 230/length_m: 0xE6/' s.yaml > s_hex.yaml
 refuse yaml_hex "s_hex.yaml:4: road.length_m: expected a number" -- "$BIN" run s_hex.yaml -o s_hex.h5 -q
 refuse set_hex "--set: time.duration_s: expected a number" -- "$BIN" run s.yaml --set time.duration_s=0x2 -o x.h5 -q
 refuse option_hex "--threads expects an integer" -- "$BIN" run s.yaml --threads 0x2 -o x.h5 -q
+
+# ---------------------------------------------------------------- outputs that are inputs or directories
+mkdir cls sub
+cp "$REPO/vehicles/midsize_sedan.yaml" cls/my_sedan.yaml
+printf 'x_m,grade_rad\n0,0\n100,0\n200,0\n' > grade.csv
+sed -e 's|class: midsize_sedan|class: cls/my_sedan.yaml|' -e 's|length_m: 230|length_m: 230\n  grade: {csv: grade.csv}|' \
+  s.yaml > in.yaml
+if "$BIN" run in.yaml -o in_ok.h5 -q && [ -f in_ok.h5 ]; then ok inputs_scenario_runs; rm -f in_ok.h5
+else ko inputs_scenario_runs "rc=$?"; fi
+refuse run_output_is_scenario "-o in.yaml: is the input in.yaml: refusing to write the result over it" -- \
+  "$BIN" run in.yaml -o in.yaml --force -q
+refuse run_output_path_key_is_scenario "output.path in.yaml: is the input in.yaml" -- \
+  "$BIN" run in.yaml --set output.path=in.yaml --force -q
+refuse run_output_other_spelling "-o sub/../in.yaml: is the input in.yaml" -- \
+  "$BIN" run in.yaml -o sub/../in.yaml --force -q
+ln -s in.yaml link.yaml
+refuse run_output_symlink "-o link.yaml: is the input in.yaml" -- "$BIN" run in.yaml -o link.yaml --force -q
+refuse run_output_is_class "-o cls/my_sedan.yaml: is the input cls/my_sedan.yaml" -- \
+  "$BIN" run in.yaml -o cls/my_sedan.yaml --force -q
+refuse run_output_is_grade_csv "-o grade.csv: is the input grade.csv" -- "$BIN" run in.yaml -o grade.csv --force -q
+cp in.yaml side.yaml
+refuse run_partial_is_input "-o side: side.partial, written beside the result, is the input side.partial" -- \
+  "$BIN" run "$(cp in.yaml side.partial; echo side.partial)" -o side --force -q
+rm -f side.yaml side.partial
+# A directory is refused before the run starts: no DIR.partial, and at once even for a long run.
+mkdir outdir
+start=$SECONDS
+refuse run_output_is_directory "-o outdir: is a directory; give a file name (outdir/NAME.h5)" -- \
+  "$BIN" run in.yaml -o outdir --set time.duration_s=100000 -q
+if [ $((SECONDS - start)) -le 5 ]; then ok run_directory_refused_before_running
+else ko run_directory_refused_before_running "took $((SECONDS - start)) s"; fi
+
+printf 'time_s,speed_mps\n0,0\n1,1\n2,0\n' > cyc.csv
+refuse cycle_output_is_cycle "-o cyc.csv: is the input cyc.csv" -- \
+  "$BIN" cycle --class midsize_sedan -o cyc.csv --force cyc.csv
+refuse cycle_output_is_class "-o cls/my_sedan.yaml: is the input cls/my_sedan.yaml" -- \
+  "$BIN" cycle --class cls/my_sedan.yaml -o cls/my_sedan.yaml --force cyc.csv
+refuse cycle_output_is_directory "-o outdir: is a directory" -- "$BIN" cycle --class midsize_sedan -o outdir cyc.csv
+refuse protocol_output_is_class "-o cls/my_sedan.yaml: is the input cls/my_sedan.yaml" -- \
+  "$BIN" cycle --protocol --class cls/my_sedan.yaml -o cls/my_sedan.yaml --force
+printf 'Velocity,Acceleration,Road Grade,Fuel Rate,Infeasible\n0,0,0,0.1,0\n' > tab.csv
+refuse table_import_output_is_input "-o tab.csv: is the input tab.csv" -- "$BIN" table import tab.csv -o tab.csv --force
+refuse table_import_output_is_directory "-o outdir: is a directory" -- "$BIN" table import tab.csv -o outdir
+refuse table_sample_output_is_class "-o cls/my_sedan.yaml: is the input cls/my_sedan.yaml" -- \
+  "$BIN" table sample --class cls/my_sedan.yaml -o cls/my_sedan.yaml --force
+
+# ---------------------------------------------------------------- sweeps
+cat > sw.yaml <<'Y'
+name: sw
+scenario: in.yaml
+axes:
+  - {key: fleet.vehicles, values: [20, 22]}
+Y
+refuse sweep_output_is_sweep "-o sw.yaml: is the input sw.yaml" -- "$BIN" sweep sw.yaml -o sw.yaml --force -q
+refuse sweep_output_is_scenario "-o in.yaml: is the input" -- "$BIN" sweep sw.yaml -o in.yaml --force -q
+refuse sweep_output_is_class "-o cls/my_sedan.yaml: is the input cls/my_sedan.yaml" -- \
+  "$BIN" sweep sw.yaml -o cls/my_sedan.yaml --force -q
+refuse sweep_output_is_directory "-o outdir: is a directory" -- "$BIN" sweep sw.yaml -o outdir -q
+sed 's/fleet.vehicles/fleet.vehicls/' sw.yaml > sw_typo.yaml
+refuse sweep_misspelled_key "sw_typo.yaml: run 0: --set: unknown key 'fleet.vehicls' (did you mean 'vehicles'?)" -- \
+  "$BIN" sweep sw_typo.yaml -o sw_typo.h5 -q
+refuse sweep_misspelled_key_list "unknown key 'fleet.vehicls'" -- "$BIN" sweep sw_typo.yaml --list
+# A key misspelled only in the second of two explicit runs, after a first run with a bad value: still found.
+cat > sw_runs.yaml <<'Y'
+name: swr
+scenario: in.yaml
+runs:
+  - {fleet.vehicles: 0}
+  - {time.duraton_s: 3}
+Y
+refuse sweep_misspelled_key_second_run "sw_runs.yaml: run 1: --set: unknown key 'time.duraton_s'" -- \
+  "$BIN" sweep sw_runs.yaml -o sw_runs.h5 -q
+# A bad value (not a key) still fails its run alone: the sweep runs the others and exits 1.
+sed 's/values: \[20, 22\]/values: [0, 22]/' sw.yaml > sw_value.yaml
+"$BIN" sweep sw_value.yaml -o sw_value.h5 -q 2>/dev/null; rc=$?
+if [ $rc -eq 1 ] && [ -f sw_value.h5 ]; then ok sweep_bad_value_fails_alone; else ko sweep_bad_value_fails_alone "rc=$rc"; fi

@@ -65,6 +65,14 @@ int  wf_sweep_overrides(const WfSweep *sw, size_t run, char **out, WfError *err)
  * or WF_EINPUT if it does not fit in len bytes. */
 int  wf_sweep_command(const WfSweep *sw, size_t run, char *buf, size_t len);
 
+/* Before the first run: every key that a run sets must be a key of the base scenario's schema. For each distinct
+ * list of keys, the base scenario is loaded with the overrides of the runs that set them, in order, until one load
+ * succeeds (keys checked) or fails on an unknown key (WF_EINPUT naming the sweep file, the run and the key); a run
+ * whose values are bad is left to fail alone when it runs. *first (first may be NULL): the first scenario that
+ * loaded, for its list of inputs; the caller's to destroy; NULL when none loaded or on error. */
+struct WfScenario;
+int  wf_sweep_check_keys(const WfSweep *sw, struct WfScenario **first, WfError *err);
+
 /* ---- One run ---- */
 typedef enum { WF_RUN_PENDING = 0, WF_RUN_OK = 1, WF_RUN_FAILED = 2 } WfRunStatus;
 extern const char *const wf_run_status_names[3]; /* "pending", "ok", "failed" */

@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "util/outpath.h"
 #include "wavefuel/cycle.h"
 #include "wavefuel/domain.h"
 #include "wavefuel/tabulated.h"
@@ -137,8 +138,13 @@ static int run_single(Entry *e, const char *cycle_arg, const char *data_dir, dou
     WfError err = {0};
     char path[4096];
     WfCycle c;
+    const char *inputs[] = {path, e->cls.path};
     if (wf_cycle_resolve(cycle_arg, data_dir, path, sizeof path, &err) || wf_cycle_load(path, &c, &err))
         return wf_cli_fail(&err);
+    if (out_path && wf_output_check("-o", out_path, inputs, 2, &err)) {
+        wf_cycle_free(&c);
+        return wf_cli_fail(&err);
+    }
     const WfVehicleClass *models[2] = {&e->cls, e->has_twin ? &e->twin : NULL};
     size_t n_models = e->has_twin ? 2 : 1;
     WfCycleRun runs[2];
@@ -436,6 +442,14 @@ int wf_cmd_cycle(int argc, char **argv)
     Entry *entries = NULL;
     size_t n_entries = 0;
     int rc = load_entries(classes, n_classes, tables, n_tables, &entries, &n_entries, &err);
+    if (rc) {
+        free_entries(entries, n_entries);
+        return wf_cli_fail(&err);
+    }
+    /* The protocol's inputs are the classes (the cycles are the data directory's): the result must not replace one. */
+    rc = 0;
+    for (size_t i = 0; protocol && out_path && !rc && i < n_entries; i++)
+        rc = wf_output_check("-o", out_path, (const char *[]){entries[i].cls.path}, 1, &err);
     if (rc) {
         free_entries(entries, n_entries);
         return wf_cli_fail(&err);

@@ -15,7 +15,9 @@
 
 #include "cli/commands.h"
 #include "util/clock.h"
+#include "util/outpath.h"
 #include "util/progress.h"
+#include "wavefuel/scenario.h"
 #include "wavefuel/sweep.h"
 #ifdef WF_MPI
 #include "mpi/sweep_mpi.h"
@@ -317,6 +319,28 @@ static int sweep_mpi(WfSweep **sw, const Options *o)
 }
 #endif
 
+/* Before anything runs: the override keys exist, and the table is neither a directory nor one of the inputs (the
+ * sweep file, the base scenario and the files it reads). */
+static int check_sweep(const WfSweep *sw, const Options *o, WfError *err)
+{
+    WfScenario *first = NULL;
+    int rc = wf_sweep_check_keys(sw, &first, err);
+    if (!rc && !o->list) {
+        size_t n = first ? first->n_inputs : 0;
+        const char **inputs = calloc(n + 2, sizeof *inputs);
+        if (!inputs) rc = wf_err(err, WF_ESYS, "out of memory");
+        for (size_t i = 0; !rc && i < n; i++) inputs[i] = first->inputs[i];
+        if (!rc) {
+            inputs[n] = sw->path;
+            inputs[n + 1] = sw->scenario_path;
+            rc = wf_output_check(o->out ? "-o" : "output", o->out ? o->out : sw->output, inputs, n + 2, err);
+        }
+        free(inputs);
+    }
+    wf_scenario_destroy(&first);
+    return rc;
+}
+
 int wf_cmd_sweep(int argc, char **argv)
 {
     int rank = 0;
@@ -329,6 +353,7 @@ int wf_cmd_sweep(int argc, char **argv)
     WfError err = {0};
     WfSweep *sw = NULL;
     int rc = rank == 0 ? wf_sweep_load(o.sweep, &sw, &err) : 0;
+    if (!rc && rank == 0) rc = check_sweep(sw, &o, &err);
 #ifdef WF_MPI
     rc = wf_mpi_share_sweep(rc, o.sweep, &sw, &err);
     if (rc) return rank == 0 ? wf_cli_fail(&err) : rc;

@@ -7,6 +7,7 @@
 
 #include "cli/commands.h"
 #include "util/clock.h"
+#include "util/outpath.h"
 #include "wavefuel/fit.h"
 #include "wavefuel/tabulated.h"
 
@@ -65,7 +66,9 @@ static int cmd_import(int argc, char **argv)
     }
     WfError err = {0};
     WfTable *t = NULL, *back = NULL;
-    int rc = wf_table_read_csv(argv[optind], &t, &err);
+    const char *input = argv[optind];
+    int rc = wf_output_check("-o", out, &input, 1, &err);
+    if (!rc) rc = wf_table_read_csv(input, &t, &err);
     if (!rc) rc = wf_table_write_h5(t, out, force, &err);
     /* Read the file back as every user of it will, so a table that imports also loads. */
     double t0 = wf_wall_now();
@@ -126,6 +129,11 @@ static int cmd_sample(int argc, char **argv)
     WfError err = {0};
     WfVehicleClass vc;
     if (wf_vehicle_find(cls, &vc, &err)) return wf_cli_fail(&err);
+    const char *input = vc.path;
+    if (wf_output_check("-o", out, &input, 1, &err)) {
+        wf_vehicle_free(&vc);
+        return wf_cli_fail(&err);
+    }
     WfFitGrid g;
     wf_fit_release_grid(&g);
     char source[1200];

@@ -41,6 +41,8 @@ void wf_scenario_destroy(WfScenario **psc)
     }
     wf_road_free(&sc->road);
     wf_corridor_spec_destroy(&sc->corridor);
+    for (size_t i = 0; i < sc->n_inputs; i++) free(sc->inputs[i]);
+    free(sc->inputs);
     free(sc->text);
     free(sc->overrides);
     free(sc);
@@ -104,6 +106,10 @@ static int load_grade(WfCfgNode *road, const WfKeySpec *row, void *target, WfKey
         WfCsv t;
         if ((rc = wf_csv_read(path, 2, names, &t, err))) {
             wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(grade, "csv"), w, sizeof w));
+            goto done;
+        }
+        if ((rc = wf_scenario_add_input(sc, path, err))) {
+            wf_csv_free(&t);
             goto done;
         }
         n = t.n_rows;
@@ -494,6 +500,16 @@ int wf_scenario_load_text(const char *path, const char *text, const char *const 
     return rc ? rc : load_cfg(cfg, path, set, n_set, out, err);
 }
 
+int wf_scenario_add_input(WfScenario *sc, const char *path, WfError *err)
+{
+    char **p = realloc(sc->inputs, (sc->n_inputs + 1) * sizeof *p);
+    if (!p) return wf_err(err, WF_ESYS, "out of memory");
+    sc->inputs = p;
+    if (!(p[sc->n_inputs] = strdup(path))) return wf_err(err, WF_ESYS, "out of memory");
+    sc->n_inputs++;
+    return 0;
+}
+
 /* Takes ownership of cfg. */
 static int load_cfg(WfCfg *cfg, const char *path, const char *const *set, size_t n_set, WfScenario **out,
                     WfError *err)
@@ -505,6 +521,7 @@ static int load_cfg(WfCfg *cfg, const char *path, const char *const *set, size_t
         return wf_err(err, WF_ESYS, "out of memory");
     }
     snprintf(sc->path, sizeof sc->path, "%s", path);
+    if ((rc = wf_scenario_add_input(sc, path, err))) goto fail;
     size_t olen = 1;
     for (size_t i = 0; i < n_set; i++) olen += strlen(set[i]) + 1;
     sc->overrides = calloc(olen, 1);

@@ -40,7 +40,7 @@ void wf_corridor_spec_destroy(WfCorridorSpec **ps)
 
 /* Two-column numbers from either `points: [[a, b], ...]` or `csv: FILE` (header `names`) of `map`. The arrays
  * are owned by the caller. `where` receives the location of what was read, for later messages. */
-static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const names[2], double min0, double max0,
+static int read_pairs(WfScenario *sc, WfCfgNode *map, const char *const names[2], double min0, double max0,
                       const char *unit0, double min1, double max1, const char *unit1, double **a_out,
                       double **b_out, size_t *n_out, char *where, size_t wlen, WfError *err)
 {
@@ -82,6 +82,10 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
             wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(map, "csv"), w, sizeof w));
             return WF_EINPUT;
         }
+        if (wf_scenario_add_input(sc, path, err)) {
+            wf_csv_free(&t);
+            return WF_ESYS;
+        }
         n = t.n_rows;
         a = malloc((n + 1) * sizeof *a);
         b = malloc((n + 1) * sizeof *b);
@@ -112,7 +116,7 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
 }
 
 /* A time profile: `KEY: value` (constant) or `csv: FILE` with header time_s,NAME, points linear in between. */
-static int read_profile(const WfScenario *sc, WfCfgNode *map, const char *key, const char *col, double max,
+static int read_profile(WfScenario *sc, WfCfgNode *map, const char *key, const char *col, double max,
                         const char *unit, int required, WfProfile *p, WfError *err)
 {
     char w[1024];

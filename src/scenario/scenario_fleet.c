@@ -11,6 +11,7 @@
 #include "util/path.h"
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
+#include "wavefuel/tabulated.h"
 
 #define where_of wf_scenario_where
 
@@ -120,6 +121,11 @@ static int load_class_name(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv
         return WF_EINPUT;
     }
     sc->n_classes = i + 1;
+    /* The class file and the table it names (tabulated model, or a table beside the polynomial) are inputs. */
+    char table[4096];
+    if (wf_scenario_add_input(sc, cs->vc.path, err) || wf_tabulated_class_table(&cs->vc, table, sizeof table, err) ||
+        (table[0] && wf_scenario_add_input(sc, table, err)))
+        return err->code;
     for (size_t k = 0; k < i; k++)
         if (strcmp(sc->classes[k].vc.path, cs->vc.path) == 0)
             return wf_err(err, WF_EINPUT, "%s: class '%s' listed twice", where_of(e, w, sizeof w), name);
@@ -189,6 +195,7 @@ static int load_group_model(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEn
             wf_err_prefix(err, "%s: ", where_of(pn, w, sizeof w));
             return WF_EINPUT;
         }
+        if (wf_scenario_add_input(env->sc, path, err)) return WF_ESYS;
         g->model = wf_cf_plugin_model(g->plugin);
         return 0;
     }
