@@ -167,3 +167,27 @@ refuse sweep_misspelled_key_second_run "sw_runs.yaml: run 1: --set: unknown key 
 sed 's/values: \[20, 22\]/values: [0, 22]/' sw.yaml > sw_value.yaml
 "$BIN" sweep sw_value.yaml -o sw_value.h5 -q 2>/dev/null; rc=$?
 if [ $rc -eq 1 ] && [ -f sw_value.h5 ]; then ok sweep_bad_value_fails_alone; else ko sweep_bad_value_fails_alone "rc=$rc"; fi
+
+# ---------------------------------------------------------------- names: a plain file name that fits, never cut
+refuse name_escapes_output "--set: name '../escape' contains '/'" -- "$BIN" run s.yaml --set name=../escape -q
+sed 's|^name: s$|name: "a/b"|' s.yaml > name_slash.yaml
+refuse name_with_slash "name_slash.yaml:1: name 'a/b' contains '/'" -- "$BIN" run name_slash.yaml -q
+sed 's|^name: s$|name: ".."|' s.yaml > name_dots.yaml
+refuse name_dotdot "name_dots.yaml:1: name '..' is '.' or '..'" -- "$BIN" run name_dots.yaml -q
+long=$(printf 'n%.0s' $(seq 128))
+refuse name_too_long "--set: name '$long' is too long (128 bytes; at most 127)" -- "$BIN" run s.yaml --set "name=$long" -q
+grep -v '^name:' s.yaml > "$long.yaml"
+refuse name_stem_too_long "$long.yaml: the file's stem '$long', the default name, is too long (128 bytes; at most 127): set \`name:\`" -- \
+  "$BIN" run "$long.yaml" -q
+rm -f "$long.yaml"
+# 127 bytes is the limit, not a cut: the result is output/NAME.h5 with all 127 characters.
+ok127=$(printf 'k%.0s' $(seq 127))
+mkdir -p output
+if "$BIN" run s.yaml --set "name=$ok127" -q && [ -f "output/$ok127.h5" ]; then ok name_127_bytes_kept
+else ko name_127_bytes_kept "no output/$ok127.h5"; fi
+rm -rf output
+longpath=$(printf 'p%.0s' $(seq 1100))
+refuse output_path_too_long "--set: output.path: too long (1100 bytes; at most 1023)" -- \
+  "$BIN" run s.yaml --set "output.path=$longpath" -q
+printf 'name: ../x\nscenario: s.yaml\naxes:\n  - {key: fleet.vehicles, values: [20]}\n' > sw_name.yaml
+refuse sweep_name_with_slash "sw_name.yaml:1: name '../x' contains '/'" -- "$BIN" sweep sw_name.yaml -q

@@ -127,18 +127,30 @@ done:
     return rc;
 }
 
-/* name: the file stem unless given. */
+/* name: the file stem unless given. It names output/NAME.h5, so it must be a plain file name that fits: refused,
+ * not cut or followed out of output/ ("../escape"). */
 static int load_name(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
     (void)row, (void)env;
     WfScenario *sc = t;
     const char *s = NULL;
-    const char *stem = strrchr(sc->path, '/');
-    snprintf(sc->name, sizeof sc->name, "%.127s", stem ? stem + 1 : sc->path);
-    char *dot = strrchr(sc->name, '.');
-    if (dot) *dot = '\0';
+    char stem[1024], w[1024];
+    snprintf(stem, sizeof stem, "%s", wf_path_base(sc->path));
+    char *dot = strrchr(stem, '.');
+    if (dot && dot != stem) *dot = '\0';
     if (wf_cfg_string_opt(root, "name", &s, err)) return WF_EINPUT;
-    if (s) snprintf(sc->name, sizeof sc->name, "%.127s", s);
+    const char *name = s ? s : stem;
+    const char *problem = wf_path_plain_name_problem(name, sizeof sc->name - 1);
+    char size[64] = "";
+    if (problem && strlen(name) > sizeof sc->name - 1)
+        snprintf(size, sizeof size, " (%zu bytes; at most %zu)", strlen(name), sizeof sc->name - 1);
+    if (problem && s)
+        return wf_err(err, WF_EINPUT, "%s '%.200s' %s%s", where_of(wf_cfg_child(root, "name"), w, sizeof w), s,
+                      problem, size);
+    if (problem)
+        return wf_err(err, WF_EINPUT, "%s: the file's stem '%.200s', the default name, %s%s: set `name:`", sc->path,
+                      stem, problem, size);
+    memcpy(sc->name, name, strlen(name) + 1); /* fits: checked above */
     return 0;
 }
 
@@ -431,7 +443,9 @@ static int load_corridor(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEn
 
 static const WfKeySpec root_rows[] = {
     {.key = "name", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_name, .doc_type = "text",
-     .doc_default = "file stem", .doc = "run name; default output `output/NAME.h5`"},
+     .doc_default = "file stem", .doc_range = "a file name, ≤ 127 bytes",
+     .doc = "run name; default output `output/NAME.h5`. No `/`, not `.` or `..`, no control characters: refused, "
+            "never cut"},
     {.key = "seed", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, seed),
      .size = sizeof(uint64_t), .def = 1, .imin = 0, .imax = 0x7fffffffffffffffL, .doc_range = "≥ 0",
      .doc = "seed of every random draw (placement, heterogeneity, noise, jitter)"},

@@ -497,12 +497,17 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     if (axes && runs)
         return wf_err(err, WF_EINPUT, "%s: give either `axes` (a Cartesian product) or `runs` (an explicit list), "
                       "not both", where(runs, w, sizeof w));
-    if (name)
-        snprintf(sw->name, sizeof sw->name, "%s", name);
-    else {
-        const char *base = wf_path_base(sw->path);
-        snprintf(sw->name, sizeof sw->name, "%.*s", (int)strcspn(base, "."), base);
-    }
+    /* The name names output/NAME.h5 (and the table's rows): a plain file name that fits, never cut. */
+    const char *base = wf_path_base(sw->path);
+    int stem_len = (int)strcspn(base, ".");
+    char stem[1024];
+    snprintf(stem, sizeof stem, "%.*s", stem_len, base);
+    const char *problem = wf_path_plain_name_problem(name ? name : stem, sizeof sw->name - 1);
+    if (problem)
+        return wf_err(err, WF_EINPUT, "%s '%.200s' %s (at most %zu bytes)%s",
+                      name ? where(wf_cfg_child(root, "name"), w, sizeof w) : sw->path, name ? name : stem, problem,
+                      sizeof sw->name - 1, name ? "" : ": the file's stem is the default name; set `name:`");
+    memcpy(sw->name, name ? name : stem, strlen(name ? name : stem) + 1); /* fits: checked above */
     if (resolve_scenario(sw, scen, err)) return WF_EINPUT;
     int n = output ? snprintf(sw->output, sizeof sw->output, "%s", output)
                    : snprintf(sw->output, sizeof sw->output, "output/%s.h5", sw->name);
