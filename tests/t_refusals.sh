@@ -15,7 +15,7 @@ ok() { echo "PASS $1"; }
 ko() { echo "FAIL $1: $2"; }
 
 # Every path under the working directory with the checksum of each file.
-snapshot() { find . -exec sh -c 'printf "%s " "$1"; if [ -f "$1" ]; then cksum <"$1"; else echo; fi' _ {} \; | sort; }
+snapshot() { { find . ! -type f; find . -type f -exec cksum {} +; } | sort; }
 # refuse NAME WANT -- COMMAND...: COMMAND must exit 2 with every @@-separated part of WANT in its stderr, print
 # nothing on stdout, and leave the directory's listing and every file's bytes as they were.
 refuse() {
@@ -191,3 +191,43 @@ refuse output_path_too_long "--set: output.path: too long (1100 bytes; at most 1
   "$BIN" run s.yaml --set "output.path=$longpath" -q
 printf 'name: ../x\nscenario: s.yaml\naxes:\n  - {key: fleet.vehicles, values: [20]}\n' > sw_name.yaml
 refuse sweep_name_with_slash "sw_name.yaml:1: name '../x' contains '/'" -- "$BIN" sweep sw_name.yaml -q
+
+# ---------------------------------------------------------------- --resume: X.h5, X.h5.partial or X.h5.ckpt
+. "$REPO/tests/interrupt.sh"
+pids=()
+trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; rm -rf "$tmp"' EXIT
+"$BIN" run s.yaml -q -o done.h5
+LONG=(--set time.duration_s=3000 --set time.integrator=euler --set fleet.vehicles=400 --set road.length_m=8000)
+"$BIN" run s.yaml -q -o ref.h5 "${LONG[@]}"
+for form in partial ckpt h5; do
+  "$BIN" run s.yaml -q -o "r_$form.h5" "${LONG[@]}" \
+    --checkpoint-every 0.01 2>/dev/null & pid=$!
+  pids+=("$pid")
+  if wait_checkpoint "r_$form.h5" $pid && signal_running TERM $pid; then wait $pid; rc1=$?
+  else wait $pid; rc1=$?; fi
+  arg="r_$form.h5"; [ "$form" = h5 ] || arg="r_$form.h5.$form"
+  # The resumed run's time series and summary are those of the uninterrupted run (h5dump's text, after the file name).
+  if [ $rc1 -eq 3 ] && "$BIN" run --resume "$arg" -q && [ -f "r_$form.h5" ] && [ ! -e "r_$form.h5.partial" ] &&
+     cmp -s <(h5dump -g /timeseries -g /summary ref.h5 | tail -n +2) \
+            <(h5dump -g /timeseries -g /summary "r_$form.h5" | tail -n +2) &&
+     [ "$(h5dump -g /timeseries ref.h5 | wc -l)" -gt 1000 ]; then
+    ok "resume_given_as_$form"
+  else ko "resume_given_as_$form" "rc=$rc1 (the run may have ended before its signal)"; fi
+  rm -f "r_$form.h5"
+done
+echo garbage > garbage.h5
+refuse resume_garbage "--resume garbage.h5: garbage.h5 is not an HDF5 file (or a damaged one), not a wavefuel partial result or checkpoint" -- \
+  "$BIN" run --resume garbage.h5 -q
+refuse resume_garbage_partial_form "garbage.h5 is not an HDF5 file" -- "$BIN" run --resume garbage.h5.partial -q
+refuse resume_complete "--resume done.h5: done.h5 is complete: nothing to resume" -- "$BIN" run --resume done.h5 -q
+refuse resume_complete_ckpt_form "done.h5 is complete: nothing to resume" -- "$BIN" run --resume done.h5.ckpt -q
+"$BIN" table sample --class midsize_sedan -o table.h5 >/dev/null
+refuse resume_energy_table "table.h5 is a wavefuel energy table, not a wavefuel partial result or checkpoint" -- \
+  "$BIN" run --resume table.h5 -q
+refuse resume_directory "outdir is a directory, not a wavefuel partial result or checkpoint" -- \
+  "$BIN" run --resume outdir -q
+refuse resume_missing "--resume none.h5: no such file, and no checkpoint none.h5.ckpt" -- "$BIN" run --resume none.h5 -q
+cp done.h5 other.h5.partial
+echo garbage > other.h5.ckpt
+refuse resume_garbage_checkpoint "other.h5.ckpt is not a readable checkpoint: it is not an HDF5 file" -- \
+  "$BIN" run --resume other.h5.partial -q

@@ -146,6 +146,12 @@ int wf_cmd_run(int argc, char **argv)
 #ifdef _OPENMP
     if (a.threads) omp_set_num_threads((int)a.threads);
 #endif
+    char resume_path[1100];
+    if (a.resume && wf_cli_resume_target(a.resume, resume_path, sizeof resume_path, &err)) {
+        free(a.sets);
+        return wf_cli_fail(&err);
+    }
+    if (a.resume) a.resume = resume_path;
     WfScenario *sc = NULL;
     WfSim *sim = NULL;
     WfH5Out *h5 = NULL;

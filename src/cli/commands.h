@@ -28,6 +28,11 @@ int wf_cli_fail(const WfError *err);
  * and whether a checkpoint (result.ckpt) lets --resume continue it. */
 void wf_cli_note_partial(const char *partial, const char *result, const char *counters);
 
+/* --resume ARG (src/cli/resume_target.c): ARG is X.h5, X.h5.partial or X.h5.ckpt; result (len bytes) = X.h5. WF_EINPUT
+ * naming the file and what it is when it is not a wavefuel result, partial result or checkpoint, when the result is
+ * already complete, or when there is no checkpoint to continue from. Reads only. */
+int wf_cli_resume_target(const char *arg, char *result, size_t len, WfError *err);
+
 /* Process-wide settings (src/cli/process.c), made by the programs only, never by the library. */
 /* Set by SIGINT/SIGTERM once wf_cli_catch_stop() is called: the signal's number; runs poll it and stop. */
 extern volatile sig_atomic_t wf_cli_stop;
