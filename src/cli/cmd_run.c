@@ -12,7 +12,6 @@
 #include "cli/commands.h"
 #include "cli/run_corridor.h"
 #include "util/clock.h"
-#include "util/outpath.h"
 #include "wavefuel/checkpoint.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
@@ -157,8 +156,7 @@ int wf_cmd_run(int argc, char **argv)
     WfH5Out *h5 = NULL;
     WfOutput ops;
     int rc = load_scenario(&a, &sc, &err);
-    if (!rc && !a.resume) rc = wf_output_check(a.outpath ? "-o" : "output.path", sc->output_path,
-                                               (const char *const *)sc->inputs, sc->n_inputs, &err);
+    if (!rc && !a.resume) rc = wf_cli_run_output(sc, a.outpath, &err);
     free(a.sets);
     const char *resume = a.resume;
     double ckpt_s = a.ckpt_s;

@@ -63,7 +63,7 @@ static void on_finished(void *ctx, size_t k, const WfSweepResult *r, const WfSwe
         char cmd[8192];
         if (p->tty && !p->quiet) fprintf(stderr, "\n");
         fprintf(stderr, "wavefuel sweep: run %zu failed: %s\n", k, r->error);
-        if (!wf_sweep_command(p->sw, k, cmd, sizeof cmd)) fprintf(stderr, "  reproduce: %s\n", cmd);
+        if (!wf_sweep_command(p->sw, k, wf_cli_program(), cmd, sizeof cmd)) fprintf(stderr, "  reproduce: %s\n", cmd);
     } else if (!p->tty && !p->quiet) {
         /* Not a terminal (a log): one line per run. */
         fprintf(stderr, "[%zu/%zu] run %zu %s (%.2f s)\n", c->n_reported, c->n_todo, k,
@@ -183,7 +183,7 @@ static void list_commands(const WfSweep *sw)
     size_t len = 1 << 16;
     char *cmd = malloc(len);
     for (size_t i = 0; cmd && i < sw->n_runs; i++)
-        printf("%s\n", wf_sweep_command(sw, i, cmd, len) ? "# (command too long)" : cmd);
+        printf("%s\n", wf_sweep_command(sw, i, wf_cli_program(), cmd, len) ? "# (command too long)" : cmd);
     free(cmd);
 }
 
@@ -335,6 +335,7 @@ static int check_sweep(const WfSweep *sw, const Options *o, WfError *err)
             inputs[n + 1] = sw->scenario_path;
             rc = wf_output_check(o->out ? "-o" : "output", o->out ? o->out : sw->output, inputs, n + 2, err);
         }
+        if (!rc && !o->out) rc = wf_output_default_dir(sw->output, err);
         free(inputs);
     }
     wf_scenario_destroy(&first);

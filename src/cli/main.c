@@ -27,7 +27,7 @@ static void usage(FILE *out)
 int main(int argc, char **argv)
 {
     WfError err = {0};
-    if (wf_cli_process_init(&err)) return wf_cli_fail(&err);
+    if (wf_cli_process_init(argv[0], &err)) return wf_cli_fail(&err);
     if (argc < 2) {
         usage(stderr);
         return 2;

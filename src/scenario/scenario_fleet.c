@@ -112,9 +112,12 @@ static int load_class_name(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv
     const char *name = NULL;
     char w[1024];
     if (wf_cfg_string(e, "class", &name, err)) return WF_EINPUT;
-    /* A class name is looked up in the class directories; a path (with a '/') resolves against the scenario's. */
+    /* A class name is looked up in the class directories; a path (with a '/' or ending in .yaml, as
+     * wf_vehicle_find tells them apart) resolves against the scenario's directory, like the scenario's other paths. */
     char path[2048];
-    if (strchr(name, '/') ? wf_path_relative_to(sc->path, name, path, sizeof path) : snprintf(path, sizeof path, "%s", name) < 0)
+    size_t nlen = strlen(name);
+    int is_path = strchr(name, '/') || (nlen > 5 && !strcmp(name + nlen - 5, ".yaml"));
+    if (is_path ? wf_path_relative_to(sc->path, name, path, sizeof path) : snprintf(path, sizeof path, "%s", name) < 0)
         return wf_err(err, WF_EINPUT, "%s: class path too long", where_of(wf_cfg_child(e, "class"), w, sizeof w));
     if (wf_vehicle_find(path, &cs->vc, err)) {
         wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(e, "class"), w, sizeof w));

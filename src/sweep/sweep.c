@@ -10,6 +10,7 @@
 
 #include "util/clock.h"
 #include "util/hash.h"
+#include "util/outpath.h"
 #include "util/path.h"
 #include "wavefuel/config.h"
 #include "wavefuel/engine.h"
@@ -510,7 +511,7 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     memcpy(sw->name, name ? name : stem, strlen(name ? name : stem) + 1); /* fits: checked above */
     if (resolve_scenario(sw, scen, err)) return WF_EINPUT;
     int n = output ? snprintf(sw->output, sizeof sw->output, "%s", output)
-                   : snprintf(sw->output, sizeof sw->output, "output/%s.h5", sw->name);
+                   : snprintf(sw->output, sizeof sw->output, WF_OUTPUT_DEFAULT_DIR "/%s.h5", sw->name);
     if (n < 0 || (size_t)n >= sizeof sw->output) return wf_err(err, WF_EINPUT, "%s: output path too long", sw->path);
 
     SetList common = {0}, *explicit_runs = NULL;
@@ -641,12 +642,13 @@ static int append_word(char *buf, size_t len, size_t *used, const char *w)
     return 0;
 }
 
-int wf_sweep_command(const WfSweep *sw, size_t run, char *buf, size_t len)
+int wf_sweep_command(const WfSweep *sw, size_t run, const char *program, char *buf, size_t len)
 {
     const WfSweepRun *r = &sw->runs[run];
     size_t used = 0;
     if (len) buf[0] = '\0';
-    if (append_word(buf, len, &used, "wavefuel") || append_word(buf, len, &used, "run") ||
+    if (!program) program = "wavefuel";
+    if (append_word(buf, len, &used, program) || append_word(buf, len, &used, "run") ||
         append_word(buf, len, &used, sw->scenario_path))
         return WF_EINPUT;
     for (size_t i = 0; i < r->n_set; i++)

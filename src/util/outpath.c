@@ -2,7 +2,9 @@
  * replace the scenario with HDF5, and `-o DIR` failed only after the whole run, leaving DIR.partial. */
 #include "util/outpath.h"
 
+#include <errno.h>
 #include <stdio.h>
+#include <string.h>
 #include <sys/stat.h>
 
 /* Suffixes of the files a writer creates beside its result: the file itself, the partial file written while
@@ -27,4 +29,13 @@ int wf_output_check(const char *what, const char *out, const char *const *inputs
                                   out, inputs[i]);
     }
     return 0;
+}
+
+int wf_output_default_dir(const char *out, WfError *err)
+{
+    size_t n = strlen(WF_OUTPUT_DEFAULT_DIR);
+    if (strncmp(out, WF_OUTPUT_DEFAULT_DIR "/", n + 1) != 0 || strchr(out + n + 1, '/')) return 0;
+    if (mkdir(WF_OUTPUT_DEFAULT_DIR, 0777) == 0 || errno == EEXIST) return 0;
+    return wf_err(err, WF_EINPUT, "cannot create the result directory %s/ in the working directory: %s",
+                  WF_OUTPUT_DEFAULT_DIR, strerror(errno));
 }

@@ -13,4 +13,13 @@
  * entries skipped). Touches no file. */
 int wf_output_check(const char *what, const char *out, const char *const *inputs, size_t n_inputs, WfError *err);
 
+/* The default result directory, relative to the working directory: results go to output/NAME.h5 unless a path is
+ * given. */
+#define WF_OUTPUT_DEFAULT_DIR "output"
+
+/* When `out` is a default result path (WF_OUTPUT_DEFAULT_DIR/FILE), create that directory if it is missing, so the
+ * default works from any working directory. Other paths are left alone (a missing directory is then the writer's
+ * error). WF_EINPUT, naming the directory and the cause, when it cannot be created. */
+int wf_output_default_dir(const char *out, WfError *err);
+
 #endif
