@@ -114,7 +114,7 @@ o=$($BIN energy --class no_such_car "$tmp/in.csv" 2>&1)
 if echo "$o" | grep -q 'compact_sedan' && echo "$o" | grep -q 'class8_tractor'; then ok unknown_class_lists_known
 else ko unknown_class_lists_known "$o"; fi
 expect_err two_input_files "one input file at most" $BIN energy --class compact_sedan "$tmp/in.csv" "$tmp/in.csv"
-expect_err bad_option "usage" $BIN energy --bogus compact_sedan
+expect_err bad_option "unknown option '--bogus' (options: wavefuel help energy)" $BIN energy --bogus compact_sedan
 
 # The programs' class search path ($WAVEFUEL_VEHICLES, then PREFIX/vehicles for PREFIX/bin/wavefuel;
 # docs/energy.md): a class in the user's directory is found and listed, shadows a shipped class of the same name,

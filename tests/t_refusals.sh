@@ -37,24 +37,18 @@ refuse() {
 }
 
 # ---------------------------------------------------------------- numbers: ranges and decimal notation
-printf 'v,a,theta\n10,0,0\n1e308,0,0\n' > e_huge_v.csv
-refuse energy_speed_out_of_range "e_huge_v.csv:3: field 1 (v) must be in [0, 150] m/s (got 1e+308)" -- \
-  "$BIN" energy --class midsize_sedan e_huge_v.csv
-printf '10,0,100000\n' > e_grade.csv
-refuse energy_grade_out_of_range "e_grade.csv:1: field 3 (theta) must be in [-0.5, 0.5] rad (got 100000)" -- \
-  "$BIN" energy --class midsize_sedan e_grade.csv
-printf '10,-25,0\n' > e_accel.csv
-refuse energy_accel_out_of_range "e_accel.csv:1: field 2 (a) must be in [-20, 20] m/s^2 (got -25)" -- \
-  "$BIN" energy --class midsize_sedan e_accel.csv
-printf '10,0,0\n-0.5,0,0\n' > e_neg.csv
-refuse energy_negative_speed "e_neg.csv:2: field 1 (v) must be in [0, 150] m/s (got -0.5)" -- \
-  "$BIN" energy --class midsize_sedan e_neg.csv
-printf '0x10,0,0\n' > e_hex.csv
-refuse energy_hex_first_row "e_hex.csv:1: field 1 (v): expected a finite number (got '0x10')" -- \
-  "$BIN" energy --class midsize_sedan e_hex.csv
-printf 'v,a,theta\n10,0x1p-2,0\n' > e_hex2.csv
-refuse energy_hex_float "e_hex2.csv:2: field 2 (a): expected a finite number (got '0x1p-2')" -- \
-  "$BIN" energy --class midsize_sedan e_hex2.csv
+# Energy rows: name | the CSV (printf format) | the message after "e_NAME.csv:".
+while IFS='|' read -r name text want; do
+  printf "$text" > "e_$name.csv"
+  refuse "energy_$name" "e_$name.csv:$want" -- "$BIN" energy --class midsize_sedan "e_$name.csv"
+done <<'T'
+speed_out_of_range|v,a,theta\n10,0,0\n1e308,0,0\n|3: field 1 (v) must be in [0, 150] m/s (got 1e+308)
+grade_out_of_range|10,0,100000\n|1: field 3 (theta) must be in [-0.5, 0.5] rad (got 100000)
+accel_out_of_range|10,-25,0\n|1: field 2 (a) must be in [-20, 20] m/s^2 (got -25)
+negative_speed|10,0,0\n-0.5,0,0\n|2: field 1 (v) must be in [0, 150] m/s (got -0.5)
+hex_first_row|0x10,0,0\n|1: field 1 (v): expected a finite number (got '0x10')
+hex_float|v,a,theta\n10,0x1p-2,0\n|2: field 2 (a): expected a finite number (got '0x1p-2')
+T
 # The bounds themselves are accepted (inclusive), and 0.3 is still 0.3.
 printf '150,20,0.5\n0,-20,-0.5\n' > e_edges.csv
 if out=$("$BIN" energy --class midsize_sedan e_edges.csv) && [ "$(echo "$out" | wc -l)" -eq 3 ]; then
@@ -72,23 +66,9 @@ refuse cycle_grade_hex "--grade expects a road grade angle in [-0.5, 0.5] rad (g
 refuse cycle_grade_out_of_range "--grade expects a road grade angle in [-0.5, 0.5] rad (got '0.6')" -- \
   "$BIN" cycle --class midsize_sedan --grade 0.6 c_ok.csv
 
-cat > s.yaml <<'Y'
-name: s
-seed: 3
-road:
-  length_m: 230
-time:
-  duration_s: 2
-  dt_s: 0.1
-fleet:
-  vehicles: 22
-  classes:
-    - {class: midsize_sedan, fraction: 1.0}
-  drivers:
-    - {model: idm, fraction: 1.0}
-Y
+cp "$REPO/tests/data/tiny_ring.yaml" s.yaml   # name: tiny; line 5 road.length_m; trajectories on
 sed 's/length_m: 230/length_m: 0xE6/' s.yaml > s_hex.yaml
-refuse yaml_hex "s_hex.yaml:4: road.length_m: expected a number" -- "$BIN" run s_hex.yaml -o s_hex.h5 -q
+refuse yaml_hex "s_hex.yaml:5: road.length_m: expected a number" -- "$BIN" run s_hex.yaml -o s_hex.h5 -q
 refuse set_hex "--set: time.duration_s: expected a number" -- "$BIN" run s.yaml --set time.duration_s=0x2 -o x.h5 -q
 refuse option_hex "--threads expects an integer" -- "$BIN" run s.yaml --threads 0x2 -o x.h5 -q
 
@@ -170,10 +150,10 @@ if [ $rc -eq 1 ] && [ -f sw_value.h5 ]; then ok sweep_bad_value_fails_alone; els
 
 # ---------------------------------------------------------------- names: a plain file name that fits, never cut
 refuse name_escapes_output "--set: name '../escape' contains '/'" -- "$BIN" run s.yaml --set name=../escape -q
-sed 's|^name: s$|name: "a/b"|' s.yaml > name_slash.yaml
-refuse name_with_slash "name_slash.yaml:1: name 'a/b' contains '/'" -- "$BIN" run name_slash.yaml -q
-sed 's|^name: s$|name: ".."|' s.yaml > name_dots.yaml
-refuse name_dotdot "name_dots.yaml:1: name '..' is '.' or '..'" -- "$BIN" run name_dots.yaml -q
+sed 's|^name: tiny$|name: "a/b"|' s.yaml > name_slash.yaml
+refuse name_with_slash "name_slash.yaml:2: name 'a/b' contains '/'" -- "$BIN" run name_slash.yaml -q
+sed 's|^name: tiny$|name: ".."|' s.yaml > name_dots.yaml
+refuse name_dotdot "name_dots.yaml:2: name '..' is '.' or '..'" -- "$BIN" run name_dots.yaml -q
 long=$(printf 'n%.0s' $(seq 128))
 refuse name_too_long "--set: name '$long' is too long (128 bytes; at most 127)" -- "$BIN" run s.yaml --set "name=$long" -q
 grep -v '^name:' s.yaml > "$long.yaml"
@@ -197,7 +177,8 @@ refuse sweep_name_with_slash "sw_name.yaml:1: name '../x' contains '/'" -- "$BIN
 pids=()
 trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; rm -rf "$tmp"' EXIT
 "$BIN" run s.yaml -q -o done.h5
-LONG=(--set time.duration_s=3000 --set time.integrator=euler --set fleet.vehicles=400 --set road.length_m=8000)
+LONG=(--set time.duration_s=3000 --set time.integrator=euler --set fleet.vehicles=400 --set road.length_m=8000
+      --set output.trajectories=false --set time.warmup_s=0)
 "$BIN" run s.yaml -q -o ref.h5 "${LONG[@]}"
 for form in partial ckpt h5; do
   "$BIN" run s.yaml -q -o "r_$form.h5" "${LONG[@]}" \
@@ -231,3 +212,65 @@ cp done.h5 other.h5.partial
 echo garbage > other.h5.ckpt
 refuse resume_garbage_checkpoint "other.h5.ckpt is not a readable checkpoint: it is not an HDF5 file" -- \
   "$BIN" run --resume other.h5.partial -q
+
+# ---------------------------------------------------------------- every command: help, -V, unknown options, repeats
+version=$("$BIN" --version)
+cmds=$("$BIN" --help | awk '/^  [a-z]+ / { print $1 }')
+[ "$(echo "$cmds" | wc -l)" -ge 7 ] || ko command_list "from wavefuel --help: $cmds"
+for c in $cmds; do
+  h1=$("$BIN" help "$c" 2>&1); rc1=$?; h2=$("$BIN" "$c" --help 2>&1); rc2=$?
+  if [ $rc1 -eq 0 ] && [ "$h1" = "$h2" ] && echo "$h1" | grep -q "usage: wavefuel $c"; then ok "help_$c"
+  else ko "help_$c" "rc=$rc1/$rc2"; fi
+  v=$("$BIN" "$c" -V 2>&1); rc=$?
+  if [ $rc -eq 0 ] && [ "$v" = "$version" ]; then ok "version_$c"; else ko "version_$c" "rc=$rc '$v'"; fi
+  refuse "unknown_option_$c" "wavefuel $c: unknown option '--no-such-option' (options: wavefuel help $c)" -- \
+    "$BIN" "$c" --no-such-option
+done
+for a in import info sample; do
+  v=$("$BIN" table "$a" -V 2>&1); rc=$?
+  if [ $rc -eq 0 ] && [ "$v" = "$version" ]; then ok "version_table_$a"; else ko "version_table_$a" "rc=$rc '$v'"; fi
+  h1=$("$BIN" help table "$a"); h2=$("$BIN" table "$a" --help)
+  if [ -n "$h1" ] && [ "$h1" = "$h2" ]; then ok "help_table_$a"; else ko "help_table_$a" "differs"; fi
+done
+refuse output_twice_run "wavefuel run: given twice: -o/--output" -- "$BIN" run s.yaml -o a.h5 -o b.h5 -q
+refuse output_twice_sweep "wavefuel sweep: given twice: -o/--output" -- "$BIN" sweep sw.yaml -o a.h5 --output b.h5
+refuse output_twice_cycle "wavefuel cycle: given twice: -o/--output" -- \
+  "$BIN" cycle --class midsize_sedan -o a.h5 -o b.h5 cyc.csv
+refuse output_twice_table "wavefuel table import: given twice: -o/--output" -- "$BIN" table import tab.csv -o a.h5 -o b.h5
+refuse output_twice_fit "wavefuel fit: given twice: -o/--output" -- "$BIN" fit tab.csv -o a.yaml -o b.yaml
+refuse class_twice_energy "wavefuel energy: given twice: -c/--class" -- \
+  "$BIN" energy --class midsize_sedan --class compact_sedan e_edges.csv
+refuse project_conflict "wavefuel cycle: options that exclude each other: --project and --no-project" -- \
+  "$BIN" cycle --class midsize_sedan --project --no-project cyc.csv
+refuse missing_value "wavefuel run: a value is needed after -o/--output" -- "$BIN" run s.yaml -o
+# Options that may repeat still do.
+if "$BIN" run s.yaml --set seed=4 --set seed=5 -q -o twice.h5 && [ -f twice.h5 ]; then ok set_repeats
+else ko set_repeats "rc=$?"; fi
+
+# ---------------------------------------------------------------- info: what kind of file
+"$BIN" sweep sw.yaml -o sw_table.h5 -q
+"$BIN" cycle --class midsize_sedan -o cyc_result.h5 cyc.csv >/dev/null
+refuse info_missing "wavefuel: nothing.h5: no such file" -- "$BIN" info nothing.h5
+refuse info_directory "wavefuel: outdir: is a directory, not a wavefuel result" -- "$BIN" info outdir
+refuse info_not_hdf5 "wavefuel: garbage.h5: is not an HDF5 file (or a damaged one), not a wavefuel result" -- \
+  "$BIN" info garbage.h5
+refuse info_table "table.h5: is a wavefuel energy table: \`wavefuel table info table.h5\` describes it" -- \
+  "$BIN" info table.h5
+out=$("$BIN" info sw_table.h5); rc=$?
+if [ $rc -eq 0 ] && echo "$out" | grep -q "^sw_table.h5: a wavefuel sweep table" &&
+   echo "$out" | grep -qE "^  runs_ok +2 *$"; then ok info_shows_sweep_table; else ko info_shows_sweep_table "rc=$rc $out"; fi
+out=$("$BIN" info cyc_result.h5); rc=$?
+fuel=$("$BIN" cycle --class midsize_sedan cyc.csv | awk '$1 == "circles_polynomial" { print $3 }')
+shown=$(echo "$out" | awk '$1 == "fuel_g" { print $2 }')
+if [ $rc -eq 0 ] && echo "$out" | grep -q "drive-cycle result" &&
+   awk -v a="$fuel" -v b="$shown" 'BEGIN { exit !(a != "" && (a - b < 1e-3 && b - a < 1e-3)) }'; then
+  ok info_shows_cycle_result; else ko info_shows_cycle_result "rc=$rc fuel $fuel shown $shown: $out"; fi
+
+# ---------------------------------------------------------------- SUNDIALS' own messages land in wavefuel's
+msg=$("$BIN" run s.yaml -q -o cv.h5 --set time.integrator=cvode --set solver.max_steps=1 2>&1); rc=$?
+if [ $rc -eq 1 ] && echo "$msg" | grep -q "^wavefuel: SUNDIALS: CVode failed .*: CVODES error in CVode: .*mxstep" &&
+   ! echo "$msg" | grep -q '^\[CVODES'; then ok sundials_message_captured; else ko sundials_message_captured "$msg"; fi
+refuse arkode_unknown_table "solver.method: unknown ARKODE explicit table 'ARKODE_NO_SUCH' (known: ARKODE_HEUN_EULER_2_1_2" -- \
+  "$BIN" run s.yaml -q -o ark.h5 --set time.integrator=arkode --set solver.method=ARKODE_NO_SUCH
+msg=$("$BIN" run s.yaml -q -o ark.h5 --set time.integrator=arkode --set solver.method=ARKODE_NO_SUCH 2>&1)
+if ! echo "$msg" | grep -q 'ARKODE ERROR'; then ok arkode_prints_nothing_itself; else ko arkode_prints_nothing_itself "$msg"; fi

@@ -23,4 +23,11 @@ WfFileKind wf_file_kind(const char *path, int *completed);
  * checkpoint". Static strings. */
 const char *wf_file_kind_text(WfFileKind kind);
 
+/* `wavefuel info` of a sweep table or a drive-cycle result: every group holding single values (text or numbers), by
+ * path, with those values and their units (a sweep's /meta and /timing; each cycle run's fuel, distance, economy).
+ * WF_EINPUT when the file cannot be opened as HDF5. */
+#include <stdio.h>
+#include "wavefuel/err.h"
+int wf_h5_info_scalars(const char *path, FILE *out, WfError *err);
+
 #endif

@@ -15,6 +15,7 @@
 
 #include "wavefuel/csv.h"
 #include "wavefuel/domain.h"
+#include "util/numfmt.h"
 
 void wf_cycle_free(WfCycle *c)
 {
@@ -44,8 +45,8 @@ static int derive(WfCycle *c, const char *shown, const int *lines, WfError *err)
             return wf_range_check(speed, c->v_mps[i], where, err);
         }
         if (i > 0 && !(c->t_s[i] > c->t_s[i - 1]))
-            return wf_err(err, WF_EINPUT, "%s:%d: field 1 (time_s) must increase strictly (%.17g after %.17g)", shown,
-                          line, c->t_s[i], c->t_s[i - 1]);
+            return wf_err(err, WF_EINPUT, "%s:%d: field 1 (time_s) must increase strictly (%s after %s)", shown,
+                          line, WF_NUM(c->t_s[i]), WF_NUM(c->t_s[i - 1]));
     }
     for (size_t i = 0; i + 1 < n; i++) {
         c->dt_s[i] = c->t_s[i + 1] - c->t_s[i];

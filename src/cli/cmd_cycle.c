@@ -8,6 +8,8 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
+#include "util/numfmt.h"
 #include "util/outpath.h"
 #include "wavefuel/cycle.h"
 #include "wavefuel/domain.h"
@@ -378,7 +380,9 @@ int wf_cmd_cycle(int argc, char **argv)
     char cmdline[4096];
     join_args(argc, argv, cmdline, sizeof cmdline);
     optind = 1;
-    while ((o = getopt_long(argc, argv, "c:g:o:fh", opts, NULL)) != -1) {
+    static const char *const conflicts[] = {"pP", NULL};
+    WfCliOpts cli = {.cmd = "cycle", .longopts = opts, .shortopts = "c:g:o:fh", .repeatable = "ct", .conflicts = conflicts};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c':
             if (n_classes == sizeof classes / sizeof classes[0]) {
@@ -405,7 +409,7 @@ int wf_cmd_cycle(int argc, char **argv)
             break;
         }
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     double theta = 0.0;
@@ -416,8 +420,8 @@ int wf_cmd_cycle(int argc, char **argv)
         }
         const WfRange *g = &wf_point_range[WF_POINT_GRADE]; /* the grades `wavefuel energy` accepts too */
         if (wf_parse_double(grade_arg, &theta) || !(theta >= g->min && theta <= g->max)) {
-            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [%g, %g] %s (got '%s')\n", g->min,
-                    g->max, g->unit, grade_arg);
+            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [%s, %s] %s (got '%s')\n",
+                    WF_NUM(g->min), WF_NUM(g->max), g->unit, grade_arg);
             return 2;
         }
         if (theta == 0.0) theta = 0.0; /* -0 and 0 are the same grade: one group name in HDF5 */

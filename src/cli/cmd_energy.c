@@ -5,6 +5,7 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/domain.h"
 #include "wavefuel/vehicle.h"
@@ -54,13 +55,14 @@ int wf_cmd_energy(int argc, char **argv)
     const char *cls = NULL;
     int project = 0, list = 0, o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "c:plh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "energy", .longopts = opts, .shortopts = "c:plh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c': cls = optarg; break;
         case 'p': project = 1; break;
         case 'l': list = 1; break;
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     if (list) return list_classes();

@@ -7,6 +7,7 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "util/path.h"
 #include "wavefuel/fit.h"
 
@@ -117,7 +118,8 @@ static int parse_args(int argc, char **argv, FitArgs *a)
     *a = (FitArgs){.duty = WF_FIT_DUTY_AUTO, .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
     int o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "fit", .longopts = opts, .shortopts = "o:fh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'd':
             if (!strcmp(optarg, "auto")) a->duty = WF_FIT_DUTY_AUTO;
@@ -150,7 +152,7 @@ static int parse_args(int argc, char **argv, FitArgs *a)
             if (parse_num("--kw-per-gps", optarg, &a->kw)) return 2;
             break;
         case 'h': help(stdout); return -1;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? -1 : 2;
         }
     }
     if (argc - optind != 1) {

@@ -10,6 +10,7 @@
 #endif
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "cli/run_corridor.h"
 #include "util/clock.h"
 #include "wavefuel/checkpoint.h"
@@ -77,7 +78,8 @@ static int parse_args(int argc, char **argv, RunArgs *a)
     memset(a, 0, sizeof *a);
     if (!(a->sets = calloc((size_t)argc + 1, sizeof *a->sets))) return 1;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "run", .longopts = opts, .shortopts = "o:qh", .repeatable = "s"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'o': a->outpath = optarg; break;
         case 's': a->sets[a->n_set++] = optarg; break;
@@ -98,7 +100,7 @@ static int parse_args(int argc, char **argv, RunArgs *a)
         case 'r': a->resume = optarg; break;
         case 'q': a->quiet = 1; break;
         case 'h': help(stdout); return -1;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? -1 : 2;
         }
     }
     if (a->resume ? (argc != optind || a->n_set || a->outpath || a->force) : argc - optind != 1) {
@@ -119,6 +121,16 @@ static int load_scenario(RunArgs *a, WfScenario **sc, WfError *err)
     if (a->resume) {
         WfCheckpointInfo ck;
         rc = wf_checkpoint_read_info(a->resume, &ck, err);
+        /* One slot per line of the checkpoint's overrides: a->sets was sized for the command line, which a resumed
+         * run's overrides may outnumber (a heap overflow before). */
+        size_t lines = 1;
+        for (const char *p = rc ? "" : ck.overrides; *p; p++) lines += *p == '\n';
+        const char **sets = rc ? NULL : realloc(a->sets, (lines + 1) * sizeof *sets);
+        if (!rc && !sets) {
+            rc = wf_err(err, WF_ESYS, "out of memory");
+            wf_checkpoint_info_free(&ck);
+        }
+        if (sets) a->sets = sets;
         if (!rc) {
             size_t n = 0;
             for (char *line = strtok(ck.overrides, "\n"); line; line = strtok(NULL, "\n")) a->sets[n++] = line;

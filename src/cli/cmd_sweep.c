@@ -14,6 +14,7 @@
 #endif
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "util/clock.h"
 #include "util/outpath.h"
 #include "util/progress.h"
@@ -123,8 +124,8 @@ static int parse_args(int argc, char **argv, Options *o, int rank)
     int c;
     memset(o, 0, sizeof *o);
     optind = 1;
-    opterr = rank == 0;
-    while ((c = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "sweep", .longopts = opts, .shortopts = "o:qh"};
+    while ((c = wf_cli_getopt(&cli, argc, argv, rank != 0)) != -1) {
         switch (c) {
         case 'o': o->out = optarg; break;
         case 't':
@@ -141,9 +142,7 @@ static int parse_args(int argc, char **argv, Options *o, int rank)
         case 'h':
             if (msg) help(stdout, strcmp(argv[0], "sweep") ? argv[0] : "wavefuel sweep");
             return -1;
-        default:
-            if (msg) help(stderr, strcmp(argv[0], "sweep") ? argv[0] : "wavefuel sweep");
-            return 2;
+        default: return c == WF_CLI_DONE ? -1 : 2;
         }
     }
     if (argc - optind != 1) {

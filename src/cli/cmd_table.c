@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "util/clock.h"
 #include "util/outpath.h"
 #include "wavefuel/fit.h"
@@ -52,12 +53,13 @@ static int cmd_import(int argc, char **argv)
     const char *out = NULL;
     int force = 0, o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "table import", .longopts = opts, .shortopts = "o:fh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     if (argc - optind != 1 || !out) {
@@ -87,17 +89,20 @@ static int cmd_import(int argc, char **argv)
 
 static int cmd_info(int argc, char **argv)
 {
-    if (argc != 2 || argv[1][0] == '-') {
-        if (argc == 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
-            help(stdout);
-            return 0;
-        }
+    static const struct option opts[] = {{"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    WfCliOpts cli = {.cmd = "table info", .longopts = opts, .shortopts = "h"};
+    int o;
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
+        if (o == 'h') help(stdout);
+        return o == 'h' || o == WF_CLI_DONE ? 0 : 2;
+    }
+    if (argc - optind != 1) {
         fprintf(stderr, "wavefuel table info: one TABLE.h5 argument\n");
         return 2;
     }
     WfError err = {0};
     WfTable *t = NULL;
-    if (wf_table_load_h5(argv[1], &t, &err)) return wf_cli_fail(&err);
+    if (wf_table_load_h5(argv[optind], &t, &err)) return wf_cli_fail(&err);
     describe(t);
     wf_table_destroy(&t);
     return 0;
@@ -113,13 +118,14 @@ static int cmd_sample(int argc, char **argv)
     const char *cls = NULL, *out = NULL;
     int force = 0, o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "c:o:fh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "table sample", .longopts = opts, .shortopts = "c:o:fh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c': cls = optarg; break;
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     if (argc != optind || !cls || !out) {
@@ -157,6 +163,11 @@ int wf_cmd_table(int argc, char **argv)
     if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
         help(argc < 2 ? stderr : stdout);
         return argc < 2 ? 2 : 0;
+    }
+    if (argv[1][0] == '-') { /* an option before the action: -V, or unknown as in every command */
+        static const struct option none[] = {{0, 0, 0, 0}};
+        WfCliOpts cli = {.cmd = "table", .longopts = none, .shortopts = ""};
+        return wf_cli_getopt(&cli, argc, argv, 0) == WF_CLI_DONE ? 0 : 2;
     }
     if (!strcmp(argv[1], "import")) return cmd_import(argc - 1, argv + 1);
     if (!strcmp(argv[1], "info")) return cmd_info(argc - 1, argv + 1);

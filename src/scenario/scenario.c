@@ -18,6 +18,7 @@
 #include "wavefuel/corridor.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/integrator.h"
+#include "util/numfmt.h"
 
 #define where_of wf_scenario_where
 
@@ -230,15 +231,15 @@ static int check_time(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *
     double ratio = sc->output_interval_s / sc->dt_s, nsteps = sc->duration_s / sc->dt_s;
     if (sc->dt_s > sc->output_interval_s || fabs(ratio - round(ratio)) > 1e-9 * ratio)
         return wf_err(err, WF_EINPUT,
-                      "%s: time.output_interval_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)", sc->path,
-                      sc->output_interval_s, sc->dt_s);
+                      "%s: time.output_interval_s (%s s) must be a whole multiple of time.dt_s (%s s)", sc->path,
+                      WF_NUM(sc->output_interval_s), WF_NUM(sc->dt_s));
     if (fabs(nsteps - round(nsteps)) > 1e-9 * nsteps)
-        return wf_err(err, WF_EINPUT, "%s: time.duration_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)",
-                      sc->path, sc->duration_s, sc->dt_s);
+        return wf_err(err, WF_EINPUT, "%s: time.duration_s (%s s) must be a whole multiple of time.dt_s (%s s)",
+                      sc->path, WF_NUM(sc->duration_s), WF_NUM(sc->dt_s));
     if (nsteps > 1e12) return wf_err(err, WF_EINPUT, "%s: more than 1e12 steps: reduce duration or raise dt", sc->path);
     if (sc->warmup_s >= sc->duration_s)
-        return wf_err(err, WF_EINPUT, "%s: time.warmup_s (%.17g s) must be shorter than time.duration_s (%.17g s)",
-                      sc->path, sc->warmup_s, sc->duration_s);
+        return wf_err(err, WF_EINPUT, "%s: time.warmup_s (%s s) must be shorter than time.duration_s (%s s)",
+                      sc->path, WF_NUM(sc->warmup_s), WF_NUM(sc->duration_s));
     return 0;
 }
 
@@ -389,8 +390,8 @@ static int check_statistics(WfCfgNode *root, const WfKeySpec *row, void *t, WfKe
     (void)root, (void)row, (void)env;
     WfScenario *sc = t;
     if (!(sc->v_go_mps > sc->v_stop_mps))
-        return wf_err(err, WF_EINPUT, "%s: statistics.v_go_mps (%.17g) must exceed statistics.v_stop_mps (%.17g)",
-                      sc->path, sc->v_go_mps, sc->v_stop_mps);
+        return wf_err(err, WF_EINPUT, "%s: statistics.v_go_mps (%s) must exceed statistics.v_stop_mps (%s)",
+                      sc->path, WF_NUM(sc->v_go_mps), WF_NUM(sc->v_stop_mps));
     if (isnan(sc->wave_speed_mps)) sc->wave_speed_mps = sc->v_go_mps;
     return 0;
 }

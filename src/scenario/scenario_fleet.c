@@ -12,6 +12,7 @@
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
 #include "wavefuel/tabulated.h"
+#include "util/numfmt.h"
 
 #define where_of wf_scenario_where
 
@@ -36,8 +37,8 @@ static int read_indices(WfCfgNode *map, long n_veh, long **out, size_t *n_out, W
         if (v != floor(v)) {
             char w[1024];
             free(idx);
-            return wf_err(err, WF_EINPUT, "%s: expected an integer vehicle index (got %.17g)",
-                          where_of(seq->child[k], w, sizeof w), v);
+            return wf_err(err, WF_EINPUT, "%s: expected an integer vehicle index (got %s)",
+                          where_of(seq->child[k], w, sizeof w), WF_NUM(v));
         }
         idx[k] = (long)v;
     }
@@ -79,7 +80,7 @@ static int resolve_counts(const char *what, size_t m, double *fraction, long *co
     double sum = 0.0;
     for (size_t i = 0; i < m; i++) sum += fraction[i];
     if (fabs(sum - 1.0) > 1e-9)
-        return wf_err(err, WF_EINPUT, "%s: %s fractions sum to %.12g, expected 1", where, what, sum);
+        return wf_err(err, WF_EINPUT, "%s: %s fractions sum to %s, expected 1", where, what, WF_NUM(sum));
     long assigned = 0;
     double rem[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
     for (size_t i = 0; i < m; i++) {
@@ -510,8 +511,8 @@ static int load_vehicles(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyE
     double nv;
     if (wf_cfg_double(fleet, row->key, row->min, row->max, row->unit, &nv, err)) return WF_EINPUT;
     if (nv != floor(nv))
-        return wf_err(err, WF_EINPUT, "%s: fleet.vehicles must be a whole number (got %.17g)",
-                      where_of(wf_cfg_child(fleet, "vehicles"), w, sizeof w), nv);
+        return wf_err(err, WF_EINPUT, "%s: fleet.vehicles must be a whole number (got %s)",
+                      where_of(wf_cfg_child(fleet, "vehicles"), w, sizeof w), WF_NUM(nv));
     sc->n_vehicles = (long)nv;
     return 0;
 }

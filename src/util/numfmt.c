@@ -19,10 +19,10 @@ const char *wf_num(char *out, size_t len, double x)
         if (strtod(out, NULL) == x) break;
     }
     snprintf(out, len, "%.*g", digits, x);
-    /* %g writes 100000 as 1e+05 when it has fewer digits than the exponent: whole numbers below 1e17 read
+    /* %g writes 100000 as 1e+05 when it has fewer digits than the exponent: whole numbers below 1e6 read
      * better in full, and more digits of the same value still round-trip. */
     const char *e = strchr(out, 'e');
     long exp10 = e ? strtol(e + 1, NULL, 10) : 0;
-    if (e && exp10 > 0 && exp10 < 17) snprintf(out, len, "%.*g", (int)exp10 + 1, x);
+    if (e && exp10 > 0 && exp10 < 6) snprintf(out, len, "%.*g", (int)exp10 + 1, x);
     return out;
 }
