@@ -148,7 +148,8 @@ valgrind:
 # MPI sweep driver (docs/sweeps.md): bin/wavefuel-mpi = src/mpi/*.c + src/cli/cmd_sweep.c built with -DWF_MPI by
 # mpicc in $(BUILD)/mpi, linked with the library. Optional: needs `tools/install-deps.sh mpi`; `make` never does.
 MPICC    ?= mpicc
-MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o $(BUILD)/src/cli/process.o
+MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o $(BUILD)/src/cli/process.o \
+            $(BUILD)/src/cli/options.o
 .PHONY: mpi
 mpi: bin/wavefuel-mpi
 $(BUILD)/mpi/%.o: %.c Makefile

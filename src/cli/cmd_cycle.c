@@ -381,7 +381,8 @@ int wf_cmd_cycle(int argc, char **argv)
     join_args(argc, argv, cmdline, sizeof cmdline);
     optind = 1;
     static const char *const conflicts[] = {"pP", NULL};
-    WfCliOpts cli = {.cmd = "cycle", .longopts = opts, .shortopts = "c:g:o:fh", .repeatable = "ct", .conflicts = conflicts};
+    WfCliOpts cli = {.cmd = "cycle", .longopts = opts, .shortopts = "c:g:o:fh", .repeatable = "ct",
+                     .conflicts = conflicts};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c':
@@ -446,13 +447,8 @@ int wf_cmd_cycle(int argc, char **argv)
     Entry *entries = NULL;
     size_t n_entries = 0;
     int rc = load_entries(classes, n_classes, tables, n_tables, &entries, &n_entries, &err);
-    if (rc) {
-        free_entries(entries, n_entries);
-        return wf_cli_fail(&err);
-    }
     /* The protocol's inputs are the classes (the cycles are the data directory's): the result must not replace one. */
-    rc = 0;
-    for (size_t i = 0; protocol && out_path && !rc && i < n_entries; i++)
+    for (size_t i = 0; !rc && protocol && out_path && i < n_entries; i++)
         rc = wf_output_check("-o", out_path, (const char *[]){entries[i].cls.path}, 1, &err);
     if (rc) {
         free_entries(entries, n_entries);

@@ -16,9 +16,10 @@ int wf_cmd_info(int argc, char **argv)
     int o;
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         if (o != 'h') return o == WF_CLI_DONE ? 0 : 2;
-        printf("usage: wavefuel info FILE.h5\n\nPrints what a wavefuel file holds, with units: a run's result (the run "
-               "status /meta, the summary values and the classes; also a .partial file), a sweep table or a drive-cycle "
-               "result (every single value by group). Other files are named for what they are (exit status 2).\n");
+        printf("usage: wavefuel info FILE.h5\n\nPrints what a wavefuel file holds, with units: a run's result (the "
+               "run status /meta, the summary values and the classes; also a .partial file), a sweep table or a "
+               "drive-cycle result (every single value by group). Other files are named for what they are (exit "
+               "status 2).\n");
         return 0;
     }
     if (argc - optind != 1) {

@@ -415,7 +415,8 @@ static int check_output(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv
 {
     (void)env;
     WfScenario *sc = t;
-    if (!sc->output_path[0]) snprintf(sc->output_path, sizeof sc->output_path, WF_OUTPUT_DEFAULT_DIR "/%s.h5", sc->name);
+    if (!sc->output_path[0])
+        snprintf(sc->output_path, sizeof sc->output_path, WF_OUTPUT_DEFAULT_DIR "/%s.h5", sc->name);
     if (isnan(sc->trajectory_interval_s)) sc->trajectory_interval_s = sc->output_interval_s;
     double r2 = sc->trajectory_interval_s / sc->dt_s;
     if (wf_cfg_child(root, row->key) && fabs(r2 - round(r2)) > 1e-9 * r2)

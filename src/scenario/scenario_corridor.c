@@ -331,7 +331,8 @@ static int whole_steps(const WfScenario *sc, WfCfgNode *map, const char *key, do
     char w[1024];
     if (fabs(r - round(r)) > 1e-9 * r || round(r) < 1)
         return wf_err(err, WF_EINPUT, "%s: %s (%s s) must be a whole multiple of time.dt_s (%s s)",
-                      where_of(wf_cfg_child(map, key) ? wf_cfg_child(map, key) : map, w, sizeof w), key, WF_NUM(v), WF_NUM(sc->dt_s));
+                      where_of(wf_cfg_child(map, key) ? wf_cfg_child(map, key) : map, w, sizeof w), key, WF_NUM(v),
+                      WF_NUM(sc->dt_s));
     return 0;
 }
 

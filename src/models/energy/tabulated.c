@@ -281,7 +281,8 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
                         "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s "
                         "(the distinct values make %zu speeds x %zu accelerations x %zu grades = %zu points, the "
                         "file has %zu rows: rows are missing, or the points do not lie on one grid)",
-                        path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n, csv.n_rows);
+                        path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n,
+                        csv.n_rows);
             goto fail;
         }
     derive_a_max(t);
