@@ -274,3 +274,10 @@ refuse arkode_unknown_table "solver.method: unknown ARKODE explicit table 'ARKOD
   "$BIN" run s.yaml -q -o ark.h5 --set time.integrator=arkode --set solver.method=ARKODE_NO_SUCH
 msg=$("$BIN" run s.yaml -q -o ark.h5 --set time.integrator=arkode --set solver.method=ARKODE_NO_SUCH 2>&1)
 if ! echo "$msg" | grep -q 'ARKODE ERROR'; then ok arkode_prints_nothing_itself; else ko arkode_prints_nothing_itself "$msg"; fi
+
+# ---------------------------------------------------------------- fit -o: not over its table or its --like class
+"$BIN" table sample --class midsize_sedan -o fit_in.csv >/dev/null
+refuse fit_output_is_table "-o fit_in.csv: is the input fit_in.csv" -- "$BIN" fit fit_in.csv --like midsize_sedan -o fit_in.csv --force
+refuse fit_output_is_like_class "-o cls/my_sedan.yaml: is the input" -- \
+  "$BIN" fit fit_in.csv --like cls/my_sedan.yaml -o cls/my_sedan.yaml --force
+refuse fit_output_is_directory "-o outdir: is a directory" -- "$BIN" fit fit_in.csv --like midsize_sedan -o outdir

@@ -8,6 +8,7 @@
 
 #include "cli/commands.h"
 #include "cli/options.h"
+#include "util/outpath.h"
 #include "util/path.h"
 #include "wavefuel/fit.h"
 
@@ -219,6 +220,11 @@ int wf_cmd_fit(int argc, char **argv)
     if (a.like) {
         if (wf_vehicle_find(a.like, &base, &err)) return wf_cli_fail(&err);
         have_base = 1;
+    }
+    /* The class written must not replace the table or the --like class (src/util/outpath.c). */
+    if (a.out && wf_output_check("-o", a.out, (const char *[]){table_path, have_base ? base.path : NULL}, 2, &err)) {
+        if (have_base) wf_vehicle_free(&base);
+        return wf_cli_fail(&err);
     }
     /* Check the metadata before the fit, so a missing option does not cost a fit. */
     if (a.out && !have_base && (isnan(a.mass) || isnan(a.length))) {
