@@ -324,6 +324,8 @@ static int check_sweep(const WfSweep *sw, const Options *o, WfError *err)
 {
     WfScenario *first = NULL;
     int rc = wf_sweep_check_keys(sw, &first, err);
+    WfError ignored = {0}; /* no run loads: the base scenario alone still names the files it reads, when it loads */
+    if (!rc && !first) wf_scenario_load_text(sw->scenario_path, sw->scenario_text, NULL, 0, &first, &ignored);
     if (!rc && !o->list) {
         size_t n = first ? first->n_inputs : 0;
         const char **inputs = calloc(n + 2, sizeof *inputs);

@@ -484,8 +484,8 @@ static int check_ring_fits(const WfScenario *sc, WfError *err)
     for (size_t c = 0; c < sc->n_classes; c++) total_len += (double)sc->classes[c].count * sc->classes[c].length_m;
     if (total_len >= sc->road.length_m)
         return wf_err(err, WF_EINPUT,
-                      "%s: %ld vehicles of total length %.6g m cannot fit on a ring of road.length_m = %.6g m", sc->path,
-                      sc->n_vehicles, total_len, sc->road.length_m);
+                      "%s: %ld vehicles of total length %.6g m cannot fit on a ring of road.length_m = %s m", sc->path,
+                      sc->n_vehicles, total_len, WF_NUM(sc->road.length_m));
     return 0;
 }
 

@@ -10,6 +10,7 @@
 
 #include "util/clock.h"
 #include "util/hash.h"
+#include "util/numfmt.h"
 #include "util/outpath.h"
 #include "util/path.h"
 #include "wavefuel/config.h"
@@ -181,8 +182,8 @@ static int range_values(WfCfgNode *range, const char ***out, size_t *n_out, stru
         return WF_EINPUT;
     double span = (stop - start) / step;
     if (step == 0.0 || !(span >= -1e-9))
-        return wf_err(err, WF_EINPUT, "%s: step %g cannot go from start %g to stop %g", where(range, w, sizeof w),
-                      step, start, stop);
+        return wf_err(err, WF_EINPUT, "%s: step %s cannot go from start %s to stop %s", where(range, w, sizeof w),
+                      WF_NUM(step), WF_NUM(start), WF_NUM(stop));
     /* The 1e-9 keeps a stop that the steps reach up to rounding ((0.3 - 0) / 0.1 = 2.9999999999999996). */
     double count = floor(span + 1e-9) + 1.0;
     if (count > 100000)
