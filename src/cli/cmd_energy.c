@@ -83,6 +83,7 @@ int wf_cmd_energy(int argc, char **argv)
     static const WfRange *const ranges[] = {&wf_point_range[WF_POINT_SPEED], &wf_point_range[WF_POINT_ACCEL],
                                             &wf_point_range[WF_POINT_GRADE]};
     if (wf_csv_read(in, 3, columns, &csv, &err) || wf_csv_check_ranges(&csv, in, columns, ranges, &err)) {
+        wf_csv_free(&csv); /* zeroed by a failed read: freeing it again is safe */
         wf_vehicle_free(&vc);
         return wf_cli_fail(&err);
     }

@@ -355,7 +355,7 @@ int wf_cmd_sweep(int argc, char **argv)
     WfError err = {0};
     WfSweep *sw = NULL;
     int rc = rank == 0 ? wf_sweep_load(o.sweep, &sw, &err) : 0;
-    if (!rc && rank == 0) rc = check_sweep(sw, &o, &err);
+    if (!rc && rank == 0 && (rc = check_sweep(sw, &o, &err))) wf_sweep_destroy(&sw);
 #ifdef WF_MPI
     rc = wf_mpi_share_sweep(rc, o.sweep, &sw, &err);
     if (rc) return rank == 0 ? wf_cli_fail(&err) : rc;
