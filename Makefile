@@ -148,7 +148,8 @@ valgrind:
 # MPI sweep driver (docs/sweeps.md): bin/wavefuel-mpi = src/mpi/*.c + src/cli/cmd_sweep.c built with -DWF_MPI by
 # mpicc in $(BUILD)/mpi, linked with the library. Optional: needs `tools/install-deps.sh mpi`; `make` never does.
 MPICC    ?= mpicc
-MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o $(BUILD)/src/cli/process.o
+MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o $(BUILD)/src/cli/process.o \
+            $(BUILD)/src/cli/options.o
 .PHONY: mpi
 mpi: bin/wavefuel-mpi
 $(BUILD)/mpi/%.o: %.c Makefile
@@ -158,6 +159,33 @@ bin/wavefuel-mpi: $(MPI_OBJ) $(LIBA)
 	@mkdir -p $(dir $@)
 	$(MPICC) $(LDFLAGS) $(MPI_OBJ) $(LIBA) $(LDLIBS) -o $@
 -include $(MPI_OBJ:.o=.d)
+
+# `make install PREFIX=DIR` (docs/install.md): the program, the library and its headers, a pkg-config file, the
+# vehicle classes, the example scenarios and, when DATA names a directory with cycles/, the drive cycles (they are
+# not part of the repository). An installed PREFIX/bin/wavefuel finds PREFIX/share/wavefuel/vehicles and .../data
+# itself (src/cli/process.c), from any working directory. DESTDIR is prepended for staged installs.
+PREFIX   ?= /usr/local
+DATA     ?= ../shared/data
+WF_VERSION := $(shell sed -n 's/^\#define WF_VERSION "\(.*\)"/\1/p' include/wavefuel/version.h)
+SHARE    := $(DESTDIR)$(PREFIX)/share/wavefuel
+.PHONY: install
+install: $(BIN) $(LIBA)
+	install -d $(DESTDIR)$(PREFIX)/bin $(DESTDIR)$(PREFIX)/lib/pkgconfig $(DESTDIR)$(PREFIX)/include/wavefuel \
+	    $(SHARE)/vehicles $(SHARE)/scenarios/data
+	install -m 755 $(BIN) $(DESTDIR)$(PREFIX)/bin/wavefuel
+	install -m 644 $(LIBA) $(DESTDIR)$(PREFIX)/lib/libwavefuel.a
+	install -m 644 include/wavefuel/*.h $(DESTDIR)$(PREFIX)/include/wavefuel/
+	install -m 644 vehicles/*.yaml $(SHARE)/vehicles/
+	install -m 644 scenarios/*.yaml $(SHARE)/scenarios/
+	install -m 644 scenarios/data/* $(SHARE)/scenarios/data/
+	@if [ -d "$(DATA)/cycles" ]; then install -d $(SHARE)/data/cycles && \
+	    install -m 644 $(DATA)/cycles/* $(SHARE)/data/cycles/ && echo "installed the drive cycles of $(DATA)"; \
+	else echo "no $(DATA)/cycles: drive cycles not installed (give DATA=DIR, or \$$WAVEFUEL_DATA at run time)"; fi
+	printf '%s\n' 'prefix=$(PREFIX)' 'libdir=$${prefix}/lib' 'includedir=$${prefix}/include' '' \
+	    'Name: wavefuel' 'Description: CIRCLES vehicle energy models and traffic energy simulation' \
+	    'Version: $(WF_VERSION)' 'Cflags: -I$${includedir}' \
+	    'Libs: -L$${libdir} -lwavefuel $(filter -fopenmp,$(LDFLAGS)) $(LDLIBS)' \
+	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wavefuel.pc
 
 clean:
 	rm -rf $(BUILD) build-san build-fuzz build-tsan bin lib

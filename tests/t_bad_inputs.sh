@@ -234,7 +234,7 @@ run_bad dt_above_output_interval "output_interval_s (1 s) must be a whole multip
 v dt_zero 's/dt_s: 0.1/dt_s: 0/'
 run_bad dt_zero "dt_zero.yaml:7: time.dt_s: expected a number in [1e-06, 10] s (got '0')" dt_zero.yaml
 v duration_not_multiple 's/duration_s: 2/duration_s: 2.05/'
-run_bad duration_not_multiple "time.duration_s (2.0499999999999998 s) must be a whole multiple of time.dt_s" duration_not_multiple.yaml
+run_bad duration_not_multiple "time.duration_s (2.05 s) must be a whole multiple of time.dt_s (0.1 s)" duration_not_multiple.yaml
 printf 'statistics: {v_stop_mps: 3, v_go_mps: 2}\n' | cat base.yaml - > go_below_stop.yaml
 run_bad v_go_below_v_stop "statistics.v_go_mps (2) must exceed statistics.v_stop_mps (3)" go_below_stop.yaml
 printf 'initial:\n  perturbation: {vehicle: 22}\n' | cat base.yaml - > pert_range.yaml

@@ -56,18 +56,21 @@ assert len(set(f['metrics/fuel'][()]))==8" "$tmp/t1.h5" "$tmp/t2.h5"; then
   ok table_same_on_1_and_2_threads
 else ko table_same_on_1_and_2_threads "rc $rc1 $rc2"; fi
 
-# Each row against the single run of its printed command (bitwise), and the printed commands against /runs/command.
+# Each row against the single run of its printed command, run as printed (bitwise), and the printed commands against
+# /runs/command: the same but for the first word, the program as invoked here versus the installed name `wavefuel`.
 $BIN sweep "$tmp/s1.yaml" --list >"$tmp/cmds.txt"
 i=0; run_ok=1
 while IFS= read -r cmd; do
-  eval "$BIN ${cmd#wavefuel }" -o "$tmp/r$i.h5" -q || run_ok=0
+  eval "$cmd" -o "$tmp/r$i.h5" -q || run_ok=0
   i=$((i + 1))
 done <"$tmp/cmds.txt"
 if [ $run_ok -eq 1 ] && [ $i -eq 8 ] && $PY - "$tmp/t1.h5" "$tmp/cmds.txt" "$tmp" <<'PY'
 import sys, h5py, numpy as np
 t = h5py.File(sys.argv[1], "r")
 cmds = open(sys.argv[2]).read().splitlines()
-assert [c.decode() for c in t["runs/command"][()]] == cmds, "--list differs from /runs/command"
+table = [c.decode() for c in t["runs/command"][()]]
+assert all(c.split(" ", 1)[0] == "wavefuel" for c in table), table[0]
+assert [c.split(" ", 1)[1] for c in table] == [c.split(" ", 1)[1] for c in cmds], "--list differs from /runs/command"
 for i in range(len(cmds)):
     r = h5py.File(f"{sys.argv[3]}/r{i}.h5", "r")
     assert r["meta/overrides"][()] == t["runs/overrides"][i], i
@@ -117,7 +120,7 @@ fi
 # A failing run (0 vehicles: out of range) is recorded with its error; the others complete; exit status 1.
 sweep "$tmp/s2.yaml" "[22, 0]" 2
 $BIN sweep "$tmp/s2.yaml" -o "$tmp/f.h5" --threads 2 2>"$tmp/f.err" >/dev/null; rc=$?
-if [ $rc -eq 1 ] && grep -q "run 2 failed: .*fleet.vehicles" "$tmp/f.err" && grep -q "reproduce: wavefuel run" "$tmp/f.err" &&
+if [ $rc -eq 1 ] && grep -q "run 2 failed: .*fleet.vehicles" "$tmp/f.err" && grep -q "reproduce: $(dirname "$BIN")/wavefuel run" "$tmp/f.err" &&
    $PY - "$tmp/f.h5" <<'PY'
 import sys, h5py, numpy as np
 t = h5py.File(sys.argv[1], "r")

@@ -13,6 +13,7 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/keys.h"
 #include "wavefuel/scenario.h"
+#include "util/numfmt.h"
 
 static const char ring_yaml[] = "road: {length_m: 1000}\n"
                                 "time: {duration_s: 10}\n"
@@ -61,8 +62,9 @@ static double bound_value(WfKeyBound b, double fixed, int corridor)
 static void expected_text(const WfKeySpec *r, int corridor, char *buf, size_t len)
 {
     if (r->type == WF_KEY_NUMBER) {
-        snprintf(buf, len, "a number in [%.10g, %.10g] %s", bound_value(r->min_is, r->min, corridor),
-                 bound_value(r->max_is, r->max, corridor), r->unit);
+        /* Bounds in the shortest form that reads back as the bound (src/util/numfmt.c, tests/t_numfmt.sh). */
+        snprintf(buf, len, "a number in [%s, %s] %s", WF_NUM(bound_value(r->min_is, r->min, corridor)),
+                 WF_NUM(bound_value(r->max_is, r->max, corridor)), r->unit);
     } else if (r->type == WF_KEY_INTEGER) {
         long lo = r->min_is ? (long)bound_value(r->min_is, 0, corridor) : r->imin;
         long hi = r->max_is ? (long)bound_value(r->max_is, 0, corridor) : r->imax;

@@ -187,7 +187,7 @@ static void test_command_quoting(void)
     CHECK(sw != NULL, "%s", err.msg);
     if (!sw) return;
     char cmd[512];
-    CHECK(wf_sweep_command(sw, 0, cmd, sizeof cmd) == 0, "fits");
+    CHECK(wf_sweep_command(sw, 0, NULL, cmd, sizeof cmd) == 0, "fits");
     CHECK(!strcmp(cmd, "wavefuel run 't/my base.yaml' --set 'fleet.drivers[0].name=it'\\''s'"), "got: %s", cmd);
     /* Unquote it independently and compare the words. */
     const char *want[] = {"wavefuel", "run", "t/my base.yaml", "--set", "fleet.drivers[0].name=it's"};
@@ -213,7 +213,7 @@ static void test_command_quoting(void)
         }
     }
     CHECK(nw == 5, "%zu words", nw);
-    CHECK(wf_sweep_command(sw, 0, cmd, 20) == WF_EINPUT, "too small a buffer is reported");
+    CHECK(wf_sweep_command(sw, 0, NULL, cmd, 20) == WF_EINPUT, "too small a buffer is reported");
     wf_sweep_destroy(&sw);
 }
 

@@ -5,6 +5,7 @@
 #define WAVEFUEL_CSV_H
 
 #include <stddef.h>
+#include "wavefuel/domain.h"
 #include "wavefuel/err.h"
 
 typedef struct WfCsv {
@@ -20,5 +21,10 @@ typedef struct WfCsv {
  * wf_csv_free() (the struct itself is the caller's); on failure nothing is left to free. */
 int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv *out, WfError *err);
 void wf_csv_free(WfCsv *csv);
+
+/* Each column c with ranges[c] not NULL: every value within it (domain.h), else WF_EINPUT naming file, line,
+ * field number and name (names[c], may be NULL) and the value. `path` as given to wf_csv_read. */
+int wf_csv_check_ranges(const WfCsv *csv, const char *path, const char *const *names, const WfRange *const *ranges,
+                        WfError *err);
 
 #endif

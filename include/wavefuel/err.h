@@ -29,8 +29,9 @@ int wf_err_prefix(WfError *err, const char *fmt, ...)
 #endif
     ;
 
-/* Strict number parsing: the whole string must be a finite number (leading/trailing blanks allowed).
- * Returns 0 and stores the value, or -1 for empty text, trailing garbage, overflow, NaN or Inf. */
+/* Strict number parsing, the one number reader of every input (YAML, CSV fields, options): the whole string
+ * must be a finite number in decimal notation (123, -0.5, 1e-3, .5; leading/trailing blanks allowed). Returns
+ * 0 and stores the value, or -1 for empty text, trailing garbage, overflow, NaN, Inf or hexadecimal ("0x10"). */
 int wf_parse_double(const char *s, double *out);
 /* Same for integers in [min, max]. */
 int wf_parse_long(const char *s, long min, long max, long *out);

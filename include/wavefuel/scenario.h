@@ -81,6 +81,10 @@ typedef struct WfScenario {
     double  trajectory_interval_s;
     /* road.type corridor: the corridor-only keys (include/wavefuel/corridor.h); owned. NULL for a ring. */
     struct WfCorridorSpec *corridor;
+    /* Every file the scenario was read from, as opened: the scenario, class files and their tables, profile CSVs,
+     * controller plug-ins. A run refuses to write its result over any of them. Owned (the array and strings). */
+    char  **inputs;
+    size_t  n_inputs;
 } WfScenario;
 
 /* Load, apply `n_set` overrides ("key.path=value"), validate. On error nothing is allocated. Ownership: *out is

@@ -61,9 +61,19 @@ void wf_sweep_destroy(WfSweep **sw);
 /* The run's overrides, one per line (the format of a result file's /meta/overrides); *out is malloc'ed. Identifies
  * the run when a sweep is resumed. */
 int  wf_sweep_overrides(const WfSweep *sw, size_t run, char **out, WfError *err);
-/* `wavefuel run SCENARIO --set k=v ...` for the run, each argument quoted for a POSIX shell where needed. Returns 0,
+/* `PROGRAM run SCENARIO --set k=v ...` for the run, each argument quoted for a POSIX shell where needed. program:
+ * how to run wavefuel ("./bin/wavefuel" for the lines printed to the user); NULL gives "wavefuel", the installed
+ * name, which the result table's /runs/command holds (it must not depend on how the sweep was invoked). Returns 0,
  * or WF_EINPUT if it does not fit in len bytes. */
-int  wf_sweep_command(const WfSweep *sw, size_t run, char *buf, size_t len);
+int  wf_sweep_command(const WfSweep *sw, size_t run, const char *program, char *buf, size_t len);
+
+/* Before the first run: every key that a run sets must be a key of the base scenario's schema. For each distinct
+ * list of keys, the base scenario is loaded with the overrides of the runs that set them, in order, until one load
+ * succeeds (keys checked) or fails on an unknown key (WF_EINPUT naming the sweep file, the run and the key); a run
+ * whose values are bad is left to fail alone when it runs. *first (first may be NULL): the first scenario that
+ * loaded, for its list of inputs; the caller's to destroy; NULL when none loaded or on error. */
+struct WfScenario;
+int  wf_sweep_check_keys(const WfSweep *sw, struct WfScenario **first, WfError *err);
 
 /* ---- One run ---- */
 typedef enum { WF_RUN_PENDING = 0, WF_RUN_OK = 1, WF_RUN_FAILED = 2 } WfRunStatus;

@@ -14,6 +14,8 @@
 #include <unistd.h>
 
 #include "wavefuel/csv.h"
+#include "wavefuel/domain.h"
+#include "util/numfmt.h"
 
 void wf_cycle_free(WfCycle *c)
 {
@@ -35,13 +37,16 @@ static int derive(WfCycle *c, const char *shown, const int *lines, WfError *err)
         int line = lines ? lines[i] : (int)i + 1;
         if (!isfinite(c->t_s[i]) || !isfinite(c->v_mps[i]))
             return wf_err(err, WF_EINPUT, "%s:%d: time and speed must be finite", shown, line);
-        /* 150 m/s is far above any road vehicle; the bound also keeps distances and accelerations finite. */
-        if (c->v_mps[i] < 0 || c->v_mps[i] > 150.0)
-            return wf_err(err, WF_EINPUT, "%s:%d: field 2 (speed_mps) must be in [0, 150] m/s (got %.17g)", shown, line,
-                          c->v_mps[i]);
+        /* The speeds `wavefuel energy` accepts too (domain.h); the bound keeps distances and accelerations finite. */
+        const WfRange *speed = &wf_point_range[WF_POINT_SPEED];
+        if (!(c->v_mps[i] >= speed->min && c->v_mps[i] <= speed->max)) {
+            char where[1200];
+            snprintf(where, sizeof where, "%s:%d: field 2 (speed_mps)", shown, line);
+            return wf_range_check(speed, c->v_mps[i], where, err);
+        }
         if (i > 0 && !(c->t_s[i] > c->t_s[i - 1]))
-            return wf_err(err, WF_EINPUT, "%s:%d: field 1 (time_s) must increase strictly (%.17g after %.17g)", shown,
-                          line, c->t_s[i], c->t_s[i - 1]);
+            return wf_err(err, WF_EINPUT, "%s:%d: field 1 (time_s) must increase strictly (%s after %s)", shown,
+                          line, WF_NUM(c->t_s[i]), WF_NUM(c->t_s[i - 1]));
     }
     for (size_t i = 0; i + 1 < n; i++) {
         c->dt_s[i] = c->t_s[i + 1] - c->t_s[i];

@@ -8,7 +8,11 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
+#include "util/numfmt.h"
+#include "util/outpath.h"
 #include "wavefuel/cycle.h"
+#include "wavefuel/domain.h"
 #include "wavefuel/tabulated.h"
 
 enum { MAX_TABLES = 64, MAX_GRADES = 16 };
@@ -144,9 +148,10 @@ static int run_single(Entry *e, const char *cycle_arg, const char *data_dir, dou
     char path[4096];
     WfCycle c;
     WfCycleSamples smp;
+    const char *inputs[] = {path, e->cls.path};
     if (wf_cycle_resolve(cycle_arg, data_dir, path, sizeof path, &err) || wf_cycle_load(path, &c, &err))
         return wf_cli_fail(&err);
-    if (wf_cycle_samples(&c, scheme, &smp, &err)) {
+    if ((out_path && wf_output_check("-o", out_path, inputs, 2, &err)) || wf_cycle_samples(&c, scheme, &smp, &err)) {
         wf_cycle_free(&c);
         return wf_cli_fail(&err);
     }
@@ -451,7 +456,10 @@ int wf_cmd_cycle(int argc, char **argv)
     char cmdline[4096];
     join_args(argc, argv, cmdline, sizeof cmdline);
     optind = 1;
-    while ((o = getopt_long(argc, argv, "c:g:o:fh", opts, NULL)) != -1) {
+    static const char *const conflicts[] = {"pP", NULL};
+    WfCliOpts cli = {.cmd = "cycle", .longopts = opts, .shortopts = "c:g:o:fh", .repeatable = "ct",
+                     .conflicts = conflicts};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c':
             if (n_classes == sizeof classes / sizeof classes[0]) {
@@ -479,7 +487,7 @@ int wf_cmd_cycle(int argc, char **argv)
             break;
         }
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     double theta = 0.0;
@@ -488,9 +496,10 @@ int wf_cmd_cycle(int argc, char **argv)
             fprintf(stderr, "wavefuel cycle: --grade does not apply to --protocol (it runs the paper's grades)\n");
             return 2;
         }
-        if (wf_parse_double(grade_arg, &theta) || fabs(theta) > 0.5) {
-            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [-0.5, 0.5] rad (got '%s')\n",
-                    grade_arg);
+        const WfRange *g = &wf_point_range[WF_POINT_GRADE]; /* the grades `wavefuel energy` accepts too */
+        if (wf_parse_double(grade_arg, &theta) || !(theta >= g->min && theta <= g->max)) {
+            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [%s, %s] %s (got '%s')\n",
+                    WF_NUM(g->min), WF_NUM(g->max), g->unit, grade_arg);
             return 2;
         }
         if (theta == 0.0) theta = 0.0; /* -0 and 0 are the same grade: one group name in HDF5 */
@@ -518,6 +527,9 @@ int wf_cmd_cycle(int argc, char **argv)
     Entry *entries = NULL;
     size_t n_entries = 0;
     int rc = load_entries(classes, n_classes, tables, n_tables, &entries, &n_entries, &err);
+    /* The protocol's inputs are the classes (the cycles are the data directory's): the result must not replace one. */
+    for (size_t i = 0; !rc && protocol && out_path && i < n_entries; i++)
+        rc = wf_output_check("-o", out_path, (const char *[]){entries[i].cls.path}, 1, &err);
     if (rc) {
         free_entries(entries, n_entries);
         return wf_cli_fail(&err);

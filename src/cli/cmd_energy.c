@@ -6,8 +6,13 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "wavefuel/csv.h"
+#include "wavefuel/domain.h"
 #include "wavefuel/vehicle.h"
+
+/* The input columns, in WfPointVar order (domain.h). */
+static const char *const columns[WF_N_POINT_VARS] = {"v", "a", "theta"};
 
 static void help(FILE *out)
 {
@@ -17,9 +22,14 @@ static void help(FILE *out)
             "Reads CSV rows v,a,theta (speed m/s, acceleration m/s^2, road grade rad; header optional, blank\n"
             "lines and '#' comments skipped) from FILE or standard input, and writes CSV\n"
             "v,a,theta,fuel_gps,power_kw,flag with 17 significant digits. flag: 0 feasible, 1 acceleration\n"
-            "above a_max(v, theta), 2 negative speed. --project clips a to a_max before evaluating.\n"
+            "above a_max(v, theta). --project clips a to a_max before evaluating.\n"
             "Classes are found in $WAVEFUEL_VEHICLES (colon-separated), then in PREFIX/vehicles for this program\n"
             "PREFIX/bin/wavefuel (the repository's vehicles/).\n");
+    /* The accepted ranges come from the table that `wavefuel cycle` checks too. */
+    fprintf(out, "Numbers are decimal;");
+    for (int k = 0; k < WF_N_POINT_VARS; k++)
+        fprintf(out, " %s in [%g, %g] %s%s", columns[k], wf_point_range[k].min, wf_point_range[k].max,
+                wf_point_range[k].unit, k + 1 < WF_N_POINT_VARS ? "," : ".\n");
 }
 
 static int list_classes(void)
@@ -49,13 +59,14 @@ int wf_cmd_energy(int argc, char **argv)
     const char *cls = NULL;
     int project = 0, list = 0, o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "c:plh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "energy", .longopts = opts, .shortopts = "c:plh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c': cls = optarg; break;
         case 'p': project = 1; break;
         case 'l': list = 1; break;
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     if (list) return list_classes();
@@ -71,9 +82,12 @@ int wf_cmd_energy(int argc, char **argv)
     WfError err = {0};
     WfVehicleClass vc;
     if (wf_vehicle_find(cls, &vc, &err)) return wf_cli_fail(&err);
-    static const char *const names[] = {"v", "a", "theta"};
     WfCsv csv;
-    if (wf_csv_read(in, 3, names, &csv, &err)) {
+    /* The columns are the model's point variables in WfPointVar order: v, a, theta. */
+    static const WfRange *const ranges[] = {&wf_point_range[WF_POINT_SPEED], &wf_point_range[WF_POINT_ACCEL],
+                                            &wf_point_range[WF_POINT_GRADE]};
+    if (wf_csv_read(in, 3, columns, &csv, &err) || wf_csv_check_ranges(&csv, in, columns, ranges, &err)) {
+        wf_csv_free(&csv); /* zeroed by a failed read: freeing it again is safe */
         wf_vehicle_free(&vc);
         return wf_cli_fail(&err);
     }

@@ -7,6 +7,8 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
+#include "util/outpath.h"
 #include "util/path.h"
 #include "wavefuel/fit.h"
 
@@ -123,7 +125,8 @@ static int parse_args(int argc, char **argv, FitArgs *a)
                    .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
     int o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "fit", .longopts = opts, .shortopts = "o:fh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'd':
             if (!strcmp(optarg, "auto")) a->opt.duty = WF_FIT_DUTY_AUTO;
@@ -164,7 +167,7 @@ static int parse_args(int argc, char **argv, FitArgs *a)
             if (parse_num("--kw-per-gps", optarg, &a->kw)) return 2;
             break;
         case 'h': help(stdout); return -1;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? -1 : 2;
         }
     }
     if (argc - optind != 1) {
@@ -231,6 +234,11 @@ int wf_cmd_fit(int argc, char **argv)
     if (a.like) {
         if (wf_vehicle_find(a.like, &base, &err)) return wf_cli_fail(&err);
         have_base = 1;
+    }
+    /* The class written must not replace the table or the --like class (src/util/outpath.c). */
+    if (a.out && wf_output_check("-o", a.out, (const char *[]){table_path, have_base ? base.path : NULL}, 2, &err)) {
+        if (have_base) wf_vehicle_free(&base);
+        return wf_cli_fail(&err);
     }
     /* Check the metadata before the fit, so a missing option does not cost a fit. */
     if (a.out && !have_base && (isnan(a.mass) || isnan(a.length))) {

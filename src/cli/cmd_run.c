@@ -10,6 +10,7 @@
 #endif
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "util/clock.h"
 #include "wavefuel/checkpoint.h"
 #include "wavefuel/corridor.h"
@@ -37,7 +38,8 @@ static void help(FILE *out)
             "  --resume FILE.h5    continue an interrupted run from FILE.h5.ckpt and FILE.h5.partial (the scenario\n"
             "                      comes from the checkpoint); with the fixed-step integrators the result is\n"
             "                      bit-identical to an uninterrupted run. A damaged checkpoint, or one of another\n"
-            "                      run, is refused with exit status 2\n");
+            "                      run, is refused with exit status 2. FILE.h5.partial or FILE.h5.ckpt name\n"
+            "                      the same run\n");
 }
 
 /* The run's first line: what was simulated and how fast; a corridor adds its vehicle counts. */
@@ -97,7 +99,8 @@ static int parse_args(int argc, char **argv, RunArgs *a)
     memset(a, 0, sizeof *a);
     if (!(a->sets = calloc((size_t)argc + 1, sizeof *a->sets))) return 1;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "run", .longopts = opts, .shortopts = "o:qh", .repeatable = "s"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'o': a->outpath = optarg; break;
         case 's': a->sets[a->n_set++] = optarg; break;
@@ -118,7 +121,7 @@ static int parse_args(int argc, char **argv, RunArgs *a)
         case 'r': a->resume = optarg; break;
         case 'q': a->quiet = 1; break;
         case 'h': help(stdout); return -1;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? -1 : 2;
         }
     }
     if (a->resume ? (argc != optind || a->n_set || a->outpath || a->force) : argc - optind != 1) {
@@ -139,6 +142,16 @@ static int load_scenario(RunArgs *a, WfScenario **sc, WfError *err)
     if (a->resume) {
         WfCheckpointInfo ck;
         rc = wf_checkpoint_read_info(a->resume, &ck, err);
+        /* One slot per line of the checkpoint's overrides: a->sets was sized for the command line, which a resumed
+         * run's overrides may outnumber (a heap overflow before). */
+        size_t lines = 1;
+        for (const char *p = rc ? "" : ck.overrides; *p; p++) lines += *p == '\n';
+        const char **sets = rc ? NULL : realloc(a->sets, (lines + 1) * sizeof *sets);
+        if (!rc && !sets) {
+            rc = wf_err(err, WF_ESYS, "out of memory");
+            wf_checkpoint_info_free(&ck);
+        }
+        if (sets) a->sets = sets;
         if (!rc) {
             size_t n = 0;
             for (char *line = strtok(ck.overrides, "\n"); line; line = strtok(NULL, "\n")) a->sets[n++] = line;
@@ -165,11 +178,18 @@ int wf_cmd_run(int argc, char **argv)
 #ifdef _OPENMP
     if (a.threads) omp_set_num_threads((int)a.threads);
 #endif
+    char resume_path[1100];
+    if (a.resume && wf_cli_resume_target(a.resume, resume_path, sizeof resume_path, &err)) {
+        free(a.sets);
+        return wf_cli_fail(&err);
+    }
+    if (a.resume) a.resume = resume_path;
     WfScenario *sc = NULL;
     WfSim *sim = NULL;
     WfH5Out *h5 = NULL;
     WfOutput ops;
     int rc = load_scenario(&a, &sc, &err);
+    if (!rc && !a.resume) rc = wf_cli_run_output(sc, a.outpath, &err);
     free(a.sets);
     const char *resume = a.resume;
     double ckpt_s = a.ckpt_s;

@@ -14,8 +14,11 @@
 #endif
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "util/clock.h"
+#include "util/outpath.h"
 #include "util/progress.h"
+#include "wavefuel/scenario.h"
 #include "wavefuel/sweep.h"
 #ifdef WF_MPI
 #include "mpi/sweep_mpi.h"
@@ -61,7 +64,7 @@ static void on_finished(void *ctx, size_t k, const WfSweepResult *r, const WfSwe
         char cmd[8192];
         if (p->tty && !p->quiet) fprintf(stderr, "\n");
         fprintf(stderr, "wavefuel sweep: run %zu failed: %s\n", k, r->error);
-        if (!wf_sweep_command(p->sw, k, cmd, sizeof cmd)) fprintf(stderr, "  reproduce: %s\n", cmd);
+        if (!wf_sweep_command(p->sw, k, wf_cli_program(), cmd, sizeof cmd)) fprintf(stderr, "  reproduce: %s\n", cmd);
     } else if (!p->tty && !p->quiet) {
         /* Not a terminal (a log): one line per run. */
         fprintf(stderr, "[%zu/%zu] run %zu %s (%.2f s)\n", c->n_reported, c->n_todo, k,
@@ -121,8 +124,8 @@ static int parse_args(int argc, char **argv, Options *o, int rank)
     int c;
     memset(o, 0, sizeof *o);
     optind = 1;
-    opterr = rank == 0;
-    while ((c = getopt_long(argc, argv, "o:qh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "sweep", .longopts = opts, .shortopts = "o:qh"};
+    while ((c = wf_cli_getopt(&cli, argc, argv, rank != 0)) != -1) {
         switch (c) {
         case 'o': o->out = optarg; break;
         case 't':
@@ -139,9 +142,7 @@ static int parse_args(int argc, char **argv, Options *o, int rank)
         case 'h':
             if (msg) help(stdout, strcmp(argv[0], "sweep") ? argv[0] : "wavefuel sweep");
             return -1;
-        default:
-            if (msg) help(stderr, strcmp(argv[0], "sweep") ? argv[0] : "wavefuel sweep");
-            return 2;
+        default: return c == WF_CLI_DONE ? -1 : 2;
         }
     }
     if (argc - optind != 1) {
@@ -181,7 +182,7 @@ static void list_commands(const WfSweep *sw)
     size_t len = 1 << 16;
     char *cmd = malloc(len);
     for (size_t i = 0; cmd && i < sw->n_runs; i++)
-        printf("%s\n", wf_sweep_command(sw, i, cmd, len) ? "# (command too long)" : cmd);
+        printf("%s\n", wf_sweep_command(sw, i, wf_cli_program(), cmd, len) ? "# (command too long)" : cmd);
     free(cmd);
 }
 
@@ -317,6 +318,31 @@ static int sweep_mpi(WfSweep **sw, const Options *o)
 }
 #endif
 
+/* Before anything runs: the override keys exist, and the table is neither a directory nor one of the inputs (the
+ * sweep file, the base scenario and the files it reads). */
+static int check_sweep(const WfSweep *sw, const Options *o, WfError *err)
+{
+    WfScenario *first = NULL;
+    int rc = wf_sweep_check_keys(sw, &first, err);
+    WfError ignored = {0}; /* no run loads: the base scenario alone still names the files it reads, when it loads */
+    if (!rc && !first) wf_scenario_load_text(sw->scenario_path, sw->scenario_text, NULL, 0, &first, &ignored);
+    if (!rc && !o->list) {
+        size_t n = first ? first->n_inputs : 0;
+        const char **inputs = calloc(n + 2, sizeof *inputs);
+        if (!inputs) rc = wf_err(err, WF_ESYS, "out of memory");
+        for (size_t i = 0; !rc && i < n; i++) inputs[i] = first->inputs[i];
+        if (!rc) {
+            inputs[n] = sw->path;
+            inputs[n + 1] = sw->scenario_path;
+            rc = wf_output_check(o->out ? "-o" : "output", o->out ? o->out : sw->output, inputs, n + 2, err);
+        }
+        if (!rc && !o->out) rc = wf_output_default_dir(sw->output, err);
+        free(inputs);
+    }
+    wf_scenario_destroy(&first);
+    return rc;
+}
+
 int wf_cmd_sweep(int argc, char **argv)
 {
     int rank = 0;
@@ -329,6 +355,7 @@ int wf_cmd_sweep(int argc, char **argv)
     WfError err = {0};
     WfSweep *sw = NULL;
     int rc = rank == 0 ? wf_sweep_load(o.sweep, &sw, &err) : 0;
+    if (!rc && rank == 0 && (rc = check_sweep(sw, &o, &err))) wf_sweep_destroy(&sw);
 #ifdef WF_MPI
     rc = wf_mpi_share_sweep(rc, o.sweep, &sw, &err);
     if (rc) return rank == 0 ? wf_cli_fail(&err) : rc;

@@ -6,7 +6,9 @@
 #include <string.h>
 
 #include "cli/commands.h"
+#include "cli/options.h"
 #include "util/clock.h"
+#include "util/outpath.h"
 #include "wavefuel/fit.h"
 #include "wavefuel/tabulated.h"
 
@@ -51,12 +53,13 @@ static int cmd_import(int argc, char **argv)
     const char *out = NULL;
     int force = 0, o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "o:fh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "table import", .longopts = opts, .shortopts = "o:fh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     if (argc - optind != 1 || !out) {
@@ -65,7 +68,9 @@ static int cmd_import(int argc, char **argv)
     }
     WfError err = {0};
     WfTable *t = NULL, *back = NULL;
-    int rc = wf_table_read_csv(argv[optind], &t, &err);
+    const char *input = argv[optind];
+    int rc = wf_output_check("-o", out, &input, 1, &err);
+    if (!rc) rc = wf_table_read_csv(input, &t, &err);
     if (!rc) rc = wf_table_write_h5(t, out, force, &err);
     /* Read the file back as every user of it will, so a table that imports also loads. */
     double t0 = wf_wall_now();
@@ -84,17 +89,20 @@ static int cmd_import(int argc, char **argv)
 
 static int cmd_info(int argc, char **argv)
 {
-    if (argc != 2 || argv[1][0] == '-') {
-        if (argc == 2 && (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h"))) {
-            help(stdout);
-            return 0;
-        }
+    static const struct option opts[] = {{"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
+    WfCliOpts cli = {.cmd = "table info", .longopts = opts, .shortopts = "h"};
+    int o;
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
+        if (o == 'h') help(stdout);
+        return o == 'h' || o == WF_CLI_DONE ? 0 : 2;
+    }
+    if (argc - optind != 1) {
         fprintf(stderr, "wavefuel table info: one TABLE.h5 argument\n");
         return 2;
     }
     WfError err = {0};
     WfTable *t = NULL;
-    if (wf_table_load_h5(argv[1], &t, &err)) return wf_cli_fail(&err);
+    if (wf_table_load_h5(argv[optind], &t, &err)) return wf_cli_fail(&err);
     describe(t);
     wf_table_destroy(&t);
     return 0;
@@ -110,13 +118,14 @@ static int cmd_sample(int argc, char **argv)
     const char *cls = NULL, *out = NULL;
     int force = 0, o;
     optind = 1;
-    while ((o = getopt_long(argc, argv, "c:o:fh", opts, NULL)) != -1) {
+    WfCliOpts cli = {.cmd = "table sample", .longopts = opts, .shortopts = "c:o:fh"};
+    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c': cls = optarg; break;
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
         case 'h': help(stdout); return 0;
-        default: help(stderr); return 2;
+        default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     if (argc != optind || !cls || !out) {
@@ -126,6 +135,11 @@ static int cmd_sample(int argc, char **argv)
     WfError err = {0};
     WfVehicleClass vc;
     if (wf_vehicle_find(cls, &vc, &err)) return wf_cli_fail(&err);
+    const char *input = vc.path;
+    if (wf_output_check("-o", out, &input, 1, &err)) {
+        wf_vehicle_free(&vc);
+        return wf_cli_fail(&err);
+    }
     WfFitGrid g;
     wf_fit_release_grid(&g);
     char source[1200];
@@ -149,6 +163,11 @@ int wf_cmd_table(int argc, char **argv)
     if (argc < 2 || !strcmp(argv[1], "--help") || !strcmp(argv[1], "-h")) {
         help(argc < 2 ? stderr : stdout);
         return argc < 2 ? 2 : 0;
+    }
+    if (argv[1][0] == '-') { /* an option before the action: -V, or unknown as in every command */
+        static const struct option none[] = {{0, 0, 0, 0}};
+        WfCliOpts cli = {.cmd = "table", .longopts = none, .shortopts = ""};
+        return wf_cli_getopt(&cli, argc, argv, 0) == WF_CLI_DONE ? 0 : 2;
     }
     if (!strcmp(argv[1], "import")) return cmd_import(argc - 1, argv + 1);
     if (!strcmp(argv[1], "info")) return cmd_info(argc - 1, argv + 1);

@@ -28,17 +28,33 @@ int wf_cli_fail(const WfError *err);
  * and whether a checkpoint (result.ckpt) lets --resume continue it. */
 void wf_cli_note_partial(const char *partial, const char *result, const char *counters);
 
+/* Before a run starts: its result path sc->output_path (`given`: the -o argument, NULL when the scenario or the
+ * default decides) must not be a directory or one of the scenario's inputs (WF_EINPUT); the default directory
+ * output/ is created in the working directory when the path is output/NAME.h5 and it is missing. */
+struct WfScenario;
+int wf_cli_run_output(const struct WfScenario *sc, const char *given, WfError *err);
+
+/* --resume ARG (src/cli/resume_target.c): ARG is X.h5, X.h5.partial or X.h5.ckpt; result (len bytes) = X.h5. WF_EINPUT
+ * naming the file and what it is when it is not a wavefuel result, partial result or checkpoint, when the result is
+ * already complete, or when there is no checkpoint to continue from. Reads only. */
+int wf_cli_resume_target(const char *arg, char *result, size_t len, WfError *err);
+
 /* Process-wide settings (src/cli/process.c), made by the programs only, never by the library. */
 /* Set by SIGINT/SIGTERM once wf_cli_catch_stop() is called: the signal's number; runs poll it and stop. */
 extern volatile sig_atomic_t wf_cli_stop;
-/* At the start of main: SIGXFSZ ignored, HDF5 without its exit handler and without printing its error stack in
- * this thread (errors are reported through WfError), and the vehicle class search path set to
- * "$WAVEFUEL_VEHICLES:PREFIX/vehicles", PREFIX the parent of the executable's directory (the repository for
- * bin/wavefuel). WF_EINPUT if that is too long. */
-int wf_cli_process_init(WfError *err);
+/* At the start of main, with main's argv[0]: SIGXFSZ ignored, HDF5 without its exit handler and without printing
+ * its error stack in this thread (errors are reported through WfError), the vehicle class search path set to
+ * "$WAVEFUEL_VEHICLES:PREFIX/vehicles:PREFIX/share/wavefuel/vehicles", PREFIX the parent of the executable's
+ * directory (the repository for bin/wavefuel, the installation prefix for an installed one), and the program word
+ * of printed commands (wf_cli_program). WF_EINPUT if the search path is too long. */
+int wf_cli_process_init(const char *argv0, WfError *err);
 /* The default data directory of drive cycles: PREFIX/../shared/data (shared/ next to the repository for
- * bin/wavefuel). Returns 0, or -1 if it cannot be formed. */
+ * bin/wavefuel) or PREFIX/share/wavefuel/data (installed), the first that exists. Returns 0, or -1 if it cannot be
+ * formed. */
 int wf_cli_data_default(char *out, size_t len);
+/* How the user runs `wavefuel`, for the commands printed to be run as printed: "wavefuel" when the program was
+ * found on PATH, else its path as invoked with the file name wavefuel ("./bin/wavefuel"). Valid for the process. */
+const char *wf_cli_program(void);
 /* HDF5's error-stack printing off in the calling thread (per thread in the thread-safe HDF5): every thread of
  * the program that calls HDF5 calls it first. */
 void wf_cli_h5_quiet_thread(void);

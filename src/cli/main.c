@@ -21,14 +21,25 @@ static void usage(FILE *out)
     fprintf(out, "wavefuel %s: parallel simulator of traffic energy\n\nusage: wavefuel COMMAND [options]\n\n",
             WF_VERSION);
     for (int i = 0; i < N_COMMANDS; i++) fprintf(out, "  %-8s %s\n", commands[i].name, commands[i].summary);
-    fprintf(out, "\n'wavefuel COMMAND --help' describes each command.\n");
+    fprintf(out, "\n'wavefuel help COMMAND' (or 'wavefuel COMMAND --help') describes each command; -V or --version, "
+                 "also after a command, prints the version.\n");
 }
 
 int main(int argc, char **argv)
 {
     WfError err = {0};
-    if (wf_cli_process_init(&err)) return wf_cli_fail(&err);
+    if (wf_cli_process_init(argv[0], &err)) return wf_cli_fail(&err);
     if (argc < 2) {
+        usage(stderr);
+        return 2;
+    }
+    /* `wavefuel help CMD [ACTION]` is `wavefuel CMD [ACTION] --help`, for every command. */
+    if (!strcmp(argv[1], "help") && (argc == 3 || argc == 4)) {
+        char help_opt[] = "--help";
+        char *args[] = {argv[2], argc == 4 ? argv[3] : help_opt, help_opt, NULL};
+        for (int i = 0; i < N_COMMANDS; i++)
+            if (!strcmp(argv[2], commands[i].name)) return commands[i].main(argc - 1, args);
+        fprintf(stderr, "wavefuel: unknown command '%s'\n", argv[2]);
         usage(stderr);
         return 2;
     }
@@ -36,7 +47,7 @@ int main(int argc, char **argv)
         usage(stdout);
         return 0;
     }
-    if (!strcmp(argv[1], "--version")) {
+    if (!strcmp(argv[1], "--version") || !strcmp(argv[1], "-V")) {
         printf("wavefuel %s (%s)\n", WF_VERSION, WF_GIT_HASH);
         return 0;
     }

@@ -34,6 +34,7 @@ struct WfOde {
     void              *ctx;
     double            *fuel_prev, *scratch;
     WfOdeStats         done; /* counters of solver instances before the last re-initialisation */
+    char               said[512]; /* SUNDIALS' last own message (error or warning), "" when none */
 };
 
 const char *wf_ode_kind_name(WfOdeKind k)
@@ -41,11 +42,51 @@ const char *wf_ode_kind_name(WfOdeKind k)
     return k == WF_ODE_CVODE ? "cvode" : k == WF_ODE_ARKODE ? "arkode" : "rk4";
 }
 
-/* One helper names the failing call (SUNDIALS return codes are negative on failure). */
-static int check(int flag, const char *call, WfError *err)
+/* SUNDIALS' own messages (CVodeSetErrHandlerFn / ERKStepSetErrHandlerFn, SUNDIALS 6.4): kept for wavefuel's message
+ * instead of printed on stderr, where they would interleave with the progress bar and escape the WfError. Warnings
+ * (code > 0) are kept too; a later error replaces them. */
+static void on_sundials_message(int code, const char *module, const char *function, char *msg, void *data)
+{
+    WfOde *o = data;
+    snprintf(o->said, sizeof o->said, "%s %s %s: %s", module, code < 0 ? "error in" : "warning in", function, msg);
+}
+
+/* ": <SUNDIALS' message>" for a failure message, or "" when SUNDIALS said nothing. */
+static const char *said(const WfOde *o, char *buf, size_t len)
+{
+    snprintf(buf, len, "%s%s", o->said[0] ? ": " : "", o->said);
+    return buf;
+}
+
+/* One helper names the failing call (SUNDIALS return codes are negative on failure) and adds what SUNDIALS said. */
+static int check(const WfOde *o, int flag, const char *call, WfError *err)
 {
     if (flag >= 0) return 0;
-    return wf_err(err, WF_ESYS, "SUNDIALS: %s failed with code %d", call, flag);
+    char buf[600];
+    return wf_err(err, WF_ESYS, "SUNDIALS: %s failed with code %d%s", call, flag, said(o, buf, sizeof buf));
+}
+
+/* The explicit tables of ARKODE 5.4 (SUNDIALS 6.4) by name: ARKodeButcherTable_LoadERKByName prints to stderr on an
+ * unknown name (no solver memory yet, so no handler), so names are checked here first, and listed when wrong. */
+static const char *const erk_tables[] = {
+    "ARKODE_HEUN_EULER_2_1_2",     "ARKODE_BOGACKI_SHAMPINE_4_2_3", "ARKODE_ARK324L2SA_ERK_4_2_3",
+    "ARKODE_ZONNEVELD_5_3_4",      "ARKODE_ARK436L2SA_ERK_6_3_4",   "ARKODE_SAYFY_ABURUB_6_3_4",
+    "ARKODE_CASH_KARP_6_4_5",      "ARKODE_FEHLBERG_6_4_5",         "ARKODE_DORMAND_PRINCE_7_4_5",
+    "ARKODE_ARK548L2SA_ERK_8_4_5", "ARKODE_VERNER_8_5_6",           "ARKODE_FEHLBERG_13_7_8",
+    "ARKODE_KNOTH_WOLKE_3_3",      "ARKODE_ARK437L2SA_ERK_7_3_4",   "ARKODE_ARK548L2SAb_ERK_8_4_5"};
+enum { N_ERK_TABLES = sizeof erk_tables / sizeof erk_tables[0] };
+
+static int unknown_erk_table(const char *name, WfError *err)
+{
+    char known[1024];
+    size_t used = 0;
+    known[0] = '\0';
+    for (size_t i = 0; i < N_ERK_TABLES; i++) {
+        int w = snprintf(known + used, sizeof known - used, "%s%s", i ? ", " : "", erk_tables[i]);
+        if (w < 0 || (size_t)w >= sizeof known - used) break;
+        used += (size_t)w;
+    }
+    return wf_err(err, WF_EINPUT, "solver.method: unknown ARKODE explicit table '%s' (known: %s)", name, known);
 }
 
 static N_Vector new_vector(const WfOde *o, size_t len)
@@ -120,47 +161,50 @@ static int setup_solver(WfOde *o, double t0, WfError *err)
     if (c->kind == WF_ODE_CVODE) {
         o->mem = CVodeCreate(c->bdf ? CV_BDF : CV_ADAMS, o->sunctx);
         if (!o->mem) return wf_err(err, WF_ESYS, "SUNDIALS: CVodeCreate failed");
-        if ((rc = check(CVodeInit(o->mem, f_state, t0, o->y), "CVodeInit", err))) return rc;
-        if ((rc = check(CVodeSetUserData(o->mem, o), "CVodeSetUserData", err))) return rc;
-        if ((rc = check(CVodeWFtolerances(o->mem, ewt_fn), "CVodeWFtolerances", err))) return rc;
-        if ((rc = check(CVodeSetMaxNumSteps(o->mem, c->max_steps), "CVodeSetMaxNumSteps", err))) return rc;
-        if (c->max_step_s > 0 && (rc = check(CVodeSetMaxStep(o->mem, c->max_step_s), "CVodeSetMaxStep", err)))
+        if ((rc = check(o, CVodeSetErrHandlerFn(o->mem, on_sundials_message, o), "CVodeSetErrHandlerFn", err)))
+            return rc;
+        if ((rc = check(o, CVodeInit(o->mem, f_state, t0, o->y), "CVodeInit", err))) return rc;
+        if ((rc = check(o, CVodeSetUserData(o->mem, o), "CVodeSetUserData", err))) return rc;
+        if ((rc = check(o, CVodeWFtolerances(o->mem, ewt_fn), "CVodeWFtolerances", err))) return rc;
+        if ((rc = check(o, CVodeSetMaxNumSteps(o->mem, c->max_steps), "CVodeSetMaxNumSteps", err))) return rc;
+        if (c->max_step_s > 0 && (rc = check(o, CVodeSetMaxStep(o->mem, c->max_step_s), "CVodeSetMaxStep", err)))
             return rc;
         if (c->bdf) {
             o->ls = SUNLinSol_SPGMR(o->y, SUN_PREC_NONE, 0, o->sunctx);
             if (!o->ls) return wf_err(err, WF_ESYS, "SUNDIALS: SUNLinSol_SPGMR failed");
-            if ((rc = check(CVodeSetLinearSolver(o->mem, o->ls, NULL), "CVodeSetLinearSolver", err))) return rc;
+            if ((rc = check(o, CVodeSetLinearSolver(o->mem, o->ls, NULL), "CVodeSetLinearSolver", err))) return rc;
         } else {
             o->nls = SUNNonlinSol_FixedPoint(o->y, 0, o->sunctx);
             if (!o->nls) return wf_err(err, WF_ESYS, "SUNDIALS: SUNNonlinSol_FixedPoint failed");
-            if ((rc = check(CVodeSetNonlinearSolver(o->mem, o->nls), "CVodeSetNonlinearSolver", err))) return rc;
+            if ((rc = check(o, CVodeSetNonlinearSolver(o->mem, o->nls), "CVodeSetNonlinearSolver", err))) return rc;
         }
-        if ((rc = check(CVodeQuadInit(o->mem, f_quad, o->q), "CVodeQuadInit", err))) return rc;
-        if ((rc = check(CVodeQuadSStolerances(o->mem, c->rtol, c->atol_fuel_g), "CVodeQuadSStolerances", err)))
+        if ((rc = check(o, CVodeQuadInit(o->mem, f_quad, o->q), "CVodeQuadInit", err))) return rc;
+        if ((rc = check(o, CVodeQuadSStolerances(o->mem, c->rtol, c->atol_fuel_g), "CVodeQuadSStolerances", err)))
             return rc;
-        return check(CVodeSetQuadErrCon(o->mem, c->fuel_errcon), "CVodeSetQuadErrCon", err);
+        return check(o, CVodeSetQuadErrCon(o->mem, c->fuel_errcon), "CVodeSetQuadErrCon", err);
     }
     o->mem = ERKStepCreate(f_state, t0, o->y, o->sunctx);
     if (!o->mem) return wf_err(err, WF_ESYS, "SUNDIALS: ERKStepCreate failed");
-    if ((rc = check(ERKStepSetUserData(o->mem, o), "ERKStepSetUserData", err))) return rc;
-    if ((rc = check(ERKStepWFtolerances(o->mem, ewt_fn), "ERKStepWFtolerances", err))) return rc;
-    if ((rc = check(ERKStepSetMaxNumSteps(o->mem, c->max_steps), "ERKStepSetMaxNumSteps", err))) return rc;
+    if ((rc = check(o, ERKStepSetErrHandlerFn(o->mem, on_sundials_message, o), "ERKStepSetErrHandlerFn", err)))
+        return rc;
+    if ((rc = check(o, ERKStepSetUserData(o->mem, o), "ERKStepSetUserData", err))) return rc;
+    if ((rc = check(o, ERKStepWFtolerances(o->mem, ewt_fn), "ERKStepWFtolerances", err))) return rc;
+    if ((rc = check(o, ERKStepSetMaxNumSteps(o->mem, c->max_steps), "ERKStepSetMaxNumSteps", err))) return rc;
     if (c->kind == WF_ODE_RK4) {
         o->table = classic_rk4();
     } else {
+        size_t k = 0;
+        while (k < N_ERK_TABLES && strcmp(erk_tables[k], c->erk_table)) k++;
+        if (k == N_ERK_TABLES) return unknown_erk_table(c->erk_table, err);
         o->table = ARKodeButcherTable_LoadERKByName(c->erk_table);
-        if (!o->table)
-            return wf_err(err, WF_EINPUT,
-                          "solver.method: unknown ARKODE explicit table '%s' (e.g. ARKODE_DORMAND_PRINCE_7_4_5, "
-                          "ARKODE_BOGACKI_SHAMPINE_4_2_3, ARKODE_CASH_KARP_6_4_5, ARKODE_VERNER_8_5_6)",
-                          c->erk_table);
     }
     if (!o->table) return wf_err(err, WF_ESYS, "SUNDIALS: ARKodeButcherTable_Create failed");
-    if ((rc = check(ERKStepSetTable(o->mem, o->table), "ERKStepSetTable", err))) return rc;
-    if (c->kind == WF_ODE_RK4 && (rc = check(ERKStepSetFixedStep(o->mem, c->fixed_step_s), "ERKStepSetFixedStep", err)))
+    if ((rc = check(o, ERKStepSetTable(o->mem, o->table), "ERKStepSetTable", err))) return rc;
+    if (c->kind == WF_ODE_RK4 &&
+        (rc = check(o, ERKStepSetFixedStep(o->mem, c->fixed_step_s), "ERKStepSetFixedStep", err)))
         return rc;
     if (c->kind != WF_ODE_RK4 && c->max_step_s > 0 &&
-        (rc = check(ERKStepSetMaxStep(o->mem, c->max_step_s), "ERKStepSetMaxStep", err)))
+        (rc = check(o, ERKStepSetMaxStep(o->mem, c->max_step_s), "ERKStepSetMaxStep", err)))
         return rc;
     return 0;
 }
@@ -197,7 +241,7 @@ int wf_ode_create(const WfOdeConfig *cfg, size_t n, double L, WfOdeRhs rhs, void
     o->rhs = rhs;
     o->ctx = ctx;
     o->ny = cfg->kind == WF_ODE_CVODE ? 2 * n : 3 * n;
-    int rc = check(SUNContext_Create(NULL, &o->sunctx), "SUNContext_Create", err);
+    int rc = check(o, SUNContext_Create(NULL, &o->sunctx), "SUNContext_Create", err);
     if (!rc) {
         o->y = new_vector(o, o->ny);
         o->fuel_prev = calloc(n + 1, sizeof *o->fuel_prev);
@@ -228,14 +272,15 @@ int wf_ode_advance(WfOde *o, double t_out, double *x, double *v, double *fuel_st
     int rc;
     size_t n = o->n;
     const double *fuel_now;
+    char buf[600];
     if (o->cfg.kind == WF_ODE_CVODE) {
         /* Stop exactly at t_out: the right-hand side changes there (noise, controller memory). */
-        if ((rc = check(CVodeSetStopTime(o->mem, t_out), "CVodeSetStopTime", err))) return rc;
+        if ((rc = check(o, CVodeSetStopTime(o->mem, t_out), "CVodeSetStopTime", err))) return rc;
         int flag = CVode(o->mem, t_out, o->y, &tret, CV_NORMAL);
         if (flag < 0)
-            return wf_err(err, WF_ESYS, "SUNDIALS: CVode failed at t = %.9g s with code %d (%s)", (double)tret, flag,
-                          CVodeGetReturnFlagName(flag));
-        if ((rc = check(CVodeGetQuad(o->mem, &tret, o->q), "CVodeGetQuad", err))) return rc;
+            return wf_err(err, WF_ESYS, "SUNDIALS: CVode failed at t = %.9g s with code %d (%s)%s", (double)tret, flag,
+                          CVodeGetReturnFlagName(flag), said(o, buf, sizeof buf));
+        if ((rc = check(o, CVodeGetQuad(o->mem, &tret, o->q), "CVodeGetQuad", err))) return rc;
         fuel_now = data(o->q);
     } else {
         int flag = 0;
@@ -250,12 +295,12 @@ int wf_ode_advance(WfOde *o, double t_out, double *x, double *v, double *fuel_st
                 if (flag >= 0) flag = ERKStepReset(o->mem, tret, o->y);
             }
         } else {
-            if ((rc = check(ERKStepSetStopTime(o->mem, t_out), "ERKStepSetStopTime", err))) return rc;
+            if ((rc = check(o, ERKStepSetStopTime(o->mem, t_out), "ERKStepSetStopTime", err))) return rc;
             flag = ERKStepEvolve(o->mem, t_out, o->y, &tret, ARK_NORMAL);
         }
         if (flag < 0)
-            return wf_err(err, WF_ESYS, "SUNDIALS: ERKStepEvolve failed at t = %.9g s with code %d (%s)",
-                          (double)tret, flag, ERKStepGetReturnFlagName(flag));
+            return wf_err(err, WF_ESYS, "SUNDIALS: ERKStepEvolve failed at t = %.9g s with code %d (%s)%s",
+                          (double)tret, flag, ERKStepGetReturnFlagName(flag), said(o, buf, sizeof buf));
         fuel_now = data(o->y) + 2 * n;
     }
     const double *y = data(o->y);
@@ -277,10 +322,10 @@ int wf_ode_reinit(WfOde *o, double t, const double *x, const double *v, WfError 
     add_counters(o);
     o->done.reinits++;
     if (o->cfg.kind == WF_ODE_CVODE) {
-        int rc = check(CVodeReInit(o->mem, t, o->y), "CVodeReInit", err);
-        return rc ? rc : check(CVodeQuadReInit(o->mem, o->q), "CVodeQuadReInit", err);
+        int rc = check(o, CVodeReInit(o->mem, t, o->y), "CVodeReInit", err);
+        return rc ? rc : check(o, CVodeQuadReInit(o->mem, o->q), "CVodeQuadReInit", err);
     }
-    return check(ERKStepReInit(o->mem, f_state, t, o->y), "ERKStepReInit", err);
+    return check(o, ERKStepReInit(o->mem, f_state, t, o->y), "ERKStepReInit", err);
 }
 
 /* Counters since the last re-initialisation, added to those of earlier solver instances. */

@@ -11,6 +11,8 @@
 #include <sys/stat.h>
 #include <yaml.h>
 
+#include "util/numfmt.h"
+
 static WfCfgNode *node_new(WfCfgKind kind, const char *file, int line)
 {
     WfCfgNode *n = calloc(1, sizeof *n);
@@ -486,7 +488,7 @@ int wf_cfg_node_double(WfCfgNode *n, double min, double max, const char *unit, d
     double v;
     char what[160];
     n->used = 1;
-    snprintf(what, sizeof what, "a number in [%.10g, %.10g] %s", min, max, unit);
+    snprintf(what, sizeof what, "a number in [%s, %s] %s", WF_NUM(min), WF_NUM(max), unit);
     if (n->kind != WF_CFG_SCALAR || wf_parse_double(n->value, &v) || v < min || v > max)
         return bad_value(n, what, err);
     *out = v;
@@ -506,7 +508,7 @@ int wf_cfg_double(WfCfgNode *map, const char *key, double min, double max, const
     WfCfgNode *c = lookup(map, key);
     if (!c) {
         char what[160];
-        snprintf(what, sizeof what, "a number in [%.10g, %.10g] %s", min, max, unit);
+        snprintf(what, sizeof what, "a number in [%s, %s] %s", WF_NUM(min), WF_NUM(max), unit);
         return wf_cfg_missing(map, key, what, err);
     }
     return wf_cfg_node_double(c, min, max, unit, out, err);

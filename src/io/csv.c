@@ -160,15 +160,10 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
             rc = wf_err(err, WF_EINPUT, "%s:%d: quoted fields are not supported: numbers only", shown, lineno);
             goto done;
         }
-        /* Header: only before the first data row, recognised by a non-numeric first field. */
+        /* Header: only before the first data row, recognised by a first field that does not start like a number
+         * (a digit, sign or point): "0x10" or "1e999" on the first row is a bad number, not a header. */
         if (!seen_data && !out->had_header) {
-            char first[256];
-            size_t k = strcspn(s, ",");
-            if (k > sizeof first - 1) k = sizeof first - 1;
-            memcpy(first, s, k);
-            first[k] = '\0';
-            double dummy;
-            if (wf_parse_double(trim(first), &dummy) != 0) {
+            if (!strchr("0123456789+-.", *s)) {
                 out->had_header = 1;
                 if ((rc = check_header(s, n_cols, names, shown, lineno, err))) goto done;
                 continue;
@@ -189,4 +184,20 @@ done:
     if (!is_stdin) fclose(f);
     if (rc) wf_csv_free(out);
     return rc;
+}
+
+int wf_csv_check_ranges(const WfCsv *csv, const char *path, const char *const *names, const WfRange *const *ranges,
+                        WfError *err)
+{
+    const char *shown = strcmp(path, "-") == 0 ? "<stdin>" : path;
+    for (size_t r = 0; r < csv->n_rows; r++)
+        for (size_t c = 0; c < csv->n_cols; c++) {
+            double x = csv->data[r * csv->n_cols + c];
+            if (!ranges[c] || (x >= ranges[c]->min && x <= ranges[c]->max)) continue;
+            char where[1200];
+            snprintf(where, sizeof where, "%s:%d: field %zu%s%s%s", shown, csv->line[r], c + 1, names ? " (" : "",
+                     names ? names[c] : "", names ? ")" : "");
+            return wf_range_check(ranges[c], x, where, err);
+        }
+    return 0;
 }

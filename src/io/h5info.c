@@ -5,11 +5,14 @@
 
 #include "io/h5summary.h"
 #include "io/h5util.h"
+#include "wavefuel/filekind.h"
 #include "wavefuel/h5out.h"
 
 typedef struct InfoCtx {
-    FILE *out;
-    hid_t grp;
+    FILE       *out;
+    hid_t       grp;
+    int         scalars_only; /* 1: single values only (wf_h5_info_scalars) */
+    const char *header;       /* printed before the first value, then cleared (NULL: none) */
 } InfoCtx;
 
 /* Prints one scalar or small 1-D numeric dataset with its units. */
@@ -24,7 +27,13 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
     WfError ignored = {0}; /* a dataset without units prints none */
     if (wf_h5_read_attr_str(d, "", "units", units, sizeof units, &ignored)) units[0] = '\0';
     hssize_t n = H5Sget_simple_extent_npoints(sp);
-    if (H5Tget_class(t) == H5T_STRING && n == 1) {
+    if (c->header && (n == 1 || !c->scalars_only)) {
+        fprintf(c->out, "%s:\n", c->header);
+        c->header = NULL;
+    }
+    if (c->scalars_only && n != 1) {
+        /* arrays (a cycle's samples, a sweep's columns) are for h5py, not for this listing */
+    } else if (H5Tget_class(t) == H5T_STRING && n == 1) {
         char *s = NULL;
         hid_t mt = H5Tcopy(H5T_C_S1);
         H5Tset_size(mt, H5T_VARIABLE);
@@ -87,6 +96,30 @@ int wf_h5out_info(const char *path, FILE *out, WfError *err)
         else H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, print_dataset, &c);
         H5Gclose(g);
     }
+    H5Fclose(f);
+    return 0;
+}
+
+/* Each group: its single values under a header naming the group. */
+static herr_t visit_group(hid_t root, const char *name, const H5O_info_t *info, void *vctx)
+{
+    InfoCtx *c = vctx;
+    if (info->type != H5O_TYPE_GROUP) return 0;
+    hid_t g = H5Gopen2(root, name, H5P_DEFAULT);
+    if (g < 0) return 0;
+    InfoCtx gc = {.out = c->out, .grp = g, .scalars_only = 1, .header = name};
+    H5Literate(g, H5_INDEX_NAME, H5_ITER_INC, NULL, print_dataset, &gc);
+    H5Gclose(g);
+    return 0;
+}
+
+int wf_h5_info_scalars(const char *path, FILE *out, WfError *err)
+{
+    wf_h5_library_init();
+    hid_t f = H5Fis_hdf5(path) > 0 ? H5Fopen(path, H5F_ACC_RDONLY, H5P_DEFAULT) : H5I_INVALID_HID;
+    if (f < 0) return wf_err(err, WF_EINPUT, "%s: cannot open as HDF5", path);
+    InfoCtx c = {.out = out, .scalars_only = 1};
+    H5Ovisit(f, H5_INDEX_NAME, H5_ITER_INC, visit_group, &c);
     H5Fclose(f);
     return 0;
 }

@@ -121,7 +121,8 @@ static int write_runs(hid_t fid, const WfSweep *sw, const WfSweepResult *res, Wf
         free(owned[i]);
         owned[i] = malloc(len);
         if (!owned[i]) rc = wf_err(err, WF_ESYS, "out of memory");
-        else if (wf_sweep_command(sw, i, owned[i], len)) rc = wf_err(err, WF_ESYS, "command of run %zu too long", i);
+        else if (wf_sweep_command(sw, i, NULL, owned[i], len))
+            rc = wf_err(err, WF_ESYS, "command of run %zu too long", i);
     }
     if (!rc) rc = wf_h5_write_strings(g, "command", n, (const char *const *)owned,
                                       "the `wavefuel run` command that reproduces the run alone", err);

@@ -10,7 +10,7 @@ int main(int argc, char **argv)
 {
     int provided = 0;
     WfError err = {0};
-    if (wf_cli_process_init(&err)) return wf_cli_fail(&err); /* as in src/cli/main.c */
+    if (wf_cli_process_init(argv[0], &err)) return wf_cli_fail(&err); /* as in src/cli/main.c */
     if (MPI_Init_thread(&argc, &argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS) {
         fprintf(stderr, "wavefuel-mpi: MPI_Init_thread failed\n");
         return 1;

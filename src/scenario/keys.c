@@ -121,7 +121,15 @@ int wf_key_read(WfCfgNode *map, const WfKeySpec *row, void *target, WfKeyEnv *en
     case WF_KEY_TEXT: {
         const char *s = NULL;
         if (req ? wf_cfg_string(map, row->key, &s, err) : wf_cfg_string_opt(map, row->key, &s, err)) return WF_EINPUT;
-        if (s) snprintf(field(target, row), row->size, "%s", s);
+        if (!s) return 0;
+        /* Refused rather than cut: a cut path (output.path) would write somewhere else than asked. */
+        if (strlen(s) >= row->size) {
+            char w[600], p[512];
+            const WfCfgNode *c = wf_cfg_child(map, row->key);
+            return wf_err(err, WF_EINPUT, "%s: %s: too long (%zu bytes; at most %zu)", wf_cfg_where(c, w, sizeof w),
+                          wf_cfg_path(c, p, sizeof p), strlen(s), row->size - 1);
+        }
+        memcpy(field(target, row), s, strlen(s) + 1);
         return 0;
     }
     default: return 0;

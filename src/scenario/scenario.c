@@ -12,11 +12,13 @@
 #include <string.h>
 
 #include "scenario/scenario_keys.h"
+#include "util/outpath.h"
 #include "util/path.h"
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/integrator.h"
+#include "util/numfmt.h"
 
 #define where_of wf_scenario_where
 
@@ -41,6 +43,8 @@ void wf_scenario_destroy(WfScenario **psc)
     }
     wf_road_free(&sc->road);
     wf_corridor_spec_destroy(&sc->corridor);
+    for (size_t i = 0; i < sc->n_inputs; i++) free(sc->inputs[i]);
+    free(sc->inputs);
     free(sc->text);
     free(sc->overrides);
     free(sc);
@@ -106,6 +110,10 @@ static int load_grade(WfCfgNode *road, const WfKeySpec *row, void *target, WfKey
             wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(grade, "csv"), w, sizeof w));
             goto done;
         }
+        if ((rc = wf_scenario_add_input(sc, path, err))) {
+            wf_csv_free(&t);
+            goto done;
+        }
         n = t.n_rows;
         x = malloc((n + 1) * sizeof *x);
         th = malloc((n + 1) * sizeof *th);
@@ -121,18 +129,30 @@ done:
     return rc;
 }
 
-/* name: the file stem unless given. */
+/* name: the file stem unless given. It names output/NAME.h5, so it must be a plain file name that fits: refused,
+ * not cut or followed out of output/ ("../escape"). */
 static int load_name(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
     (void)row, (void)env;
     WfScenario *sc = t;
     const char *s = NULL;
-    const char *stem = strrchr(sc->path, '/');
-    snprintf(sc->name, sizeof sc->name, "%.127s", stem ? stem + 1 : sc->path);
-    char *dot = strrchr(sc->name, '.');
-    if (dot) *dot = '\0';
+    char stem[1024], w[1024];
+    snprintf(stem, sizeof stem, "%s", wf_path_base(sc->path));
+    char *dot = strrchr(stem, '.');
+    if (dot && dot != stem) *dot = '\0';
     if (wf_cfg_string_opt(root, "name", &s, err)) return WF_EINPUT;
-    if (s) snprintf(sc->name, sizeof sc->name, "%.127s", s);
+    const char *name = s ? s : stem;
+    const char *problem = wf_path_plain_name_problem(name, sizeof sc->name - 1);
+    char size[64] = "";
+    if (problem && strlen(name) > sizeof sc->name - 1)
+        snprintf(size, sizeof size, " (%zu bytes; at most %zu)", strlen(name), sizeof sc->name - 1);
+    if (problem && s)
+        return wf_err(err, WF_EINPUT, "%s '%.200s' %s%s", where_of(wf_cfg_child(root, "name"), w, sizeof w), s,
+                      problem, size);
+    if (problem)
+        return wf_err(err, WF_EINPUT, "%s: the file's stem '%.200s', the default name, %s%s: set `name:`", sc->path,
+                      stem, problem, size);
+    memcpy(sc->name, name, strlen(name) + 1); /* fits: checked above */
     return 0;
 }
 
@@ -211,15 +231,15 @@ static int check_time(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *
     double ratio = sc->output_interval_s / sc->dt_s, nsteps = sc->duration_s / sc->dt_s;
     if (sc->dt_s > sc->output_interval_s || fabs(ratio - round(ratio)) > 1e-9 * ratio)
         return wf_err(err, WF_EINPUT,
-                      "%s: time.output_interval_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)", sc->path,
-                      sc->output_interval_s, sc->dt_s);
+                      "%s: time.output_interval_s (%s s) must be a whole multiple of time.dt_s (%s s)", sc->path,
+                      WF_NUM(sc->output_interval_s), WF_NUM(sc->dt_s));
     if (fabs(nsteps - round(nsteps)) > 1e-9 * nsteps)
-        return wf_err(err, WF_EINPUT, "%s: time.duration_s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)",
-                      sc->path, sc->duration_s, sc->dt_s);
+        return wf_err(err, WF_EINPUT, "%s: time.duration_s (%s s) must be a whole multiple of time.dt_s (%s s)",
+                      sc->path, WF_NUM(sc->duration_s), WF_NUM(sc->dt_s));
     if (nsteps > 1e12) return wf_err(err, WF_EINPUT, "%s: more than 1e12 steps: reduce duration or raise dt", sc->path);
     if (sc->warmup_s >= sc->duration_s)
-        return wf_err(err, WF_EINPUT, "%s: time.warmup_s (%.17g s) must be shorter than time.duration_s (%.17g s)",
-                      sc->path, sc->warmup_s, sc->duration_s);
+        return wf_err(err, WF_EINPUT, "%s: time.warmup_s (%s s) must be shorter than time.duration_s (%s s)",
+                      sc->path, WF_NUM(sc->warmup_s), WF_NUM(sc->duration_s));
     return 0;
 }
 
@@ -370,8 +390,8 @@ static int check_statistics(WfCfgNode *root, const WfKeySpec *row, void *t, WfKe
     (void)root, (void)row, (void)env;
     WfScenario *sc = t;
     if (!(sc->v_go_mps > sc->v_stop_mps))
-        return wf_err(err, WF_EINPUT, "%s: statistics.v_go_mps (%.17g) must exceed statistics.v_stop_mps (%.17g)",
-                      sc->path, sc->v_go_mps, sc->v_stop_mps);
+        return wf_err(err, WF_EINPUT, "%s: statistics.v_go_mps (%s) must exceed statistics.v_stop_mps (%s)",
+                      sc->path, WF_NUM(sc->v_go_mps), WF_NUM(sc->v_stop_mps));
     if (isnan(sc->wave_speed_mps)) sc->wave_speed_mps = sc->v_go_mps;
     return 0;
 }
@@ -395,7 +415,8 @@ static int check_output(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv
 {
     (void)env;
     WfScenario *sc = t;
-    if (!sc->output_path[0]) snprintf(sc->output_path, sizeof sc->output_path, "output/%s.h5", sc->name);
+    if (!sc->output_path[0])
+        snprintf(sc->output_path, sizeof sc->output_path, WF_OUTPUT_DEFAULT_DIR "/%s.h5", sc->name);
     if (isnan(sc->trajectory_interval_s)) sc->trajectory_interval_s = sc->output_interval_s;
     double r2 = sc->trajectory_interval_s / sc->dt_s;
     if (wf_cfg_child(root, row->key) && fabs(r2 - round(r2)) > 1e-9 * r2)
@@ -425,7 +446,9 @@ static int load_corridor(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEn
 
 static const WfKeySpec root_rows[] = {
     {.key = "name", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_name, .doc_type = "text",
-     .doc_default = "file stem", .doc = "run name; default output `output/NAME.h5`"},
+     .doc_default = "file stem", .doc_range = "a file name, ≤ 127 bytes",
+     .doc = "run name; default output `output/NAME.h5`. No `/`, not `.` or `..`, no control characters: refused, "
+            "never cut"},
     {.key = "seed", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, seed),
      .size = sizeof(uint64_t), .def = 1, .imin = 0, .imax = 0x7fffffffffffffffL, .doc_range = "≥ 0",
      .doc = "seed of every random draw (placement, heterogeneity, noise, jitter)"},
@@ -461,8 +484,8 @@ static int check_ring_fits(const WfScenario *sc, WfError *err)
     for (size_t c = 0; c < sc->n_classes; c++) total_len += (double)sc->classes[c].count * sc->classes[c].length_m;
     if (total_len >= sc->road.length_m)
         return wf_err(err, WF_EINPUT,
-                      "%s: %ld vehicles of total length %.6g m cannot fit on a ring of road.length_m = %.6g m", sc->path,
-                      sc->n_vehicles, total_len, sc->road.length_m);
+                      "%s: %ld vehicles of total length %.6g m cannot fit on a ring of road.length_m = %s m", sc->path,
+                      sc->n_vehicles, total_len, WF_NUM(sc->road.length_m));
     return 0;
 }
 
@@ -494,6 +517,16 @@ int wf_scenario_load_text(const char *path, const char *text, const char *const 
     return rc ? rc : load_cfg(cfg, path, set, n_set, out, err);
 }
 
+int wf_scenario_add_input(WfScenario *sc, const char *path, WfError *err)
+{
+    char **p = realloc(sc->inputs, (sc->n_inputs + 1) * sizeof *p);
+    if (!p) return wf_err(err, WF_ESYS, "out of memory");
+    sc->inputs = p;
+    if (!(p[sc->n_inputs] = strdup(path))) return wf_err(err, WF_ESYS, "out of memory");
+    sc->n_inputs++;
+    return 0;
+}
+
 /* Takes ownership of cfg. */
 static int load_cfg(WfCfg *cfg, const char *path, const char *const *set, size_t n_set, WfScenario **out,
                     WfError *err)
@@ -505,6 +538,7 @@ static int load_cfg(WfCfg *cfg, const char *path, const char *const *set, size_t
         return wf_err(err, WF_ESYS, "out of memory");
     }
     snprintf(sc->path, sizeof sc->path, "%s", path);
+    if ((rc = wf_scenario_add_input(sc, path, err))) goto fail;
     size_t olen = 1;
     for (size_t i = 0; i < n_set; i++) olen += strlen(set[i]) + 1;
     sc->overrides = calloc(olen, 1);

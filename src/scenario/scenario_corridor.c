@@ -14,6 +14,7 @@
 #include "util/path.h"
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
+#include "util/numfmt.h"
 
 #define where_of wf_scenario_where
 
@@ -40,7 +41,7 @@ void wf_corridor_spec_destroy(WfCorridorSpec **ps)
 
 /* Two-column numbers from either `points: [[a, b], ...]` or `csv: FILE` (header `names`) of `map`. The arrays
  * are owned by the caller. `where` receives the location of what was read, for later messages. */
-static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const names[2], double min0, double max0,
+static int read_pairs(WfScenario *sc, WfCfgNode *map, const char *const names[2], double min0, double max0,
                       const char *unit0, double min1, double max1, const char *unit1, double **a_out,
                       double **b_out, size_t *n_out, char *where, size_t wlen, WfError *err)
 {
@@ -82,6 +83,10 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
             wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(map, "csv"), w, sizeof w));
             return WF_EINPUT;
         }
+        if (wf_scenario_add_input(sc, path, err)) {
+            wf_csv_free(&t);
+            return WF_ESYS;
+        }
         n = t.n_rows;
         a = malloc((n + 1) * sizeof *a);
         b = malloc((n + 1) * sizeof *b);
@@ -89,19 +94,19 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
         for (size_t i = 0; !rc && i < n; i++) {
             a[i] = t.data[2 * i], b[i] = t.data[2 * i + 1];
             if (!(a[i] >= min0 && a[i] <= max0))
-                rc = wf_err(err, WF_EINPUT, "%s:%d: %s must be in [%.10g, %.10g] %s (got %.17g)", path, t.line[i],
-                            names[0], min0, max0, unit0, a[i]);
+                rc = wf_err(err, WF_EINPUT, "%s:%d: %s must be in [%s, %s] %s (got %s)", path, t.line[i],
+                            names[0], WF_NUM(min0), WF_NUM(max0), unit0, WF_NUM(a[i]));
             else if (!(b[i] >= min1 && b[i] <= max1))
-                rc = wf_err(err, WF_EINPUT, "%s:%d: %s must be in [%.10g, %.10g] %s (got %.17g)", path, t.line[i],
-                            names[1], min1, max1, unit1, b[i]);
+                rc = wf_err(err, WF_EINPUT, "%s:%d: %s must be in [%s, %s] %s (got %s)", path, t.line[i],
+                            names[1], WF_NUM(min1), WF_NUM(max1), unit1, WF_NUM(b[i]));
         }
         wf_csv_free(&t);
     }
     if (!rc && n == 0) rc = wf_err(err, WF_EINPUT, "%s: no points", where);
     for (size_t i = 1; !rc && i < n; i++)
         if (!(a[i] > a[i - 1]))
-            rc = wf_err(err, WF_EINPUT, "%s: point %zu: %s must increase (got %.17g after %.17g)", where, i, names[0],
-                        a[i], a[i - 1]);
+            rc = wf_err(err, WF_EINPUT, "%s: point %zu: %s must increase (got %s after %s)", where, i, names[0],
+                        WF_NUM(a[i]), WF_NUM(a[i - 1]));
     if (rc) {
         free(a);
         free(b);
@@ -112,7 +117,7 @@ static int read_pairs(const WfScenario *sc, WfCfgNode *map, const char *const na
 }
 
 /* A time profile: `KEY: value` (constant) or `csv: FILE` with header time_s,NAME, points linear in between. */
-static int read_profile(const WfScenario *sc, WfCfgNode *map, const char *key, const char *col, double max,
+static int read_profile(WfScenario *sc, WfCfgNode *map, const char *key, const char *col, double max,
                         const char *unit, int required, WfProfile *p, WfError *err)
 {
     char w[1024];
@@ -274,8 +279,8 @@ int wf_corridor_road_zones(WfCfgNode *road, const WfKeySpec *row, void *t, WfKey
                           "speed_limit_mps: V}", where_of(e, w, sizeof w));
         if (wf_keys_read(e, &wf_corridor_zone_keys, WF_KEYS_FIRST, z, env, err)) return WF_EINPUT;
         if (!(z->to_m > z->from_m))
-            return wf_err(err, WF_EINPUT, "%s: to_m (%.17g) must exceed from_m (%.17g)", where_of(e, w, sizeof w),
-                          z->to_m, z->from_m);
+            return wf_err(err, WF_EINPUT, "%s: to_m (%s) must exceed from_m (%s)", where_of(e, w, sizeof w),
+                          WF_NUM(z->to_m), WF_NUM(z->from_m));
         if (z->type == WF_ZONE_SPEED_LIMIT
                 ? wf_key_read(e, wf_keys_find(&wf_corridor_zone_keys, "speed_limit_mps", WF_ON_CORRIDOR), z, env, err)
                 : headway_zone(sc, e, z, env, err))
@@ -325,8 +330,9 @@ static int whole_steps(const WfScenario *sc, WfCfgNode *map, const char *key, do
     double r = v / sc->dt_s;
     char w[1024];
     if (fabs(r - round(r)) > 1e-9 * r || round(r) < 1)
-        return wf_err(err, WF_EINPUT, "%s: %s (%.17g s) must be a whole multiple of time.dt_s (%.17g s)",
-                      where_of(wf_cfg_child(map, key) ? wf_cfg_child(map, key) : map, w, sizeof w), key, v, sc->dt_s);
+        return wf_err(err, WF_EINPUT, "%s: %s (%s s) must be a whole multiple of time.dt_s (%s s)",
+                      where_of(wf_cfg_child(map, key) ? wf_cfg_child(map, key) : map, w, sizeof w), key, WF_NUM(v),
+                      WF_NUM(sc->dt_s));
     return 0;
 }
 
@@ -370,8 +376,8 @@ static int load_detectors(WfCfgNode *det, const WfKeySpec *row, void *t, WfKeyEn
         if (wf_cfg_node_double(xs->child[i], 0, L, "m", &cs->det_x_m[i], err)) return WF_EINPUT;
         /* A passage is x_before <= x_d < x_after, and vehicles leave once x >= L: x_d = L would miss some. */
         if (!(cs->det_x_m[i] < L))
-            return wf_err(err, WF_EINPUT, "%s: a detector must lie before the exit, in [0, %.17g) m",
-                          where_of(xs->child[i], w, sizeof w), L);
+            return wf_err(err, WF_EINPUT, "%s: a detector must lie before the exit, in [0, %s) m",
+                          where_of(xs->child[i], w, sizeof w), WF_NUM(L));
     }
     cs->n_det = xs->n_child;
     return 0;

@@ -11,6 +11,8 @@
 #include "util/path.h"
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
+#include "wavefuel/tabulated.h"
+#include "util/numfmt.h"
 
 #define where_of wf_scenario_where
 
@@ -35,8 +37,8 @@ static int read_indices(WfCfgNode *map, long n_veh, long **out, size_t *n_out, W
         if (v != floor(v)) {
             char w[1024];
             free(idx);
-            return wf_err(err, WF_EINPUT, "%s: expected an integer vehicle index (got %.17g)",
-                          where_of(seq->child[k], w, sizeof w), v);
+            return wf_err(err, WF_EINPUT, "%s: expected an integer vehicle index (got %s)",
+                          where_of(seq->child[k], w, sizeof w), WF_NUM(v));
         }
         idx[k] = (long)v;
     }
@@ -78,7 +80,7 @@ static int resolve_counts(const char *what, size_t m, double *fraction, long *co
     double sum = 0.0;
     for (size_t i = 0; i < m; i++) sum += fraction[i];
     if (fabs(sum - 1.0) > 1e-9)
-        return wf_err(err, WF_EINPUT, "%s: %s fractions sum to %.12g, expected 1", where, what, sum);
+        return wf_err(err, WF_EINPUT, "%s: %s fractions sum to %s, expected 1", where, what, WF_NUM(sum));
     long assigned = 0;
     double rem[WF_MAX_GROUPS > WF_MAX_CLASSES ? WF_MAX_GROUPS : WF_MAX_CLASSES];
     for (size_t i = 0; i < m; i++) {
@@ -111,15 +113,23 @@ static int load_class_name(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv
     const char *name = NULL;
     char w[1024];
     if (wf_cfg_string(e, "class", &name, err)) return WF_EINPUT;
-    /* A class name is looked up in the class directories; a path (with a '/') resolves against the scenario's. */
+    /* A class name is looked up in the class directories; a path (with a '/' or ending in .yaml, as
+     * wf_vehicle_find tells them apart) resolves against the scenario's directory, like the scenario's other paths. */
     char path[2048];
-    if (strchr(name, '/') ? wf_path_relative_to(sc->path, name, path, sizeof path) : snprintf(path, sizeof path, "%s", name) < 0)
+    size_t nlen = strlen(name);
+    int is_path = strchr(name, '/') || (nlen > 5 && !strcmp(name + nlen - 5, ".yaml"));
+    if (is_path ? wf_path_relative_to(sc->path, name, path, sizeof path) : snprintf(path, sizeof path, "%s", name) < 0)
         return wf_err(err, WF_EINPUT, "%s: class path too long", where_of(wf_cfg_child(e, "class"), w, sizeof w));
     if (wf_vehicle_find(path, &cs->vc, err)) {
         wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(e, "class"), w, sizeof w));
         return WF_EINPUT;
     }
     sc->n_classes = i + 1;
+    /* The class file and the table it names (tabulated model, or a table beside the polynomial) are inputs. */
+    char table[4096];
+    if (wf_scenario_add_input(sc, cs->vc.path, err) || wf_tabulated_class_table(&cs->vc, table, sizeof table, err) ||
+        (table[0] && wf_scenario_add_input(sc, table, err)))
+        return err->code;
     for (size_t k = 0; k < i; k++)
         if (strcmp(sc->classes[k].vc.path, cs->vc.path) == 0)
             return wf_err(err, WF_EINPUT, "%s: class '%s' listed twice", where_of(e, w, sizeof w), name);
@@ -189,6 +199,7 @@ static int load_group_model(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEn
             wf_err_prefix(err, "%s: ", where_of(pn, w, sizeof w));
             return WF_EINPUT;
         }
+        if (wf_scenario_add_input(env->sc, path, err)) return WF_ESYS;
         g->model = wf_cf_plugin_model(g->plugin);
         return 0;
     }
@@ -500,8 +511,8 @@ static int load_vehicles(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyE
     double nv;
     if (wf_cfg_double(fleet, row->key, row->min, row->max, row->unit, &nv, err)) return WF_EINPUT;
     if (nv != floor(nv))
-        return wf_err(err, WF_EINPUT, "%s: fleet.vehicles must be a whole number (got %.17g)",
-                      where_of(wf_cfg_child(fleet, "vehicles"), w, sizeof w), nv);
+        return wf_err(err, WF_EINPUT, "%s: fleet.vehicles must be a whole number (got %s)",
+                      where_of(wf_cfg_child(fleet, "vehicles"), w, sizeof w), WF_NUM(nv));
     sc->n_vehicles = (long)nv;
     return 0;
 }

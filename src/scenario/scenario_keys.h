@@ -8,6 +8,9 @@
 #include "wavefuel/keys.h"
 #include "wavefuel/scenario.h"
 
+/* Appends a copy of `path` to sc->inputs (the files the scenario was read from). WF_ESYS when out of memory. */
+int wf_scenario_add_input(WfScenario *sc, const char *path, WfError *err);
+
 /* "file:line: path" of a node, into buf. */
 const char *wf_scenario_where(const WfCfgNode *n, char *buf, size_t len);
 

@@ -10,6 +10,8 @@
 
 #include "util/clock.h"
 #include "util/hash.h"
+#include "util/numfmt.h"
+#include "util/outpath.h"
 #include "util/path.h"
 #include "wavefuel/config.h"
 #include "wavefuel/engine.h"
@@ -180,8 +182,8 @@ static int range_values(WfCfgNode *range, const char ***out, size_t *n_out, stru
         return WF_EINPUT;
     double span = (stop - start) / step;
     if (step == 0.0 || !(span >= -1e-9))
-        return wf_err(err, WF_EINPUT, "%s: step %g cannot go from start %g to stop %g", where(range, w, sizeof w),
-                      step, start, stop);
+        return wf_err(err, WF_EINPUT, "%s: step %s cannot go from start %s to stop %s", where(range, w, sizeof w),
+                      WF_NUM(step), WF_NUM(start), WF_NUM(stop));
     /* The 1e-9 keeps a stop that the steps reach up to rounding ((0.3 - 0) / 0.1 = 2.9999999999999996). */
     double count = floor(span + 1e-9) + 1.0;
     if (count > 100000)
@@ -497,15 +499,20 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     if (axes && runs)
         return wf_err(err, WF_EINPUT, "%s: give either `axes` (a Cartesian product) or `runs` (an explicit list), "
                       "not both", where(runs, w, sizeof w));
-    if (name)
-        snprintf(sw->name, sizeof sw->name, "%s", name);
-    else {
-        const char *base = wf_path_base(sw->path);
-        snprintf(sw->name, sizeof sw->name, "%.*s", (int)strcspn(base, "."), base);
-    }
+    /* The name names output/NAME.h5 (and the table's rows): a plain file name that fits, never cut. */
+    const char *base = wf_path_base(sw->path);
+    int stem_len = (int)strcspn(base, ".");
+    char stem[1024];
+    snprintf(stem, sizeof stem, "%.*s", stem_len, base);
+    const char *problem = wf_path_plain_name_problem(name ? name : stem, sizeof sw->name - 1);
+    if (problem)
+        return wf_err(err, WF_EINPUT, "%s '%.200s' %s (at most %zu bytes)%s",
+                      name ? where(wf_cfg_child(root, "name"), w, sizeof w) : sw->path, name ? name : stem, problem,
+                      sizeof sw->name - 1, name ? "" : ": the file's stem is the default name; set `name:`");
+    memcpy(sw->name, name ? name : stem, strlen(name ? name : stem) + 1); /* fits: checked above */
     if (resolve_scenario(sw, scen, err)) return WF_EINPUT;
     int n = output ? snprintf(sw->output, sizeof sw->output, "%s", output)
-                   : snprintf(sw->output, sizeof sw->output, "output/%s.h5", sw->name);
+                   : snprintf(sw->output, sizeof sw->output, WF_OUTPUT_DEFAULT_DIR "/%s.h5", sw->name);
     if (n < 0 || (size_t)n >= sizeof sw->output) return wf_err(err, WF_EINPUT, "%s: output path too long", sw->path);
 
     SetList common = {0}, *explicit_runs = NULL;
@@ -636,12 +643,13 @@ static int append_word(char *buf, size_t len, size_t *used, const char *w)
     return 0;
 }
 
-int wf_sweep_command(const WfSweep *sw, size_t run, char *buf, size_t len)
+int wf_sweep_command(const WfSweep *sw, size_t run, const char *program, char *buf, size_t len)
 {
     const WfSweepRun *r = &sw->runs[run];
     size_t used = 0;
     if (len) buf[0] = '\0';
-    if (append_word(buf, len, &used, "wavefuel") || append_word(buf, len, &used, "run") ||
+    if (!program) program = "wavefuel";
+    if (append_word(buf, len, &used, program) || append_word(buf, len, &used, "run") ||
         append_word(buf, len, &used, sw->scenario_path))
         return WF_EINPUT;
     for (size_t i = 0; i < r->n_set; i++)

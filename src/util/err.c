@@ -45,6 +45,26 @@ static const char *skip_blank(const char *s)
     return s;
 }
 
+/* Decimal notation only: [+-]digits[.digits][(e|E)[+-]digits], at least one digit before the exponent. strtod()
+ * alone also reads hexadecimal ("0x10" is 16), "inf" and "nan", which no wavefuel input means. Returns the length
+ * of the decimal number at the start of s, 0 if there is none. */
+static size_t decimal_length(const char *s)
+{
+    size_t i = 0, digits = 0;
+    if (s[i] == '+' || s[i] == '-') i++;
+    for (; s[i] >= '0' && s[i] <= '9'; i++) digits++;
+    if (s[i] == '.')
+        for (i++; s[i] >= '0' && s[i] <= '9'; i++) digits++;
+    if (!digits) return 0;
+    if (s[i] == 'e' || s[i] == 'E') {
+        size_t j = i + 1, exp_digits = 0;
+        if (s[j] == '+' || s[j] == '-') j++;
+        for (; s[j] >= '0' && s[j] <= '9'; j++) exp_digits++;
+        if (exp_digits) i = j;
+    }
+    return i;
+}
+
 int wf_parse_double(const char *s, double *out)
 {
     if (!s) return -1;
@@ -54,6 +74,7 @@ int wf_parse_double(const char *s, double *out)
     errno = 0;
     double v = strtod(s, &end);
     if (end == s || errno == ERANGE || !isfinite(v)) return -1;
+    if ((size_t)(end - s) != decimal_length(s)) return -1; /* hexadecimal, or strtod read further than decimal */
     end = (char *)skip_blank(end);
     if (*end != '\0' && *end != '\r' && *end != '\n') return -1;
     if (*end == '\r' || *end == '\n') {

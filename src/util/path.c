@@ -13,6 +13,17 @@ int wf_path_relative_to(const char *base_file, const char *rel, char *out, size_
     return w < 0 || (size_t)w >= len ? -1 : 0;
 }
 
+const char *wf_path_plain_name_problem(const char *name, size_t max_len)
+{
+    if (!name[0]) return "is empty";
+    if (strchr(name, '/')) return "contains '/' (a name, not a path: it names output/NAME.h5)";
+    if (!strcmp(name, ".") || !strcmp(name, "..")) return "is '.' or '..'";
+    for (const char *p = name; *p; p++)
+        if ((unsigned char)*p < 0x20 || *p == 0x7f) return "contains a control character";
+    if (strlen(name) > max_len) return "is too long";
+    return NULL;
+}
+
 const char *wf_path_base(const char *path)
 {
     const char *slash = strrchr(path, '/');

@@ -10,6 +10,11 @@
  * when the result does not fit in len bytes (out then holds a truncated string). */
 int wf_path_relative_to(const char *base_file, const char *rel, char *out, size_t len);
 
+/* Whether `name` can be used as a file name in a directory, as a scenario's or sweep's name is (output/NAME.h5):
+ * NULL when it can, else why not ("contains '/'", "is empty", "is '..'", "contains a control character", "is
+ * longer than MAX bytes" with max_len). A static string. */
+const char *wf_path_plain_name_problem(const char *name, size_t max_len);
+
 /* The file name part of `path`: what follows its last '/' (all of it when it has none); a pointer into path. */
 const char *wf_path_base(const char *path);
 

@@ -8,6 +8,7 @@
 #include <stddef.h>
 
 #include "wavefuel/cf.h"
+#include "util/numfmt.h"
 
 typedef struct FsParams {
     double U_mps;   /* desired speed */
@@ -59,13 +60,13 @@ static int fs_check(const void *params, WfError *err)
 {
     const FsParams *p = params;
     if (!(p->dx1_m < p->dx2_m && p->dx2_m < p->dx3_m))
-        return wf_err(err, WF_EINPUT, "follower_stopper: need dx1_m < dx2_m < dx3_m (got %.17g, %.17g, %.17g)",
-                      p->dx1_m, p->dx2_m, p->dx3_m);
+        return wf_err(err, WF_EINPUT, "follower_stopper: need dx1_m < dx2_m < dx3_m (got %s, %s, %s)",
+                      WF_NUM(p->dx1_m), WF_NUM(p->dx2_m), WF_NUM(p->dx3_m));
     if (!(p->d1_mps2 >= p->d2_mps2 && p->d2_mps2 >= p->d3_mps2))
         return wf_err(err, WF_EINPUT,
                       "follower_stopper: need d1_mps2 >= d2_mps2 >= d3_mps2 so the regions stay ordered when closing "
-                      "in (got %.17g, %.17g, %.17g)",
-                      p->d1_mps2, p->d2_mps2, p->d3_mps2);
+                      "in (got %s, %s, %s)",
+                      WF_NUM(p->d1_mps2), WF_NUM(p->d2_mps2), WF_NUM(p->d3_mps2));
     return 0;
 }
 

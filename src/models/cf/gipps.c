@@ -9,6 +9,7 @@
 #include <stddef.h>
 
 #include "wavefuel/cf.h"
+#include "util/numfmt.h"
 
 typedef struct GippsParams {
     double a_mps2;     /* maximum acceleration the driver wishes to use */
@@ -45,9 +46,9 @@ static int gipps_check(const void *params, WfError *err)
     if (p->b_hat_mps2 < b_hat_min)
         return wf_err(err, WF_EINPUT,
                       "gipps: b_hat_mps2 must be >= b_mps2 / (1 + 1.5 b_mps2 tau_s / v0_mps) = %.6g m/s^2 with "
-                      "b_mps2 = %.17g, tau_s = %.17g, v0_mps = %.17g (got %.17g); below it the uniform-flow speed "
+                      "b_mps2 = %s, tau_s = %s, v0_mps = %s (got %s); below it the uniform-flow speed "
                       "at a given gap is not unique",
-                      b_hat_min, p->b_mps2, p->tau_s, p->v0_mps, p->b_hat_mps2);
+                      b_hat_min, WF_NUM(p->b_mps2), WF_NUM(p->tau_s), WF_NUM(p->v0_mps), WF_NUM(p->b_hat_mps2));
     return WF_OK;
 }
 

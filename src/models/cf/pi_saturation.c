@@ -12,6 +12,7 @@
 #include <string.h>
 
 #include "wavefuel/cf.h"
+#include "util/numfmt.h"
 
 /* The speed history is sampled on a fixed clock of PI_SAMPLE_S, independent of the time step, so the state
  * block has one size for every scenario: at t_j = j PI_SAMPLE_S the speed at the start of the step containing
@@ -137,8 +138,8 @@ static int pi_check(const void *params, WfError *err)
 {
     const PiParams *p = params;
     if (!(p->g_u_m > p->g_l_m))
-        return wf_err(err, WF_EINPUT, "pi_saturation: need g_u_m > g_l_m (got g_l_m = %.17g, g_u_m = %.17g)",
-                      p->g_l_m, p->g_u_m);
+        return wf_err(err, WF_EINPUT, "pi_saturation: need g_u_m > g_l_m (got g_l_m = %s, g_u_m = %s)",
+                      WF_NUM(p->g_l_m), WF_NUM(p->g_u_m));
     return 0;
 }
 

@@ -12,6 +12,7 @@
 
 #include "wavefuel/cf.h"
 #include "wavefuel/err.h"
+#include "util/numfmt.h"
 
 #define PLUGIN_MAX_STATE_BYTES (1u << 20)
 
@@ -59,9 +60,9 @@ static int validate(const char *path, const WfCfPlugin *d, WfError *err)
             return wf_err(err, WF_EINPUT, "plugin %s (%s): parameter %zu lacks a key, unit or doc", path, d->name, k);
         if (!(isfinite(q->min) && isfinite(q->max) && q->min <= q->max && q->def >= q->min && q->def <= q->max))
             return wf_err(err, WF_EINPUT,
-                          "plugin %s (%s): parameter '%s' needs finite min <= default <= max (got %.17g <= %.17g <= "
-                          "%.17g)",
-                          path, d->name, q->key, q->min, q->def, q->max);
+                          "plugin %s (%s): parameter '%s' needs finite min <= default <= max (got %s <= %s <= "
+                          "%s)",
+                          path, d->name, q->key, WF_NUM(q->min), WF_NUM(q->def), WF_NUM(q->max));
         for (size_t j = 0; j < k; j++)
             if (strcmp(d->params[j].key, q->key) == 0)
                 return wf_err(err, WF_EINPUT, "plugin %s (%s): parameter '%s' declared twice", path, d->name, q->key);

@@ -18,6 +18,7 @@
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/version.h"
+#include "util/numfmt.h"
 
 #define TABLE_FORMAT "wavefuel tabulated energy model"
 #define TABLE_FORMAT_VERSION 1
@@ -82,8 +83,8 @@ static int axis_init(WfTableAxis *ax, double *nodes, size_t n, const char *file,
     /* Spacings so small that their reciprocals overflow would turn the weights into NaN (0 x inf). */
     for (size_t k = 0; k < n; k++)
         if (!isfinite(ax->inv_w[k]) || !isfinite(ax->bucket_scale))
-            return wf_err(err, WF_EINPUT, "%s: %s values %.17g and %.17g are too close together for a table axis",
-                          file, what, nodes[k], nodes[k + 1]);
+            return wf_err(err, WF_EINPUT, "%s: %s values %s and %s are too close together for a table axis",
+                          file, what, WF_NUM(nodes[k]), WF_NUM(nodes[k + 1]));
     size_t k = 0;
     for (size_t b = 0; b < ax->n_bucket; b++) {
         double edge = ax->lo + (double)b * (ax->hi - ax->lo) / (double)ax->n_bucket;
@@ -229,8 +230,8 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
     for (size_t r = 0; r < csv.n_rows; r++) {
         double inf = csv.data[r * 5 + 4];
         if (inf != 0.0 && inf != 1.0) {
-            rc = wf_err(err, WF_EINPUT, "%s:%d: field 5 (Infeasible) must be 0 or 1 (got %.17g)", path, csv.line[r],
-                        inf);
+            rc = wf_err(err, WF_EINPUT, "%s:%d: field 5 (Infeasible) must be 0 or 1 (got %s)", path, csv.line[r],
+                        WF_NUM(inf));
             goto fail;
         }
     }
@@ -264,9 +265,9 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
         size_t idx = (node_index(&t->v, row[0]) * na + node_index(&t->a, row[1])) * nt + node_index(&t->theta, row[2]);
         if (row_line[idx]) {
             rc = wf_err(err, WF_EINPUT,
-                        "%s:%d: duplicate row for Velocity=%.17g, Acceleration=%.17g, Road Grade=%.17g (first on line "
+                        "%s:%d: duplicate row for Velocity=%s, Acceleration=%s, Road Grade=%s (first on line "
                         "%d)",
-                        path, csv.line[r], row[0], row[1], row[2], row_line[idx]);
+                        path, csv.line[r], WF_NUM(row[0]), WF_NUM(row[1]), WF_NUM(row[2]), row_line[idx]);
             goto fail;
         }
         row_line[idx] = csv.line[r];
@@ -277,10 +278,11 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
         if (!row_line[idx]) {
             size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
             rc = wf_err(err, WF_EINPUT,
-                        "%s: not a regular grid: no row for Velocity=%.17g, Acceleration=%.17g, Road Grade=%.17g "
+                        "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s "
                         "(the distinct values make %zu speeds x %zu accelerations x %zu grades = %zu points, the "
                         "file has %zu rows: rows are missing, or the points do not lie on one grid)",
-                        path, t->v.x[iv], t->a.x[ia], t->theta.x[it], nv, na, nt, n, csv.n_rows);
+                        path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n,
+                        csv.n_rows);
             goto fail;
         }
     derive_a_max(t);
@@ -317,8 +319,8 @@ int wf_table_from_grid(size_t nv, const double *v, size_t na, const double *a, s
         }
         for (size_t k = 0; k < n && !rc; k++)
             if (!isfinite(in[c][k]) || (k && !(in[c][k] > in[c][k - 1])))
-                rc = wf_err(err, WF_EINPUT, "%s: %s node %zu (%.17g) is not finite or not above the one before", source,
-                            what[c], k, in[c][k]);
+                rc = wf_err(err, WF_EINPUT, "%s: %s node %zu (%s) is not finite or not above the one before", source,
+                            what[c], k, WF_NUM(in[c][k]));
         if (rc) break;
         double *nodes = malloc((n + 1) * sizeof *nodes);
         if (!nodes) {
