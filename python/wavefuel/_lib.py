@@ -265,9 +265,11 @@ def set_class_path(dirs=None):
     """Set the vehicle class search path (colon-separated directories). Default: "$WAVEFUEL_VEHICLES" then the
     checkout's vehicles/, the order bin/wavefuel uses (docs/energy.md)."""
     if dirs is None:
-        parts = [os.environ.get("WAVEFUEL_VEHICLES", "")]
+        parts = os.environ.get("WAVEFUEL_VEHICLES", "").split(":")
         checkout = os.path.join(CHECKOUT_DIR, "vehicles")
-        if os.path.isdir(checkout):
+        # The checkout's vehicles/ unless $WAVEFUEL_VEHICLES names it already (classes listed once).
+        if os.path.isdir(checkout) and not any(p and os.path.realpath(p) == os.path.realpath(checkout)
+                                               for p in parts):
             parts.append(checkout)
         dirs = ":".join(p for p in parts if p)
     err = WfError()
