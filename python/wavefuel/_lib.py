@@ -24,6 +24,9 @@ class WavefuelError(Exception):
         self.code = code
 
 
+WavefuelError.__module__ = "wavefuel"  # shown as wavefuel.WavefuelError in tracebacks
+
+
 def library_path():
     """The shared library used: $WAVEFUEL_LIB, else libwavefuel.so next to the package (`make python` copies it
     there), else the checkout's lib/libwavefuel.so."""

@@ -52,6 +52,8 @@ class Simulation:
 
     def __init__(self, scenario, threads=None, output=None, force=False):
         self.scenario = scenario if isinstance(scenario, Scenario) else Scenario.load(scenario)
+        if threads is not None and not 1 <= int(threads) <= 4096:  # the range of `wavefuel run --threads`
+            raise _lib.WavefuelError(f"threads must be an integer in [1, 4096] (got {threads})")
         self._ptr = C.c_void_p()
         self._h5 = C.c_void_p()
         self._ops = WfOutput()
@@ -80,8 +82,11 @@ class Simulation:
 
     def step(self, n=1):
         """Advance n steps (fewer when the run reaches its end, which also takes the final record, writes the
-        summary and completes the result file). Raises WavefuelError after the end."""
+        summary and completes the result file). Raises WavefuelError after the end. The steps run in C without
+        returning to Python: Ctrl-C (KeyboardInterrupt) takes effect when the call returns."""
         self._alive()
+        if int(n) < 1:
+            raise _lib.WavefuelError(f"{self.scenario.path}: step(n): n must be at least 1 (got {n})")
         self._begin()
         err = WfError()
         with _Threads(self.threads):

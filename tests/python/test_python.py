@@ -248,6 +248,8 @@ def test_errors(tmp):
     expect_error("python_error_existing_result", lambda: sim2.run(output=existing), "ring_cli.h5")
     sim2.close()
     expect_error("python_error_closed", lambda: sim2.step(), "closed")
+    expect_error("python_error_steps", lambda: wavefuel.Simulation("tests/data/tiny_ring.yaml").step(0), "at least 1")
+    expect_error("python_error_threads", lambda: wavefuel.Simulation("tests/data/tiny_ring.yaml", threads=0), "threads")
     # a dict scenario equals its file: the same text as JSON
     d = tiny
     path = os.path.join(tmp, "tiny.yaml")
