@@ -17,11 +17,14 @@ if $PY -m venv --system-site-packages --without-pip "$tmp/venv" 2>"$tmp/err" &&
    cp -r python "$tmp/src" && rm -rf "$tmp/src/build" "$tmp/src"/*.egg-info &&
    "$tmp/venv/bin/python" -m pip install -q --no-build-isolation --no-index "$tmp/src" >"$tmp/err" 2>&1; then
   # Outside the checkout: the library next to the installed package, the classes from $WAVEFUEL_VEHICLES.
-  got=$(cd "$tmp" && env -u PYTHONPATH -u WAVEFUEL_LIB WAVEFUEL_VEHICLES="$OLDPWD/vehicles" "$tmp/venv/bin/python" -c \
-    'import wavefuel; print(wavefuel.library_path().startswith("'"$tmp/venv"'"), float(wavefuel.energy.fuel("midsize_sedan", 20.0, 0.5)).hex())' 2>&1)
-  ref=$(printf 'v,a,theta\n20,0.5,0\n' | "${WAVEFUEL_BIN:-bin/wavefuel}" energy --class midsize_sedan | tail -1 | cut -d, -f4)
-  ref=$($PY -c "print(float('$ref').hex())")
-  [ "$got" = "True $ref" ] && echo "PASS python_pip_install" || echo "FAIL python_pip_install: got '$got', expected 'True $ref'"
+  code='import sys, wavefuel
+print(wavefuel.library_path().startswith(sys.argv[1]), float(wavefuel.energy.fuel("midsize_sedan", 20.0, 0.5)).hex())'
+  got=$(cd "$tmp" && env -u PYTHONPATH -u WAVEFUEL_LIB WAVEFUEL_VEHICLES="$OLDPWD/vehicles" \
+        "$tmp/venv/bin/python" -c "$code" "$tmp/venv" 2>&1)
+  ref=$(printf 'v,a,theta\n20,0.5,0\n' | "${WAVEFUEL_BIN:-bin/wavefuel}" energy --class midsize_sedan | cut -d, -f4)
+  ref=$($PY -c "import sys; print(float(sys.argv[1]).hex())" "$(tail -1 <<<"$ref")")
+  if [ "$got" = "True $ref" ]; then echo "PASS python_pip_install"
+  else echo "FAIL python_pip_install: got '$got', expected 'True $ref'"; fi
 else
   echo "FAIL python_pip_install: $(tail -5 "$tmp/err")"
 fi

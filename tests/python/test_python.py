@@ -183,6 +183,37 @@ def test_views():
     sim.close()
 
 
+def test_views_vs_file(tmp):
+    """The ring's views against what the writer saw: x and v at each trajectory frame's instant; acceleration and
+    fuel rate of the step that starts there (the per-step arrays hold the last step's values, taken at its start);
+    fuel, final position and speed, class and group per vehicle at the end (/vehicles)."""
+    out = os.path.join(tmp, "views.h5")
+    short = {"time.duration_s": 100, "time.warmup_s": 20}
+    sim = wavefuel.Simulation(wavefuel.Scenario.load("scenarios/sugiyama.yaml", short), threads=2, output=out)
+    st = sim.state()
+    at, after = {}, {}
+    while not sim.done:
+        at[sim.steps_done] = (st["x_m"].copy(), st["v_mps"].copy())
+        sim.step(1)
+        after[sim.steps_done - 1] = (st["a_mps2"].copy(), st["fuel_rate_gps"].copy())
+        sim.step(24)
+    res = wavefuel.read(out)
+    n, bad = 0, []
+    for i, t in enumerate(res["trajectories/t"]):
+        k = int(round(float(t) / sim.scenario.dt_s))
+        if k in at and k in after:
+            n += 1
+            got = at[k] + after[k]
+            ref = [res[f"trajectories/{c}"][i] for c in ("x", "v", "a", "fuel_rate")]
+            bad += [f"{c} at t = {t}" for c, g, r in zip(("x", "v", "a", "fuel_rate"), got, ref)
+                    if not np.array_equal(g, r)]
+    end = [(c, st[k], res[f"vehicles/{c}"]) for c, k in (("fuel", "fuel_g"), ("final_x", "x_m"), ("final_v", "v_mps"),
+                                                          ("class_id", "class_id"), ("group_id", "group_id"))]
+    bad += [c for c, g, r in end if not np.array_equal(g, r)]
+    report("python_views_match_result", n >= 40 and not bad, f"{n} frames compared; differ: {bad[:6]}")
+    sim.close()
+
+
 def test_two_sims(tmp):
     name_a, scen_a, over_a, thr_a = CASES[0]
     name_b, scen_b, over_b, thr_b = CASES[2]
@@ -228,10 +259,9 @@ def test_errors(tmp):
     bad = dict(tiny, time={"duration_s": 20, "dt_ss": 0.1})
     expect_error("python_error_bad_key", lambda: wavefuel.Scenario.from_dict(bad, path=os.path.join(tmp, "b.yaml")),
                  "b.yaml", "dt_ss")
+    missing = dict(tiny, fleet={"vehicles": 10, "classes": [{"class": "no_such_class", "fraction": 1}]})
     expect_error("python_error_missing_class",
-                 lambda: wavefuel.Scenario.from_dict(dict(tiny, fleet={"vehicles": 10,
-                                                                       "classes": [{"class": "no_such_class", "fraction": 1}]}),
-                                                     path=os.path.join(tmp, "d.yaml")),
+                 lambda: wavefuel.Scenario.from_dict(missing, path=os.path.join(tmp, "d.yaml")),
                  "no_such_class", "d.yaml")
     expect_error("python_error_bad_value",
                  lambda: wavefuel.Scenario.load("scenarios/sugiyama.yaml", ["time.dt_s=-1"]), "dt_s", "-1")
@@ -248,8 +278,9 @@ def test_errors(tmp):
     expect_error("python_error_existing_result", lambda: sim2.run(output=existing), "ring_cli.h5")
     sim2.close()
     expect_error("python_error_closed", lambda: sim2.step(), "closed")
-    expect_error("python_error_steps", lambda: wavefuel.Simulation("tests/data/tiny_ring.yaml").step(0), "at least 1")
-    expect_error("python_error_threads", lambda: wavefuel.Simulation("tests/data/tiny_ring.yaml", threads=0), "threads")
+    ring = "tests/data/tiny_ring.yaml"
+    expect_error("python_error_steps", lambda: wavefuel.Simulation(ring).step(0), "at least 1")
+    expect_error("python_error_threads", lambda: wavefuel.Simulation(ring, threads=0), "threads")
     # a dict scenario equals its file: the same text as JSON
     d = tiny
     path = os.path.join(tmp, "tiny.yaml")
@@ -267,6 +298,7 @@ def main():
         test_energy(tmp)
         test_runs(tmp)
         test_views()
+        test_views_vs_file(tmp)
         test_two_sims(tmp)
         test_errors(tmp)
     return 1 if fails else 0
