@@ -18,10 +18,31 @@ _BOUNDARY = {"ring": 0, "corridor": 1}
 _SUMMARY_LONG, _SUMMARY_F64 = 2, 0
 
 
-def _view(ptr, n, writeable=False):
-    """numpy view (no copy) of n elements at a ctypes pointer; read-only: the engine owns the state."""
-    a = np.ctypeslib.as_array(ptr, (n,))
-    a.flags.writeable = writeable
+class _Run:
+    """The C objects of one run: the engine, the result writer and its callbacks, and the scenario the engine
+    borrows. Freed once: by Simulation.close(), or when nothing refers to it any more (the Simulation and every
+    state view hold it, so garbage collection never frees memory a view still shows)."""
+
+    def __init__(self, scenario):
+        self.scenario = scenario
+        self.ptr, self.h5, self.ops = C.c_void_p(), C.c_void_p(), WfOutput()
+
+    def free(self):
+        if self.h5:
+            lib.wf_h5out_destroy(C.byref(self.h5))
+        if self.ptr:
+            lib.wf_sim_destroy(C.byref(self.ptr))
+
+    def __del__(self):
+        self.free()
+
+
+def _view(ptr, n, run):
+    """Read-only numpy view (no copy) of n elements at a ctypes pointer, keeping `run` alive."""
+    arr = (ptr._type_ * n).from_address(C.cast(ptr, C.c_void_p).value)
+    arr._run = run
+    a = np.ctypeslib.as_array(arr)
+    a.flags.writeable = False  # the engine owns the state
     return a
 
 
@@ -54,14 +75,12 @@ class Simulation:
         self.scenario = scenario if isinstance(scenario, Scenario) else Scenario.load(scenario)
         if threads is not None and not 1 <= int(threads) <= 4096:  # the range of `wavefuel run --threads`
             raise _lib.WavefuelError(f"threads must be an integer in [1, 4096] (got {threads})")
-        self._ptr = C.c_void_p()
-        self._h5 = C.c_void_p()
-        self._ops = WfOutput()
+        self._run = _Run(self.scenario)
         self._begun = False
         self.output, self.force = output, force
         err = WfError()
         with _Threads(threads):
-            check(lib.wf_sim_create(self.scenario._ptr, C.byref(self._ptr), C.byref(err)), err)
+            check(lib.wf_sim_create(self.scenario._ptr, C.byref(self._run.ptr), C.byref(err)), err)
         self.threads = lib.wf_sim_threads(self._ptr)
         self.kind = text(lib.wf_sim_kind(self._ptr))
         self._ring_state = self._fleet_views() if self.kind == "ring" else None
@@ -74,9 +93,9 @@ class Simulation:
         ops = None
         if self.output is not None:
             path = os.fspath(self.output)
-            check(lib.wf_h5out_create(self._ptr, path.encode(), int(bool(self.force)), C.byref(self._h5),
-                                      C.byref(self._ops), C.byref(err)), err)
-            ops = C.byref(self._ops)
+            check(lib.wf_h5out_create(self._ptr, path.encode(), int(bool(self.force)), C.byref(self._run.h5),
+                                      C.byref(self._run.ops), C.byref(err)), err)
+            ops = C.byref(self._run.ops)
         check(lib.wf_sim_begin(self._ptr, ops, C.byref(err)), err)
         self._begun = True
 
@@ -152,7 +171,7 @@ class Simulation:
         f = lib.wf_sim_fleet(self._ptr).contents
         names = ("x_m", "v_mps", "class_id", "group_id", "fuel_g", "a_mps2", "gap_m", "v_lead_mps", "theta_rad",
                  "fuel_rate_gps", "flag")
-        return {k: _view(getattr(f, k), f.n) for k in names if getattr(f, k)}
+        return {k: _view(getattr(f, k), f.n, self._run) for k in names if getattr(f, k)}
 
     def state(self):
         """The vehicles now, as a dict of numpy arrays (read-only).
@@ -178,7 +197,7 @@ class Simulation:
         first, n, cap = vh.first, vh.n, vh.cap
         out = {}
         for k in names:
-            buf = _view(getattr(vh, k), cap)
+            buf = _view(getattr(vh, k), cap, self._run)
             if first + n <= cap:  # one contiguous run: slots first .. first + n - 1, back to front
                 out[k] = buf[first:first + n][::-1]
             else:
@@ -223,26 +242,29 @@ class Simulation:
         return res
 
     # ------------------------------------------------------------------------------------- lifetime
+    @property
+    def _ptr(self):
+        return self._run.ptr
+
+    @property
+    def _h5(self):
+        return self._run.h5
+
     def _alive(self):
         if not self._ptr:
             raise _lib.WavefuelError("this Simulation is closed")
 
     def close(self):
-        """Free the writer (an unfinished result is removed) and the engine. Views from state() must not be used
-        afterwards."""
-        if getattr(self, "_h5", None):
-            lib.wf_h5out_destroy(C.byref(self._h5))
-        if getattr(self, "_ptr", None):
-            lib.wf_sim_destroy(C.byref(self._ptr))
+        """Free the writer (an unfinished result is removed) and the engine now. Views from state() must not be
+        used afterwards (without close(), the run lives as long as the Simulation or any of its views)."""
+        if getattr(self, "_run", None):
+            self._run.free()
         self._ring_state = None
 
     def __enter__(self):
         return self
 
     def __exit__(self, *exc):
-        self.close()
-
-    def __del__(self):
         self.close()
 
     def __repr__(self):

@@ -13,10 +13,12 @@ Each check prints PASS name or FAIL name: why.
 - two simulations at once, stepped alternately on different thread counts, each equal its own CLI result;
 - errors: a bad key, a missing class, a bad value in a dict, a step after the end, an existing result: each a
   WavefuelError carrying wavefuel's message (file and key), the process alive."""
+import gc
 import os
 import subprocess
 import sys
 import tempfile
+import weakref
 
 import numpy as np
 
@@ -152,7 +154,14 @@ def test_views():
         report("python_view_read_only", False, "a state view accepted a write")
     except ValueError:
         report("python_view_read_only", True)
-    sim.close()
+    # A view keeps the engine alive after the Simulation is gone (no use after free); the last one frees it.
+    run = weakref.ref(sim._run)
+    del sim, st, st2, f
+    gc.collect()
+    alive = run() is not None and np.isfinite(x).all()
+    del x
+    gc.collect()
+    report("python_view_keeps_run_alive", alive and run() is None, f"alive with a view: {alive}")
     sim = wavefuel.Simulation(wavefuel.Scenario.load("tests/data/tiny_corridor.yaml"), threads=2)
     sim.step(1200)
     st = sim.state()
