@@ -58,7 +58,7 @@ FUZZER_BIN   := $(FUZZ_TARGETS:%=$(BUILD)/fuzz/%_fuzzer)
 LIBA     := lib/libwavefuel.a
 BIN      := bin/wavefuel
 
-.PHONY: all run test check sanitize deps clean bench tests fuzz fuzz-smoke fuzzers tsan valgrind
+.PHONY: all run test check sanitize deps clean bench tests fuzz fuzz-smoke fuzzers tsan valgrind python
 all: $(BIN) $(LIBA)
 
 deps:
@@ -107,6 +107,24 @@ $(BUILD)/plugins/%.so: examples/plugins/%.c include/wavefuel/cf_plugin.h
 	$(CC) $(CFLAGS) -fPIC -shared $< -o $@
 
 tests: $(BIN) $(TEST_BIN) $(REPLAY_BIN) $(PLUGIN_SO) $(TOOL_BIN)
+
+# The Python package (docs/python.md): lib/libwavefuel.so, the library's objects compiled again with -fPIC in
+# $(BUILD)/pic (bin/wavefuel and lib/libwavefuel.a are built as before), linked with the same libraries, and a copy
+# next to the package so that `pip install ./python` ships it.
+PIC_OBJ  := $(LIB_SRC:%.c=$(BUILD)/pic/%.o)
+LIBSO    := lib/libwavefuel.so
+$(BUILD)/pic/%.o: %.c Makefile
+	@mkdir -p $(dir $@)
+	$(CC) $(CFLAGS) -fPIC -c $< -o $@
+ifneq ($(filter x86_64%,$(shell $(CC) -dumpmachine)),)
+$(BUILD)/pic/src/core/noise_avx.o: override CFLAGS += -mavx
+endif
+$(LIBSO): $(PIC_OBJ)
+	@mkdir -p $(dir $@)
+	$(CC) -shared $(LDFLAGS) $(PIC_OBJ) $(LDLIBS) -o $@
+python/wavefuel/libwavefuel.so: $(LIBSO)
+	cp $< $@
+python: python/wavefuel/libwavefuel.so
 fuzzers: $(FUZZER_BIN)
 .SECONDARY: $(FUZZ_TARGETS:%=$(BUILD)/fuzz/fuzz_%.o) $(BUILD)/fuzz/replay_main.o
 bench: $(BIN) $(BENCH_BIN)
@@ -117,7 +135,7 @@ run: deps
 	./tools/run-default.sh
 
 test: deps
-	@$(MAKE) --no-print-directory tests
+	@$(MAKE) --no-print-directory tests python
 	@BUILD=$(BUILD) ./tests/run.sh
 
 check: test
@@ -188,7 +206,7 @@ install: $(BIN) $(LIBA)
 	    > $(DESTDIR)$(PREFIX)/lib/pkgconfig/wavefuel.pc
 
 clean:
-	rm -rf $(BUILD) build-san build-fuzz build-tsan bin lib
+	rm -rf $(BUILD) build-san build-fuzz build-tsan bin lib python/wavefuel/libwavefuel.so
 
--include $(LIB_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d)
+-include $(LIB_OBJ:.o=.d) $(PIC_OBJ:.o=.d) $(CLI_OBJ:.o=.d) $(TEST_BIN:=.d) $(BENCH_BIN:=.d)
 -include $(FUZZ_TARGETS:%=$(BUILD)/fuzz/fuzz_%.d) $(BUILD)/fuzz/replay_main.d

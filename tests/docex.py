@@ -16,9 +16,9 @@ the line ends with `|`, `\\`, `&&` or `||`); the lines after it, up to the next 
 
 Each document runs in its own temporary directory, its marked blocks in document order (a later block may read
 what an earlier one wrote), laid out like the repository: bin/wavefuel (the binary under test: $WAVEFUEL_BIN, default
-bin/wavefuel), copies of scenarios/, vehicles/ and tools/, empty output/ and docs/, and ../shared/data (the data
-path: $WAVEFUEL_DATA, else the repository's ../shared/data). PATH starts with bin/, so `wavefuel` and `./bin/wavefuel`
-both run the binary under test; OMP_NUM_THREADS=2, as the docs' figures were made.
+bin/wavefuel), copies of scenarios/, vehicles/, tools/ and python/ (on PYTHONPATH), empty output/ and docs/, and
+../shared/data (the data path: $WAVEFUEL_DATA, else the repository's ../shared/data). PATH starts with bin/, so
+`wavefuel` and `./bin/wavefuel` both run the binary under test; OMP_NUM_THREADS=2, as the docs' figures were made.
 
 Comparison, line by line after normalising both sides: runs of blanks are one blank; the figures that measure the
 machine, not the code (the table TIMING: wall times, vehicle-steps/s, runs/h, load times) are masked; absolute paths
@@ -177,12 +177,16 @@ def sandbox(root, tmp):
                         ignore=shutil.ignore_patterns("__pycache__"))
     for d in ("output", "docs"):
         os.makedirs(os.path.join(work, d))
+    # The Python package with the libwavefuel.so that `make python` copies into it (docs/python.md).
+    shutil.copytree(os.path.join(root, "python"), os.path.join(work, "python"),
+                    ignore=shutil.ignore_patterns("__pycache__", "build", "*.egg-info"))
     data = os.environ.get("WAVEFUEL_DATA") or os.path.join(root, "..", "shared", "data")
     os.makedirs(os.path.join(tmp, "shared"))
     os.symlink(os.path.abspath(data), os.path.join(tmp, "shared", "data"))
     env = dict(os.environ, PATH=os.path.join(work, "bin") + os.pathsep + os.environ.get("PATH", ""),
                WAVEFUEL_VEHICLES=os.path.join(work, "vehicles"), WAVEFUEL_DATA=os.path.join(tmp, "shared", "data"),
-               OMP_NUM_THREADS="2", MPLBACKEND="Agg", LC_ALL="C", PYTHONDONTWRITEBYTECODE="1")
+               OMP_NUM_THREADS="2", MPLBACKEND="Agg", LC_ALL="C", PYTHONDONTWRITEBYTECODE="1",
+               PYTHONPATH=os.path.join(work, "python"))
     env.pop("WAVEFUEL_BIN", None)
     return work, env
 

@@ -1,0 +1,272 @@
+"""A run of a scenario, ring or corridor, stepped from Python (the engine's wf_sim_begin / wf_sim_step: any
+sequence of steps gives the bits of `wavefuel run`), its state as numpy views of the engine's arrays, its HDF5
+result and its summary."""
+import collections
+import ctypes as C
+import os
+
+import numpy as np
+
+from . import _lib
+from ._lib import WfError, WfOutput, check, lib, text
+from .scenario import Scenario
+
+Quantity = collections.namedtuple("Quantity", "value units")
+
+# Boundary index of the summary's field descriptions (WfSummaryBoundary).
+_BOUNDARY = {"ring": 0, "corridor": 1}
+_SUMMARY_LONG, _SUMMARY_F64 = 2, 0
+
+
+class _Run:
+    """The C objects of one run: the engine, the result writer and its callbacks, and the scenario the engine
+    borrows. Freed once: by Simulation.close(), or when nothing refers to it any more (the Simulation and every
+    state view hold it, so garbage collection never frees memory a view still shows)."""
+
+    def __init__(self, scenario):
+        self.scenario = scenario
+        self.ptr, self.h5, self.ops = C.c_void_p(), C.c_void_p(), WfOutput()
+
+    def free(self):
+        if self.h5:
+            lib.wf_h5out_destroy(C.byref(self.h5))
+        if self.ptr:
+            lib.wf_sim_destroy(C.byref(self.ptr))
+
+    def __del__(self):
+        self.free()
+
+
+def _view(ptr, n, run):
+    """Read-only numpy view (no copy) of n elements at a ctypes pointer, keeping `run` alive."""
+    arr = (ptr._type_ * n).from_address(C.cast(ptr, C.c_void_p).value)
+    arr._run = run
+    a = np.ctypeslib.as_array(arr)
+    a.flags.writeable = False  # the engine owns the state
+    return a
+
+
+class _Threads:
+    """OpenMP threads of the calling thread set to the run's for the duration of a call, then restored (the
+    engine's parallel loops without their own thread count read this setting)."""
+
+    def __init__(self, n):
+        self.n = n
+
+    def __enter__(self):
+        self.saved = _lib.max_threads()
+        if self.n:
+            _lib.set_threads(self.n)
+
+    def __exit__(self, *exc):
+        _lib.set_threads(self.saved)
+
+
+class Simulation:
+    """The run of `scenario` (a Scenario, or a path loaded with no overrides) on `threads` OpenMP threads (None:
+    $OMP_NUM_THREADS or all cores, as `wavefuel run`). `output`: the HDF5 result to write (created when the first
+    step is taken; run(output=...) may give it instead). force: replace an existing result.
+
+    Lifetime: the run holds its scenario; close() (or the end of a `with` block, or garbage collection) frees the
+    engine and the writer. A result not completed is removed when the run is closed before its end, unless
+    finish() was called (which leaves FILE.h5.partial and a checkpoint, as an interrupted `wavefuel run`)."""
+
+    def __init__(self, scenario, threads=None, output=None, force=False):
+        self.scenario = scenario if isinstance(scenario, Scenario) else Scenario.load(scenario)
+        if threads is not None and not 1 <= int(threads) <= 4096:  # the range of `wavefuel run --threads`
+            raise _lib.WavefuelError(f"threads must be an integer in [1, 4096] (got {threads})")
+        self._run = _Run(self.scenario)
+        self._begun = False
+        self.output, self.force = output, force
+        err = WfError()
+        with _Threads(threads):
+            check(lib.wf_sim_create(self.scenario._ptr, C.byref(self._run.ptr), C.byref(err)), err)
+        self.threads = lib.wf_sim_threads(self._ptr)
+        self.kind = text(lib.wf_sim_kind(self._ptr))
+        self._ring_state = self._fleet_views() if self.kind == "ring" else None
+
+    # ------------------------------------------------------------------------------------- stepping
+    def _begin(self):
+        if self._begun:
+            return
+        err = WfError()
+        ops = None
+        if self.output is not None:
+            path = os.fspath(self.output)
+            check(lib.wf_h5out_create(self._ptr, path.encode(), int(bool(self.force)), C.byref(self._run.h5),
+                                      C.byref(self._run.ops), C.byref(err)), err)
+            ops = C.byref(self._run.ops)
+        check(lib.wf_sim_begin(self._ptr, ops, C.byref(err)), err)
+        self._begun = True
+
+    def step(self, n=1):
+        """Advance n steps (fewer when the run reaches its end, which also takes the final record, writes the
+        summary and completes the result file). Raises WavefuelError after the end. The steps run in C without
+        returning to Python: Ctrl-C (KeyboardInterrupt) takes effect when the call returns."""
+        self._alive()
+        if int(n) < 1:
+            raise _lib.WavefuelError(f"{self.scenario.path}: step(n): n must be at least 1 (got {n})")
+        self._begin()
+        err = WfError()
+        with _Threads(self.threads):
+            check(lib.wf_sim_step(self._ptr, int(n), C.byref(err)), err)
+        return self
+
+    def run(self, output=None, force=None):
+        """Run to the end; returns the summary. output: the result file (only before the first step; default the
+        one given to the constructor, else none is written: use scenario.output_path for `wavefuel run`'s
+        default)."""
+        self._alive()
+        if output is not None:
+            if self._begun:
+                raise _lib.WavefuelError(f"{self.scenario.path}: the run has begun: give output= before the first "
+                                         "step (Simulation(..., output=...))")
+            self.output = output
+        if force is not None:
+            self.force = force
+        if not self.done:
+            self.step(self.scenario.n_steps + 1)
+        return self.summary
+
+    def finish(self):
+        """End the run before its end: the result stays as FILE.h5.partial with a checkpoint that `wavefuel run
+        --resume` continues ("stopped by the caller")."""
+        self._alive()
+        self._begin()
+        err = WfError()
+        rc = lib.wf_sim_finish(self._ptr, C.byref(err))
+        if rc not in (0, 3):  # WF_EINTR: stopped as asked
+            check(rc, err)
+
+    @property
+    def t(self):
+        """Simulated time now, s (steps done x dt)."""
+        self._alive()
+        return lib.wf_sim_time_s(self._ptr)
+
+    @property
+    def steps_done(self):
+        self._alive()
+        return lib.wf_sim_steps_done(self._ptr)
+
+    @property
+    def done(self):
+        """True once the run has ended."""
+        self._alive()
+        return bool(lib.wf_sim_done(self._ptr))
+
+    @property
+    def wall_s(self):
+        """Wall time of the step loop so far, s."""
+        self._alive()
+        return lib.wf_sim_wall_s(self._ptr)
+
+    @property
+    def result_path(self):
+        """The file written ("x.h5" once completed, "x.h5.partial" otherwise; None without output)."""
+        return text(lib.wf_h5out_path(self._h5)) or None if self._h5 else None
+
+    # ---------------------------------------------------------------------------------------- state
+    def _fleet_views(self):
+        f = lib.wf_sim_fleet(self._ptr).contents
+        names = ("x_m", "v_mps", "class_id", "group_id", "fuel_g", "a_mps2", "gap_m", "v_lead_mps", "theta_rad",
+                 "fuel_rate_gps", "flag")
+        return {k: _view(getattr(f, k), f.n, self._run) for k in names if getattr(f, k)}
+
+    def state(self):
+        """The vehicles now, as a dict of numpy arrays (read-only).
+
+        Ring: views of the fleet's arrays in ring order (vehicle i + 1 leads vehicle i), the same arrays for the
+        whole run, changing in place as the run steps: x_m (unwrapped front-bumper position), v_mps, class_id,
+        group_id (indices into scenario.classes / scenario.groups), fuel_g (fuel burnt in the statistics window,
+        0 before the warm-up ends); a_mps2, gap_m, v_lead_mps, theta_rad, fuel_rate_gps, flag only where the run
+        keeps them fleet-wide (two-pass steps: SUNDIALS integrators, trajectories, time.fused_step false).
+
+        Corridor: the vehicles on the road now in road order (index 0 the front, most downstream, vehicle; each
+        vehicle's leader is the previous one): x_m (from the entrance), v_mps, a_mps2, gap_m, v_lead_mps,
+        theta_rad, fuel_rate_gps, flag, length_m, serial (arrival number), class_id, group_id. Vehicles live in a
+        circular buffer of slots: the arrays are views (reversed slices) while the vehicles occupy one contiguous
+        run of slots, and copies when that run wraps around the buffer's end. Either way they describe the
+        vehicles present when state() was called: call it again after stepping."""
+        self._alive()
+        if self._ring_state is not None:
+            return dict(self._ring_state)
+        vh = lib.wf_corridor_vehicles(lib.wf_sim_corridor(self._ptr)).contents
+        names = ("x_m", "v_mps", "a_mps2", "gap_m", "v_lead_mps", "theta_rad", "fuel_rate_gps", "flag", "length_m",
+                 "serial", "class_id", "group_id")
+        first, n, cap = vh.first, vh.n, vh.cap
+        out = {}
+        for k in names:
+            buf = _view(getattr(vh, k), cap, self._run)
+            if first + n <= cap:  # one contiguous run: slots first .. first + n - 1, back to front
+                out[k] = buf[first:first + n][::-1]
+            else:
+                out[k] = np.concatenate((buf[:first + n - cap][::-1], buf[first:][::-1]))
+        return out
+
+    @property
+    def n_vehicles(self):
+        """Vehicles in the fleet (ring) or on the road now (corridor)."""
+        self._alive()
+        if self._ring_state is not None:
+            return self._ring_state["x_m"].size
+        return lib.wf_corridor_vehicles(lib.wf_sim_corridor(self._ptr)).contents.n
+
+    # -------------------------------------------------------------------------------------- summary
+    @property
+    def summary(self):
+        """The run's summary once it has ended (docs/metrics.md): {name: Quantity(value, units)} with the fields
+        of /summary for this road, and "classes": {class name: {name: Quantity}} with the per-class fields."""
+        self._alive()
+        if not self.done:
+            raise _lib.WavefuelError(f"{self.scenario.path}: the summary exists once the run has ended "
+                                     f"(t = {self.t:g} s of {self.scenario.duration_s:g} s)")
+        b = _BOUNDARY[self.kind]
+        s = lib.wf_sim_summary(self._ptr)
+        base = C.cast(s, C.c_void_p).value
+
+        def values(fields, addr):
+            out = {}
+            for f in fields:
+                if f.desc[b] is None:
+                    continue
+                v = lib.wf_summary_value(addr, C.byref(f))
+                out[text(f.name)] = Quantity(v if f.type == _SUMMARY_F64 else int(v), text(f.units))
+            return out
+
+        res = values(_lib.table("wf_summary_fields", _lib.WfSummaryField, "wf_summary_n_fields"), base)
+        cls_fields = _lib.table("wf_summary_class_fields", _lib.WfSummaryField, "wf_summary_n_class_fields")
+        cls0 = base + _lib.WfSummary.cls.offset
+        res["classes"] = {name: values(cls_fields, cls0 + k * C.sizeof(_lib.WfClassSummary))
+                          for k, name in enumerate(self.scenario.classes)}
+        return res
+
+    # ------------------------------------------------------------------------------------- lifetime
+    @property
+    def _ptr(self):
+        return self._run.ptr
+
+    @property
+    def _h5(self):
+        return self._run.h5
+
+    def _alive(self):
+        if not self._ptr:
+            raise _lib.WavefuelError("this Simulation is closed")
+
+    def close(self):
+        """Free the writer (an unfinished result is removed) and the engine now. Views from state() must not be
+        used afterwards (without close(), the run lives as long as the Simulation or any of its views)."""
+        if getattr(self, "_run", None):
+            self._run.free()
+        self._ring_state = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+    def __repr__(self):
+        return (f"<wavefuel.Simulation {self.scenario.name} ({self.kind}, {self.threads} threads) t = "
+                f"{lib.wf_sim_time_s(self._ptr) if self._ptr else float('nan'):g} s>")
