@@ -33,6 +33,9 @@ typedef struct WfCfModel {
      * parameter set. NULL: the engine calls accel() per vehicle. */
     void (*accel_block)(const void *params, size_t param_stride, size_t n, const double *gap_m,
                         const double *v_mps, const double *v_lead_mps, double *a_mps2);
+    /* 1: the vehicle's command is the first double of its state, set from outside once per step
+     * (wf_sim_set_actions, engine.h) */
+    int external;
 } WfCfModel;
 
 /* NULL-terminated registry of every built-in model. */

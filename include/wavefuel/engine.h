@@ -72,16 +72,30 @@ int wf_sim_run(WfSim *sim, const WfOutput *out, WfProgressFn progress, void *pct
                WfError *err);
 
 /* The same run a piece at a time (the Python interface, external controllers): wf_sim_begin (out may be NULL),
- * then wf_sim_step as often as wanted. Each call takes up to n steps; the step that reaches duration_s also takes
- * the final instant's record and ends the run (summary, out->end), as does an error or a stop (WF_EINTR, partial
- * results and a checkpoint as in wf_sim_run). Chunks change nothing: any sequence of calls gives the bits of
- * wf_sim_run. wf_sim_finish ends a run before its end ("stopped by the caller": a partial result and a checkpoint
- * that --resume continues) and returns WF_EINTR; nothing after the end. A run is begun once. */
+ * then wf_sim_step as often as wanted. A run is duration_s / dt_s steps and then the record of its final instant:
+ * each call takes up to n of these, so the call after the last step takes the final record (with the commands
+ * then set) and ends the run (summary, out->end), as does an error or a stop (WF_EINTR, partial results and a
+ * checkpoint as in wf_sim_run). Pieces change nothing: any sequence of calls gives the bits of wf_sim_run.
+ * wf_sim_finish ends a run before its end ("stopped by the caller": a partial result and a checkpoint that
+ * --resume continues) and returns WF_EINTR; nothing after the end. A run is begun once. */
 int    wf_sim_begin(WfSim *sim, const WfOutput *out, WfError *err);
 int    wf_sim_step(WfSim *sim, long n, WfError *err);
 int    wf_sim_finish(WfSim *sim, WfError *err);
 int    wf_sim_done(const WfSim *sim);      /* 1 once the run has ended */
 double wf_sim_time_s(const WfSim *sim);    /* simulated time now: steps done x dt */
+
+/* External controllers: driver groups whose model is `external` (the command is the acceleration, m/s^2) or
+ * `external_speed` (a set speed, m/s, followed by the acc law), docs/controllers.md. Between steps, a group's
+ * vehicles on the road are wf_sim_group_size of them, in road order (a ring: increasing position from x = 0; a
+ * corridor: the front vehicle first). wf_sim_observe writes one row per vehicle, [own speed (m/s), leader speed
+ * (m/s), bumper-to-bumper gap (m)], the inputs of the next step exactly as the engine computes them; on a corridor
+ * the front vehicle's leader is the virtual leader, or on a free road a leader 1e5 m ahead at its own speed.
+ * wf_sim_set_actions sets each vehicle's command for the next steps (held until set again; NaN: none, the acc
+ * law); noise, limits and the feasible-acceleration rule apply to it as to any model. WF_EINPUT when the group is
+ * not external or n is not the group's size. */
+size_t wf_sim_group_size(const WfSim *sim, size_t group);
+int    wf_sim_observe(const WfSim *sim, size_t group, double *obs, size_t n, WfError *err);
+int    wf_sim_set_actions(WfSim *sim, size_t group, const double *actions, size_t n, WfError *err);
 
 const WfScenario *wf_sim_scenario(const WfSim *sim);
 /* "ring" or "corridor": the boundary (checkpoints and /meta/road_type name it). */

@@ -1174,6 +1174,33 @@ static int corridor_restored(void *eng, WfError *err)
     return 0;
 }
 
+/* Group g's vehicles front first; the front vehicle follows the step's front leader (front_leader). */
+static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
+{
+    WfCorridor *c = eng;
+    const WfCorridorVehicles *vh = &c->veh;
+    const double *x = vh->x_m, *v = vh->v_mps, *len = c->lane.class_length_m;
+    WfLead front = front_leader(c);
+    size_t k = 0;
+    for (size_t r = 0; r < vh->n; r++) {
+        size_t s = wf_corridor_slot(vh, r);
+        if (vh->group_id[s] != g) continue;
+        double gap, vl;
+        if (r > 0) {
+            size_t p = wf_corridor_slot(vh, r - 1);
+            gap = x[p] - len[vh->class_id[p]] - x[s], vl = v[p];
+        } else if (front.free_gap_m > 0.0) {
+            gap = front.free_gap_m, vl = v[s];
+        } else {
+            gap = front.rear_m - x[s], vl = front.v_mps;
+        }
+        if (fn) fn(ctx, k, vh->state + s * c->sstride, v[s], vl, gap);
+        k++;
+    }
+    return k;
+}
+
 const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,
                                      .step = corridor_step, .flush = flush_trips, .close = corridor_close,
-                                     .state = corridor_state, .restored = corridor_restored};
+                                     .state = corridor_state, .restored = corridor_restored,
+                                     .group = corridor_group};

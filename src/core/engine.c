@@ -418,6 +418,24 @@ static int ring_restored(void *eng, WfError *err)
     return 0;
 }
 
+/* Group g's vehicles in ring order; the last vehicle's leader is vehicle 0 one lap ahead (block.c: front_lead). */
+static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
+{
+    const WfRing *s = eng;
+    const WfFleet *f = s->f;
+    const double *x = f->x_m, *v = f->v_mps, *len = s->lane.class_length_m;
+    size_t n = f->n, k = 0, ssz = s->sc->groups[g].model->state_size;
+    for (size_t i = 0; i < n; i++) {
+        if (f->group_id[i] != g) continue;
+        size_t l = i + 1 < n ? i + 1 : 0;
+        double gap = i + 1 < n ? x[l] - len[f->class_id[l]] - x[i]
+                               : ((x[0] + s->sc->road.length_m) - len[f->class_id[0]]) - x[i];
+        if (fn) fn(ctx, k, f->group_state[g] + wf_fleet_slot(f, i) * ssz, v[i], v[l], gap);
+        k++;
+    }
+    return k;
+}
+
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
                                          .step = ring_step, .close = ring_close, .state = ring_state,
-                                         .restored = ring_restored};
+                                         .restored = ring_restored, .group = ring_group};

@@ -2,7 +2,9 @@
  * (wf_loop_run), with the outputs, wall time, threads, checkpoints and summary every boundary shares. */
 #include "core/sim.h"
 
+#include <math.h>
 #include <stdlib.h>
+#include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -89,8 +91,6 @@ int wf_sim_step(WfSim *s, long n, WfError *err)
         return wf_err(err, WF_EINPUT, "%s: %s", s->sc->path,
                       s->finished ? "the run has ended: no step is left" : "wf_sim_begin first");
     int rc = wf_loop_advance(&s->loop, &s->ls, n, err);
-    /* Reaching duration_s takes the final instant's record too, as wf_sim_run does. */
-    if (!rc && !s->ls.reason && *s->steps_done == s->loop.n_steps) rc = wf_loop_advance(&s->loop, &s->ls, 1, err);
     return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
 }
 
@@ -123,3 +123,55 @@ const double *wf_sim_phase_times(const WfSim *s) { return s->phase_s; }
 void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s) { s->checkpoint_every_s = wall_s; }
 size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max) { return s->b->state(s->eng, vars, max); }
 int wf_sim_restored(WfSim *s, WfError *err) { return s->b->restored(s->eng, err); }
+
+/* ---- external controllers (models with `external` set: src/models/cf/external.c) ---- */
+
+static int check_group(const WfSim *s, size_t g, size_t n, size_t want, WfError *err)
+{
+    const WfScenario *sc = s->sc;
+    if (g >= sc->n_groups)
+        return wf_err(err, WF_EINPUT, "%s: no driver group %zu (the scenario has %zu)", sc->path, g, sc->n_groups);
+    if (!sc->groups[g].model->external)
+        return wf_err(err, WF_EINPUT, "%s: driver group '%s' (model %s) takes no commands: its model must be external "
+                      "or external_speed", sc->path, sc->groups[g].name, sc->groups[g].model->name);
+    if (n != want)
+        return wf_err(err, WF_EINPUT, "%s: driver group '%s' has %zu vehicles on the road, got %zu values", sc->path,
+                      sc->groups[g].name, want, n);
+    return 0;
+}
+
+size_t wf_sim_group_size(const WfSim *s, size_t g)
+{
+    return g < s->sc->n_groups ? s->b->group(s->eng, g, NULL, NULL) : 0;
+}
+
+static void put_command(void *ctx, size_t k, unsigned char *state, double v, double vl, double gap)
+{
+    (void)v, (void)vl, (void)gap;
+    memcpy(state, (const double *)ctx + k, sizeof(double));
+}
+
+int wf_sim_set_actions(WfSim *s, size_t g, const double *u, size_t n, WfError *err)
+{
+    int rc = check_group(s, g, n, wf_sim_group_size(s, g), err);
+    for (size_t k = 0; !rc && k < n; k++)
+        if (isinf(u[k]))
+            rc = wf_err(err, WF_EINPUT, "%s: driver group '%s': command %zu is %g (finite, or NaN for none)",
+                        s->sc->path, s->sc->groups[g].name, k, u[k]);
+    if (!rc) s->b->group(s->eng, g, put_command, (void *)u);
+    return rc;
+}
+
+static void put_observation(void *ctx, size_t k, unsigned char *state, double v, double vl, double gap)
+{
+    (void)state;
+    double *row = (double *)ctx + 3 * k;
+    row[0] = v, row[1] = vl, row[2] = gap;
+}
+
+int wf_sim_observe(const WfSim *s, size_t g, double *obs, size_t n, WfError *err)
+{
+    int rc = check_group(s, g, n, wf_sim_group_size(s, g), err);
+    if (!rc) s->b->group(s->eng, g, put_observation, obs);
+    return rc;
+}

@@ -9,6 +9,9 @@
 #include "core/block.h"
 #include "wavefuel/engine.h"
 
+typedef void (*WfGroupVisit)(void *ctx, size_t k, unsigned char *state, double v_mps, double v_lead_mps,
+                             double gap_m);
+
 typedef struct WfBoundary {
     const char *kind;                                   /* "ring", "corridor": checkpoints and /meta/road_type */
     /* Build the boundary's engine for sim->sc into sim->eng, and point sim->steps_done at its step counter (which
@@ -24,6 +27,10 @@ typedef struct WfBoundary {
     int    (*close)(void *eng, WfError *err);
     size_t (*state)(void *eng, WfStateVar *vars, size_t max);
     int    (*restored)(void *eng, WfError *err);
+    /* The vehicles of driver group g on the road, in road order, each with its controller state and its inputs of
+     * the next step (own speed, leader speed, bumper-to-bumper gap, as the kernel computes them); fn may be NULL.
+     * Returns their number. */
+    size_t (*group)(void *eng, size_t g, WfGroupVisit fn, void *ctx);
 } WfBoundary;
 
 extern const WfBoundary wf_boundary_periodic, wf_boundary_open;

@@ -4,21 +4,11 @@
  *   a_speed = k_v (v0 - v)
  *   a       = min(a_gap, a_speed)
  * Gap in m, speeds in m/s, k_gap in 1/s^2, k_dv and k_v in 1/s, T in s. Memoryless. */
-#include <math.h>
+#include "models/cf/acc.h"
+
 #include <stddef.h>
 
-#include "wavefuel/cf.h"
-
-typedef struct AccParams {
-    double k_gap_per_s2; /* gain on the gap error */
-    double k_dv_per_s;   /* gain on the speed difference */
-    double T_s;          /* time gap */
-    double s0_m;         /* standstill gap */
-    double v0_mps;       /* set speed */
-    double k_v_per_s;    /* gain of the speed-control mode */
-} AccParams;
-
-static const WfParamSpec acc_spec[] = {
+const WfParamSpec wf_cf_acc_spec[WF_ACC_N_SPEC] = {
     /* Default gains: string stable with margin and about critically damped at T = 1.1 s. The law's
      * leader-to-follower speed transfer is G = (k_dv s + k_gap)/(s^2 + (k_dv + k_gap T) s + k_gap), and
      * |G(jw)| <= 1 at every w exactly when k_gap T^2 + 2 k_dv T >= 2: here 2.24. Damping ratio
@@ -38,17 +28,15 @@ static double acc_accel(const void *params, const void *state, double gap_m, dou
 {
     const AccParams *p = params;
     (void)state;
-    double a_gap = p->k_gap_per_s2 * (gap_m - p->s0_m - p->T_s * v_mps) + p->k_dv_per_s * (v_lead_mps - v_mps);
-    double a_speed = p->k_v_per_s * (p->v0_mps - v_mps);
-    return fmin(a_gap, a_speed);
+    return wf_acc_law(p, p->v0_mps, gap_m, v_mps, v_lead_mps);
 }
 
 const WfCfModel wf_cf_acc = {
     .name = "acc",
     .doc = "Linear constant-time-gap adaptive cruise control (Milanés & Shladover 2014)",
     .param_size = sizeof(AccParams),
-    .spec = acc_spec,
-    .n_spec = sizeof acc_spec / sizeof acc_spec[0],
+    .spec = wf_cf_acc_spec,
+    .n_spec = WF_ACC_N_SPEC,
     /* Every in-range set is well posed: accel(s, v, v) = min(k_gap (s - s0 - T v), k_v (v0 - v)) is
      * strictly decreasing in v (k_gap T >= 1e-4, k_v >= 0.01 by the ranges): one uniform-flow speed per gap. */
     .check = NULL,

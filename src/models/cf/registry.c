@@ -12,9 +12,12 @@
 extern const WfCfModel wf_cf_follower_stopper;
 extern const WfCfModel wf_cf_pi_saturation;
 extern const WfCfModel wf_cf_acc;
+/* Commands set from outside the engine (src/cf/external.c; docs/controllers.md). */
+extern const WfCfModel wf_cf_external, wf_cf_external_speed;
 
 const WfCfModel *const wf_cf_models[] = {&wf_cf_idm,           &wf_cf_ovm,           &wf_cf_gipps,
-                                         &wf_cf_follower_stopper, &wf_cf_pi_saturation, &wf_cf_acc, NULL};
+                                         &wf_cf_follower_stopper, &wf_cf_pi_saturation, &wf_cf_acc,
+                                         &wf_cf_external,      &wf_cf_external_speed, NULL};
 
 int wf_cf_model_find(const char *name, const WfCfModel **out, WfError *err)
 {

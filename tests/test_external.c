@@ -1,0 +1,170 @@
+/* External controllers (src/models/cf/external.c, wf_sim_observe / wf_sim_set_actions): a controller computed
+ * outside the engine from the observations and set every step must drive exactly as the same law inside the engine.
+ * On a ring, a group commanded with IDM's acceleration (wf_cf_idm.accel on the observed speed, leader speed and
+ * gap) gives the bits of the same group driving IDM: every record and the final state, with noise. On a corridor,
+ * an external_speed group commanded with acc's set speed gives the bits of the acc group, entries and trips
+ * included. And the refusals: a group that is not external, a wrong count, an infinite command. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "wavefuel/cf.h"
+#include "wavefuel/corridor.h"
+#include "wavefuel/engine.h"
+#include "wavefuel/scenario.h"
+#include "wf_test.h"
+
+typedef struct Bytes {
+    unsigned char *b;
+    size_t         n;
+} Bytes;
+
+static void add(Bytes *o, const void *p, size_t n)
+{
+    unsigned char *q = realloc(o->b, o->n + n);
+    if (!q) return;
+    memcpy(q + o->n, p, n);
+    o->b = q, o->n += n;
+}
+
+static int keep(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
+{
+    (void)err;
+    add(ctx, rec->v, rec->n * sizeof *rec->v);
+    add(ctx, rec->class_fuel_rate_gps, wf_sim_scenario(sim)->n_classes * sizeof(double));
+    return 0;
+}
+
+static int keep_trips(void *ctx, const WfSim *sim, const WfTrip *t, size_t n, WfError *err)
+{
+    (void)sim, (void)err;
+    for (size_t k = 0; k < n; k++) {
+        double d[] = {(double)t[k].serial, t[k].t_entry_s, t[k].t_exit_s, t[k].fuel_g, t[k].dist_m, t[k].stops};
+        add(ctx, d, sizeof d);
+    }
+    return 0;
+}
+
+/* The law a step's commands come from: IDM's acceleration (ring) or acc's set speed (corridor). */
+typedef enum { LAW_IDM, LAW_SET_SPEED } Law;
+
+/* The run of text with sets; when `law` commands group 1, every step is preceded by its observation and
+ * commands. The final positions and speeds are appended to the log. */
+static int run(const char *text, const char *const *sets, size_t n_set, int commanded, Law law, Bytes *log,
+               long *commands)
+{
+    WfScenario *sc = NULL;
+    WfSim *sim = NULL;
+    WfError err = {0};
+    WfOutput out = {.record = keep, .trips = keep_trips, .ctx = log};
+    int rc = wf_scenario_load_text("external.yaml", text, sets, n_set, &sc, &err);
+    if (!rc) rc = wf_sim_create(sc, &sim, &err);
+    if (!rc) rc = wf_sim_begin(sim, &out, &err);
+    double idm[WF_MAX_MODEL_PARAMS];
+    for (size_t k = 0; k < wf_cf_idm.n_spec; k++) *wf_param_ptr(idm, &wf_cf_idm.spec[k]) = wf_cf_idm.spec[k].def;
+    double *obs = NULL, *u = NULL;
+    while (!rc && !wf_sim_done(sim)) {
+        if (commanded) {
+            size_t n = wf_sim_group_size(sim, 1);
+            obs = realloc(obs, (3 * n + 1) * sizeof *obs), u = realloc(u, (n + 1) * sizeof *u);
+            rc = wf_sim_observe(sim, 1, obs, n, &err);
+            for (size_t k = 0; !rc && k < n; k++)
+                u[k] = law == LAW_IDM ? wf_cf_idm.accel(idm, NULL, obs[3 * k + 2], obs[3 * k], obs[3 * k + 1]) : 24.0;
+            if (!rc) rc = wf_sim_set_actions(sim, 1, u, n, &err);
+            *commands += (long)n;
+        }
+        if (!rc) rc = wf_sim_step(sim, 1, &err);
+    }
+    if (rc) printf("  %s\n", err.msg);
+    if (!rc && wf_sim_fleet(sim)) {
+        add(log, wf_sim_fleet(sim)->x_m, wf_sim_fleet(sim)->n * sizeof(double));
+        add(log, wf_sim_fleet(sim)->v_mps, wf_sim_fleet(sim)->n * sizeof(double));
+    }
+    free(obs), free(u);
+    wf_sim_destroy(&sim);
+    wf_scenario_destroy(&sc);
+    return rc;
+}
+
+static const char *ring =
+    "seed: 11\nroad: {length_m: 600}\ntime: {duration_s: 120, dt_s: 0.1, output_interval_s: 1.0, warmup_s: 10}\n"
+    "fleet:\n  vehicles: 30\n  placement: interleaved\n  classes:\n    - {class: midsize_sedan, fraction: 1.0}\n"
+    "  drivers:\n    - {model: idm, fraction: 0.8, noise_mps2: 0.3}\n    - {model: idm, fraction: 0.2, noise_mps2: 0.3}\n"
+    "initial: {state: rest, jitter_m: 0.5}\n";
+
+static void test_ring_idm_commands(void)
+{
+    const char *ext[] = {"fleet.drivers[1].model=external"};
+    Bytes a = {0}, b = {0};
+    long na = 0, nb = 0;
+    CHECK(run(ring, NULL, 0, 0, LAW_IDM, &a, &na) == 0, "IDM run failed");
+    CHECK(run(ring, ext, 1, 1, LAW_IDM, &b, &nb) == 0, "commanded run failed");
+    CHECK(a.n > 0 && a.n == b.n && !memcmp(a.b, b.b, a.n), "commanded IDM differs from IDM (%zu vs %zu bytes)", b.n,
+          a.n);
+    CHECK(nb == 6 * 1201, "%ld commands, expected 6 vehicles x (1200 steps + the final record)", nb);
+    printf("  ring: %ld commands; %zu bytes of records and final state identical to IDM's\n", nb, a.n);
+    free(a.b), free(b.b);
+}
+
+static const char *corridor =
+    "seed: 5\nroad: {type: corridor, length_m: 3000}\n"
+    "time: {duration_s: 400, dt_s: 0.1, output_interval_s: 1.0, warmup_s: 20}\n"
+    "fleet:\n  placement: interleaved\n  classes:\n    - {class: midsize_suv, fraction: 1.0}\n"
+    "  drivers:\n    - {model: idm, fraction: 0.7, noise_mps2: 0.2}\n"
+    "    - {model: acc, fraction: 0.3, params: {v0_mps: 24}}\n"
+    "corridor:\n  inflow: {flow_vph: 1800, arrivals: poisson}\n  outflow: {type: speed, speed_mps: 15}\n";
+
+static void test_corridor_set_speed(void)
+{
+    const char *ext[] = {"fleet.drivers[1].model=external_speed"};
+    Bytes a = {0}, b = {0};
+    long na = 0, nb = 0;
+    CHECK(run(corridor, NULL, 0, 0, LAW_SET_SPEED, &a, &na) == 0, "acc run failed");
+    CHECK(run(corridor, ext, 1, 1, LAW_SET_SPEED, &b, &nb) == 0, "commanded run failed");
+    CHECK(a.n > 0 && a.n == b.n && !memcmp(a.b, b.b, a.n), "commanded set speed differs from acc (%zu vs %zu bytes)",
+          b.n, a.n);
+    CHECK(nb > 1000, "only %ld commands", nb);
+    printf("  corridor: %ld commands; %zu bytes of records and trips identical to acc's\n", nb, a.n);
+    free(a.b), free(b.b);
+}
+
+static void test_refusals(void)
+{
+    const char *ext[] = {"fleet.drivers[1].model=external"};
+    WfScenario *sc = NULL;
+    WfSim *sim = NULL;
+    WfError err = {0};
+    int rc = wf_scenario_load_text("external.yaml", ring, ext, 1, &sc, &err);
+    if (!rc) rc = wf_sim_create(sc, &sim, &err);
+    CHECK(rc == 0, "%s", err.msg);
+    if (!rc) {
+        double u[6] = {0, 0, 0, 0, 0, 0}, obs[18];
+        CHECK(wf_sim_group_size(sim, 1) == 6 && wf_sim_group_size(sim, 0) == 24 && wf_sim_group_size(sim, 7) == 0,
+              "group sizes %zu %zu", wf_sim_group_size(sim, 0), wf_sim_group_size(sim, 1));
+        CHECK(wf_sim_set_actions(sim, 0, u, 6, &err) == WF_EINPUT && strstr(err.msg, "takes no commands"),
+              "a human group took commands: %s", err.msg);
+        CHECK(wf_sim_set_actions(sim, 1, u, 5, &err) == WF_EINPUT && strstr(err.msg, "6 vehicles"), "count: %s",
+              err.msg);
+        CHECK(wf_sim_observe(sim, 2, obs, 6, &err) == WF_EINPUT && strstr(err.msg, "no driver group 2"), "group: %s",
+              err.msg);
+        u[3] = INFINITY;
+        CHECK(wf_sim_set_actions(sim, 1, u, 6, &err) == WF_EINPUT && strstr(err.msg, "command 3 is inf"), "inf: %s",
+              err.msg);
+        /* Observations: at rest, every gap is the ring's spacing minus a length (jitter aside). */
+        CHECK(wf_sim_observe(sim, 1, obs, 6, &err) == 0, "%s", err.msg);
+        for (size_t k = 0; k < 6; k++)
+            CHECK(obs[3 * k] == 0.0 && obs[3 * k + 1] == 0.0 && fabs(obs[3 * k + 2] - (20.0 - 4.9)) < 1.01,
+                  "vehicle %zu: v %g, v_lead %g, gap %g", k, obs[3 * k], obs[3 * k + 1], obs[3 * k + 2]);
+    }
+    wf_sim_destroy(&sim);
+    wf_scenario_destroy(&sc);
+}
+
+int main(void)
+{
+    RUN(test_ring_idm_commands);
+    RUN(test_corridor_set_speed);
+    RUN(test_refusals);
+    TEST_EXIT();
+}
