@@ -7,6 +7,7 @@ from .energy import VehicleClass
 from .result import Result, read
 from .scenario import Scenario
 from .simulation import Quantity, Simulation
+from . import envs
 
 __all__ = ["WavefuelError", "class_path", "library_path", "set_class_path", "energy", "VehicleClass", "Result",
-           "read", "Scenario", "Quantity", "Simulation"]
+           "read", "Scenario", "Quantity", "Simulation", "envs"]

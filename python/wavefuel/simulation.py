@@ -212,6 +212,49 @@ class Simulation:
             return self._ring_state["x_m"].size
         return lib.wf_corridor_vehicles(lib.wf_sim_corridor(self._ptr)).contents.n
 
+    # ------------------------------------------------------------------------- external controllers
+    def group_index(self, group):
+        """The index of a driver group given by name or index (scenario.groups)."""
+        if isinstance(group, str):
+            if group not in self.scenario.groups:
+                raise _lib.WavefuelError(f"{self.scenario.path}: no driver group '{group}' (groups: "
+                                         f"{', '.join(self.scenario.groups)})")
+            return self.scenario.groups.index(group)
+        g = int(group)
+        if not 0 <= g < len(self.scenario.groups):
+            raise _lib.WavefuelError(f"{self.scenario.path}: no driver group {g} (the scenario has "
+                                     f"{len(self.scenario.groups)})")
+        return g
+
+    def group_size(self, group):
+        """Vehicles of the driver group on the road now (a ring: all of them)."""
+        self._alive()
+        return lib.wf_sim_group_size(self._ptr, self.group_index(group))
+
+    def observe(self, group):
+        """The inputs of the next step for each vehicle of an external group (model `external` or
+        `external_speed`, docs/controllers.md), in road order (a ring: increasing position; a corridor: front
+        first): an (n, 3) array of [own speed m/s, leader speed m/s, bumper-to-bumper gap m], exactly as the engine
+        computes them."""
+        self._alive()
+        g = self.group_index(group)
+        n = lib.wf_sim_group_size(self._ptr, g)
+        obs = np.empty((n, 3))
+        err = WfError()
+        check(lib.wf_sim_observe(self._ptr, g, obs.ctypes.data_as(C.POINTER(C.c_double)), n, C.byref(err)), err)
+        return obs
+
+    def set_actions(self, group, actions):
+        """Set each vehicle's command for the next steps (held until set again), in observe()'s order: the
+        acceleration (m/s^2, model `external`) or the set speed (m/s, `external_speed`); NaN: none (the vehicle
+        drives as `acc`). The group's noise, limits and feasible-acceleration rule apply as to any model."""
+        self._alive()
+        g = self.group_index(group)
+        a = np.ascontiguousarray(actions, dtype=np.float64).ravel()
+        err = WfError()
+        check(lib.wf_sim_set_actions(self._ptr, g, a.ctypes.data_as(C.POINTER(C.c_double)), a.size,
+                                     C.byref(err)), err)
+
     # -------------------------------------------------------------------------------------- summary
     @property
     def summary(self):
