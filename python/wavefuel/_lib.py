@@ -112,7 +112,7 @@ class WfScenario(C.Structure):
                     "perturb_dx_m", "perturb_dv_mps", "jitter_m", "v_stop_mps", "v_go_mps", "hard_brake_mps2",
                     "wave_speed_mps")] + [
                 ("output_path", C.c_char * 1024), ("trajectories", C.c_int), ("trajectory_interval_s", C.c_double),
-                ("corridor", C.c_void_p)]
+                ("corridor", C.c_void_p), ("inputs", C.c_void_p), ("n_inputs", C.c_size_t)]
 
 
 _dp = C.POINTER(C.c_double)

@@ -100,8 +100,9 @@ class Simulation:
         self._begun = True
 
     def step(self, n=1):
-        """Advance n steps (fewer when the run reaches its end, which also takes the final record, writes the
-        summary and completes the result file). Raises WavefuelError after the end. The steps run in C without
+        """Advance n steps (fewer at the end). A run is duration_s / dt_s steps and then the record of its final
+        instant: the call after the last step takes that record, writes the summary and completes the result file.
+        Raises WavefuelError after the end. The steps run in C without
         returning to Python: Ctrl-C (KeyboardInterrupt) takes effect when the call returns."""
         self._alive()
         if int(n) < 1:
