@@ -23,7 +23,6 @@
 #include "core/sim.h"
 #include "core/simd.h"
 
-#define AI static inline __attribute__((always_inline))
 #define TRIP_BUF 1024 /* trips handed to the output per call */
 
 const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
@@ -756,65 +755,18 @@ static void measure_span(const WfCorridor *c, size_t i_lo, size_t i_hi, size_t q
     *k1 = first_below(c, c->veh.x_m, x_lo - 1.0, 1, *k0, c->veh.n);
 }
 
-/* Running sums of the class profiles of one cell (class_dist_m, class_fuel_g) for up to 4 ng classes, lane l of
- * vector g holding class 4 g + l. A vehicle adds its values to its class's lane and +0.0 to the others, which
- * leaves them unchanged (a sum that starts at +0.0 is never -0.0), so each class's sum takes the same additions in
- * the same order as a sum per class in memory, without a store and reload between vehicles (in a mixed fleet,
- * consecutive vehicles alternate classes). */
-typedef double  v4d __attribute__((vector_size(32)));
-typedef int64_t v4i __attribute__((vector_size(32)));
-typedef struct ClassSums {
-    v4d    d[4], f[4];
-    size_t cell; /* SIZE_MAX: none held */
-} ClassSums;
-
-/* The sums held back to the cell's memory. Lanes move through a local array with constant vector indices, so that
- * the sums themselves can stay in registers. */
-AI void class_flush(ClassSums *cs, const WfEdie *e, size_t ncl, int ng)
-{
-    if (cs->cell == SIZE_MAX) return;
-    double td[16], tf[16];
-#pragma GCC unroll 4
-    for (int g = 0; g < ng; g++) memcpy(&td[4 * g], &cs->d[g], sizeof cs->d[g]), memcpy(&tf[4 * g], &cs->f[g], sizeof cs->f[g]);
-    for (size_t k = 0; k < ncl; k++)
-        e->class_dist_m[k * e->nx + cs->cell] = td[k], e->class_fuel_g[k * e->nx + cs->cell] = tf[k];
-    cs->cell = SIZE_MAX;
-}
-
-AI void class_add(ClassSums *cs, const WfEdie *e, size_t ncl, int ng, size_t i, size_t cl, double d, double fuel)
-{
-    if (i != cs->cell) {
-        class_flush(cs, e, ncl, ng);
-        double td[16] = {0}, tf[16] = {0};
-        for (size_t k = 0; k < ncl; k++) td[k] = e->class_dist_m[k * e->nx + i], tf[k] = e->class_fuel_g[k * e->nx + i];
-#pragma GCC unroll 4
-        for (int g = 0; g < ng; g++) memcpy(&cs->d[g], &td[4 * g], sizeof cs->d[g]), memcpy(&cs->f[g], &tf[4 * g], sizeof cs->f[g]);
-        cs->cell = i;
-    }
-    v4d dv = {d, d, d, d}, fv = {fuel, fuel, fuel, fuel};
-#pragma GCC unroll 4
-    for (int g = 0; g < ng; g++) {
-        int64_t b = 4 * (int64_t)g;
-        v4i lane = {b, b + 1, b + 2, b + 3}, on = lane == (int64_t)cl;
-        cs->d[g] += (v4d)((v4i)dv & on);
-        cs->f[g] += (v4d)((v4i)fv & on);
-    }
-}
-
-/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, for up to 4 ng
- * classes. The common case, a step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as
- * edie_vehicle through running sums of the row's cell and of the classes' cell. */
-AI void measure_range_ng(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo, size_t q_hi,
-                         int ng)
+/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. The common case, a
+ * step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as edie_vehicle through
+ * running sums of the row's cell and of the vehicle's class. */
+static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
+                          size_t q_hi)
 {
     const WfCorridorVehicles *vh = &c->veh;
     WfEdie *e = &c->edie;
     size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0, nx = e->nx;
-    size_t ncl = c->sc->n_classes;
     double dt = c->sc->dt_s, *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx;
     double *erow_f = e->fuel_g + j * nx;
-    CellSum row = {0};
-    ClassSums cls = {.cell = SIZE_MAX};
+    CellSum row = {0}, cls = {0};
     size_t k0, k1;
     measure_span(c, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
     for (size_t k = k0; k < k1; k++) {
@@ -824,26 +776,15 @@ AI void measure_range_ng(WfCorridor *c, long step, int in_window, size_t i_lo, s
             /* inside one cell of another thread */
         } else if (i != UINT32_MAX) {
             cell_add(&row, &erow_d[i], &erow_t[i], &erow_f[i], xb - xa, dt, fuel);
-            if (in_window) class_add(&cls, e, ncl, ng, i, cl, xb - xa, fuel);
+            if (in_window)
+                cell_add(&cls, &e->class_dist_m[cl * nx + i], &e->class_fuel_g[cl * nx + i], NULL, xb - xa, fuel, 0.0);
         } else {
-            cell_flush(&row), class_flush(&cls, e, ncl, ng);
+            cell_flush(&row), cell_flush(&cls);
             edie_vehicle(c, j, cl, xa, xb, fuel, in_window, i_lo, i_hi);
         }
         for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
     }
-    cell_flush(&row), class_flush(&cls, e, ncl, ng);
-}
-
-/* measure_range_ng with the number of class vectors known to the compiler (the sums then stay in registers). */
-WF_SIMD_CLONES
-static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
-                          size_t q_hi)
-{
-    _Static_assert(WF_MAX_CLASSES <= 16, "ClassSums holds 16 classes");
-    size_t ng = (c->sc->n_classes + 3) / 4;
-    if (ng <= 1) measure_range_ng(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 1);
-    else if (ng == 2) measure_range_ng(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 2);
-    else measure_range_ng(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 4);
+    cell_flush(&row), cell_flush(&cls);
 }
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
