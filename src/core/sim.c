@@ -9,7 +9,6 @@
 #include <omp.h>
 #endif
 
-
 int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 {
     *out = NULL;
@@ -120,7 +119,11 @@ double wf_sim_wall_s(const WfSim *s) { return s->wall_s; }
 long wf_sim_steps_done(const WfSim *s) { return *s->steps_done; }
 int wf_sim_threads(const WfSim *s) { return s->nthreads; }
 const double *wf_sim_phase_times(const WfSim *s) { return s->phase_s; }
-void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s) { s->checkpoint_every_s = wall_s; }
+/* Before or during a run stepped in pieces. */
+void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s)
+{
+    s->checkpoint_every_s = s->loop.checkpoint_every_s = wall_s;
+}
 size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max) { return s->b->state(s->eng, vars, max); }
 int wf_sim_restored(WfSim *s, WfError *err) { return s->b->restored(s->eng, err); }
 
