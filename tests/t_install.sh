@@ -9,8 +9,6 @@ cd "$(dirname "$0")/.." || exit 1
 REPO=$PWD
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 case "$BIN" in /*) ;; *) BIN="$REPO/$BIN" ;; esac
-# The library next to the binary under test (bin/wavefuel and lib/libwavefuel.a, or build-san/bin and build-san/lib).
-LIBA=$(dirname "$(dirname "$BIN")")/lib/libwavefuel.a
 DATA=${WAVEFUEL_DATA:-$REPO/../shared/data}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -18,7 +16,11 @@ ok() { echo "PASS $1"; }
 ko() { echo "FAIL $1: $2"; }
 P=$tmp/prefix
 
-if make --no-print-directory install PREFIX="$P" DATA="$DATA" BIN="$BIN" LIBA="$LIBA" >"$tmp/install.log" 2>&1; then
+# The default build is installed (make builds it if needed), whatever build is under test: `make install` with the
+# sanitizer builds' objects (BUILD=build-san, build-tsan from tests/run.sh) would relink them without their
+# sanitizer flags and remove the binary under test.
+if make --no-print-directory install PREFIX="$P" DATA="$DATA" BUILD=build BIN="$REPO/bin/wavefuel" \
+     LIBA="$REPO/lib/libwavefuel.a" >"$tmp/install.log" 2>&1; then
   ok make_install; else ko make_install "$(tail -5 "$tmp/install.log")"; exit 0; fi
 
 # Every file the install promises, against the repository's lists.
