@@ -54,7 +54,7 @@ compare() { $PY "$tmp/compare.py" "$1" "$2"; }
 # Start a run in the background (pid) and wait until it has written a checkpoint while stepping.
 start_until_checkpoint() { # result, extra args...
   local out=$1; shift
-  $BIN run $S -q -o "$out" $L "$@" & pid=$!
+  $BIN run $S -q -o "$out" $L "$@" 2>"$out.err" & pid=$!
   pids+=("$pid")
   wait_checkpoint "$out" $pid
 }
@@ -66,6 +66,9 @@ $BIN run $S -q -o "$tmp/ref_euler.h5" $L --set time.integrator=euler || ko refer
 # interrupted again, resumed again, it completes with the uninterrupted run's bytes and removes the checkpoint.
 start_until_checkpoint "$tmp/t.h5" --checkpoint-every 0.2
 signal_running TERM $pid; wait $pid; rc1=$?
+# The corridor's row counters, from the writer's table.
+grep -qF "/meta/timeseries_rows, trip_rows and trajectory_rows count the rows written" "$tmp/t.h5.err" ||
+  ko corridor_partial_message "$(cat "$tmp/t.h5.err")"
 ino=$(ckpt_inode "$tmp/t.h5")
 $BIN run --resume "$tmp/t.h5" -q --threads 1 --checkpoint-every 0.1 & pid=$!
 pids+=("$pid")

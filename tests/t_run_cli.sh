@@ -65,11 +65,14 @@ then ok hdf5_round_trip_documented; else ko hdf5_round_trip_documented "see abov
 
 # SIGTERM: the run stops at the end of a step, keeps a readable partial file marked incomplete, exits 3.
 $BIN run $S -o "$tmp/k.h5" -q --set time.duration_s=200000 --set fleet.vehicles=2000 --set road.length_m=40000 \
-  --set output.trajectories=false --checkpoint-every 0.2 &
+  --set output.trajectories=false --checkpoint-every 0.2 2>"$tmp/k.err" &
 pid=$!
 wait_checkpoint "$tmp/k.h5" $pid; signal_running TERM $pid
 wait $pid; rc=$?
-if [ $rc -eq 3 ] && [ -f "$tmp/k.h5.partial" ] && [ ! -e "$tmp/k.h5" ] && $PY - "$tmp/k.h5.partial" <<'PY'
+# The message names the ring's row counters (from the writer's table) and says the run can be resumed.
+if [ $rc -eq 3 ] && [ -f "$tmp/k.h5.partial" ] && [ ! -e "$tmp/k.h5" ] &&
+   grep -qF "(/meta/reason says why; /meta/timeseries_rows and trajectory_rows count the rows written); resume with --resume" "$tmp/k.err" &&
+   $PY - "$tmp/k.h5.partial" <<'PY'
 import sys, h5py
 f = h5py.File(sys.argv[1])
 assert f["meta/completed"][()] == 0

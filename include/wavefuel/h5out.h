@@ -22,6 +22,9 @@ int  wf_h5out_create(const WfSim *sim, const char *path, int force, WfH5Out **ou
 void wf_h5out_destroy(WfH5Out **w);
 /* Final path written ("x.h5" when completed, "x.h5.partial" otherwise; empty before end()); owned by w. */
 const char *wf_h5out_path(const WfH5Out *w);
+/* The /meta row counters of the file, as text for messages ("/meta/timeseries_rows and trajectory_rows"), into buf
+ * (len bytes; cut if too short); returns buf. */
+const char *wf_h5out_counters(const WfH5Out *w, char *buf, size_t len);
 
 /* Load the checkpoint FILE.h5.ckpt (wavefuel/checkpoint.h) into `sim`, built from the scenario it holds, and
  * reopen FILE.h5.partial to continue writing it from the checkpoint's rows: its row counters are set back, the

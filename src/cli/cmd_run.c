@@ -213,10 +213,9 @@ int wf_cmd_run(int argc, char **argv)
     status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
+        char counters[200];
         if (wf_h5out_path(h5)[0])
-            wf_cli_note_partial(wf_h5out_path(h5), sc->output_path,
-                                wf_sim_corridor(sim) ? "/meta/timeseries_rows, trip_rows and trajectory_rows"
-                                                     : "/meta/timeseries_rows and trajectory_rows");
+            wf_cli_note_partial(wf_h5out_path(h5), sc->output_path, wf_h5out_counters(h5, counters, sizeof counters));
     } else if (!quiet) {
         print_summary(sim, wf_h5out_path(h5));
     }

@@ -481,3 +481,16 @@ void wf_h5out_destroy(WfH5Out **pw)
 }
 
 const char *wf_h5out_path(const WfH5Out *w) { return w->final_path; }
+
+const char *wf_h5out_counters(const WfH5Out *w, char *buf, size_t len)
+{
+    size_t n = w->b->n_cursors, used = 0;
+    buf[0] = '\0';
+    for (size_t c = 0; c < n; c++) {
+        int k = snprintf(buf + used, len - used, "%s%s", c == 0 ? "/meta/" : c + 1 == n ? " and " : ", ",
+                         w->b->cursor[c].meta);
+        if (k < 0 || (size_t)k >= len - used) break;
+        used += (size_t)k;
+    }
+    return buf;
+}
