@@ -45,3 +45,24 @@ if grep -q 'decel_max_mps2: 2.5' "$tmp/overlaps/corridor.yaml" &&
 else
   echo "FAIL corridor_overlaps_runs"
 fi
+# Ten classes (the six shipped ones and four copies under other names in $WAVEFUEL_VEHICLES, with other lengths): the
+# class profiles (/edie/class_*) of more than eight classes, where the measurement holds classes in four vectors.
+mkdir -p "$tmp/classes/vehicles"
+cp vehicles/*.yaml "$tmp/classes/vehicles/"
+for k in 1 2 3 4; do
+  sed -e "s/^name: .*/name: Copy $k/" vehicles/midsize_sedan.yaml >"$tmp/classes/vehicles/copy$k.yaml"
+done
+/usr/bin/python3 - "$tmp/corridor.yaml" "$tmp/classes/corridor.yaml" <<'PY'
+import sys
+src = open(sys.argv[1]).read()
+old = """    - {class: midsize_sedan, fraction: 0.8}
+    - {class: class8_tractor, fraction: 0.2}
+"""
+names = ["compact_sedan", "midsize_sedan", "midsize_suv", "midsize_pickup", "class4_pnd", "class8_tractor",
+         "copy1", "copy2", "copy3", "copy4"]
+new = "".join("    - {class: %s, fraction: 0.1, length_m: %g}\n" % (n, 4.0 + 0.25 * k) for k, n in enumerate(names))
+assert old in src
+open(sys.argv[2], "w").write(src.replace(old, new))
+PY
+RECOMPUTE_NAME=corridor_ten_classes WAVEFUEL_VEHICLES="$tmp/classes/vehicles" bash tests/recompute/run_pair.sh corridor_recompute_ten_classes \
+  "$tmp/classes/corridor.yaml" tests/recompute/corridor.py "$tmp/classes"

@@ -695,29 +695,6 @@ static inline void detector_vehicle(WfCorridor *c, size_t jd, size_t q, double x
     }
 }
 
-/* Running sums of one cell (up to three quantities) kept in registers between vehicles: the same additions in the
- * same order as adding to the cell in memory, without a store and reload between consecutive vehicles of a cell. */
-typedef struct CellSum {
-    double *p[3]; /* the cell's sums in memory (p[0] NULL: none held; p[2] may be NULL) */
-    double  v[3];
-} CellSum;
-
-static inline void cell_flush(CellSum *cs)
-{
-    for (int q = 0; q < 3 && cs->p[0]; q++)
-        if (cs->p[q]) *cs->p[q] = cs->v[q];
-    cs->p[0] = NULL;
-}
-
-static inline void cell_add(CellSum *cs, double *a, double *b, double *c, double da, double db, double dc)
-{
-    if (a != cs->p[0]) {
-        cell_flush(cs);
-        *cs = (CellSum){{a, b, c}, {*a, *b, c ? *c : 0.0}};
-    }
-    cs->v[0] += da, cs->v[1] += db, cs->v[2] += dc;
-}
-
 /* First index k in [lo, hi) whose position pos (x_m or xold, by slot) is below x (or at most x unless strict), by
  * bisection: k runs from the front vehicle backwards, so positions fall along k, before and after the step. */
 static size_t first_below(const WfCorridor *c, const double *pos, double x, int strict, size_t lo, size_t hi)
@@ -755,36 +732,107 @@ static void measure_span(const WfCorridor *c, size_t i_lo, size_t i_hi, size_t q
     *k1 = first_below(c, c->veh.x_m, x_lo - 1.0, 1, *k0, c->veh.n);
 }
 
-/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order. The common case, a
- * step inside one cell (d = span, w = span / span = 1 exactly), adds the same values as edie_vehicle through
- * running sums of the row's cell and of the vehicle's class. */
-static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
-                          size_t q_hi)
+/* The running sums of one Edie cell of the step's row and of its class profiles are held in registers while
+ * consecutive vehicles step inside that cell: each sum gets the same additions in the same order as adding to the
+ * cell in memory. The class sums are vectors with a lane per class: a vehicle adds its distance and fuel to its
+ * class's lane and +0 to the others, which leaves them unchanged (these sums start at +0 and never become -0), so
+ * no branch depends on the class. Vector v holds classes 4 v .. 4 v + 3 of the cell. */
+typedef double  V4 __attribute__((vector_size(32)));
+typedef int64_t M4 __attribute__((vector_size(32)));
+
+static inline void lanes_load(V4 *out, const double *base, size_t nx, size_t i, size_t v, size_t nc)
+{
+    size_t k = 4 * v;
+    *out = (V4){k < nc ? base[k * nx + i] : 0.0, k + 1 < nc ? base[(k + 1) * nx + i] : 0.0,
+                k + 2 < nc ? base[(k + 2) * nx + i] : 0.0, k + 3 < nc ? base[(k + 3) * nx + i] : 0.0};
+}
+
+static inline void lanes_store(const V4 *x, double *base, size_t nx, size_t i, size_t v, size_t nc)
+{
+    size_t k = 4 * v;
+    if (k < nc) base[k * nx + i] = (*x)[0];
+    if (k + 1 < nc) base[(k + 1) * nx + i] = (*x)[1];
+    if (k + 2 < nc) base[(k + 2) * nx + i] = (*x)[2];
+    if (k + 3 < nc) base[(k + 3) * nx + i] = (*x)[3];
+}
+
+/* A vehicle's distance and fuel into its class's lane of vector v (key: the class, or -1 outside the window). */
+static inline void lanes_add(V4 *cd, V4 *cf, M4 key, size_t v, double d, double fuel)
+{
+    M4 hit = ((M4){0, 1, 2, 3} + (int64_t)(4 * v)) == key;
+    *cd += (V4)((M4)(V4){d, d, d, d} & hit);
+    *cf += (V4)((M4)(V4){fuel, fuel, fuel, fuel} & hit);
+}
+
+/* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, with nv class vectors
+ * (a constant at each call: the vectors stay in registers). The common case, a step inside one cell (d = span,
+ * w = span / span = 1 exactly), adds the same values as edie_vehicle through the cell's running sums. */
+static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, long step, int in_window, size_t i_lo,
+                                                             size_t i_hi, size_t q_lo, size_t q_hi, const int nv)
 {
     const WfCorridorVehicles *vh = &c->veh;
     WfEdie *e = &c->edie;
     size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0, nx = e->nx;
-    double dt = c->sc->dt_s, *erow_d = e->dist_m + j * nx, *erow_t = e->time_s + j * nx;
-    double *erow_f = e->fuel_g + j * nx;
-    CellSum row = {0}, cls = {0};
+    size_t nc = c->sc->n_classes, held = SIZE_MAX; /* the cell whose sums are in registers */
+    double dt = c->sc->dt_s, *row_d = e->dist_m + j * nx, *row_t = e->time_s + j * nx, *row_f = e->fuel_g + j * nx;
+    double *cdist = e->class_dist_m, *cfuel = e->class_fuel_g;
+    const double *xold = c->xold, *x = vh->x_m, *rate = vh->fuel_rate_gps;
+    const uint32_t *cell = c->cell;
+    const uint16_t *cls = vh->class_id;
+    double sd = 0.0, st = 0.0, sf = 0.0;
+    V4 cd0 = {0}, cd1 = {0}, cd2 = {0}, cd3 = {0}, cf0 = {0}, cf1 = {0}, cf2 = {0}, cf3 = {0};
+#define FLUSH()                                                                                                     \
+    do {                                                                                                            \
+        if (held == SIZE_MAX) break;                                                                                \
+        row_d[held] = sd, row_t[held] = st, row_f[held] = sf;                                                       \
+        lanes_store(&cd0, cdist, nx, held, 0, nc), lanes_store(&cf0, cfuel, nx, held, 0, nc);                         \
+        if (nv > 1) lanes_store(&cd1, cdist, nx, held, 1, nc), lanes_store(&cf1, cfuel, nx, held, 1, nc);             \
+        if (nv > 2) lanes_store(&cd2, cdist, nx, held, 2, nc), lanes_store(&cf2, cfuel, nx, held, 2, nc);             \
+        if (nv > 2) lanes_store(&cd3, cdist, nx, held, 3, nc), lanes_store(&cf3, cfuel, nx, held, 3, nc);             \
+        held = SIZE_MAX;                                                                                            \
+    } while (0)
     size_t k0, k1;
     measure_span(c, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
-    for (size_t k = k0; k < k1; k++) {
-        size_t s = wf_corridor_slot(vh, k), cl = vh->class_id[s], i = c->cell[s];
-        double xa = c->xold[s], xb = vh->x_m[s], fuel = vh->fuel_rate_gps[s] * dt;
+    /* Road order is descending slot order, wrapping from slot 0 to the last. */
+    for (size_t k = k0, s = k0 < k1 ? wf_corridor_slot(vh, k0) : 0; k < k1; k++, s = s ? s - 1 : vh->cap - 1) {
+        size_t cl = cls[s], i = cell[s];
+        double xa = xold[s], xb = x[s], fuel = rate[s] * dt;
         if (i != UINT32_MAX && (i < i_lo || i >= i_hi)) {
             /* inside one cell of another thread */
         } else if (i != UINT32_MAX) {
-            cell_add(&row, &erow_d[i], &erow_t[i], &erow_f[i], xb - xa, dt, fuel);
-            if (in_window)
-                cell_add(&cls, &e->class_dist_m[cl * nx + i], &e->class_fuel_g[cl * nx + i], NULL, xb - xa, fuel, 0.0);
+            if (i != held) {
+                FLUSH();
+                held = i, sd = row_d[i], st = row_t[i], sf = row_f[i];
+                lanes_load(&cd0, cdist, nx, i, 0, nc), lanes_load(&cf0, cfuel, nx, i, 0, nc);
+                if (nv > 1) lanes_load(&cd1, cdist, nx, i, 1, nc), lanes_load(&cf1, cfuel, nx, i, 1, nc);
+                if (nv > 2) lanes_load(&cd2, cdist, nx, i, 2, nc), lanes_load(&cf2, cfuel, nx, i, 2, nc);
+                if (nv > 2) lanes_load(&cd3, cdist, nx, i, 3, nc), lanes_load(&cf3, cfuel, nx, i, 3, nc);
+            }
+            double d = xb - xa;
+            sd += d, st += dt, sf += fuel;
+            int64_t kc = in_window ? (int64_t)cl : -1;
+            M4 key = {kc, kc, kc, kc};
+            lanes_add(&cd0, &cf0, key, 0, d, fuel);
+            if (nv > 1) lanes_add(&cd1, &cf1, key, 1, d, fuel);
+            if (nv > 2) lanes_add(&cd2, &cf2, key, 2, d, fuel), lanes_add(&cd3, &cf3, key, 3, d, fuel);
         } else {
-            cell_flush(&row), cell_flush(&cls);
+            FLUSH();
             edie_vehicle(c, j, cl, xa, xb, fuel, in_window, i_lo, i_hi);
         }
         for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
     }
-    cell_flush(&row), cell_flush(&cls);
+    FLUSH();
+#undef FLUSH
+}
+
+WF_SIMD_CLONES
+static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
+                          size_t q_hi)
+{
+    size_t nc = c->sc->n_classes;
+    if (nc <= 4) measure_nv(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 1);
+    else if (nc <= 8) measure_nv(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 2);
+    else measure_nv(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 4);
 }
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
