@@ -271,8 +271,24 @@ def test_run_refusals(tmp):
             check("mlp_overflow_refused", e.code == 2 and big in str(e) and "gives inf" in str(e), e)
 
 
+def test_shipped_network(tmp):
+    """scenarios/data/follower_stopper_mlp.h5 is what examples/mlp/make_policy.py writes (values within 1e-9: a
+    LAPACK other than this machine's may round the least-squares fit differently)."""
+    out = os.path.join(tmp, "regenerated.h5")
+    r = subprocess.run([sys.executable, "examples/mlp/make_policy.py", out], capture_output=True, text=True)
+    ok = r.returncode == 0
+    if ok:
+        a, b = wf.read_mlp(out), wf.read_mlp("scenarios/data/follower_stopper_mlp.h5")
+        ok = [x[2] for x in a["layers"]] == [x[2] for x in b["layers"]] and a["output"] == b["output"] == "speed"
+        for (wa, ba, _), (wb, bb, _) in zip(a["layers"], b["layers"]):
+            ok = ok and wa.shape == wb.shape and np.allclose(wa, wb, rtol=1e-9, atol=1e-9) and \
+                np.allclose(ba, bb, rtol=1e-9, atol=1e-9)
+    check("mlp_shipped_network_regenerates", ok, r.stderr)
+
+
 def main():
     with tempfile.TemporaryDirectory() as tmp:
+        test_shipped_network(tmp)
         test_against_numpy(tmp)
         test_against_torch(tmp)
         test_threads_and_resume(tmp)
