@@ -22,8 +22,6 @@ import wavefuel  # noqa: E402
 U_MPS = 2.5
 HIDDEN = 64
 V_MAX_MPS, GAP_MAX_M = 8.0, 30.0  # the sampled observations
-MEAN = np.array([V_MAX_MPS / 2, V_MAX_MPS / 2, GAP_MAX_M / 2])  # input normalisation: centres and half-widths
-STD = MEAN.copy()
 
 
 def follower_stopper_command(v, vl, gap, U=U_MPS, dx=(4.5, 5.25, 6.0), d=(1.5, 1.0, 0.5)):
@@ -35,21 +33,29 @@ def follower_stopper_command(v, vl, gap, U=U_MPS, dx=(4.5, 5.25, 6.0), d=(1.5, 1
                     np.where(gap <= x3, w + (U - w) * (gap - x2) / (x3 - x2), U)))
 
 
-def fit(seed=2018, n=40000):
+def fit(target, hidden=(HIDDEN,), seed=2018, n=40000, v_max_mps=V_MAX_MPS, gap_max_m=GAP_MAX_M):
+    """Layers [(weight, bias)] of a tanh network whose hidden layers are drawn at random (seed) and whose output
+    layer is the least-squares fit of target(v, v_lead, gap) on n random observations; and those observations and
+    targets. The inputs are normalised by MEAN and STD scaled to the sampled ranges (returned too)."""
     rng = np.random.default_rng(seed)
-    rows = np.column_stack([rng.uniform(0, V_MAX_MPS, n), rng.uniform(0, V_MAX_MPS, n), rng.uniform(0, GAP_MAX_M, n)])
-    target = follower_stopper_command(rows[:, 0], rows[:, 1], rows[:, 2])
-    w0, b0 = rng.normal(0, 1.0, (HIDDEN, 3)), rng.normal(0, 1.0, HIDDEN)
-    h = np.tanh((rows - MEAN) / STD @ w0.T + b0)
-    coef, *_ = np.linalg.lstsq(np.column_stack([h, np.ones(n)]), target, rcond=None)
-    return [(w0, b0), (coef[None, :-1], coef[-1:])], rows, target
+    rows = np.column_stack([rng.uniform(0, v_max_mps, n), rng.uniform(0, v_max_mps, n), rng.uniform(0, gap_max_m, n)])
+    y = target(rows[:, 0], rows[:, 1], rows[:, 2])
+    mean = np.array([v_max_mps / 2, v_max_mps / 2, gap_max_m / 2])
+    layers, h, width = [], (rows - mean) / mean, 3
+    for k, units in enumerate(hidden):
+        # The first layer sees normalised inputs; deeper ones see tanh outputs: weights of variance 1 / width.
+        w, b = rng.normal(0, 1.0 if k == 0 else 1.0 / np.sqrt(width), (units, width)), rng.normal(0, 1.0, units)
+        layers.append((w, b))
+        h, width = np.tanh(h @ w.T + b), units
+    coef, *_ = np.linalg.lstsq(np.column_stack([h, np.ones(n)]), y, rcond=None)
+    return layers + [(coef[None, :-1], coef[-1:])], rows, y, mean
 
 
 def main():
     default = os.path.join(HERE, "..", "..", "scenarios", "data", "follower_stopper_mlp.h5")
     out = os.path.normpath(sys.argv[1] if len(sys.argv) > 1 else default)
-    layers, rows, target = fit()
-    wavefuel.export_mlp(out, layers, activations="tanh", input_mean=MEAN, input_std=STD, output="speed",
+    layers, rows, target, mean = fit(follower_stopper_command)
+    wavefuel.export_mlp(out, layers, activations="tanh", input_mean=mean, input_std=mean, output="speed",
                         output_min=0.0, output_max=U_MPS)
     err = wavefuel.mlp_forward(out, rows) - target
     print(f"{out}: 3 -> {HIDDEN} -> 1 tanh, command error rms {np.sqrt(np.mean(err ** 2)):.3f} m/s, "
