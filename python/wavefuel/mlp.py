@@ -155,7 +155,8 @@ class Network:
         return out
 
     def close(self):
-        if getattr(self, "_ptr", None):
+        """Free the network now (also when the object is collected)."""
+        if getattr(self, "_ptr", None) and lib is not None:  # lib is None during interpreter shutdown
             lib.wf_mlp_destroy(C.byref(self._ptr))
 
     def __enter__(self):
