@@ -9,7 +9,7 @@ set -u
 cd "$(dirname "$0")/.." || exit 1
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 PY=/usr/bin/python3
-make --no-print-directory -s python BUILD=${BUILD:-build} >/dev/null || { echo "FAIL python_build: make python"; exit 1; }
+make --no-print-directory -s python BUILD=build >/dev/null || { echo "FAIL python_build: make python"; exit 1; }
 export PYTHONPATH="$PWD/python" WAVEFUEL_LIB="$PWD/lib/libwavefuel.so"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -137,7 +137,8 @@ for line in open(os.path.join(d, "cases.txt")):
         except wf.WavefuelError as e:
             good = e.code == 2 and want in str(e) and (not dataset or f"'{dataset}'" in str(e)) and \
                 os.path.join(d, name + ".h5") in str(e)
-            print(("PASS " if good else "FAIL ") + f"mlp_refused_python_{what}_{name}" + ("" if good else ": " + str(e)))
+            label = f"mlp_refused_python_{what}_{name}"
+            print(("PASS " + label) if good else ("FAIL " + label + ": " + str(e)))
 PY
 
 # `network` without model: mlp, and an mlp group without a network, or with a plug-in's `path`.

@@ -5,7 +5,8 @@ network-driven vehicle damps the Sugiyama ring's stop-and-go wave as the built-i
 
 The network is fitted, not trained by reinforcement learning: the hidden layer is drawn at random from a fixed seed
 and the output layer is the least-squares fit (numpy's lstsq) of the command on 40 000 random observations (own
-speed and leader speed in [0, 8] m/s, gap in [0, 30] m), an extreme learning machine: deterministic and instant. Its output is a set speed (output kind `speed`), clipped to [0, U] and followed by the acc law.
+speed and leader speed in [0, 8] m/s, gap in [0, 30] m), an extreme learning machine: deterministic and instant.
+Its output is a set speed (output kind `speed`), clipped to [0, U] and followed by the acc law.
 
     /usr/bin/python3 examples/mlp/make_policy.py [OUT.h5]     (default: scenarios/data/follower_stopper_mlp.h5)
 

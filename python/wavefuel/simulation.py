@@ -234,9 +234,9 @@ class Simulation:
 
     def observe(self, group):
         """The inputs of the next step for each vehicle of an external group (model `external`,
-        `external_speed`, or `mlp`: the rows its network reads; docs/controllers.md), in road order (a ring: increasing position; a corridor: front
-        first): an (n, 3) array of [own speed m/s, leader speed m/s, bumper-to-bumper gap m], exactly as the engine
-        computes them."""
+        `external_speed`, or `mlp`: the rows its network reads; docs/controllers.md), in road order (a ring:
+        increasing position; a corridor: front first): an (n, 3) array of [own speed m/s, leader speed m/s,
+        bumper-to-bumper gap m], exactly as the engine computes them."""
         self._alive()
         g = self.group_index(group)
         n = lib.wf_sim_group_size(self._ptr, g)

@@ -33,7 +33,8 @@ static int read_f64(hid_t f, const char *file, const char *name, int want_rank, 
     else if (want_rank == 0 ? !scalar : rank != want_rank) {
         char shape[96] = "";
         for (int k = 0, used = 0; k < rank && k < 4 && used < 80; k++)
-            used += snprintf(shape + used, sizeof shape - (size_t)used, "%s%llu", k ? ", " : "", (unsigned long long)dm[k]);
+            used += snprintf(shape + used, sizeof shape - (size_t)used, "%s%llu", k ? ", " : "",
+                             (unsigned long long)dm[k]);
         rc = wf_err(err, WF_EINPUT, "%s: dataset '%s' has shape [%s], expected %s", file, name, shape,
                     want_rank == 0 ? "a scalar" : want_rank == 1 ? "a vector" : "a matrix [outputs, inputs]");
     }
