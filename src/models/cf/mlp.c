@@ -15,6 +15,8 @@
 
 #include "core/par.h"
 
+/* Rows of a block: 4 keeps the sums in registers (SSE2 pairs); blocks of 2 and 8 rows ran 1.4 and 2 times slower
+ * on a 2 x 64 network (gcc 12 -O2, bench/README.md "MLP controller"). */
 #define MLP_ROWS 4
 /* Rows per thread below which one thread evaluates the batch (a team costs more than a few rows). */
 #define MLP_PAR_MIN 64
