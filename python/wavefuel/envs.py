@@ -6,12 +6,15 @@ same API with a small Box of the same fields (low, high, shape, dtype, sample, c
 
 Observations: one row per automated vehicle, in road order, [own speed m/s, leader speed m/s, gap m] (the inputs of
 the next step, Simulation.observe). Actions: one acceleration per automated vehicle, m/s^2, held for
-`action_every` steps; the engine applies the group's limits and noise as to any model. Reward: minus the mean fuel
-rate of every vehicle over the action's steps, g/s per vehicle, from the vehicles' energy models (the classes'
-explicit CIRCLES models): an agent that saves fuel for the whole traffic earns more."""
+`action_every` steps; the engine applies the group's limits and noise as to any model. Reward (reward.py, weights
+in reward.Reward, the `reward` argument): fuel of the automated vehicles and the humans behind them from the
+classes' energy models (g/s per vehicle), minus gap-bound and comfort penalties; info["reward_terms"] has each term
+(their sum is the reward). VectorEnv (vector.py) steps many of them in C at once."""
 import numpy as np
 
-from .energy import VehicleClass
+from .batch import Batch
+from .reward import Layout, Reward
+from .reward import terms as reward_terms
 from .scenario import Scenario
 from .simulation import Simulation
 
@@ -59,9 +62,10 @@ class _ExternalEnv(_Base):
     metadata = {"render_modes": []}
     AV = "av"  # the external driver group's name in the generated scenarios
 
-    def __init__(self, n_av, accel_min_mps2, accel_max_mps2, horizon_s, dt_s, action_every, threads):
+    def __init__(self, n_av, accel_min_mps2, accel_max_mps2, horizon_s, dt_s, action_every, threads, reward):
         self.n_av, self.horizon_s, self.dt_s, self.action_every = n_av, horizon_s, dt_s, int(action_every)
         self.threads = threads
+        self.reward = reward if reward is not None else Reward()
         self.observation_space = _box(0.0, np.inf, (n_av, 3))
         self.action_space = _box(accel_min_mps2, accel_max_mps2, (n_av,))
         self.sim = None
@@ -77,31 +81,12 @@ class _ExternalEnv(_Base):
             raise RuntimeError(f"{obs.shape[0]} automated vehicles on the road, expected {self.n_av}")
         return obs
 
-    def _fuel_rate(self, before, after):
-        """Mean fuel rate of the vehicles present at both instants over the steps between (g/s per vehicle): each
-        vehicle's class model at its speed and the acceleration that took it from one speed to the other."""
-        keep = np.intersect1d(before["id"], after["id"])
-        if keep.size == 0:
-            return 0.0
-        i0 = np.searchsorted(before["id"], keep, sorter=before["order"])
-        i1 = np.searchsorted(after["id"], keep, sorter=after["order"])
-        v0 = before["v"][before["order"][i0]]
-        v1 = after["v"][after["order"][i1]]
-        cls = before["cls"][before["order"][i0]]
-        dt = self.dt_s * self.action_every
-        a = (v1 - v0) / dt
-        total = 0.0
-        for k, vc in enumerate(self._classes):
-            m = cls == k
-            if m.any():
-                total += float(np.sum(vc.fuel(v0[m], a[m], 0.0)))
-        return total / keep.size
-
-    def _snapshot(self):
+    def _layout_part(self):
+        """What reward.Layout needs of this run: its class names, each vehicle's class and whether its fuel counts
+        (road order: the order of Batch.speeds)."""
         s = self.sim.state()
-        ids = s["serial"] if "serial" in s else np.arange(s["v_mps"].size)
-        return {"id": np.asarray(ids, np.int64), "order": np.argsort(ids, kind="stable"),
-                "v": np.array(s["v_mps"]), "cls": np.array(s["class_id"])}
+        scope = self.reward.scope(np.asarray(s["group_id"]), self.sim.group_index(self.AV), self.sim.kind == "ring")
+        return self.sim.scenario.classes, np.array(s["class_id"]), scope
 
     def reset(self, seed=None, options=None):
         if seed is not None:
@@ -110,10 +95,12 @@ class _ExternalEnv(_Base):
             self.sim.close()
         self.scenario_dict = self._scenario()  # the episode's scenario, as drawn
         self.sim = Simulation(Scenario.from_dict(self.scenario_dict), threads=self.threads)
-        self._classes = [VehicleClass(name) for name in self.sim.scenario.classes]
         self._warm()
         self.t0 = self.sim.t
-        return self._observe(), {"t": self.sim.t}
+        self._batch = Batch([self.sim], [self.AV])
+        self._layout = Layout([self._layout_part()], [self.n_av], self.dt_s * self.action_every)
+        self._v, self._obs, self._a_prev = self._batch.speeds().copy(), self._observe(), np.full(self.n_av, np.nan)
+        return self._obs.copy(), {"t": self.sim.t}
 
     def _warm(self):
         """Steps before the agent acts (the automated vehicles drive as acc meanwhile)."""
@@ -121,13 +108,14 @@ class _ExternalEnv(_Base):
     def step(self, action):
         u = np.asarray(action, np.float64).reshape(self.n_av)
         self.sim.set_actions(self.AV, np.clip(u, self.action_space.low, self.action_space.high))
-        before = self._snapshot()
         self.sim.step(self.action_every)
-        after = self._snapshot()
-        rate = self._fuel_rate(before, after)
+        v, obs = self._batch.speeds().copy(), self._observe()
+        r, terms, rate, speed, a = reward_terms(self.reward, self._layout, self._v, v, self._obs, obs, self._a_prev)
+        self._v, self._obs, self._a_prev = v, obs, a
         truncated = self.sim.t - self.t0 >= self.horizon_s - 1e-9
-        info = {"t": self.sim.t, "fuel_rate_gps": rate, "mean_speed_mps": float(np.mean(after["v"]))}
-        return self._observe(), -rate, False, truncated, info
+        info = {"t": self.sim.t, "fuel_rate_gps": float(rate[0]), "mean_speed_mps": float(speed[0]),
+                "reward_terms": {k: float(x[0]) for k, x in terms.items()}}
+        return obs.copy(), float(r[0]), False, truncated, info
 
     def close(self):
         if self.sim is not None:
@@ -142,8 +130,9 @@ class RingEnv(_ExternalEnv):
 
     def __init__(self, n_vehicles=22, n_av=1, length_range_m=(220.0, 270.0), horizon_s=300.0, warmup_s=60.0,
                  dt_s=0.1, action_every=1, noise_mps2=0.2, vehicle_class="midsize_sedan", threads=1,
-                 accel_range_mps2=(-3.0, 3.0)):
-        super().__init__(n_av, accel_range_mps2[0], accel_range_mps2[1], horizon_s, dt_s, action_every, threads)
+                 accel_range_mps2=(-3.0, 3.0), reward=None):
+        super().__init__(n_av, accel_range_mps2[0], accel_range_mps2[1], horizon_s, dt_s, action_every, threads,
+                         reward)
         self.n_vehicles, self.length_range_m, self.warmup_s = n_vehicles, tuple(length_range_m), warmup_s
         self.noise_mps2, self.vehicle_class = noise_mps2, vehicle_class
 
@@ -178,7 +167,8 @@ class TrajectoryEnv(_ExternalEnv):
     length by default)."""
 
     def __init__(self, trace, n_vehicles=20, humans_per_av=4, horizon_s=None, dt_s=0.1, action_every=1,
-                 noise_mps2=0.0, vehicle_class="midsize_sedan", threads=1, accel_range_mps2=(-3.0, 3.0)):
+                 noise_mps2=0.0, vehicle_class="midsize_sedan", threads=1, accel_range_mps2=(-3.0, 3.0),
+                 reward=None):
         if isinstance(trace, (str, bytes)) or hasattr(trace, "__fspath__"):
             data = np.loadtxt(trace, delimiter=",", skiprows=1, ndmin=2)
             t, v = data[:, 0], data[:, 1]
@@ -190,7 +180,7 @@ class TrajectoryEnv(_ExternalEnv):
             raise ValueError(f"n_vehicles {n_vehicles} holds no automated vehicle at one per {humans_per_av} humans")
         span = float(self.trace_t[-1])
         super().__init__(n_av, accel_range_mps2[0], accel_range_mps2[1], horizon_s or span, dt_s, action_every,
-                         threads)
+                         threads, reward)
         self.n_vehicles, self.humans_per_av = n_vehicles, humans_per_av
         self.noise_mps2, self.vehicle_class = noise_mps2, vehicle_class
         # The leader's path: the fill at the trace's first speed, then the trace; 1 km to spare.

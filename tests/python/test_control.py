@@ -4,8 +4,9 @@
   not through the library) gives the bits of the same group with `model: idm`: every dataset of the result files
   (those naming the model or its parameters aside) and the final state.
 - RingEnv and TrajectoryEnv follow the Gymnasium API: shapes and spaces, determinism for a seed, the ring length
-  drawn per episode, truncation at the horizon, the reward equal to minus the mean fuel rate recomputed here from
-  the class's fuel at the observed speeds.
+  drawn per episode, truncation at the horizon; each term of the reward (fuel of the vehicles in scope, gap bounds,
+  comfort) recomputed here from the states before and after the action (positions, speeds, groups) with numpy and
+  the class's energy model, and their sum.
 - Refusals: commands to a group that is not external, the wrong count, an infinite command, an unknown group."""
 import os
 import sys
@@ -135,14 +136,77 @@ def test_ring_env():
         env.reset(seed=s)
         lengths.add(round(float(env.scenario_dict["road"]["length_m"]), 6))
     check("ring_env_length_drawn", len(lengths) == 4 and all(220 <= L <= 270 for L in lengths), lengths)
-    # The reward of a step: minus the mean over vehicles of the class's fuel rate at the step's start speed and
-    # the acceleration (v_end - v_start) / dt, recomputed here.
+    env.close()
+
+
+def reward_by_hand(rw, st0, st1, av, dt, length_m, ring, a_prev, cls="midsize_sedan"):
+    """The reward's terms recomputed from two states (sim.state() at an action's start and end) with numpy and the
+    class's energy model: fuel of the vehicles in scope, the automated vehicles' gaps from their positions, their
+    accelerations and jerks from their speeds (docs/python.md)."""
+    v0, v1, x1 = (np.array(st[k], np.float64) for st, k in ((st0, "v_mps"), (st1, "v_mps"), (st1, "x_m")))
+    group = np.array(st1["group_id"])
+    car = wf.VehicleClass(cls).keys["length_m"][0]
+    if ring:  # ring order, vehicle i + 1 leads i; the last one's leader is vehicle 0 a lap ahead
+        lead_x = np.append(x1[1:], x1[0] + length_m)
+        scope = np.ones(v0.size, bool)
+    else:  # front first: each vehicle's leader is the previous one; the front one's is the virtual leader
+        lead_x = np.append(np.nan, x1[:-1])
+        scope = np.arange(v0.size) >= np.flatnonzero(group == av)[0]
+        if rw.fuel_scope == "all":
+            scope[:] = True
+    fuel = np.mean(wf.energy.fuel(cls, v0, (v1 - v0) / dt, 0.0)[scope])
+    gap = (lead_x - car - x1)[group == av]
+    lo, hi = rw.gap_range_m
+    viol = np.where(gap < lo, (lo - gap) ** 2, np.where(gap > hi, (gap - hi) ** 2, 0.0))
+    a = ((v1 - v0) / dt)[group == av]
+    jerk = np.zeros_like(a) if a_prev is None else (a - a_prev) / dt
+    terms = {"fuel": -rw.w_fuel * fuel, "gap": -rw.w_gap * np.mean(viol),
+             "comfort": -rw.w_accel * np.mean(a * a) - rw.w_jerk * np.mean(jerk * jerk)}
+    return terms, a
+
+
+def close(a, b, tol=1e-12):
+    return abs(a - b) <= tol * max(abs(a), abs(b), 1e-300)
+
+
+def test_reward_terms():
+    """Each term of the reward and their sum against reward_by_hand, over three actions (the jerk from the second),
+    on a ring with gap bounds that bind and on a corridor platoon."""
+    rw = wf.envs.Reward(gap_range_m=(8.0, 9.0), w_gap=0.5, w_accel=0.1, w_jerk=0.01)
+    env = wf.envs.RingEnv(n_av=2, horizon_s=20.0, warmup_s=5.0, action_every=2, reward=rw)
     env.reset(seed=9)
-    v0 = np.array(env.sim.state()["v_mps"])
-    _, r, _, _, info = env.step(np.full(2, 0.5))
-    v1 = np.array(env.sim.state()["v_mps"])
-    want = -np.mean(wf.energy.fuel("midsize_sedan", v0, (v1 - v0) / 0.1, 0.0))
-    check("ring_env_reward_recomputed", abs(r - want) <= 1e-12 * abs(want), (r, want))
+    bad, a_prev, seen = [], None, {k: 0.0 for k in ("fuel", "gap", "comfort")}
+    for u in ([0.5, -1.0], [1.5, 0.2], [-2.0, 0.0]):
+        st0 = {k: np.array(x) for k, x in env.sim.state().items()}
+        _, r, _, _, info = env.step(np.array(u))
+        want, a_prev = reward_by_hand(rw, st0, env.sim.state(), 1, 0.2, env.scenario_dict["road"]["length_m"], True,
+                                      a_prev)
+        got = info["reward_terms"]
+        bad += [(k, got[k], want[k]) for k in want if not close(got[k], want[k])]
+        bad += [] if close(r, sum(got.values()), 1e-15) else [("sum", r, got)]
+        seen = {k: min(seen[k], got[k]) for k in seen}
+    check("reward_terms_ring", not bad and all(x < 0 for x in seen.values()), (bad, seen))
+    env.close()
+    t = np.arange(0.0, 30.1, 1.0)
+    trace = (t, 20.0 + 5.0 * np.sin(2 * np.pi * t / 15.0))
+    for scope in ("platoon", "all"):
+        rw = wf.envs.Reward(fuel_scope=scope, gap_range_m=(30.0, 40.0))
+        env = wf.envs.TrajectoryEnv(trace, n_vehicles=12, humans_per_av=2, reward=rw)
+        env.reset(seed=3)
+        bad, a_prev, gap = [], None, 0.0
+        for u in ([0.3] * 4, [-0.5] * 4):
+            st0 = {k: np.array(x) for k, x in env.sim.state().items()}
+            _, r, _, _, info = env.step(np.array(u))
+            want, a_prev = reward_by_hand(rw, st0, env.sim.state(), 1, 0.1, None, False, a_prev)
+            got = info["reward_terms"]
+            gap = min(gap, got["gap"])
+            bad += [(k, got[k], want[k]) for k in want if not close(got[k], want[k])]
+            bad += [] if close(r, sum(got.values()), 1e-15) else [("sum", r, got)]
+        first_av = int(np.flatnonzero(np.array(env.sim.state()["group_id"]) == 1)[0])
+        check(f"reward_terms_corridor_{scope}", not bad and gap < 0, (bad, gap))
+        if scope == "platoon":
+            print(f"  corridor platoon: the fuel of the {12 - first_av} vehicles from the first automated one back")
+        env.close()
     env.close()
 
 
@@ -168,6 +232,7 @@ def main():
         test_refusals()
         test_ring_env()
         test_trajectory_env(tmp)
+        test_reward_terms()
     return 1 if failures else 0
 
 
