@@ -105,15 +105,12 @@ int    wf_sim_set_actions(WfSim *sim, size_t group, const double *actions, size_
  * wf_sims_observe and wf_sims_set_actions do what wf_sim_observe and wf_sim_set_actions do for group[k] of every
  * run k, with the runs' rows one after the other in run order (obs: 3 values a row); n_rows / n_actions must be
  * the sum of the groups' sizes (WF_EINPUT otherwise, or the failing run's error prefixed with its index; commands
- * of the runs before a refused one are set). wf_sims_speeds writes every vehicle's speed (m/s) of every run, each
- * run in road order (a ring: ring order, vehicle i + 1 leading vehicle i; a corridor: the front vehicle first),
- * runs in order; n must be the number of vehicles on the roads (WF_EINPUT otherwise, nothing written). */
+ * of the runs before a refused one are set). */
 int wf_sims_step(WfSim *const *sims, size_t n_sims, long n_steps, int threads, WfError *errs);
 int wf_sims_observe(WfSim *const *sims, size_t n_sims, const size_t *group, double *obs, size_t n_rows,
                     WfError *err);
 int wf_sims_set_actions(WfSim *const *sims, size_t n_sims, const size_t *group, const double *actions,
                         size_t n_actions, WfError *err);
-int wf_sims_speeds(WfSim *const *sims, size_t n_sims, double *v_mps, size_t n, WfError *err);
 
 const WfScenario *wf_sim_scenario(const WfSim *sim);
 /* "ring" or "corridor": the boundary (checkpoints and /meta/road_type name it). */

@@ -1,6 +1,6 @@
-"""Many Simulations stepped as one batch in C (the library's wf_sims_*, include/wavefuel/engine.h): the runs' steps in
-parallel over runs on OpenMP threads, each run single-threaded inside and giving the bits it gives alone; one
-external group's observations and commands of every run as one array, and every vehicle's speed."""
+"""Many Simulations stepped as one batch of RL actions in C (include/wavefuel/rl.h): every run's external group
+takes its commands from one array, the runs step in parallel over runs on OpenMP threads (each run single-threaded
+inside, giving the bits it gives alone), and each run's observation, reward and its terms come back as arrays."""
 import ctypes as C
 
 import numpy as np
@@ -8,24 +8,17 @@ import numpy as np
 from . import _lib
 from ._lib import WfError, check, lib
 
-_vp, _err = C.c_void_p, C.POINTER(WfError)
-_sp, _dp = C.POINTER(C.c_size_t), C.POINTER(C.c_double)
-_SIGNATURES = {
-    "wf_sims_step": (C.c_int, [_vp, C.c_size_t, C.c_long, C.c_int, _vp]),
-    "wf_sims_observe": (C.c_int, [_vp, C.c_size_t, _vp, _vp, C.c_size_t, _err]),
-    "wf_sims_set_actions": (C.c_int, [_vp, C.c_size_t, _vp, _vp, C.c_size_t, _err]),
-    "wf_sims_speeds": (C.c_int, [_vp, C.c_size_t, _vp, C.c_size_t, _err]),
-}
-for _name, (_res, _args) in _SIGNATURES.items():
-    getattr(lib, _name).restype, getattr(lib, _name).argtypes = _res, _args
+# Columns of info (rl.h: WF_RL_FUEL ...).
+INFO = ("fuel", "gap", "comfort", "fuel_rate_gps", "mean_speed_mps")
 
 
-class Batch:
-    """The runs `sims` (begun Simulations, held by the caller; rebuild the Batch when one is replaced) with
-    `groups[k]` the external group of run k (a name or an index). Buffers are allocated here once: observe() and
-    speeds() return arrays that the next call overwrites (copy to keep them)."""
+class RlBatch:
+    """The runs `sims` (Simulations that have begun, held by the caller, stepped only through this batch while it
+    lives; rebuild it when one is replaced) with `groups[k]` the external group of run k (a name or an index),
+    `reward` a wavefuel.envs.Reward, an action lasting action_steps steps of dt_s. The vehicles on each road must
+    stay the same while the batch lives. step() returns arrays that the next call overwrites (copy to keep)."""
 
-    def __init__(self, sims, groups):
+    def __init__(self, sims, groups, reward, action_steps, dt_s):
         self.sims = list(sims)
         for s in self.sims:
             s._alive()
@@ -33,38 +26,35 @@ class Batch:
         n = len(self.sims)
         self._ptrs = (C.c_void_p * n)(*[s._ptr.value for s in self.sims])
         self._groups = np.array([s.group_index(g) for s, g in zip(self.sims, groups)], dtype=np.uintp)
+        self._rw = reward._c()
+        self._b = C.c_void_p()
+        err = WfError()
+        check(lib.wf_rl_batch_create(self._ptrs, n, self._groups.ctypes.data, C.byref(self._rw), int(action_steps),
+                                     float(action_steps * dt_s), C.byref(self._b), C.byref(err)), err)
+        self.n_rows = lib.wf_rl_batch_rows(self._b)
         self._errs = (WfError * n)()
-        self._err = WfError()
-        self.n_rows = int(sum(lib.wf_sim_group_size(s._ptr, int(g)) for s, g in zip(self.sims, self._groups)))
-        self.n_vehicles = int(sum(s.n_vehicles for s in self.sims))
-        self._obs = np.empty((self.n_rows, 3))
-        self._v = np.empty(self.n_vehicles)
-        self._p_ptrs = C.addressof(self._ptrs)
-        self._p_groups, self._p_obs, self._p_v = (a.ctypes.data for a in (self._groups, self._obs, self._v))
+        self.obs, self.reward = np.empty((self.n_rows, 3)), np.empty(n)
+        self.info = np.empty((n, len(INFO)))
+        self._args = (self.obs.ctypes.data, self.reward.ctypes.data, self.info.ctypes.data, C.addressof(self._errs))
+        lib.wf_rl_batch_observe(self._b, self.obs.ctypes.data)
+        # The previous action's accelerations (NaN: none), a view of the batch's array: writable.
+        self.prev_accel = np.ctypeslib.as_array(lib.wf_rl_batch_prev_accel(self._b), (self.n_rows,))
 
-    def set_actions(self, actions):
-        """Commands of every run's group, runs one after the other (n_rows values), as Simulation.set_actions."""
-        u = np.ascontiguousarray(actions, dtype=np.float64).ravel()
-        check(lib.wf_sims_set_actions(self._p_ptrs, len(self.sims), self._p_groups, u.ctypes.data, u.size,
-                                      C.byref(self._err)), self._err)
-
-    def step(self, n, threads):
-        """n steps of every run, on `threads` OpenMP threads over runs."""
-        rc = lib.wf_sims_step(self._p_ptrs, len(self.sims), int(n), int(threads), C.addressof(self._errs))
+    def step(self, actions, threads):
+        """Set every run's commands (n_rows values, runs one after the other), step, and return (obs (n_rows, 3),
+        reward (n_runs,), info (n_runs, len(INFO)))."""
+        u = np.ascontiguousarray(actions, dtype=np.float64)
+        if u.size != self.n_rows:
+            raise _lib.WavefuelError(f"{u.size} actions for the batch's {self.n_rows} automated vehicles")
+        rc = lib.wf_rl_batch_step(self._b, u.ctypes.data, int(threads), *self._args)
         if rc:
-            k = next(i for i, e in enumerate(self._errs) if e.code)
-            raise _lib.WavefuelError(f"run {k} of the batch: " + self._errs[k].msg.decode(errors="replace"), rc)
+            k = next((i for i, e in enumerate(self._errs) if e.code), 0)
+            raise _lib.WavefuelError(self._errs[k].msg.decode(errors="replace"), rc)
+        return self.obs, self.reward, self.info
 
-    def observe(self):
-        """(n_rows, 3) observations of every run's group, runs one after the other (Simulation.observe)."""
-        check(lib.wf_sims_observe(self._p_ptrs, len(self.sims), self._p_groups, self._p_obs, self.n_rows,
-                                  C.byref(self._err)), self._err)
-        return self._obs
+    def close(self):
+        if self._b:
+            lib.wf_rl_batch_destroy(C.byref(self._b))
 
-    def speeds(self):
-        """Speeds (m/s) of every vehicle on the roads, each run in road order (a ring: vehicle i + 1 leads vehicle
-        i; a corridor: the front vehicle first), runs one after the other. Raises WavefuelError when vehicles
-        entered or left since the Batch was built."""
-        check(lib.wf_sims_speeds(self._p_ptrs, len(self.sims), self._p_v, self.n_vehicles, C.byref(self._err)),
-              self._err)
-        return self._v
+    def __del__(self):
+        self.close()

@@ -12,9 +12,8 @@ classes' energy models (g/s per vehicle), minus gap-bound and comfort penalties;
 (their sum is the reward). VectorEnv (vector.py) steps many of them in C at once."""
 import numpy as np
 
-from .batch import Batch
-from .reward import Layout, Reward
-from .reward import terms as reward_terms
+from .batch import INFO, RlBatch
+from .reward import Reward
 from .scenario import Scenario
 from .simulation import Simulation
 
@@ -54,6 +53,9 @@ def _box(low, high, shape):
 
 
 _Base = _gym.Env if _gym is not None else object
+# Steps between the runs' time-series records: nothing reads them (the runs write no file), and a record every
+# step costs a quarter of a 22-vehicle ring's step.
+_RECORD_STEPS = 1000
 
 
 class _ExternalEnv(_Base):
@@ -75,49 +77,34 @@ class _ExternalEnv(_Base):
     def _scenario(self):
         raise NotImplementedError
 
-    def _observe(self):
-        obs = self.sim.observe(self.AV)
-        if obs.shape != (self.n_av, 3):
-            raise RuntimeError(f"{obs.shape[0]} automated vehicles on the road, expected {self.n_av}")
-        return obs
-
-    def _layout_part(self):
-        """What reward.Layout needs of this run: its class names, each vehicle's class and whether its fuel counts
-        (road order: the order of Batch.speeds)."""
-        s = self.sim.state()
-        scope = self.reward.scope(np.asarray(s["group_id"]), self.sim.group_index(self.AV), self.sim.kind == "ring")
-        return self.sim.scenario.classes, np.array(s["class_id"]), scope
-
     def reset(self, seed=None, options=None):
         if seed is not None:
             self.np_random = np.random.default_rng(seed)
-        if self.sim is not None:
-            self.sim.close()
+        self.close()
         self.scenario_dict = self._scenario()  # the episode's scenario, as drawn
         self.sim = Simulation(Scenario.from_dict(self.scenario_dict), threads=self.threads)
         self._warm()
         self.t0 = self.sim.t
-        self._batch = Batch([self.sim], [self.AV])
-        self._layout = Layout([self._layout_part()], [self.n_av], self.dt_s * self.action_every)
-        self._v, self._obs, self._a_prev = self._batch.speeds().copy(), self._observe(), np.full(self.n_av, np.nan)
-        return self._obs.copy(), {"t": self.sim.t}
+        self._rl = RlBatch([self.sim], [self.AV], self.reward, self.action_every, self.dt_s)
+        if self._rl.n_rows != self.n_av:
+            raise RuntimeError(f"{self._rl.n_rows} automated vehicles on the road, expected {self.n_av}")
+        return self._rl.obs.reshape(self.n_av, 3).copy(), {"t": self.sim.t}
 
     def _warm(self):
         """Steps before the agent acts (the automated vehicles drive as acc meanwhile)."""
 
     def step(self, action):
-        u = np.asarray(action, np.float64).reshape(self.n_av)
-        self.sim.set_actions(self.AV, np.clip(u, self.action_space.low, self.action_space.high))
-        self.sim.step(self.action_every)
-        v, obs = self._batch.speeds().copy(), self._observe()
-        r, terms, rate, speed, a = reward_terms(self.reward, self._layout, self._v, v, self._obs, obs, self._a_prev)
-        self._v, self._obs, self._a_prev = v, obs, a
+        u = np.clip(np.asarray(action, np.float64).reshape(self.n_av), self.action_space.low, self.action_space.high)
+        obs, r, info = self._rl.step(u, 1)
         truncated = self.sim.t - self.t0 >= self.horizon_s - 1e-9
-        info = {"t": self.sim.t, "fuel_rate_gps": float(rate[0]), "mean_speed_mps": float(speed[0]),
-                "reward_terms": {k: float(x[0]) for k, x in terms.items()}}
-        return obs.copy(), float(r[0]), False, truncated, info
+        out = {"t": self.sim.t, "fuel_rate_gps": float(info[0, 3]), "mean_speed_mps": float(info[0, 4]),
+               "reward_terms": {k: float(info[0, i]) for i, k in enumerate(INFO[:3])}}
+        return obs.reshape(self.n_av, 3).copy(), float(r[0]), False, truncated, out
 
     def close(self):
+        if getattr(self, "_rl", None) is not None:
+            self._rl.close()
+            self._rl = None
         if self.sim is not None:
             self.sim.close()
             self.sim = None
@@ -143,7 +130,7 @@ class RingEnv(_ExternalEnv):
             "road": {"length_m": length},
             # One step more than the episode: the run never reaches its end inside an episode.
             "time": {"duration_s": self.warmup_s + self.horizon_s + 2 * self.dt_s, "dt_s": self.dt_s,
-                     "output_interval_s": self.dt_s, "warmup_s": 0},
+                     "output_interval_s": _RECORD_STEPS * self.dt_s, "warmup_s": 0},
             "fleet": {"vehicles": self.n_vehicles, "placement": "interleaved",
                       "classes": [{"class": self.vehicle_class, "fraction": 1.0}],
                       "drivers": [{"name": "human", "model": "idm", "count": self.n_vehicles - self.n_av,
@@ -194,7 +181,7 @@ class TrajectoryEnv(_ExternalEnv):
             "name": "trajectory_env", "seed": int(self.np_random.integers(1, 2**31)),
             "road": {"type": "corridor", "length_m": self.length_m},
             "time": {"duration_s": fill_s + self.horizon_s + 2 * self.dt_s, "dt_s": self.dt_s,
-                     "output_interval_s": self.dt_s, "warmup_s": 0},
+                     "output_interval_s": _RECORD_STEPS * self.dt_s, "warmup_s": 0},
             "fleet": {"placement": "interleaved", "classes": [{"class": self.vehicle_class, "fraction": 1.0}],
                       "drivers": [{"name": "human", "model": "idm", "fraction": 1.0 - share,
                                    "noise_mps2": self.noise_mps2},
@@ -216,3 +203,7 @@ class TrajectoryEnv(_ExternalEnv):
         self.sim.step(int(round(self._fill_s() / self.dt_s)))
         if self.sim.n_vehicles < self.n_vehicles:
             raise RuntimeError(f"{self.sim.n_vehicles} of {self.n_vehicles} vehicles entered during the fill")
+
+
+# VectorEnv steps these environments in batches (vector.py imports this module: imported last).
+from .vector import VectorEnv  # noqa: E402

@@ -7,6 +7,9 @@
   drawn per episode, truncation at the horizon; each term of the reward (fuel of the vehicles in scope, gap bounds,
   comfort) recomputed here from the states before and after the action (positions, speeds, groups) with numpy and
   the class's energy model, and their sum.
+- VectorEnv: the bits of the same environments stepped one by one (observations, rewards and their terms,
+  truncations, autoresets), on 1 and 2 threads, rings of different lengths and trajectories of different traces; an
+  environment's observations equal a plain Simulation's driven by set_actions / step / observe.
 - Refusals: commands to a group that is not external, the wrong count, an infinite command, an unknown group."""
 import os
 import sys
@@ -226,6 +229,93 @@ def test_trajectory_env(tmp):
     env.close()
 
 
+def single_runs(make, seeds, actions):
+    """Environments made by make(i), each stepped alone with actions[:, i] and reset (from its own generator) when
+    its episode ends: what VectorEnv must reproduce. Returns per step (obs, rewards, truncated, terms, final obs)."""
+    envs = [make(i) for i in range(len(seeds))]
+    first = np.stack([e.reset(seed=s)[0] for e, s in zip(envs, seeds)])
+    out = []
+    for u in actions:
+        rows = [e.step(u[i]) for i, e in enumerate(envs)]
+        obs = np.stack([r[0] for r in rows])
+        trunc = np.array([r[3] for r in rows])
+        final = {i: obs[i].copy() for i in np.flatnonzero(trunc)}
+        for i in final:
+            obs[i] = envs[i].reset()[0]
+        out.append((obs, np.array([r[1] for r in rows]), trunc,
+                    {k: np.array([r[4]["reward_terms"][k] for r in rows]) for k in ("fuel", "gap", "comfort")}, final))
+    for e in envs:
+        e.close()
+    return first, out
+
+
+def test_vector_env(tmp):
+    """VectorEnv against the same environments stepped one by one (bits of observations, rewards, terms,
+    truncations, autoresets), on 1 and 2 threads; and the first environment's observations against a plain
+    Simulation of its episode's scenario driven by set_actions / step / observe."""
+    # Different lengths, and horizons (15, 12 and 18 actions) so that episodes end at different steps.
+    per_env = [{"length_range_m": (220.0 + 20 * i, 230.0 + 20 * i), "horizon_s": h} for i, h in
+               enumerate((3.0, 2.4, 3.6))]
+    kw = dict(n_av=2, warmup_s=2.0, action_every=2, reward=wf.envs.Reward(gap_range_m=(8.0, 9.0)))
+    rng = np.random.default_rng(2)
+    actions = rng.uniform(-2.0, 2.0, (40, 3, 2))
+    first, ref = single_runs(lambda i: wf.envs.RingEnv(**kw, **per_env[i]), [10, 11, 12], actions)
+    for threads in (1, 2):
+        venv = wf.envs.VectorEnv(3, threads=threads, per_env=per_env, **kw)
+        obs, info = venv.reset(seed=10)
+        bad = [] if obs.tobytes() == first.tobytes() and obs.shape == (3, 2, 3) else ["reset"]
+        resets = 0
+        for k, u in enumerate(actions):
+            obs, r, term, trunc, info = venv.step(u)
+            o, rr, tt, terms, final = ref[k]
+            same = (obs.tobytes() == o.tobytes() and r.tobytes() == rr.tobytes() and np.array_equal(trunc, tt)
+                    and not term.any() and all(info["reward_terms"][t].tobytes() == terms[t].tobytes()
+                                               for t in terms)
+                    and all(info["final_obs"][i].tobytes() == final[i].tobytes() for i in final)
+                    and (not final or list(np.flatnonzero(info["_final_obs"])) == sorted(final)))
+            resets += len(final)
+            if not same:
+                bad.append(k)
+        check(f"vector_env_equals_single_envs_threads_{threads}", not bad and resets == 7, (bad[:5], resets))
+        if threads == 2:
+            print(f"  3 rings, {len(actions)} actions, {resets} autoresets: the bits of the environments alone")
+        venv.close()
+    # Environment 0's first episode in a plain Simulation: warm-up, then the same (clipped) commands.
+    sim = wf.Simulation(wf.Scenario.from_dict(ref_scenario(kw, per_env[0], 10)), threads=1)
+    sim.step(20)
+    got = []
+    for u in actions[:15, 0]:
+        sim.set_actions("av", np.clip(u, -3.0, 3.0))
+        sim.step(2)
+        got.append(sim.observe("av"))
+    want = [ref[k][0][0] if not ref[k][2][0] else None for k in range(15)]
+    same = all(w is None or g.tobytes() == w.tobytes() for g, w in zip(got, want))
+    check("vector_env_equals_plain_simulation", same and sum(w is not None for w in want) == 14)
+    # Trajectory environments with different traces, on 2 threads, against the same alone.
+    t = np.arange(0.0, 40.1, 1.0)
+    traces = [{"trace": (t, 20.0 + a * np.sin(2 * np.pi * t / 20.0))} for a in (3.0, 6.0)]
+    kw = dict(n_vehicles=10, humans_per_av=4)
+    acts = rng.uniform(-1.0, 1.0, (30, 2, 2))
+    first, ref = single_runs(lambda i: wf.envs.TrajectoryEnv(**kw, **traces[i]), [4, 5], acts)
+    venv = wf.envs.VectorEnv(2, env=wf.envs.TrajectoryEnv, threads=2, per_env=traces, **kw)
+    obs, _ = venv.reset(seed=4)
+    same = obs.tobytes() == first.tobytes()
+    for k, u in enumerate(acts):
+        obs, r, _, _, info = venv.step(u)
+        same &= obs.tobytes() == ref[k][0].tobytes() and r.tobytes() == ref[k][1].tobytes()
+    check("vector_env_trajectory_equals_single_envs", same and venv.observation_space.shape == (2, 2, 3))
+    venv.close()
+
+
+def ref_scenario(kw, per_env, seed):
+    """The scenario of a RingEnv's first episode after reset(seed)."""
+    env = wf.envs.RingEnv(**kw, **per_env)
+    env.reset(seed=seed)
+    d = env.scenario_dict
+    env.close()
+    return d
+
+
 def main():
     with tempfile.TemporaryDirectory() as tmp:
         test_idm_from_python(tmp)
@@ -233,6 +323,7 @@ def main():
         test_ring_env()
         test_trajectory_env(tmp)
         test_reward_terms()
+        test_vector_env(tmp)
     return 1 if failures else 0
 
 
