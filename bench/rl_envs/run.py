@@ -9,14 +9,16 @@
    are small; the run fails above 1e-6 m, 1e-6 m/s or 1e-9 relative);
 2. rings: --envs rings of 22 vehicles (1 automated, RingEnv's defaults: IDM humans with 0.2 m/s^2 noise, ring
    length drawn in [220, 270] m, dt 0.1 s, an action every step), a constant action (0 m/s^2): env-steps per
-   second = envs x steps / wall time of the step calls, best of --repeats, for VectorEnv on 1 and 2 threads and the
-   baseline; no episode ends inside the timed steps (horizon 1e4 s), resets are timed apart;
+   second = envs x steps / time of the step calls, wall and CPU (the process's, all threads), best of --repeats
+   (each repeat times every case in turn), for VectorEnv on 1 and 2 threads and the baseline; no episode ends
+   inside the timed steps (horizon 1e4 s), resets are timed apart;
 3. trajectories: --envs TrajectoryEnvs of 200 vehicles (an automated vehicle after every 4 humans, 40 a platoon)
    behind a leader replaying a synthetic stop-and-go trace, on 1 and 2 threads.
 
 SUMO + TraCI (the issue's second comparison) is not run: sumo is not installed on this machine.
+OpenMP reads OMP_WAIT_POLICY when the process starts: run the script once per policy (bench/README.md).
 Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/run.py
-       [--envs 64] [--steps 2000] [--repeats 3] [--check-steps 600]"""
+       [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600]"""
 import argparse
 import ctypes as C
 import os
@@ -86,15 +88,17 @@ def agreement(n_envs, steps):
 
 
 def timed(step, steps):
-    t = time.perf_counter()
+    """(wall s, CPU s of the process: all its threads) of `steps` calls."""
+    t, c = time.perf_counter(), time.process_time()
     for _ in range(steps):
         step()
-    return time.perf_counter() - t
+    return np.array([time.perf_counter() - t, time.process_time() - c])
 
 
 def bench_vector(n_envs, steps, repeats, baseline=False, **env_kw):
-    """{case: (env-steps per second, reset of all environments s)} for VectorEnv on 1 and 2 threads (and the numpy
-    baseline of the same rings): each repeat times every case in turn, so that all meet the same load."""
+    """{case: (env-steps per wall second, per CPU second, reset of all environments s)} for VectorEnv on 1 and 2
+    threads (and the numpy baseline of the same rings): each repeat times every case in turn, so that all meet the
+    same load; the best wall and the best CPU time of the repeats."""
     venvs, rows, cases = {}, {}, {}
     for threads in (1, 2):
         name = f"VectorEnv, {threads} thread{'s' if threads > 1 else ''}"
@@ -107,12 +111,12 @@ def bench_vector(n_envs, steps, repeats, baseline=False, **env_kw):
         base = baseline_for(venvs["VectorEnv, 1 thread"], 0.2)
         cases["numpy baseline"] = lambda a=np.zeros((n_envs, int(base.av.sum()))): base.step(a)
         rows["numpy baseline"] = float("nan")
-    best = dict.fromkeys(cases, np.inf)
+    best = {k: np.array([np.inf, np.inf]) for k in cases}
     for _ in range(repeats):
-        best = {k: min(best[k], timed(f, steps)) for k, f in cases.items()}
+        best = {k: np.minimum(best[k], timed(f, steps)) for k, f in cases.items()}
     for v in venvs.values():
         v.close()
-    return {k: (n_envs * steps / best[k], rows[k]) for k in cases}
+    return {k: (n_envs * steps / best[k][0], n_envs * steps / best[k][1], rows[k]) for k in cases}
 
 
 def stop_and_go(duration_s=600.0):
@@ -133,19 +137,22 @@ def main():
     print("machine:", machine())
     ok = agreement(4, a.check_steps)
     rings = bench_vector(a.envs, a.steps, a.repeats, baseline=True, horizon_s=1e4)
-    base = rings["numpy baseline"][0]
+    base = rings["numpy baseline"]
     print(f"\n{a.envs} rings of 22 vehicles, {a.steps} steps, best of {a.repeats}:")
-    print("| | env-steps/s | vs numpy | reset of all environments, s |\n|---|---|---|---|")
-    for k, (rate, reset_s) in rings.items():
-        print(f"| {k} | {rate:.3g} | {rate / base:.2f}x | {reset_s:.2f} |")
+    print("| | env-steps/s (wall) | vs numpy | env-steps per CPU-second | vs numpy | reset of all environments, s |")
+    print("|---|---|---|---|---|---|")
+    for k, (wall, cpu, reset_s) in rings.items():
+        print(f"| {k} | {wall:.3g} | {wall / base[0]:.2f}x | {cpu:.3g} | {cpu / base[1]:.2f}x | {reset_s:.2f} |")
     traj = bench_vector(a.envs, a.traj_steps, a.repeats, env=wf.envs.TrajectoryEnv, trace=stop_and_go(),
                         n_vehicles=200, humans_per_av=4)
     print(f"\n{a.envs} trajectory environments of 200 vehicles, {a.traj_steps} steps, best of {a.repeats}:")
-    print("| | env-steps/s | vehicle-steps/s | reset of all environments, s |\n|---|---|---|---|")
-    for k, (rate, reset_s) in traj.items():
-        print(f"| {k} | {rate:.3g} | {rate * 200:.3g} | {reset_s:.1f} |")
-    for k, (rate, _) in list(rings.items()) + [(f"traj {k}", v) for k, v in traj.items()]:
-        print(f"BENCH rl_envs case={k.replace(' ', '_').replace(',', '')} env_steps_per_s={rate:.6g}")
+    print("| | env-steps/s (wall) | vehicle-steps/s (wall) | env-steps per CPU-second | reset of all environments, s |")
+    print("|---|---|---|---|---|")
+    for k, (wall, cpu, reset_s) in traj.items():
+        print(f"| {k} | {wall:.3g} | {wall * 200:.3g} | {cpu:.3g} | {reset_s:.1f} |")
+    for k, (wall, cpu, _) in list(rings.items()) + [(f"traj {k}", v) for k, v in traj.items()]:
+        print(f"BENCH rl_envs case={k.replace(' ', '_').replace(',', '')} env_steps_per_s={wall:.6g} "
+              f"env_steps_per_cpu_s={cpu:.6g} omp_wait_policy={os.environ.get('OMP_WAIT_POLICY', 'default')}")
     print(f"load average {os.getloadavg()[0]:.2f} at the end")
     print("SUMO + TraCI: not run (sumo is not installed on this machine)")
     return 0 if ok else 1

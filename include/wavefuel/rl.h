@@ -1,7 +1,7 @@
 /* Reinforcement-learning steps of a batch of runs (src/core/rl_batch.c; the Python package's RingEnv, TrajectoryEnv
- * and VectorEnv): each run's external group takes its commands, the runs step (wf_sims_step, in parallel over
- * runs), and each run's observation and reward are computed in C, per run, in a fixed order: a run gives the same
- * bits alone and in any batch, on any number of threads.
+ * and VectorEnv): in one parallel loop over runs (as wf_sims_step), each run's external group takes its commands,
+ * the run steps, and its observation and reward are computed in C in a fixed order: a run gives the same bits alone
+ * and in any batch, on any number of threads.
  *
  * The reward of a run for one action (action_steps steps of dt, lasting dt_action = action_steps x dt) is
  * fuel + gap + comfort, each <= 0:
@@ -50,10 +50,11 @@ size_t wf_rl_batch_rows(const WfRlBatch *b);
 double *wf_rl_batch_prev_accel(WfRlBatch *b);
 /* The observation now (n_rows x 3, wf_sims_observe's rows). */
 void wf_rl_batch_observe(const WfRlBatch *b, double *obs);
-/* One action: actions (n_rows commands, as wf_sims_set_actions) set, action_steps steps of every run on `threads`
- * OpenMP threads, then obs (n_rows x 3, may be NULL), reward (n_runs) and info (n_runs x WF_RL_N_INFO) written.
- * errs: n_runs entries (wf_sims_step's); returns the first failure's status (0 on success); a run whose vehicles on
- * the road changed fails with WF_EINPUT. */
+/* One action: for every run, in parallel over runs on `threads` OpenMP threads, its commands set (its rows of
+ * actions, n_rows in all, as wf_sims_set_actions), action_steps steps, then its rows of obs (n_rows x 3, may be
+ * NULL), reward (n_runs) and info (n_runs x WF_RL_N_INFO) written. errs: n_runs entries, as wf_sims_step's
+ * (messages prefixed with the run's index); returns the first failure's status (0 on success); a run whose vehicles
+ * on the road changed fails with WF_EINPUT. */
 int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
                      WfError *errs);
 

@@ -206,4 +206,4 @@ class TrajectoryEnv(_ExternalEnv):
 
 
 # VectorEnv steps these environments in batches (vector.py imports this module: imported last).
-from .vector import VectorEnv  # noqa: E402
+from .vector import VectorEnv  # noqa: E402,F401

@@ -1,5 +1,5 @@
-/* Reinforcement-learning steps of a batch of runs (include/wavefuel/rl.h): commands, steps in parallel over runs
- * (wf_sims_step), then each run's observation and reward (fuel of its platoon from the classes' energy models, gap
+/* Reinforcement-learning steps of a batch of runs (include/wavefuel/rl.h): in parallel over runs, each run's
+ * commands, steps, then its observation and reward (fuel of its platoon from the classes' energy models, gap
  * bounds, comfort), every sum over one run's vehicles in road order, so a run's bits do not depend on the batch or
  * the threads. Units: m, m/s, m/s^2, g/s. */
 #include "wavefuel/rl.h"
@@ -141,7 +141,10 @@ static void run_fuel(WfRlBatch *b, size_t k)
     for (size_t c = 0; c < sc->n_classes; c++) {
         size_t lo = ru->cls_off[c], hi = ru->cls_off[c + 1];
         if (lo == hi) continue;
-        for (size_t j = lo; j < hi; j++) b->cv[o + j] = b->v0[o + b->order[o + j]], b->ca[o + j] = b->a[o + b->order[o + j]];
+        for (size_t j = lo; j < hi; j++) {
+            size_t i = o + b->order[o + j];
+            b->cv[o + j] = b->v0[i], b->ca[o + j] = b->a[i];
+        }
         const WfVehicleClass *vc = &sc->classes[c].vc;
         vc->model->eval(vc->params, hi - lo, b->cv + o + lo, b->ca + o + lo, b->zero + o + lo, 0, b->cf + o + lo,
                         b->flag + o + lo);
@@ -155,8 +158,8 @@ static int run_reward(WfRlBatch *b, size_t k, double *reward, double *info, WfEr
     const RlRun *ru = &b->run[k];
     Road r = road_of(b->sims[k]);
     if (r.n != ru->n)
-        return wf_err(err, WF_EINPUT, "rl batch: run %zu has %zu vehicles on the road, the batch was made with %zu "
-                      "(vehicles entered or left)", k, r.n, ru->n);
+        return wf_err(err, WF_EINPUT, "%zu vehicles on the road, the batch was made with %zu (vehicles entered or "
+                      "left)", r.n, ru->n);
     size_t o = ru->veh;
     for (size_t i = 0; i < r.n; i++) b->v1[o + i] = speed(&r, i);
     run_fuel(b, k);
@@ -190,26 +193,30 @@ static int run_reward(WfRlBatch *b, size_t k, double *reward, double *info, WfEr
 }
 
 typedef struct RlStep {
-    WfRlBatch *b;
-    double    *reward, *info;
+    WfRlBatch    *b;
+    const double *actions;
+    double       *reward, *info;
 } RlStep;
 
-/* Run k: its steps, then its observation and reward (one parallel region a step for the whole batch). */
+/* Run k: its commands, its steps, then its observation and reward (one parallel region a step for the whole
+ * batch). */
 static int step_run(void *ctx, size_t k, WfError *err)
 {
     const RlStep *c = ctx;
-    int rc = wf_sim_step(c->b->sims[k], c->b->action_steps, err);
-    return rc ? rc : run_reward(c->b, k, c->reward, c->info, err);
+    const RlRun *ru = &c->b->run[k];
+    WfSim *sim = c->b->sims[k];
+    int rc = wf_sim_set_actions(sim, c->b->group[k], c->actions + ru->row, ru->m, err);
+    if (!rc) rc = wf_sim_step(sim, c->b->action_steps, err);
+    if (!rc) rc = run_reward(c->b, k, c->reward, c->info, err);
+    if (rc) wf_err_prefix(err, "run %zu of the batch: ", k);
+    return rc;
 }
 
 int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
                      WfError *errs)
 {
-    errs[0].code = 0, errs[0].msg[0] = '\0';
-    int rc = wf_sims_set_actions(b->sims, b->n_runs, b->group, actions, b->n_rows, &errs[0]);
-    if (rc) return rc;
-    RlStep c = {b, reward, info};
-    if ((rc = wf_runs_each(b->n_runs, threads, step_run, &c, errs))) return rc;
-    if (obs) wf_rl_batch_observe(b, obs);
-    return 0;
+    RlStep c = {b, actions, reward, info};
+    int rc = wf_runs_each(b->n_runs, threads, step_run, &c, errs);
+    if (!rc && obs) wf_rl_batch_observe(b, obs);
+    return rc;
 }

@@ -10,6 +10,7 @@
 - VectorEnv: the bits of the same environments stepped one by one (observations, rewards and their terms,
   truncations, autoresets), on 1 and 2 threads, rings of different lengths and trajectories of different traces; an
   environment's observations equal a plain Simulation's driven by set_actions / step / observe.
+- The library's batch calls (wf_sims_set_actions, wf_sims_step, wf_sims_observe) equal the runs stepped alone.
 - Refusals: commands to a group that is not external, the wrong count, an infinite command, an unknown group."""
 import os
 import sys
@@ -307,6 +308,40 @@ def test_vector_env(tmp):
     venv.close()
 
 
+def test_sims_batch():
+    """The library's batch calls (engine.h: wf_sims_set_actions, wf_sims_step on 2 threads, wf_sims_observe) on two
+    rings of different lengths and seeds against each run stepped alone through Simulation."""
+    import ctypes as C
+    lib = wf._lib.lib
+    d = dict(RING, fleet=dict(RING["fleet"], drivers=[RING["fleet"]["drivers"][0],
+                                                      dict(RING["fleet"]["drivers"][1], model="external")]))
+    scen = [dict(d, seed=s, road={"length_m": L}) for s, L in ((3, 600.0), (4, 650.0))]
+    batch = [wf.Simulation(wf.Scenario.from_dict(x), threads=1) for x in scen]
+    alone = [wf.Simulation(wf.Scenario.from_dict(x), threads=1) for x in scen]
+    for sim in batch + alone:
+        sim.step(1)
+    ptrs = (C.c_void_p * 2)(*[s._ptr.value for s in batch])
+    groups = np.array([1, 1], dtype=np.uintp)
+    errs, err = (wf._lib.WfError * 2)(), wf._lib.WfError()
+    obs = np.empty((12, 3))
+    rng = np.random.default_rng(5)
+    same, rcs = True, 0
+    for k in range(50):
+        u = rng.uniform(-2.0, 2.0, 12)
+        rcs |= lib.wf_sims_set_actions(ptrs, 2, groups.ctypes.data, u.ctypes.data, 12, C.byref(err))
+        rcs |= lib.wf_sims_step(ptrs, 2, 3, 2, C.addressof(errs))
+        rcs |= lib.wf_sims_observe(ptrs, 2, groups.ctypes.data, obs.ctypes.data, 12, C.byref(err))
+        for i, sim in enumerate(alone):
+            sim.set_actions("av", u[6 * i:6 * i + 6])
+            sim.step(3)
+            same &= sim.observe("av").tobytes() == obs[6 * i:6 * i + 6].tobytes()
+    same &= all(a.state()["x_m"].tobytes() == b.state()["x_m"].tobytes() for a, b in zip(batch, alone))
+    check("sims_batch_equals_runs_alone", same and rcs == 0, rcs)
+    rc = lib.wf_sims_set_actions(ptrs, 2, groups.ctypes.data, np.zeros(11).ctypes.data, 11, C.byref(err))
+    check("sims_batch_refuses_count", rc == 2 and "12 vehicles on the road, got 11 rows" in err.msg.decode(),
+          err.msg)
+
+
 def ref_scenario(kw, per_env, seed):
     """The scenario of a RingEnv's first episode after reset(seed)."""
     env = wf.envs.RingEnv(**kw, **per_env)
@@ -324,6 +359,7 @@ def main():
         test_trajectory_env(tmp)
         test_reward_terms()
         test_vector_env(tmp)
+        test_sims_batch()
     return 1 if failures else 0
 
 
