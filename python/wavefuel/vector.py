@@ -1,9 +1,9 @@
 """VectorEnv: B environments (RingEnv or TrajectoryEnv, envs.py) stepped together inside C, the Gymnasium vector API:
 observations (B, n_av, 3), actions (B, n_av), rewards, terminations and truncations (B,), infos a dict of arrays.
-One action of all environments costs a handful of library calls (batch.py): every automated vehicle of every
-environment takes its command from one array, the runs' steps go in parallel over environments on OpenMP threads
-(each run single-threaded inside: an environment gives the bits it gives alone), and the observations, the speeds
-for the reward and the reward (reward.py) are computed for all environments at once."""
+One action of all environments is one library call (batch.py, include/wavefuel/rl.h): every automated vehicle of
+every environment takes its command from one array, and in parallel over environments on OpenMP threads each run
+steps (single-threaded inside) and computes its observation and reward (reward.py): an environment gives the bits it
+gives alone."""
 import numpy as np
 
 from . import _lib
@@ -87,6 +87,8 @@ class VectorEnv:
         return obs, _with_masks({"t": self._steps * self.dt_s}, self._all)
 
     def step(self, actions):
+        if self._batch is None:
+            raise RuntimeError("VectorEnv.step before reset()")
         u = np.asarray(actions, np.float64).reshape(self.num_envs, self.n_av)
         # np.minimum/np.maximum into one buffer: np.clip costs several times more on arrays this small.
         np.minimum(np.maximum(u, self._low, out=self._u), self._high, out=self._u)
@@ -95,8 +97,9 @@ class VectorEnv:
         self._steps += self.action_every
         t = self._steps * self.dt_s  # as Simulation.t: steps done x dt
         truncated = t - self._t0 >= self._horizon - 1e-9
-        infos = {"t": t, "fuel_rate_gps": info[:, 3].copy(), "mean_speed_mps": info[:, 4].copy(),
-                 "reward_terms": {k: info[:, i].copy() for i, k in enumerate(INFO[:3])}}
+        cols = info.T.copy()  # one copy: the batch's buffers are overwritten by the next step
+        infos = {"t": t, "fuel_rate_gps": cols[3], "mean_speed_mps": cols[4],
+                 "reward_terms": {k: cols[i] for i, k in enumerate(INFO[:3])}}
         if truncated.any():
             infos.update(self._autoreset(np.flatnonzero(truncated), obs, infos))
             obs = self._batch.obs.reshape(self.num_envs, self.n_av, 3).copy()

@@ -306,6 +306,17 @@ def test_vector_env(tmp):
         same &= obs.tobytes() == ref[k][0].tobytes() and r.tobytes() == ref[k][1].tobytes()
     check("vector_env_trajectory_equals_single_envs", same and venv.observation_space.shape == (2, 2, 3))
     venv.close()
+    def refused(fn, text):
+        try:
+            fn()
+        except ValueError as e:
+            return text in str(e)
+        return False
+    check("vector_env_refuses_mixed_n_av",
+          refused(lambda: wf.envs.VectorEnv(2, per_env=[{"n_av": 1}, {"n_av": 2}]), "n_av 2"))
+    check("reward_refuses_bad_values", refused(lambda: wf.envs.Reward(fuel_scope="fleet"), "fuel_scope")
+          and refused(lambda: wf.envs.Reward(gap_range_m=(10, 5)), "gap_range_m")
+          and refused(lambda: wf.envs.Reward(w_jerk=-1), "w_jerk"))
 
 
 def test_sims_batch():
