@@ -178,10 +178,15 @@ class WfOutput(C.Structure):
     _fields_ = [(f, C.c_void_p) for f in ("begin", "record", "trajectory", "trips", "checkpoint", "end", "ctx")]
 
 
+class WfRlReward(C.Structure):
+    _fields_ = [("scope_all", C.c_int)] + [(f, C.c_double) for f in ("w_fuel", "gap_min_m", "gap_max_m", "w_gap",
+                                                                      "w_accel", "w_jerk")]
+
+
 # The structures whose layout tests/python/layout.py compares with the C compiler's.
 MIRRORS = (WfError, WfParamSpec, WfEnergyModel, WfVehicleClass, WfRoad, WfOdeConfig, WfClassShare, WfDriverGroup,
            WfFleet, WfCorridorVehicles, WfCorridorCounts, WfClassSummary, WfSummary, WfSummaryPrint,
-           WfSummaryField, WfOutput, WfScenario)
+           WfSummaryField, WfOutput, WfScenario, WfRlReward)
 # Prefix mirrors: only their fields' offsets are compared, not their sizes.
 PREFIXES = (WfCfModel,)
 
@@ -211,6 +216,16 @@ _SIGNATURES = {
     "wf_sim_group_size": (C.c_size_t, [_vp, C.c_size_t]),
     "wf_sim_observe": (C.c_int, [_vp, C.c_size_t, C.POINTER(C.c_double), C.c_size_t, _err]),
     "wf_sim_set_actions": (C.c_int, [_vp, C.c_size_t, C.POINTER(C.c_double), C.c_size_t, _err]),
+    "wf_sims_step": (C.c_int, [_vp, C.c_size_t, C.c_long, C.c_int, _vp]),
+    "wf_sims_observe": (C.c_int, [_vp, C.c_size_t, _vp, _vp, C.c_size_t, _err]),
+    "wf_sims_set_actions": (C.c_int, [_vp, C.c_size_t, _vp, _vp, C.c_size_t, _err]),
+    "wf_rl_batch_create": (C.c_int, [_vp, C.c_size_t, _vp, C.POINTER(WfRlReward), C.c_long, C.c_double,
+                                     C.POINTER(_vp), _err]),
+    "wf_rl_batch_destroy": (None, [C.POINTER(_vp)]),
+    "wf_rl_batch_rows": (C.c_size_t, [_vp]),
+    "wf_rl_batch_observe": (None, [_vp, _vp]),
+    "wf_rl_batch_prev_accel": (C.POINTER(C.c_double), [_vp]),
+    "wf_rl_batch_step": (C.c_int, [_vp, _vp, C.c_int, _vp, _vp, _vp, _vp]),
     "wf_corridor_vehicles": (C.POINTER(WfCorridorVehicles), [_vp]),
     "wf_corridor_counts": (C.POINTER(WfCorridorCounts), [_vp]),
     "wf_h5out_create": (C.c_int, [_vp, C.c_char_p, C.c_int, C.POINTER(_vp), C.POINTER(WfOutput), _err]),
