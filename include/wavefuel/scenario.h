@@ -10,6 +10,7 @@
 #include "wavefuel/err.h"
 #include "wavefuel/ode.h"
 #include "wavefuel/road.h"
+#include "wavefuel/safety.h"
 #include "wavefuel/vehicle.h"
 
 #define WF_MAX_CLASSES      16
@@ -49,6 +50,8 @@ typedef struct WfDriverGroup {
     int              class_index;        /* -1: any; else index into classes[]: all its vehicles are that class */
     struct WfCfPluginLib *plugin;        /* owned: the library of a `model: plugin` group (model points into
                                             it); NULL for built-in models */
+    const WfSafetyKind *safety;          /* borrowed registry entry: the group's safety filter; NULL: none */
+    double           safety_params[WF_MAX_SAFETY_PARAMS]; /* the filter's parameter struct (all doubles) */
 } WfDriverGroup;
 
 typedef struct WfScenario {

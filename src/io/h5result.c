@@ -224,7 +224,7 @@ static int create_structure(WfH5Result *w, const WfH5Run *r, WfError *err)
     hid_t fid = w->file->fid;
     int rc = write_meta(w, r, err) || write_classes_drivers(fid, w->b, r, err) ||
              w->b->results(fid, r, WF_H5_ALLOCATE, err) ||
-             wf_h5_summary_write(fid, r->summary, r->sc->n_classes, w->b->summary, WF_H5_ALLOCATE, err);
+             wf_h5_summary_write(fid, r->summary, r->sc, w->b->summary, WF_H5_ALLOCATE, err);
     for (size_t c = 0; !rc && c < w->b->n_cursors; c++) {
         if (!w->n_grp[c]) continue;
         hid_t g = wf_h5_group(fid, w->b->cursor[c].group, err);
@@ -352,7 +352,7 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     WfError later = {0};
     WfError *e = rc ? &later : err;
     if (w->b->results(fid, r, WF_H5_FILL, e) ||
-        wf_h5_summary_write(fid, r->summary, r->sc->n_classes, w->b->summary, WF_H5_FILL, e)) {
+        wf_h5_summary_write(fid, r->summary, r->sc, w->b->summary, WF_H5_FILL, e)) {
         if (!rc) rc = WF_ESYS;
         e = &later;
     }
