@@ -1,8 +1,8 @@
 /* The block kernel: one time step of a road's vehicles, block by block of WF_BLOCK consecutive vehicles (road
  * order, leader of vehicle i is i + 1), shared by every boundary. Per block: noise, inputs (gap, leader speed,
- * grade), car-following acceleration and its post-rule (noise, group limits, feasible clip, per-vehicle cap), fuel
- * rate, the record's partial sums, controller memory, left-point statistics, integration and the statistics of the
- * new state. A boundary (the periodic ring in engine.c, the open corridor in corridor.c) describes its storage as a
+ * grade), car-following acceleration and its post-rule (noise, group limits, feasible clip, per-vehicle cap, the
+ * group's safety filter), fuel rate, the record's partial sums, controller memory, left-point statistics,
+ * integration and the statistics of the new state. A boundary (the periodic ring in engine.c, the open corridor in corridor.c) describes its storage as a
  * WfLane and its road features as a WfRoadOps; the vehicles of a step are a logical range of at most two contiguous
  * runs of slots in a circular buffer whose capacity is a multiple of WF_BLOCK, so a block never wraps. */
 #ifndef WAVEFUEL_CORE_BLOCK_H

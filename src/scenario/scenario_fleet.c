@@ -281,9 +281,14 @@ static int load_group_safety(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyE
     char w[1024];
     if (wf_cfg_map_opt(e, "safety", &map, err)) return WF_EINPUT;
     if (!map) return 0;
-    if (!wf_cfg_child(map, "kind"))
-        return wf_err(err, WF_EINPUT, "%s: missing 'kind': the safety filter (%s%s)", where_of(map, w, sizeof w),
-                      wf_safety_kinds[0]->name, wf_safety_kinds[1] ? ", ..." : "");
+    if (!wf_cfg_child(map, "kind")) {
+        char known[256] = "";
+        for (size_t k = 0, used = 0; wf_safety_kinds[k]; k++) {
+            int n = snprintf(known + used, sizeof known - used, "%s%s", k ? ", " : "", wf_safety_kinds[k]->name);
+            if (n > 0 && (size_t)n < sizeof known - used) used += (size_t)n;
+        }
+        return wf_err(err, WF_EINPUT, "%s: missing 'kind': the safety filter (%s)", where_of(map, w, sizeof w), known);
+    }
     if (wf_cfg_string(map, "kind", &kind, err)) return WF_EINPUT;
     if (wf_safety_find(kind, &g->safety, err)) {
         wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(map, "kind"), w, sizeof w));
