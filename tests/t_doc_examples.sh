@@ -8,6 +8,9 @@ set -u
 cd "$(dirname "$0")/.." || exit 1
 PY=/usr/bin/python3
 DOCEX=tests/docex.py
+# The Python examples load lib/libwavefuel.so of the default build (`make test` builds it; a sanitizer run of the
+# suite builds only its own tree, so build it here as tests/t_python.sh does).
+make --no-print-directory -s python BUILD=build >/dev/null || { echo "FAIL doc_examples_python_build: make python"; exit 1; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 ok() { echo "PASS $1"; }
