@@ -6,7 +6,7 @@
 #   fuzz      clang + compiler-rt (libFuzzer, sanitizers) + LLVM libomp (Archer)  make fuzz, fuzz-smoke, tsan
 #   valgrind  valgrind                                                           make valgrind
 #   mpi       OpenMPI (mpicc, mpirun)                                            make mpi (bin/wavefuel-mpi)
-#   rl        PyTorch (python3-torch)                                            examples/rl/ (training a policy)
+#   rl        PyTorch, PyYAML (python3-torch, python3-yaml)                      examples/rl/ (training a policy)
 set -euo pipefail
 PKGS=()
 [ $# -eq 0 ] && set -- base
@@ -17,7 +17,7 @@ for set_name in "$@"; do
     fuzz) PKGS+=(clang libclang-rt-14-dev libomp-14-dev) ;;
     valgrind) PKGS+=(valgrind) ;;
     mpi) PKGS+=(libopenmpi-dev openmpi-bin) ;;
-    rl) PKGS+=(python3-torch) ;;
+    rl) PKGS+=(python3-torch python3-yaml) ;;
     *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind, mpi, rl)" >&2; exit 2 ;;
   esac
 done
