@@ -49,6 +49,8 @@ typedef struct WfDriverGroup {
     int              class_index;        /* -1: any; else index into classes[]: all its vehicles are that class */
     struct WfCfPluginLib *plugin;        /* owned: the library of a `model: plugin` group (model points into
                                             it); NULL for built-in models */
+    struct WfMlp         *mlp;           /* owned: the network of a `model: mlp` group (model points into it);
+                                            NULL otherwise */
 } WfDriverGroup;
 
 typedef struct WfScenario {
@@ -82,14 +84,15 @@ typedef struct WfScenario {
     /* road.type corridor: the corridor-only keys (include/wavefuel/corridor.h); owned. NULL for a ring. */
     struct WfCorridorSpec *corridor;
     /* Every file the scenario was read from, as opened: the scenario, class files and their tables, profile CSVs,
-     * controller plug-ins. A run refuses to write its result over any of them. Owned (the array and strings). */
+     * controller plug-ins, network files. A run refuses to write its result over any of them. Owned (the array and
+     * strings). */
     char  **inputs;
     size_t  n_inputs;
 } WfScenario;
 
 /* Load, apply `n_set` overrides ("key.path=value"), validate. On error nothing is allocated. Ownership: *out is
  * the caller's until wf_scenario_destroy() and holds copies of everything (path, set and the file's text);
- * the vehicle classes it loaded and the plug-ins it opened live as long as it does. */
+ * the vehicle classes it loaded, the plug-ins it opened and the networks it read live as long as it does. */
 int wf_scenario_load(const char *path, const char *const *set, size_t n_set, WfScenario **out, WfError *err);
 /* Same from the scenario's text (a resumed run uses the text saved in its checkpoint); `path` is used in messages
  * and to resolve relative paths (grade CSV, class files). */

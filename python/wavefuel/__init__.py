@@ -8,6 +8,9 @@ from .result import Result, read
 from .scenario import Scenario
 from .simulation import Quantity, Simulation
 from . import envs
+from . import mlp
+from .mlp import Network, export_mlp, mlp_forward, read_mlp
 
 __all__ = ["WavefuelError", "class_path", "library_path", "set_class_path", "energy", "VehicleClass", "Result",
-           "read", "Scenario", "Quantity", "Simulation", "envs"]
+           "read", "Scenario", "Quantity", "Simulation", "envs", "mlp", "Network", "export_mlp", "mlp_forward",
+           "read_mlp"]

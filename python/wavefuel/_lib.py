@@ -97,7 +97,7 @@ class WfDriverGroup(C.Structure):
                 ("dist", C.c_int), ("fraction", C.c_double), ("count", C.c_long), ("noise_mps2", C.c_double),
                 ("accel_max_mps2", C.c_double), ("decel_max_mps2", C.c_double), ("clip_feasible", C.c_int),
                 ("indices", C.c_void_p), ("n_indices", C.c_size_t), ("placement", C.c_int),
-                ("class_index", C.c_int), ("plugin", C.c_void_p)]
+                ("class_index", C.c_int), ("plugin", C.c_void_p), ("mlp", C.c_void_p)]
 
 
 class WfScenario(C.Structure):
@@ -222,6 +222,10 @@ _SIGNATURES = {
     "wf_vehicle_list": (C.c_int, [C.POINTER(C.POINTER(WfVehicleClass)), C.POINTER(C.c_size_t), _err]),
     "wf_vehicle_free": (None, [C.POINTER(WfVehicleClass)]),
     "wf_summary_value": (C.c_double, [_vp, C.POINTER(WfSummaryField)]),
+    "wf_mlp_load": (C.c_int, [C.c_char_p, C.POINTER(_vp), _err]),
+    "wf_mlp_destroy": (None, [C.POINTER(_vp)]),
+    "wf_mlp_eval": (None, [_vp, C.POINTER(C.c_double), C.c_size_t, C.POINTER(C.c_double), C.c_int]),
+    "wf_mlp_output": (C.c_int, [_vp]),
     "wf_duty_name": (C.c_char_p, [C.c_int]),
     "wf_fuel_name": (C.c_char_p, [C.c_int]),
 }

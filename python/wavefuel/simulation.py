@@ -233,10 +233,10 @@ class Simulation:
         return lib.wf_sim_group_size(self._ptr, self.group_index(group))
 
     def observe(self, group):
-        """The inputs of the next step for each vehicle of an external group (model `external` or
-        `external_speed`, docs/controllers.md), in road order (a ring: increasing position; a corridor: front
-        first): an (n, 3) array of [own speed m/s, leader speed m/s, bumper-to-bumper gap m], exactly as the engine
-        computes them."""
+        """The inputs of the next step for each vehicle of an external group (model `external`,
+        `external_speed`, or `mlp`: the rows its network reads; docs/controllers.md), in road order (a ring:
+        increasing position; a corridor: front first): an (n, 3) array of [own speed m/s, leader speed m/s,
+        bumper-to-bumper gap m], exactly as the engine computes them."""
         self._alive()
         g = self.group_index(group)
         n = lib.wf_sim_group_size(self._ptr, g)
@@ -248,7 +248,8 @@ class Simulation:
     def set_actions(self, group, actions):
         """Set each vehicle's command for the next steps (held until set again), in observe()'s order: the
         acceleration (m/s^2, model `external`) or the set speed (m/s, `external_speed`); NaN: none (the vehicle
-        drives as `acc`). The group's noise, limits and feasible-acceleration rule apply as to any model."""
+        drives as `acc`). The group's noise, limits and feasible-acceleration rule apply as to any model. An `mlp`
+        group is refused: its network sets the commands."""
         self._alive()
         g = self.group_index(group)
         a = np.ascontiguousarray(actions, dtype=np.float64).ravel()

@@ -2,12 +2,33 @@
  * (wf_loop_run), with the outputs, wall time, threads, checkpoints and summary every boundary shares. */
 #include "core/sim.h"
 
+#include "wavefuel/corridor.h"
+#include "wavefuel/mlp.h"
+#include "util/numfmt.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
+
+/* The batch buffers of the mlp groups: as many rows as vehicles a group can have on the road (a ring: its count; a
+ * corridor: the vehicle slots of the road). */
+static int mlp_alloc(WfSim *s, WfError *err)
+{
+    const WfScenario *sc = s->sc;
+    size_t cap = 0;
+    for (size_t g = 0; g < sc->n_groups; g++)
+        if (sc->groups[g].mlp) {
+            size_t n = sc->corridor ? wf_corridor_vehicles(wf_sim_corridor(s))->cap : (size_t)sc->groups[g].count;
+            cap = n > cap ? n : cap;
+        }
+    if (!cap) return 0;
+    s->mlp_rows = malloc(cap * WF_MLP_INPUTS * sizeof *s->mlp_rows);
+    s->mlp_cmd = malloc(cap * sizeof *s->mlp_cmd);
+    return s->mlp_rows && s->mlp_cmd ? 0 : wf_err(err, WF_ESYS, "out of memory for the mlp batch of %zu vehicles", cap);
+}
 
 int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 {
@@ -23,6 +44,7 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     s->nthreads = 1;
 #endif
     int rc = s->b->create(s, err);
+    if (!rc) rc = mlp_alloc(s, err);
     if (rc) wf_sim_destroy(&s);
     *out = s;
     return rc;
@@ -32,14 +54,19 @@ void wf_sim_destroy(WfSim **ps)
 {
     if (!ps || !*ps) return;
     if ((*ps)->eng) (*ps)->b->destroy((*ps)->eng);
+    free((*ps)->mlp_rows);
+    free((*ps)->mlp_cmd);
     free(*ps);
     *ps = NULL;
 }
 
+static int mlp_command(WfSim *s, long step, WfError *err);
+
 static int step_cb(void *ctx, long step, WfError *err)
 {
     WfSim *s = ctx;
-    return s->b->step(s->eng, step, err);
+    int rc = s->mlp_rows ? mlp_command(s, step, err) : 0;
+    return rc ? rc : s->b->step(s->eng, step, err);
 }
 
 static int checkpoint_cb(void *ctx, WfError *err)
@@ -129,14 +156,16 @@ int wf_sim_restored(WfSim *s, WfError *err) { return s->b->restored(s->eng, err)
 
 /* ---- external controllers (models with `external` set: src/models/cf/external.c) ---- */
 
-static int check_group(const WfSim *s, size_t g, size_t n, size_t want, WfError *err)
+/* commands: 1 when the caller sets them (an mlp group computes its own, but is observed). */
+static int check_group(const WfSim *s, size_t g, size_t n, size_t want, int commands, WfError *err)
 {
     const WfScenario *sc = s->sc;
     if (g >= sc->n_groups)
         return wf_err(err, WF_EINPUT, "%s: no driver group %zu (the scenario has %zu)", sc->path, g, sc->n_groups);
-    if (!sc->groups[g].model->external)
+    if (!sc->groups[g].model->external || (commands && sc->groups[g].mlp))
         return wf_err(err, WF_EINPUT, "%s: driver group '%s' (model %s) takes no commands: its model must be external "
-                      "or external_speed", sc->path, sc->groups[g].name, sc->groups[g].model->name);
+                      "or external_speed%s", sc->path, sc->groups[g].name, sc->groups[g].model->name,
+                      sc->groups[g].mlp ? " (an mlp group's network sets them at every step)" : "");
     if (n != want)
         return wf_err(err, WF_EINPUT, "%s: driver group '%s' has %zu vehicles on the road, got %zu values", sc->path,
                       sc->groups[g].name, want, n);
@@ -156,7 +185,7 @@ static void put_command(void *ctx, size_t k, unsigned char *state, double v, dou
 
 int wf_sim_set_actions(WfSim *s, size_t g, const double *u, size_t n, WfError *err)
 {
-    int rc = check_group(s, g, n, wf_sim_group_size(s, g), err);
+    int rc = check_group(s, g, n, wf_sim_group_size(s, g), 1, err);
     for (size_t k = 0; !rc && k < n; k++)
         if (isinf(u[k]))
             rc = wf_err(err, WF_EINPUT, "%s: driver group '%s': command %zu is %g (finite, or NaN for none)",
@@ -174,7 +203,31 @@ static void put_observation(void *ctx, size_t k, unsigned char *state, double v,
 
 int wf_sim_observe(const WfSim *s, size_t g, double *obs, size_t n, WfError *err)
 {
-    int rc = check_group(s, g, n, wf_sim_group_size(s, g), err);
+    int rc = check_group(s, g, n, wf_sim_group_size(s, g), 0, err);
     if (!rc) s->b->group(s->eng, g, put_observation, obs);
     return rc;
+}
+
+/* Before every step: each mlp group's commands from its network, evaluated on the group's observation rows (the
+ * inputs of this step) as one batch; set as an external group's commands, so the step, the checkpoints and the
+ * observations treat them alike. A command depends only on its vehicle's row: the same bits for any thread count. */
+static int mlp_command(WfSim *s, long step, WfError *err)
+{
+    const WfScenario *sc = s->sc;
+    for (size_t g = 0; g < sc->n_groups; g++) {
+        const WfMlp *net = sc->groups[g].mlp;
+        if (!net) continue;
+        size_t n = s->b->group(s->eng, g, put_observation, s->mlp_rows);
+        wf_mlp_eval(net, s->mlp_rows, n, s->mlp_cmd, s->nthreads);
+        for (size_t k = 0; k < n; k++)
+            if (!isfinite(s->mlp_cmd[k])) {
+                const double *r = s->mlp_rows + WF_MLP_INPUTS * k;
+                return wf_err(err, WF_EINPUT, "%s: driver group '%s': the network %s gives %s for its vehicle %zu "
+                              "(speed %s m/s, leader speed %s m/s, gap %s m) at t = %s s", sc->path, sc->groups[g].name,
+                              wf_mlp_path(net), WF_NUM(s->mlp_cmd[k]), k, WF_NUM(r[0]), WF_NUM(r[1]), WF_NUM(r[2]),
+                              WF_NUM((double)step * sc->dt_s));
+            }
+        s->b->group(s->eng, g, put_command, s->mlp_cmd);
+    }
+    return 0;
 }

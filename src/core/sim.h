@@ -48,6 +48,9 @@ struct WfSim {
     WfLoop            loop;     /* set by wf_sim_begin */
     WfLoopState       ls;
     int               begun, finished;
+    /* `model: mlp` groups (src/core/sim.c: mlp_command): the observation rows and commands of one group's batch,
+     * room for the most vehicles a group can have on the road; NULL when no group is mlp. Owned. */
+    double           *mlp_rows, *mlp_cmd;
 };
 
 #endif

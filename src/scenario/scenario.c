@@ -15,6 +15,7 @@
 #include "util/outpath.h"
 #include "util/path.h"
 #include "wavefuel/cf_plugin.h"
+#include "wavefuel/mlp.h"
 #include "wavefuel/corridor.h"
 #include "wavefuel/csv.h"
 #include "wavefuel/integrator.h"
@@ -40,6 +41,7 @@ void wf_scenario_destroy(WfScenario **psc)
     for (size_t i = 0; i < sc->n_groups; i++) {
         free(sc->groups[i].indices);
         wf_cf_plugin_close(&sc->groups[i].plugin);
+        wf_mlp_destroy(&sc->groups[i].mlp);
     }
     wf_road_free(&sc->road);
     wf_corridor_spec_destroy(&sc->corridor);

@@ -11,6 +11,7 @@
 #include "util/path.h"
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
+#include "wavefuel/mlp.h"
 #include "wavefuel/tabulated.h"
 #include "util/numfmt.h"
 
@@ -180,7 +181,29 @@ static int class_share(const WfScenario *sc, WfCfgNode *e, void *entry, double *
 
 _Static_assert(WF_CF_PLUGIN_MAX_PARAMS <= WF_MAX_MODEL_PARAMS, "a plugin's parameters must fit a driver group");
 
-/* A driver group's model: a registry name, or `plugin` with `path` naming a shared library. */
+/* `model: mlp`: the network file named by `network`, relative to the scenario file (docs/controllers.md). */
+static int load_group_network(WfCfgNode *e, WfDriverGroup *g, WfKeyEnv *env, WfError *err)
+{
+    const char *file = NULL;
+    char path[2048], w[1024];
+    WfCfgNode *nn = wf_cfg_child(e, "network");
+    if (wf_cfg_child(e, "path"))
+        return wf_err(err, WF_EINPUT, "%s: 'path' names a controller library (model: plugin); an mlp group names its "
+                      "network file with 'network'", where_of(wf_cfg_child(e, "path"), w, sizeof w));
+    if (wf_cfg_string(e, "network", &file, err)) return WF_EINPUT;
+    if (wf_path_relative_to(env->sc->path, file, path, sizeof path))
+        return wf_err(err, WF_EINPUT, "%s: network path too long", where_of(nn, w, sizeof w));
+    if (wf_mlp_load(path, &g->mlp, err)) {
+        wf_err_prefix(err, "%s: ", where_of(nn, w, sizeof w));
+        return err->code;
+    }
+    if (wf_scenario_add_input(env->sc, path, err)) return WF_ESYS;
+    g->model = wf_mlp_model(g->mlp);
+    return 0;
+}
+
+/* A driver group's model: a registry name, `plugin` with `path` naming a shared library, or `mlp` with `network`
+ * naming a network file. */
 static int load_group_model(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
     (void)row;
@@ -188,7 +211,11 @@ static int load_group_model(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEn
     const char *model = NULL;
     char w[1024];
     if (wf_cfg_string(e, "model", &model, err)) return WF_EINPUT;
-    WfCfgNode *pn = wf_cfg_child(e, "path");
+    WfCfgNode *pn = wf_cfg_child(e, "path"), *nn = wf_cfg_child(e, "network");
+    if (nn && strcmp(model, "mlp") != 0)
+        return wf_err(err, WF_EINPUT, "%s: 'network' names a network file and needs model: mlp (model is '%s')",
+                      where_of(nn, w, sizeof w), model);
+    if (strcmp(model, "mlp") == 0) return load_group_network(e, g, env, err);
     if (strcmp(model, "plugin") == 0) {
         const char *lib = NULL;
         char path[2048];
@@ -209,8 +236,8 @@ static int load_group_model(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEn
     if (wf_cf_model_find(model, &g->model, err)) {
         char msg[sizeof err->msg];
         memcpy(msg, err->msg, sizeof msg);
-        return wf_err(err, WF_EINPUT, "%s: %s, or 'plugin' with 'path: LIBRARY.so'",
-                      where_of(wf_cfg_child(e, "model"), w, sizeof w), msg);
+        return wf_err(err, WF_EINPUT, "%s: %s, or 'plugin' with 'path: LIBRARY.so', or 'mlp' with 'network: "
+                      "FILE.h5'", where_of(wf_cfg_child(e, "model"), w, sizeof w), msg);
     }
     return 0;
 }
@@ -302,12 +329,16 @@ static const WfKeySpec driver_rows[] = {
      .offset = offsetof(WfDriverGroup, name), .size = sizeof(((WfDriverGroup *)0)->name), .doc_default = "`groupI`",
      .doc = "group name in the output"},
     {.key = "model", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .flags = WF_KEY_REQUIRED, .hook = load_group_model,
-     .doc_type = "`idm`, `ovm`, `gipps`, `follower_stopper`, `pi_saturation`, `acc`, `plugin`",
+     .doc_type = "`idm`, `ovm`, `gipps`, `follower_stopper`, `pi_saturation`, `acc`, `external`, `external_speed`, "
+                 "`plugin`, `mlp`",
      .doc = "car-following model ([models.md](models.md)) or automated-vehicle controller "
             "([controllers.md](controllers.md))"},
     {.key = "path", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .flags = WF_KEY_NOREAD, .doc_type = "path",
      .doc = "with `model: plugin` only: the controller's shared library, relative to the scenario file "
             "([controllers.md](controllers.md#plug-in-controllers))"},
+    {.key = "network", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .flags = WF_KEY_NOREAD, .doc_type = "path",
+     .doc = "with `model: mlp` only: the network file (HDF5), relative to the scenario file "
+            "([controllers.md](controllers.md#mlp-learned-controllers))"},
     {.key = "placement", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_group_placement,
      .choices = fleet_places, .doc_default = "`fleet.placement`",
      .doc = "this group's own placement (automated vehicles), below"},
