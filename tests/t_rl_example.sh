@@ -3,12 +3,16 @@
 # the synthetic stop-and-go trace (no drive cycle, no learning claim), then the evaluation on another synthetic
 # trace. Checks that the trace generator follows its formula (recomputed here), that the policy after two updates
 # still imitates the acc law (src/models/cf/acc.c's law written again in numpy), and that the evaluation's
-# all-human platoon fuel and distance equal a plain Simulation of the same scenario. Skipped without torch.
+# all-human platoon fuel and distance equal a plain Simulation of the same scenario, and that the exported network
+# (`model: mlp`) gives the torch policy's action within 1e-12. Skipped without torch.
 set -u
 cd "$(dirname "$0")/.." || exit 1
 PY=/usr/bin/python3
-if ! $PY -c 'import torch' 2>/dev/null; then echo "SKIP t_rl_example: torch not importable (tools/install-deps.sh rl)"; exit 0; fi
-make --no-print-directory -s python BUILD=${BUILD:-build} >/dev/null || { echo "FAIL python_build: make python"; exit 1; }
+if ! $PY -c 'import torch' 2>/dev/null; then
+  echo "SKIP t_rl_example: torch not importable (tools/install-deps.sh rl)"; exit 0
+fi
+make --no-print-directory -s python BUILD=${BUILD:-build} >/dev/null ||
+  { echo "FAIL python_build: make python"; exit 1; }
 export PYTHONPATH="$PWD/python" WAVEFUEL_LIB="$PWD/lib/libwavefuel.so"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -55,13 +59,31 @@ from policy import load
 p, info = load(sys.argv[1])
 assert info["iterations"] == 2 and len(info["log"]) == 2 and len(info["validation"]) == 3, info
 rng = np.random.default_rng(0)
-v = rng.uniform(0, 25, 500); rows = np.column_stack([v, v + rng.uniform(-2, 2, 500), 4 + 1.5 * v + rng.uniform(-3, 3, 500)])
+v = rng.uniform(0, 25, 500)
+rows = np.column_stack([v, v + rng.uniform(-2, 2, 500), 4 + 1.5 * v + rng.uniform(-3, 3, 500)])
 acc = np.minimum(0.4 * (rows[:, 2] - 2.0 - 1.1 * rows[:, 0]) + 0.8 * (rows[:, 1] - rows[:, 0]), 0.4 * (30 - rows[:, 0]))
 err = np.sqrt(np.mean((p.act(rows) - np.clip(acc, -3, 3)) ** 2))
 assert err < 0.5, f"rms {err} m/s^2 from the acc law"
 print("rms from the acc law", err)
 PY
 then ok rl_policy_imitates_acc; else ko rl_policy_imitates_acc "$(tail -3 "$tmp/policy.log")"; fi
+
+# The exported network (model: mlp) evaluated by the library against the torch policy's mean action.
+if $PY - "$tmp/run/policy.pt" "$tmp/policy_mlp.h5" <<'PY' >"$tmp/export.log" 2>&1
+import sys
+import numpy as np
+import wavefuel
+sys.path.insert(0, "examples/rl")
+from policy import export, load
+p, _ = load(sys.argv[1])
+export(p, sys.argv[2])
+rng = np.random.default_rng(1)
+rows = np.column_stack([rng.uniform(0, 35, 20000), rng.uniform(0, 35, 20000), rng.uniform(0, 200, 20000)])
+d = np.abs(wavefuel.Network(sys.argv[2]).evaluate(rows) - p.act(rows)).max()
+assert d <= 1e-12, d
+print("max difference", d)
+PY
+then ok rl_export_equals_torch; else ko rl_export_equals_torch "$(tail -3 "$tmp/export.log")"; fi
 
 if $PY examples/rl/evaluate.py "$tmp/run/policy.pt" -o "$tmp/eval" --traces stop_and_go:2 --seeds 3 --horizon-s 60 \
      >"$tmp/eval.log" 2>&1 && [ -s "$tmp/eval/evaluation.png" ]; then ok rl_evaluate_runs

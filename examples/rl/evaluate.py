@@ -56,7 +56,7 @@ def figure(path, traces_shown):
         row[0].legend(fontsize=7, loc="upper right")
         row[1].legend(fontsize=7, loc="upper left")
     fig.tight_layout()
-    fig.savefig(path, dpi=90)
+    fig.savefig(path, dpi=70)
     return path
 
 
