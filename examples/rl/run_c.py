@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Exports a trained policy (train.py's policy.pt) as a `model: mlp` network file and runs it in C with
-`wavefuel run`: on the Sugiyama ring (scenarios/sugiyama.yaml, its vehicle 0 driven by the network) and on the
+`wavefuel run`: on the Sugiyama ring (scenarios/sugiyama.yaml, one of its vehicles driven by the network) and on the
 corridor bottleneck (scenarios/corridor_bottleneck.yaml, a share of the entering vehicles driven by it), each
 against the shipped all-human scenario and the same AVs as `acc`. The derived scenarios, results and figures go
 to the output directory (the shipped files are not touched). Checks first that the library's evaluation of the
@@ -28,7 +28,8 @@ TOL = 1e-12
 
 def derived(shipped, network, av_share, model, out_path):
     """The shipped scenario with an AV group of `model` (mlp with `network`, or acc): on a ring one vehicle
-    (vehicle 0), on a corridor a share av_share of the entering vehicles. Relative paths made absolute."""
+    (placed by the scenario's placement), on a corridor a share av_share of the entering vehicles. Relative paths
+    made absolute."""
     with open(shipped) as f:
         d = yaml.safe_load(f)
     base = os.path.dirname(os.path.abspath(shipped))
@@ -156,7 +157,8 @@ def main():
 
 def figures(outdir, results, share):
     """Time-space diagrams of every run (tools/plot_timespace.py, plot_corridor.py: large), and the small summary
-    figure rl_c.png: the ring's vehicle 0 (the AV) and vehicle 11 over time, and L/100km of every run."""
+    figure rl_c.png: the ring's AV (a human in the all-human run) and the vehicle opposite it over time, and
+    L/100km of every run."""
     tools = os.path.join(REPO, "tools")
     for (road, model) in results:
         h5 = os.path.join(outdir, f"{road}_{model}.h5")
@@ -170,11 +172,15 @@ def figures(outdir, results, share):
     fig, (ax0, ax1) = plt.subplots(1, 2, figsize=(11, 3.4), gridspec_kw={"width_ratios": [2, 1]})
     colours = {"human": "tab:red", "acc": "tab:blue", "mlp": "tab:green"}
     labels = {"human": "all human", "acc": "AV acc", "mlp": "AV policy"}
+    r = wavefuel.read(os.path.join(outdir, "ring_mlp.h5"))
+    k_av = int(np.flatnonzero(r["vehicles/group_id"] == list(r["drivers/name"]).index("av"))[0])
+    k_h = (k_av + r["vehicles/group_id"].size // 2) % r["vehicles/group_id"].size  # the vehicle opposite it
     for model in ("human", "mlp"):
         r = wavefuel.read(os.path.join(outdir, f"ring_{model}.h5"))
         t, v = r["trajectories/t"], r["trajectories/v"]
-        ax0.plot(t, v[:, 0], color=colours[model], lw=1.0, label=f"{labels[model]}: vehicle 0")
-        ax0.plot(t, v[:, 11], color=colours[model], lw=0.6, ls=":", label=f"{labels[model]}: vehicle 11 (human)")
+        ax0.plot(t, v[:, k_av], color=colours[model], lw=1.0,
+                 label=f"{labels[model]}: vehicle {k_av}" + (" (the AV)" if model != "human" else ""))
+        ax0.plot(t, v[:, k_h], color=colours[model], lw=0.6, ls=":", label=f"{labels[model]}: vehicle {k_h} (human)")
     ax0.set(title="Sugiyama ring (22 vehicles, 230 m): speeds", xlabel="time (s)", ylabel="speed (m/s)")
     ax0.legend(fontsize=7, ncol=2, loc="upper right")
     roads = ("ring", "corridor")
