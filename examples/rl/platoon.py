@@ -82,8 +82,8 @@ def acc_law(obs, k_gap=0.4, k_dv=0.8, T=1.1, s0=2.0, v0=30.0, k_v=0.4):
 class Reward:
     """The per-AV reward of train.py, computed here from the run's state (the same terms as issue 17's reward:
     fuel, gap bounds, comfort). AV j's segment: itself and the humans behind it up to the next AV; the segments
-    partition the platoon, so the AVs' fuel terms add up to the platoon's fuel. Per decision of dt = DT_S x
-    ACTION_EVERY s:
+    partition the platoon (the AVs' fuel terms weighted by their segments' sizes add up to the platoon's). Per
+    decision of dt = DT_S x ACTION_EVERY s:
       fuel    = -mean over the segment of each vehicle's fuel rate (g/s), its class model at its speed at the
                 decision's start and the acceleration (v_end - v_start) / dt that took it to its speed at the end,
                 net of the distance it covered, (v_start + v_end) / 2 x dt, at FUEL_PER_M g/m (8 L/100km of
