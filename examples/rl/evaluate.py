@@ -29,7 +29,7 @@ def run(trace, seed, controller, act=None):
         ep.step(act(ep.obs) if controller == "policy" else None, count_fuel=True, record=record)
     fuel, dist = ep.platoon_totals()
     first = int(ep.av_index[0])
-    env.close()
+    ep.close()
     return fuel, dist, record, first
 
 

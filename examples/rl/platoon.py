@@ -62,13 +62,6 @@ class PlatoonEnv(TrajectoryEnv):
                     g["model"], g["noise_mps2"] = "idm", self.noise_mps2
         return d
 
-    def _observe(self):
-        if not self.humans_only:
-            return super()._observe()
-        # An idm group takes no observe(): its rows from the state (the gaps and leader speeds of the last step).
-        st = self.sim.state()
-        m = st["group_id"] == self.sim.group_index(self.AV)
-        return np.column_stack([st["v_mps"][m], st["v_lead_mps"][m], st["gap_m"][m]])
 
 
 def acc_law(obs, k_gap=0.4, k_dv=0.8, T=1.1, s0=2.0, v0=30.0, k_v=0.4):
@@ -136,25 +129,46 @@ def windows(trace, length_s, rng, count):
 
 
 class Episode:
-    """One episode of a PlatoonEnv driven from outside env.step: decisions every ACTION_EVERY steps with the AVs'
-    commands from `controller(obs) -> accelerations` (None: no command, the AVs drive as acc), and with
-    count_fuel the platoon's fuel integrated at every step as the engine integrates it (fuel_rate_gps x dt)."""
+    """One episode of a PlatoonEnv, its run driven here rather than by env.step: the run of the scenario that
+    env.reset(seed) would build (env._scenario() drawn from default_rng(seed)), the platoon's fill stepped as
+    env.reset steps it, then decisions every ACTION_EVERY steps with the AVs' commands from `controller(obs) ->
+    accelerations` (None: no command, the AVs drive as acc) and, with count_fuel, the platoon's fuel integrated at
+    every step as the engine integrates it (fuel_rate_gps x dt). Only the environment's scenario is used: the
+    all-human variant's AV group (idm) takes no commands and has no observe()."""
 
     def __init__(self, env, seed):
         self.env = env
-        self.obs, _ = env.reset(seed=seed)
-        st = env.sim.state()
+        env.np_random = np.random.default_rng(seed)
+        self.sim = wavefuel.Simulation(wavefuel.Scenario.from_dict(env._scenario()), threads=env.threads)
+        self.sim.step(int(round(env._fill_s() / env.dt_s)))
+        self.t0 = self.sim.t
+        st = self._state(check=False)
         self.n = st["v_mps"].size
-        self.av_index = np.flatnonzero(st["group_id"] == env.sim.group_index(AV))
+        if self.n != env.n_vehicles:
+            raise RuntimeError(f"{self.n} of {env.n_vehicles} vehicles entered during the fill")
+        self.av_group = self.sim.group_index(AV)
+        self.av_index = np.flatnonzero(st["group_id"] == self.av_group)
         self.platoon = np.arange(self.n) >= self.av_index[0]
         self.x0 = np.array(st["x_m"])
         self.fuel_g = np.zeros(self.n)
         self.reward = Reward(self.n, self.av_index)
+        self.obs = self._observe()
         self.done = False
 
-    def _state(self):
-        st = self.env.sim.state()
-        if st["v_mps"].size != self.n:
+    def _observe(self):
+        if not self.env.humans_only:
+            return self.sim.observe(AV)
+        # An idm group has no observe(): its rows from the state (gaps and leader speeds of the last step).
+        st = self.sim.state()
+        m = st["group_id"] == self.av_group
+        return np.column_stack([st["v_mps"][m], st["v_lead_mps"][m], st["gap_m"][m]])
+
+    def close(self):
+        self.sim.close()
+
+    def _state(self, check=True):
+        st = self.sim.state()
+        if check and st["v_mps"].size != self.n:
             raise RuntimeError(f"{st['v_mps'].size} vehicles on the road, expected {self.n}")
         return st
 
@@ -162,7 +176,7 @@ class Episode:
         """One decision: returns (obs, reward per AV, terms); sets self.done at the horizon. With count_fuel and a
         list `record`, appends (time since the episode's start s, speeds m/s in road order, platoon fuel so far g)
         at every step."""
-        sim, k = self.env.sim, self.env.action_every
+        sim, k = self.sim, self.env.action_every
         v0 = np.array(self._state()["v_mps"])
         if action is not None and not self.env.humans_only:
             sim.set_actions(AV, np.clip(action, *ACCEL_RANGE_MPS2))
@@ -172,15 +186,15 @@ class Episode:
                 st = self._state()
                 self.fuel_g += st["fuel_rate_gps"] * self.env.dt_s
                 if record is not None:
-                    record.append((sim.t - self.env.t0, np.array(st["v_mps"]),
+                    record.append((sim.t - self.t0, np.array(st["v_mps"]),
                                    float(self.fuel_g[self.platoon].sum())))
         else:
             sim.step(k)
             st = self._state()
         v1 = np.array(st["v_mps"])
-        self.obs = self.env._observe()
+        self.obs = self._observe()
         r, terms = self.reward(v0, v1, self.obs[:, 2], self.env.dt_s * k)
-        self.done = sim.t - self.env.t0 >= self.env.horizon_s - 1e-9
+        self.done = sim.t - self.t0 >= self.env.horizon_s - 1e-9
         return self.obs, r, terms
 
     def platoon_totals(self):

@@ -37,7 +37,7 @@ def acc_observations(traces, rng, window_s, count):
             while not ep.done:
                 rows.append(ep.obs.copy())
                 ep.step(None)
-            ep.env.close()
+            ep.close()
     return np.concatenate(rows)
 
 
@@ -69,7 +69,7 @@ def validate(policy, val_windows):
         ep = Episode(PlatoonEnv(w), seed=seed)
         while not ep.done:
             total += float(ep.step(policy.act(ep.obs))[1].sum())
-        ep.env.close()
+        ep.close()
     return total
 
 
@@ -94,7 +94,7 @@ def rollout(policy, value, trace, seed):
             terms[k] += float(t[k].sum())
     with torch.no_grad():
         last = value(torch.as_tensor(ep.obs.copy())).numpy()
-    ep.env.close()
+    ep.close()
     return {k: np.array(v) for k, v in buf.items()}, last, terms
 
 
