@@ -71,6 +71,20 @@ sed 's/length_m: 230/length_m: 0xE6/' s.yaml > s_hex.yaml
 refuse yaml_hex "s_hex.yaml:5: road.length_m: expected a number" -- "$BIN" run s_hex.yaml -o s_hex.h5 -q
 refuse set_hex "--set: time.duration_s: expected a number" -- "$BIN" run s.yaml --set time.duration_s=0x2 -o x.h5 -q
 refuse option_hex "--threads expects an integer" -- "$BIN" run s.yaml --threads 0x2 -o x.h5 -q
+# Safety filters (docs/controllers.md#safety-filters): kind, values and keys of fleet.drivers[i].safety. Rows: name |
+# the group's safety map | the message after "sf_NAME.yaml:17: ".
+while IFS='|' read -r name map want; do
+  sed "s/noise_mps2: 0.3}/noise_mps2: 0.3, safety: $map}/" s.yaml > "sf_$name.yaml"
+  refuse "safety_$name" "sf_$name.yaml:17: $want" -- "$BIN" run "sf_$name.yaml" -o sf.h5 -q
+  rm -f "sf_$name.yaml"
+done <<'T'
+unknown_kind|{kind: gips}|fleet.drivers[0].safety.kind: unknown safety filter kind 'gips' (known: gipps, ttc)
+bad_value|{kind: gipps, decel_mps2: 0.2}|fleet.drivers[0].safety.decel_mps2: expected a number in [0.5, 20] m/s^2 (got '0.2')
+unknown_key|{kind: ttc, ttc: 3}|unknown key 'fleet.drivers[0].safety.ttc' (did you mean 'ttc_s'?)
+missing_kind|{ttc_s: 3}|fleet.drivers[0].safety: missing 'kind': the safety filter (gipps, ttc)
+T
+refuse safety_set_value "--set: fleet.drivers[0].safety.ttc_s: expected a number in [0.1, 20] s (got '-1')" -- \
+  "$BIN" run s.yaml --set 'fleet.drivers[0].safety.kind=ttc' --set 'fleet.drivers[0].safety.ttc_s=-1' -o sf.h5 -q
 
 # ---------------------------------------------------------------- outputs that are inputs or directories
 mkdir cls sub

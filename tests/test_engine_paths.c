@@ -1,7 +1,7 @@
 /* The engine's execution paths give the same bits: the fused one-pass step and the multi-pass step, on 1 and 2
  * threads, final state and every time-series record, with noise, heterogeneous drivers (per-vehicle parameters)
  * beside homogeneous ones (one shared parameter set, IDM's block kernel), three classes, a controller with memory
- * (PI with saturation) and a graded ring; and a corridor of more than 4096 vehicles (the kernel's parallel path on
+ * (PI with saturation) and a graded ring, also with safety filters; and a corridor of more than 4096 vehicles (the kernel's parallel path on
  * the open boundary, a slot range wrapping around the buffer's end, zones) on 1 and 2 threads. Any difference in
  * arithmetic or ordering between the paths, or a race in the in-place update of the fused step, shows up as a bit
  * difference. */
@@ -19,14 +19,18 @@
 #include "wavefuel/scenario.h"
 #include "wf_test.h"
 
-static const char *yaml =
-    "seed: 42\n"
-    "road:\n  length_m: 100000\n  grade: {points: [[0, 0.0], [20000, 0.02], [50000, 0.0], [70000, -0.02]]}\n"
-    "time: {duration_s: 20, dt_s: 0.1, output_interval_s: 1.0, warmup_s: 5}\n"
-    "fleet:\n  vehicles: 5000\n  placement: random\n"
-    "  classes:\n    - {class: midsize_sedan, fraction: 0.5}\n    - {class: midsize_suv, fraction: 0.3}\n"
-    "    - {class: class8_tractor, fraction: 0.2}\n"
+/* The graded ring of 5000 vehicles and three classes, up to its driver groups. */
+#define RING_HEAD                                                                                               \
+    "seed: 42\n"                                                                                                \
+    "road:\n  length_m: 100000\n  grade: {points: [[0, 0.0], [20000, 0.02], [50000, 0.0], [70000, -0.02]]}\n"    \
+    "time: {duration_s: 20, dt_s: 0.1, output_interval_s: 1.0, warmup_s: 5}\n"                                  \
+    "fleet:\n  vehicles: 5000\n  placement: random\n"                                                            \
+    "  classes:\n    - {class: midsize_sedan, fraction: 0.5}\n    - {class: midsize_suv, fraction: 0.3}\n"         \
+    "    - {class: class8_tractor, fraction: 0.2}\n"                                                             \
     "  drivers:\n"
+
+static const char *yaml =
+    RING_HEAD
     "    - {model: idm, fraction: 0.6, noise_mps2: 0.3, feasible_accel: clip,\n"
     "       heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1}}}\n"
     "    - {model: idm, fraction: 0.3, noise_mps2: 0.2}\n"
@@ -41,7 +45,10 @@ typedef struct Out {
     /* the complete state a checkpoint saves (accumulators, modes, controller memory), concatenated */
     unsigned char *state;
     size_t state_size;
+    int64_t safety; /* the safety filters' interventions (summary) */
 } Out;
+
+static int64_t last_safety; /* the reference run's, of the last compare_paths */
 
 static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
@@ -84,6 +91,7 @@ static int run(const char *path, const char *mode, int threads, Out *o)
         memcpy(o->x, f->x_m, f->n * sizeof(double));
         memcpy(o->v, f->v_mps, f->n * sizeof(double));
         memcpy(o->fuel, f->fuel_g, f->n * sizeof(double));
+        o->safety = wf_sim_summary(sim)->safety_interventions;
         WfStateVar vars[64];
         size_t nv = wf_sim_state(sim, vars, 64);
         for (size_t k = 0; k < nv && k < 64; k++) o->state_size += vars[k].size;
@@ -129,6 +137,8 @@ static double compare_paths(const char *text)
                   memcmp(o.state, ref.state, o.state_size) == 0,
               "%s, %d threads: the checkpoint state (accumulators, modes, controller memory) differs", modes[k],
               threads[k]);
+        CHECK(o.safety == ref.safety, "%s, %d threads: %lld safety interventions, reference %lld", modes[k], threads[k],
+              (long long)o.safety, (long long)ref.safety);
         free(o.state);
         free(o.x), free(o.v), free(o.fuel);
     }
@@ -138,6 +148,7 @@ static double compare_paths(const char *text)
         CHECK(spread > 1.0, "speeds do not vary: the scenario would not exercise the paths");
     }
     if (ref.n_rows) overlaps = ref.rows[ref.n_rows - 1].v[WF_TS_OVERLAPS];
+    last_safety = ref.safety;
     free(ref.x), free(ref.v), free(ref.fuel), free(ref.state);
     unlink(path);
     rmdir(dir);
@@ -145,6 +156,24 @@ static double compare_paths(const char *text)
 }
 
 static void test_paths_bitwise_equal(void) { CHECK(compare_paths(yaml) >= 0, "runs failed"); }
+
+/* The same ring with safety filters (docs/controllers.md#safety-filters) on the controller with memory and on a
+ * noisy IDM group: the filters and their counts (integers summed over chunks, saved in the checkpoint state) are the
+ * same on every path and thread count. */
+static void test_paths_with_safety(void)
+{
+    const char *text =
+        RING_HEAD
+        "    - {model: idm, fraction: 0.6, noise_mps2: 0.3, feasible_accel: clip, safety: {kind: ttc, ttc_s: 4},\n"
+        "       heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1}}}\n"
+        "    - {model: idm, fraction: 0.3, noise_mps2: 0.2}\n"
+        "    - {model: pi_saturation, fraction: 0.1, safety: {kind: gipps, gap_min_m: 6}}\n"
+        "initial: {state: equilibrium, jitter_m: 0.5}\n";
+    CHECK(compare_paths(text) >= 0, "runs failed");
+    printf("  ring of 5000 vehicles with safety filters: %lld interventions, the same on every path\n",
+           (long long)last_safety);
+    CHECK(last_safety > 100, "only %lld interventions: the test would not exercise the filters", (long long)last_safety);
+}
 
 /* Noise far beyond what the brakes absorb (as in test_ring_physics's overlap test) on a fleet of many blocks:
  * the fused step must find overlaps inside blocks, at block edges and at chunk edges, and repair them exactly as
@@ -194,7 +223,7 @@ static const char *corridor_yaml =
     "    - {model: idm, fraction: 0.6, noise_mps2: 0.05, feasible_accel: clip,\n"
     "       params: {v0_mps: 30, T_s: 0.3, s0_m: 1.0}, heterogeneity: {spread: {T_s: 0.1, v0_mps: 0.05}}}\n"
     "    - {model: idm, fraction: 0.35, params: {v0_mps: 30, T_s: 0.3, s0_m: 1.0}}\n"
-    "    - {model: pi_saturation, fraction: 0.05}\n"
+    "    - {model: pi_saturation, fraction: 0.05, safety: {kind: gipps}}\n"
     "corridor:\n  inflow: {flow_vph: 20000, arrivals: deterministic}\n"
     "  edie: {dx_m: 500, dt_s: 60}\n  detectors: {x_m: [5000, 82000], interval_s: 60}\n";
 
@@ -206,6 +235,7 @@ typedef struct COut {
     unsigned char *state; /* the state blocks a checkpoint saves, at the end, concatenated */
     size_t state_size;
     double max_on_road;
+    int64_t safety; /* the safety filter's interventions */
 } COut;
 
 static int c_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
@@ -254,6 +284,7 @@ static int run_corridor(const char *path, int threads, COut *o)
     if (!rc) rc = wf_sim_run(c, &out, NULL, NULL, NULL, &err);
     if (rc) printf("  %s\n", err.msg);
     if (!rc) {
+        o->safety = wf_sim_summary(c)->safety_interventions;
         WfStateVar vars[WF_MAX_STATE_VARS];
         size_t nv = wf_sim_state(c, vars, WF_MAX_STATE_VARS);
         for (size_t k = 0; k < nv; k++) o->state_size += vars[k].size;
@@ -278,8 +309,10 @@ static void test_corridor_threads(void)
     fclose(f);
     static COut a, b;
     CHECK(run_corridor(path, 1, &a) == 0 && run_corridor(path, 2, &b) == 0, "corridor runs failed");
-    printf("  corridor: up to %.0f vehicles on the road, %zu trips, %zu records\n", a.max_on_road, a.n_trips,
-           a.n_rows);
+    printf("  corridor: up to %.0f vehicles on the road, %zu trips, %zu records, %lld safety interventions\n",
+           a.max_on_road, a.n_trips, a.n_rows, (long long)a.safety);
+    CHECK(a.safety > 0 && a.safety == b.safety, "safety interventions %lld and %lld", (long long)a.safety,
+          (long long)b.safety);
     CHECK(a.max_on_road > 4096, "at most %.0f vehicles: the kernel's parallel path is not exercised", a.max_on_road);
     CHECK(a.n_rows == 601 && b.n_rows == a.n_rows, "records: %zu and %zu", a.n_rows, b.n_rows);
     for (size_t r = 0; r < a.n_rows && r < b.n_rows; r++)
@@ -297,6 +330,7 @@ static void test_corridor_threads(void)
 int main(void)
 {
     RUN(test_paths_bitwise_equal);
+    RUN(test_paths_with_safety);
     RUN(test_paths_equal_with_overlaps);
     RUN(test_corridor_threads);
     TEST_EXIT();

@@ -49,6 +49,9 @@ CONTROLLERS = {
     "pi_saturation": {"model": "pi_saturation", "params": {}},
     "acc": {"model": "acc", "params": {}},
     "acc_production": {"model": "acc", "params": {"k_gap_per_s2": 0.23, "k_dv_per_s": 0.07}},
+    # PI with saturation under the Gipps safety filter on its defaults (docs/controllers.md#safety-filters).
+    "pi_saturation_gipps": {"model": "pi_saturation", "params": {}, "safety": {"kind": "gipps"},
+                            "roads": ("corridor",)},
 }
 RING_PENETRATIONS = [("one AV", None), ("2 %", 0.02), ("5 %", 0.05), ("10 %", 0.10)]
 CORRIDOR_SHARES = [0.02, 0.05, 0.10]
@@ -61,7 +64,10 @@ METRICS = [  # (key in /summary, unit, description)
     ("infeasible_share", "1", "share of vehicle-steps with an infeasible acceleration request"),
     ("mean_speed", "m/s", "fleet mean speed"),
     ("overlaps", "1", "overlap repairs (collisions)"),
+    ("safety_interventions", "1", "steps whose acceleration the AVs' safety filter changed (0 without a filter)"),
 ]
+# Written only for runs with a safety filter: 0 for the others.
+OPTIONAL_METRICS = {"safety_interventions"}
 # Corridor only (NaN for rings): the entrance and the trips, which a controller that slows the road moves
 # vehicles into (vehicles waiting at the entrance burn no fuel in the model and are not in the road's metrics).
 CORRIDOR_METRICS = [
@@ -93,8 +99,10 @@ def av_share(road, level):
     return level / ROADS[road]["n"] if ROADS[road]["kind"] == "ring" else level
 
 
-def controllers_for(road):
-    return [c for c, spec in CONTROLLERS.items() if ROADS[road]["kind"] in spec.get("roads", ("ring", "corridor"))]
+def controllers_for(road, only=None):
+    """The controllers that run on a road (only: a subset of them by name, or None for all)."""
+    return [c for c, spec in CONTROLLERS.items() if ROADS[road]["kind"] in spec.get("roads", ("ring", "corridor"))
+            and (only is None or c in only)]
 
 
 def read_result(path, road):
@@ -105,7 +113,7 @@ def read_result(path, road):
         res = {}
         for k, _, _ in METRICS:
             key = "outflow" if (kind == "corridor" and k == "throughput") else k
-            res[k] = float(s[key][()])
+            res[k] = float(s[key][()]) if key in s or k not in OPTIONAL_METRICS else 0.0
         for k, _, _ in CORRIDOR_METRICS:
             res[k] = float("nan")
         res["zone_saturated"] = float("nan")
@@ -178,6 +186,8 @@ def main():
     ap.add_argument("--jobs", type=int, default=os.cpu_count() or 1, help="runs at once (default: cores)")
     ap.add_argument("--roads", "--rings", dest="roads", default="sugiyama,long,corridor",
                     help="comma-separated: " + ",".join(ROADS))
+    ap.add_argument("--controllers", default=None,
+                    help="comma-separated subset of: " + ",".join(CONTROLLERS) + " (default: all)")
     ap.add_argument("--out", default=os.path.join(ROOT, "output", "sparse_control"))
     ap.add_argument("--reuse", action="store_true",
                     help="read runs already in OUT/runs whose scenario text and --set list match instead of "
@@ -187,6 +197,10 @@ def main():
     for r in roads:
         if r not in ROADS:
             sys.exit(f"unknown road '{r}' (known: {', '.join(ROADS)})")
+    only = args.controllers.split(",") if args.controllers else None
+    for c in only or []:
+        if c not in CONTROLLERS:
+            sys.exit(f"unknown controller '{c}' (known: {', '.join(CONTROLLERS)})")
     os.makedirs(os.path.join(args.out, "runs"), exist_ok=True)
     seeds = list(range(1, args.seeds + 1))
     t0 = time.time()
@@ -213,7 +227,7 @@ def main():
             levels = sorted({av_count(n, share) for _, share in RING_PENETRATIONS})
         else:
             levels = CORRIDOR_SHARES
-        for c in controllers_for(r):
+        for c in controllers_for(r, only):
             spec = CONTROLLERS[c]
             params = dict(spec["params"])
             if spec.get("U_from") == "baseline":
@@ -233,6 +247,7 @@ def main():
                                 f"fleet.drivers[1].fraction={level:.10g}"]
                     sets += [f"fleet.drivers[1].model={spec['model']}"]
                     sets += [f"fleet.drivers[1].params.{k}={v}" for k, v in params.items()]
+                    sets += [f"fleet.drivers[1].safety.{k}={v}" for k, v in spec.get("safety", {}).items()]
                     jobs.append(job(r, c, level, s, sets))
     done = 0
     for res in pool.map(run_one, jobs):
@@ -373,9 +388,10 @@ def ring_tables(agg, r, U):
 
 def corridor_tables(agg, r, U):
     out = [f"\n### {ROADS[r]['label']}: fleet\n"]
-    out.append(f"FollowerStopper U = {U[(r, 'follower_stopper')]:.3f} m/s (the baseline's mean speed); "
-               f"follower_stopper_free U = {U[(r, 'follower_stopper_free')]:.1f} m/s (the road's speed limit). "
-               "AVs: the nominal share of the entering vehicles (the AVs that entered, mean over seeds). "
+    if (r, "follower_stopper") in U and (r, "follower_stopper_free") in U:
+        out.append(f"FollowerStopper U = {U[(r, 'follower_stopper')]:.3f} m/s (the baseline's mean speed); "
+                   f"follower_stopper_free U = {U[(r, 'follower_stopper_free')]:.1f} m/s (the road's speed limit). ")
+    out.append("AVs: the nominal share of the entering vehicles (the AVs that entered, mean over seeds). "
                "Throughput: exits per hour (outflow); travel time over the 6 km (completed trips); entry wait: "
                "mean wait at the entrance.\n")
     out.append("| controller | AVs | fuel L/100km | Δ fuel % | speed s.d. m/s | Δ s.d. % | braking /vkm "
@@ -400,6 +416,18 @@ def corridor_tables(agg, r, U):
                + ("The queue upstream of the zone was present in every interval of every run."
                   if not starved else "Runs whose zone was not saturated in every interval (smallest share of "
                   "queued intervals over seeds): " + ", ".join(starved) + "."))
+    if any("safety" in CONTROLLERS.get(c, {}) for (road, c, _) in agg if road == r):
+        out.append(f"\n### {ROADS[r]['label']}: safety filter\n")
+        out.append("Interventions: the AVs' steps whose acceleration the filter changed, per run (whole run).\n")
+        out.append("| controller | AV share | fuel L/100km | Δ fuel % | braking /vkm | stops /vkm | travel time s "
+                   "| overlaps | interventions |")
+        out.append("|---|---|---|---|---|---|---|---|---|")
+        for (road, c, share), a in agg.items():
+            if road == r and c != "baseline":
+                out.append(f"| {c} | {100 * share:.0f} % | {fmt(*a['l_per_100km'])} | {fmt(*a['l_per_100km_change'], 1)} "
+                           f"| {fmt(*a['hard_brakes_per_vkm'])} | {fmt(*a['stops_per_vkm'], 3)} "
+                           f"| {fmt(*a['mean_travel_time'], 0)} | {fmt(*a['overlaps'], 1)} "
+                           f"| {fmt(*a['safety_interventions'], 0)} |")
     return out
 
 
@@ -422,7 +450,7 @@ def markdown(agg, roads, seeds, U, wall, n_run, n_reused):
                          for i in range(len(names))]
                 lv = f"{level}" if ring else f"{100 * level:.0f} %"
                 out.append(f"| {c} | {lv} | " + " | ".join(cells) + " |")
-    if "sugiyama" in roads:
+    if "sugiyama" in roads and all(("sugiyama", c, 1) in agg for c in FIELD):
         out.append("\n### One AV on the Sugiyama ring beside the field experiment (Stern et al. 2018, Table 3)\n")
         out.append("| controller | | speed s.d. Δ % | fuel Δ % | braking events /vkm | throughput Δ % |")
         out.append("|---|---|---|---|---|---|")
@@ -448,11 +476,13 @@ def plot(path, agg, roads):
     import matplotlib.pyplot as plt
     # One colour per controller in every panel (the rings' panels keep their historical colours).
     colour = {"follower_stopper": "C0", "pi_saturation": "C1", "acc": "C2", "acc_production": "C3",
-              "follower_stopper_free": "C4"}
+              "follower_stopper_free": "C4", "pi_saturation_gipps": "C5"}
     fig, ax = plt.subplots(2, len(roads), figsize=(5.5 * len(roads), 7.6), squeeze=False)
     for j, r in enumerate(roads):
         for c in controllers_for(r):
             ks = sorted(k for k in agg if k[0] == r and k[1] == c)
+            if not ks:  # not run (--controllers)
+                continue
             x = [100.0 * av_share(r, k[2]) for k in ks]
             for i, m in enumerate(("l_per_100km_change", "sd_speed_time_avg_change")):
                 mean = [agg[k][m][0] for k in ks]

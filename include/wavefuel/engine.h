@@ -97,6 +97,21 @@ size_t wf_sim_group_size(const WfSim *sim, size_t group);
 int    wf_sim_observe(const WfSim *sim, size_t group, double *obs, size_t n, WfError *err);
 int    wf_sim_set_actions(WfSim *sim, size_t group, const double *actions, size_t n, WfError *err);
 
+/* Batches of runs (src/core/batch.c; the Python VectorEnv): n_sims runs, each begun, borrowed for the call.
+ * wf_sims_step calls wf_sim_step(sims[k], n_steps) for every run, in parallel over runs on `threads` OpenMP
+ * threads (below 1: 1; the calling thread's OpenMP settings are not changed); each run gives the bits it gives when
+ * stepped alone. errs: n_sims entries, the caller's; errs[k].code is 0, or the status of run k with its message
+ * (a failed run has ended, as after wf_sim_step). Returns the status of the first failed run in order, else 0.
+ * wf_sims_observe and wf_sims_set_actions do what wf_sim_observe and wf_sim_set_actions do for group[k] of every
+ * run k, with the runs' rows one after the other in run order (obs: 3 values a row); n_rows / n_actions must be
+ * the sum of the groups' sizes (WF_EINPUT otherwise, or the failing run's error prefixed with its index; commands
+ * of the runs before a refused one are set). */
+int wf_sims_step(WfSim *const *sims, size_t n_sims, long n_steps, int threads, WfError *errs);
+int wf_sims_observe(WfSim *const *sims, size_t n_sims, const size_t *group, double *obs, size_t n_rows,
+                    WfError *err);
+int wf_sims_set_actions(WfSim *const *sims, size_t n_sims, const size_t *group, const double *actions,
+                        size_t n_actions, WfError *err);
+
 const WfScenario *wf_sim_scenario(const WfSim *sim);
 /* "ring" or "corridor": the boundary (checkpoints and /meta/road_type name it). */
 const char       *wf_sim_kind(const WfSim *sim);

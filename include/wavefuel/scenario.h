@@ -10,6 +10,7 @@
 #include "wavefuel/err.h"
 #include "wavefuel/ode.h"
 #include "wavefuel/road.h"
+#include "wavefuel/safety.h"
 #include "wavefuel/vehicle.h"
 
 #define WF_MAX_CLASSES      16
@@ -51,6 +52,8 @@ typedef struct WfDriverGroup {
                                             it); NULL for built-in models */
     struct WfMlp         *mlp;           /* owned: the network of a `model: mlp` group (model points into it);
                                             NULL otherwise */
+    const WfSafetyKind *safety;          /* borrowed registry entry: the group's safety filter; NULL: none */
+    double           safety_params[WF_MAX_SAFETY_PARAMS]; /* the filter's parameter struct (all doubles) */
 } WfDriverGroup;
 
 typedef struct WfScenario {

@@ -35,6 +35,14 @@ typedef struct WfClassSummary {
     double  trip_fuel_mean_g, trip_time_mean_s;
 } WfClassSummary;
 
+/* Per driver group: its safety filter's counts over the whole run (docs/controllers.md#safety-filters); 0 for a
+ * group without one. */
+typedef struct WfGroupSummary {
+    int64_t safety_steps;         /* vehicle-steps of the group's vehicles */
+    int64_t safety_interventions; /* of those, the steps whose acceleration the filter changed */
+    double  safety_share;         /* interventions / steps (0 when no step) */
+} WfGroupSummary;
+
 typedef struct WfSummary {
     double window_s;                  /* length of the statistics window */
     double fuel_g, dist_m, vkt_km;
@@ -53,6 +61,10 @@ typedef struct WfSummary {
     WfCorridorCounts counts;          /* corridor, at the end of the run */
     int64_t on_road;                  /* corridor: vehicles on the road at the end (entered - exited) */
     WfClassSummary cls[WF_MAX_CLASSES];
+    /* Written only when some group has a safety filter (WF_SUMMARY_IF_SAFETY): */
+    int64_t safety_interventions;     /* sum over the groups */
+    int64_t collisions_repaired;      /* 1: the run repaired overlaps (its results include collisions), else 0 */
+    WfGroupSummary grp[WF_MAX_GROUPS];
 } WfSummary;
 
 /* Which road a summary describes: the index of a field's description. */
@@ -80,7 +92,11 @@ typedef struct WfSummaryField {
     WfSummaryPrint print[WF_SUMMARY_N_BOUNDARIES];
     double        print_mul, print_div; /* printed value = value x mul / div (0: 1); dist_m in km: div 1000 */
     int           sweep_only; /* not in /summary, only a column of the sweep table */
+    int           when;       /* WF_SUMMARY_ALWAYS, or WF_SUMMARY_IF_SAFETY: in /summary, `info`, the printed
+                                 summary and Python only for runs with a safety filter; never in the sweep table */
 } WfSummaryField;
+
+enum { WF_SUMMARY_ALWAYS = 0, WF_SUMMARY_IF_SAFETY = 1 };
 
 #define WF_SUMMARY_SUM  ((size_t)-1)
 #define WF_SUMMARY_NONE ((size_t)-2)
@@ -89,6 +105,20 @@ extern const WfSummaryField wf_summary_fields[];       /* fleet values: scalars 
 extern const size_t         wf_summary_n_fields;
 extern const WfSummaryField wf_summary_class_fields[]; /* per class: arrays over the classes in /summary */
 extern const size_t         wf_summary_n_class_fields;
+extern const WfSummaryField wf_summary_group_fields[]; /* per driver group (WfGroupSummary): arrays over the groups */
+extern const size_t         wf_summary_n_group_fields;
+
+/* Whether a field is a column of the sweep table (its ring meaning; fields of some runs only are not). */
+static inline int wf_summary_in_sweep(const WfSummaryField *f)
+{
+    return f->desc[WF_SUMMARY_RING] && f->when == WF_SUMMARY_ALWAYS;
+}
+/* Whether a field is part of the summary of a scenario's run (its `when`). */
+int wf_summary_field_on(const WfSummaryField *f, const WfScenario *sc);
+/* Some driver group of the scenario has a safety filter. */
+int wf_scenario_has_safety(const WfScenario *sc);
+/* The derived values of the summary's safety fields from its counts: shares, totals, collisions_repaired. */
+void wf_summary_safety_totals(WfSummary *s);
 
 /* A field's value as a double (integers converted), from a WfSummary (fleet fields) or a WfClassSummary. */
 double wf_summary_value(const void *base, const WfSummaryField *f);
@@ -96,5 +126,8 @@ double wf_summary_value(const void *base, const WfSummaryField *f);
 /* The summary table `wavefuel run` prints: the class table with its fleet row, then the line of fleet values.
  * names[k]: class k's name. */
 void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const char *const *names, size_t n_classes);
+/* The lines after it: each safety-filtered group's counts (group fields printed), then, when the run repaired
+ * overlaps, a warning that its results include repaired collisions. Prints nothing for a run with neither. */
+void wf_summary_print_safety(FILE *out, const WfSummary *s, WfSummaryBoundary b, const WfScenario *sc);
 
 #endif

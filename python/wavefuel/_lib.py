@@ -12,6 +12,7 @@ CHECKOUT_DIR = os.path.dirname(os.path.dirname(PACKAGE_DIR))
 WF_MAX_CLASSES = 16
 WF_MAX_GROUPS = 16
 WF_MAX_MODEL_PARAMS = 32
+WF_MAX_SAFETY_PARAMS = 8
 WF_EINPUT = 2
 
 
@@ -97,7 +98,9 @@ class WfDriverGroup(C.Structure):
                 ("dist", C.c_int), ("fraction", C.c_double), ("count", C.c_long), ("noise_mps2", C.c_double),
                 ("accel_max_mps2", C.c_double), ("decel_max_mps2", C.c_double), ("clip_feasible", C.c_int),
                 ("indices", C.c_void_p), ("n_indices", C.c_size_t), ("placement", C.c_int),
-                ("class_index", C.c_int), ("plugin", C.c_void_p), ("mlp", C.c_void_p)]
+                ("class_index", C.c_int), ("plugin", C.c_void_p), ("mlp", C.c_void_p),
+                ("safety", C.c_void_p),
+                ("safety_params", C.c_double * WF_MAX_SAFETY_PARAMS)]
 
 
 class WfScenario(C.Structure):
@@ -154,6 +157,10 @@ class WfClassSummary(C.Structure):
                                   "trip_time_mean_s")]
 
 
+class WfGroupSummary(C.Structure):
+    _fields_ = [("safety_steps", C.c_int64), ("safety_interventions", C.c_int64), ("safety_share", C.c_double)]
+
+
 class WfSummary(C.Structure):
     _fields_ = [(f, C.c_double) for f in (
         "window_s", "fuel_g", "dist_m", "vkt_km", "vht_h", "l_per_100km", "mpg", "stops_per_vkm",
@@ -161,7 +168,8 @@ class WfSummary(C.Structure):
         "outflow_vph", "infeasible_share", "time_stopped_share")] + [
         ("overlaps", C.c_int64), ("trips", C.c_int64), ("mean_travel_time_s", C.c_double),
         ("mean_trip_fuel_g", C.c_double), ("mean_queue_delay_s", C.c_double), ("counts", WfCorridorCounts),
-        ("on_road", C.c_int64), ("cls", WfClassSummary * WF_MAX_CLASSES)]
+        ("on_road", C.c_int64), ("cls", WfClassSummary * WF_MAX_CLASSES), ("safety_interventions", C.c_int64),
+        ("collisions_repaired", C.c_int64), ("grp", WfGroupSummary * WF_MAX_GROUPS)]
 
 
 class WfSummaryPrint(C.Structure):
@@ -171,17 +179,22 @@ class WfSummaryPrint(C.Structure):
 class WfSummaryField(C.Structure):
     _fields_ = [("name", C.c_char_p), ("units", C.c_char_p), ("desc", C.c_char_p * 2), ("type", C.c_int),
                 ("offset", C.c_size_t), ("fleet_offset", C.c_size_t), ("print", WfSummaryPrint * 2),
-                ("print_mul", C.c_double), ("print_div", C.c_double), ("sweep_only", C.c_int)]
+                ("print_mul", C.c_double), ("print_div", C.c_double), ("sweep_only", C.c_int), ("when", C.c_int)]
 
 
 class WfOutput(C.Structure):
     _fields_ = [(f, C.c_void_p) for f in ("begin", "record", "trajectory", "trips", "checkpoint", "end", "ctx")]
 
 
+class WfRlReward(C.Structure):
+    _fields_ = [("scope_all", C.c_int)] + [(f, C.c_double) for f in ("w_fuel", "gap_min_m", "gap_max_m", "w_gap",
+                                                                      "w_accel", "w_jerk")]
+
+
 # The structures whose layout tests/python/layout.py compares with the C compiler's.
 MIRRORS = (WfError, WfParamSpec, WfEnergyModel, WfVehicleClass, WfRoad, WfOdeConfig, WfClassShare, WfDriverGroup,
-           WfFleet, WfCorridorVehicles, WfCorridorCounts, WfClassSummary, WfSummary, WfSummaryPrint,
-           WfSummaryField, WfOutput, WfScenario)
+           WfFleet, WfCorridorVehicles, WfCorridorCounts, WfClassSummary, WfGroupSummary, WfSummary, WfSummaryPrint,
+           WfSummaryField, WfOutput, WfScenario, WfRlReward)
 # Prefix mirrors: only their fields' offsets are compared, not their sizes.
 PREFIXES = (WfCfModel,)
 
@@ -211,6 +224,16 @@ _SIGNATURES = {
     "wf_sim_group_size": (C.c_size_t, [_vp, C.c_size_t]),
     "wf_sim_observe": (C.c_int, [_vp, C.c_size_t, C.POINTER(C.c_double), C.c_size_t, _err]),
     "wf_sim_set_actions": (C.c_int, [_vp, C.c_size_t, C.POINTER(C.c_double), C.c_size_t, _err]),
+    "wf_sims_step": (C.c_int, [_vp, C.c_size_t, C.c_long, C.c_int, _vp]),
+    "wf_sims_observe": (C.c_int, [_vp, C.c_size_t, _vp, _vp, C.c_size_t, _err]),
+    "wf_sims_set_actions": (C.c_int, [_vp, C.c_size_t, _vp, _vp, C.c_size_t, _err]),
+    "wf_rl_batch_create": (C.c_int, [_vp, C.c_size_t, _vp, C.POINTER(WfRlReward), C.c_long, C.c_double,
+                                     C.POINTER(_vp), _err]),
+    "wf_rl_batch_destroy": (None, [C.POINTER(_vp)]),
+    "wf_rl_batch_rows": (C.c_size_t, [_vp]),
+    "wf_rl_batch_observe": (None, [_vp, _vp]),
+    "wf_rl_batch_prev_accel": (C.POINTER(C.c_double), [_vp]),
+    "wf_rl_batch_step": (C.c_int, [_vp, _vp, C.c_int, _vp, _vp, _vp, _vp]),
     "wf_corridor_vehicles": (C.POINTER(WfCorridorVehicles), [_vp]),
     "wf_corridor_counts": (C.POINTER(WfCorridorCounts), [_vp]),
     "wf_h5out_create": (C.c_int, [_vp, C.c_char_p, C.c_int, C.POINTER(_vp), C.POINTER(WfOutput), _err]),
@@ -226,6 +249,7 @@ _SIGNATURES = {
     "wf_mlp_destroy": (None, [C.POINTER(_vp)]),
     "wf_mlp_eval": (None, [_vp, C.POINTER(C.c_double), C.c_size_t, C.POINTER(C.c_double), C.c_int]),
     "wf_mlp_output": (C.c_int, [_vp]),
+    "wf_summary_field_on": (C.c_int, [C.POINTER(WfSummaryField), _vp]),
     "wf_duty_name": (C.c_char_p, [C.c_int]),
     "wf_fuel_name": (C.c_char_p, [C.c_int]),
 }

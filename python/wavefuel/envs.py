@@ -6,12 +6,14 @@ same API with a small Box of the same fields (low, high, shape, dtype, sample, c
 
 Observations: one row per automated vehicle, in road order, [own speed m/s, leader speed m/s, gap m] (the inputs of
 the next step, Simulation.observe). Actions: one acceleration per automated vehicle, m/s^2, held for
-`action_every` steps; the engine applies the group's limits and noise as to any model. Reward: minus the mean fuel
-rate of every vehicle over the action's steps, g/s per vehicle, from the vehicles' energy models (the classes'
-explicit CIRCLES models): an agent that saves fuel for the whole traffic earns more."""
+`action_every` steps; the engine applies the group's limits and noise as to any model. Reward (reward.py, weights
+in reward.Reward, the `reward` argument): fuel of the automated vehicles and the humans behind them from the
+classes' energy models (g/s per vehicle), minus gap-bound and comfort penalties; info["reward_terms"] has each term
+(their sum is the reward). VectorEnv (vector.py) steps many of them in C at once."""
 import numpy as np
 
-from .energy import VehicleClass
+from .batch import INFO, RlBatch
+from .reward import Reward
 from .scenario import Scenario
 from .simulation import Simulation
 
@@ -51,6 +53,9 @@ def _box(low, high, shape):
 
 
 _Base = _gym.Env if _gym is not None else object
+# Steps between the runs' time-series records: nothing reads them (the runs write no file), and a record every
+# step costs a quarter of a 22-vehicle ring's step.
+_RECORD_STEPS = 1000
 
 
 class _ExternalEnv(_Base):
@@ -59,9 +64,10 @@ class _ExternalEnv(_Base):
     metadata = {"render_modes": []}
     AV = "av"  # the external driver group's name in the generated scenarios
 
-    def __init__(self, n_av, accel_min_mps2, accel_max_mps2, horizon_s, dt_s, action_every, threads):
+    def __init__(self, n_av, accel_min_mps2, accel_max_mps2, horizon_s, dt_s, action_every, threads, reward):
         self.n_av, self.horizon_s, self.dt_s, self.action_every = n_av, horizon_s, dt_s, int(action_every)
         self.threads = threads
+        self.reward = reward if reward is not None else Reward()
         self.observation_space = _box(0.0, np.inf, (n_av, 3))
         self.action_space = _box(accel_min_mps2, accel_max_mps2, (n_av,))
         self.sim = None
@@ -71,65 +77,34 @@ class _ExternalEnv(_Base):
     def _scenario(self):
         raise NotImplementedError
 
-    def _observe(self):
-        obs = self.sim.observe(self.AV)
-        if obs.shape != (self.n_av, 3):
-            raise RuntimeError(f"{obs.shape[0]} automated vehicles on the road, expected {self.n_av}")
-        return obs
-
-    def _fuel_rate(self, before, after):
-        """Mean fuel rate of the vehicles present at both instants over the steps between (g/s per vehicle): each
-        vehicle's class model at its speed and the acceleration that took it from one speed to the other."""
-        keep = np.intersect1d(before["id"], after["id"])
-        if keep.size == 0:
-            return 0.0
-        i0 = np.searchsorted(before["id"], keep, sorter=before["order"])
-        i1 = np.searchsorted(after["id"], keep, sorter=after["order"])
-        v0 = before["v"][before["order"][i0]]
-        v1 = after["v"][after["order"][i1]]
-        cls = before["cls"][before["order"][i0]]
-        dt = self.dt_s * self.action_every
-        a = (v1 - v0) / dt
-        total = 0.0
-        for k, vc in enumerate(self._classes):
-            m = cls == k
-            if m.any():
-                total += float(np.sum(vc.fuel(v0[m], a[m], 0.0)))
-        return total / keep.size
-
-    def _snapshot(self):
-        s = self.sim.state()
-        ids = s["serial"] if "serial" in s else np.arange(s["v_mps"].size)
-        return {"id": np.asarray(ids, np.int64), "order": np.argsort(ids, kind="stable"),
-                "v": np.array(s["v_mps"]), "cls": np.array(s["class_id"])}
-
     def reset(self, seed=None, options=None):
         if seed is not None:
             self.np_random = np.random.default_rng(seed)
-        if self.sim is not None:
-            self.sim.close()
+        self.close()
         self.scenario_dict = self._scenario()  # the episode's scenario, as drawn
         self.sim = Simulation(Scenario.from_dict(self.scenario_dict), threads=self.threads)
-        self._classes = [VehicleClass(name) for name in self.sim.scenario.classes]
         self._warm()
         self.t0 = self.sim.t
-        return self._observe(), {"t": self.sim.t}
+        self._rl = RlBatch([self.sim], [self.AV], self.reward, self.action_every, self.dt_s)
+        if self._rl.n_rows != self.n_av:
+            raise RuntimeError(f"{self._rl.n_rows} automated vehicles on the road, expected {self.n_av}")
+        return self._rl.obs.reshape(self.n_av, 3).copy(), {"t": self.sim.t}
 
     def _warm(self):
         """Steps before the agent acts (the automated vehicles drive as acc meanwhile)."""
 
     def step(self, action):
-        u = np.asarray(action, np.float64).reshape(self.n_av)
-        self.sim.set_actions(self.AV, np.clip(u, self.action_space.low, self.action_space.high))
-        before = self._snapshot()
-        self.sim.step(self.action_every)
-        after = self._snapshot()
-        rate = self._fuel_rate(before, after)
+        u = np.clip(np.asarray(action, np.float64).reshape(self.n_av), self.action_space.low, self.action_space.high)
+        obs, r, info = self._rl.step(u, 1)
         truncated = self.sim.t - self.t0 >= self.horizon_s - 1e-9
-        info = {"t": self.sim.t, "fuel_rate_gps": rate, "mean_speed_mps": float(np.mean(after["v"]))}
-        return self._observe(), -rate, False, truncated, info
+        out = {"t": self.sim.t, "fuel_rate_gps": float(info[0, 3]), "mean_speed_mps": float(info[0, 4]),
+               "reward_terms": {k: float(info[0, i]) for i, k in enumerate(INFO[:3])}}
+        return obs.reshape(self.n_av, 3).copy(), float(r[0]), False, truncated, out
 
     def close(self):
+        if getattr(self, "_rl", None) is not None:
+            self._rl.close()
+            self._rl = None
         if self.sim is not None:
             self.sim.close()
             self.sim = None
@@ -142,8 +117,9 @@ class RingEnv(_ExternalEnv):
 
     def __init__(self, n_vehicles=22, n_av=1, length_range_m=(220.0, 270.0), horizon_s=300.0, warmup_s=60.0,
                  dt_s=0.1, action_every=1, noise_mps2=0.2, vehicle_class="midsize_sedan", threads=1,
-                 accel_range_mps2=(-3.0, 3.0)):
-        super().__init__(n_av, accel_range_mps2[0], accel_range_mps2[1], horizon_s, dt_s, action_every, threads)
+                 accel_range_mps2=(-3.0, 3.0), reward=None):
+        super().__init__(n_av, accel_range_mps2[0], accel_range_mps2[1], horizon_s, dt_s, action_every, threads,
+                         reward)
         self.n_vehicles, self.length_range_m, self.warmup_s = n_vehicles, tuple(length_range_m), warmup_s
         self.noise_mps2, self.vehicle_class = noise_mps2, vehicle_class
 
@@ -154,7 +130,7 @@ class RingEnv(_ExternalEnv):
             "road": {"length_m": length},
             # One step more than the episode: the run never reaches its end inside an episode.
             "time": {"duration_s": self.warmup_s + self.horizon_s + 2 * self.dt_s, "dt_s": self.dt_s,
-                     "output_interval_s": self.dt_s, "warmup_s": 0},
+                     "output_interval_s": _RECORD_STEPS * self.dt_s, "warmup_s": 0},
             "fleet": {"vehicles": self.n_vehicles, "placement": "interleaved",
                       "classes": [{"class": self.vehicle_class, "fraction": 1.0}],
                       "drivers": [{"name": "human", "model": "idm", "count": self.n_vehicles - self.n_av,
@@ -178,7 +154,8 @@ class TrajectoryEnv(_ExternalEnv):
     length by default)."""
 
     def __init__(self, trace, n_vehicles=20, humans_per_av=4, horizon_s=None, dt_s=0.1, action_every=1,
-                 noise_mps2=0.0, vehicle_class="midsize_sedan", threads=1, accel_range_mps2=(-3.0, 3.0)):
+                 noise_mps2=0.0, vehicle_class="midsize_sedan", threads=1, accel_range_mps2=(-3.0, 3.0),
+                 reward=None):
         if isinstance(trace, (str, bytes)) or hasattr(trace, "__fspath__"):
             data = np.loadtxt(trace, delimiter=",", skiprows=1, ndmin=2)
             t, v = data[:, 0], data[:, 1]
@@ -190,7 +167,7 @@ class TrajectoryEnv(_ExternalEnv):
             raise ValueError(f"n_vehicles {n_vehicles} holds no automated vehicle at one per {humans_per_av} humans")
         span = float(self.trace_t[-1])
         super().__init__(n_av, accel_range_mps2[0], accel_range_mps2[1], horizon_s or span, dt_s, action_every,
-                         threads)
+                         threads, reward)
         self.n_vehicles, self.humans_per_av = n_vehicles, humans_per_av
         self.noise_mps2, self.vehicle_class = noise_mps2, vehicle_class
         # The leader's path: the fill at the trace's first speed, then the trace; 1 km to spare.
@@ -204,7 +181,7 @@ class TrajectoryEnv(_ExternalEnv):
             "name": "trajectory_env", "seed": int(self.np_random.integers(1, 2**31)),
             "road": {"type": "corridor", "length_m": self.length_m},
             "time": {"duration_s": fill_s + self.horizon_s + 2 * self.dt_s, "dt_s": self.dt_s,
-                     "output_interval_s": self.dt_s, "warmup_s": 0},
+                     "output_interval_s": _RECORD_STEPS * self.dt_s, "warmup_s": 0},
             "fleet": {"placement": "interleaved", "classes": [{"class": self.vehicle_class, "fraction": 1.0}],
                       "drivers": [{"name": "human", "model": "idm", "fraction": 1.0 - share,
                                    "noise_mps2": self.noise_mps2},
@@ -226,3 +203,7 @@ class TrajectoryEnv(_ExternalEnv):
         self.sim.step(int(round(self._fill_s() / self.dt_s)))
         if self.sim.n_vehicles < self.n_vehicles:
             raise RuntimeError(f"{self.sim.n_vehicles} of {self.n_vehicles} vehicles entered during the fill")
+
+
+# VectorEnv steps these environments in batches (vector.py imports this module: imported last).
+from .vector import VectorEnv  # noqa: E402,F401

@@ -261,7 +261,9 @@ class Simulation:
     @property
     def summary(self):
         """The run's summary once it has ended (docs/metrics.md): {name: Quantity(value, units)} with the fields
-        of /summary for this road, and "classes": {class name: {name: Quantity}} with the per-class fields."""
+        of /summary for this road, "classes": {class name: {name: Quantity}} with the per-class fields and, when
+        some driver group has a safety filter (docs/controllers.md#safety-filters), "groups": {group name:
+        {name: Quantity}} with the per-group fields (its filter's interventions)."""
         self._alive()
         if not self.done:
             raise _lib.WavefuelError(f"{self.scenario.path}: the summary exists once the run has ended "
@@ -273,7 +275,7 @@ class Simulation:
         def values(fields, addr):
             out = {}
             for f in fields:
-                if f.desc[b] is None:
+                if f.desc[b] is None or not lib.wf_summary_field_on(C.byref(f), self.scenario._ptr):
                     continue
                 v = lib.wf_summary_value(addr, C.byref(f))
                 out[text(f.name)] = Quantity(v if f.type == _SUMMARY_F64 else int(v), text(f.units))
@@ -284,6 +286,12 @@ class Simulation:
         cls0 = base + _lib.WfSummary.cls.offset
         res["classes"] = {name: values(cls_fields, cls0 + k * C.sizeof(_lib.WfClassSummary))
                           for k, name in enumerate(self.scenario.classes)}
+        grp_fields = _lib.table("wf_summary_group_fields", _lib.WfSummaryField, "wf_summary_n_group_fields")
+        grp0 = base + _lib.WfSummary.grp.offset
+        groups = {name: values(grp_fields, grp0 + k * C.sizeof(_lib.WfGroupSummary))
+                  for k, name in enumerate(self.scenario.groups)}
+        if any(groups.values()):
+            res["groups"] = groups
         return res
 
     # ------------------------------------------------------------------------------------- lifetime

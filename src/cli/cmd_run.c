@@ -74,7 +74,9 @@ static void print_summary(const WfSim *sim, const char *path)
     printf("statistics window: %.6g s after %.6g s warm-up\n\n", s->window_s, sc->warmup_s);
     const char *names[WF_MAX_CLASSES];
     for (size_t c = 0; c < sc->n_classes; c++) names[c] = sc->classes[c].vc.name;
-    wf_summary_print(stdout, s, wf_sim_corridor(sim) ? WF_SUMMARY_CORRIDOR : WF_SUMMARY_RING, names, sc->n_classes);
+    WfSummaryBoundary b = wf_sim_corridor(sim) ? WF_SUMMARY_CORRIDOR : WF_SUMMARY_RING;
+    wf_summary_print(stdout, s, b, names, sc->n_classes);
+    wf_summary_print_safety(stdout, s, b, sc);
     printf("result: %s\n", path);
 }
 

@@ -119,6 +119,25 @@ AI void post_rule(const WfScenario *sc, const WfDriverGroup *grp, size_t cnt, co
     }
 }
 
+/* The group's safety filter, the last rule: a' = a > bound ? max(bound, -decel_max) : a, on the step's inputs (gap,
+ * own and leader speed). Returns the vehicles whose acceleration it lowered (an integer sum: vectorises without
+ * reassociating anything written out). */
+AI size_t safety_rule(const WfDriverGroup *grp, double dt, size_t cnt, const double *gap, const double *v,
+                      const double *vl, double *restrict a)
+{
+    double lim[B], dmax = grp->decel_max_mps2;
+    size_t hits = 0;
+    grp->safety->bound(grp->safety_params, dt, cnt, gap, v, vl, lim);
+#pragma omp simd reduction(+ : hits)
+    for (size_t j = 0; j < cnt; j++) {
+        double floor_a = lim[j] > -dmax ? lim[j] : -dmax;
+        double ai = a[j] > lim[j] ? floor_a : a[j];
+        hits += (size_t)(ai < a[j]);
+        a[j] = ai;
+    }
+    return hits;
+}
+
 /* The parameters of the vehicle in slot i of group g (its zone's copy in buf when the group is zoned). */
 static inline const void *params_of(const WfLane *ln, size_t g, size_t i, double x, double *buf)
 {
@@ -128,10 +147,10 @@ static inline const void *params_of(const WfLane *ln, size_t g, size_t i, double
 
 /* Accelerations of the cnt vehicles of group g in a block (slots lo + k[j], or lo + j when k is NULL) from their
  * gathered inputs: the model's block kernel when the parameters are one shared block or consecutive, else accel()
- * per vehicle; then the post-rule. */
+ * per vehicle; then the post-rule and the group's safety filter (counted into co when co is not NULL). */
 AI void accel_group(const WfLane *ln, size_t g, size_t lo, const uint32_t *k, size_t cnt, const double *x,
                     const double *gap, const double *v, const double *vl, const double *th, const double *z,
-                    const double *cap, const uint16_t *cls, double *a)
+                    const double *cap, const uint16_t *cls, double *a, WfChunkOut *co)
 {
     const WfDriverGroup *grp = &ln->sc->groups[g];
     const WfCfModel *m = grp->model;
@@ -148,6 +167,10 @@ AI void accel_group(const WfLane *ln, size_t g, size_t lo, const uint32_t *k, si
         }
     }
     post_rule(ln->sc, grp, cnt, v, th, z, cap, cls, a);
+    if (grp->safety) {
+        size_t hits = safety_rule(grp, ln->sc->dt_s, cnt, gap, v, vl, a);
+        if (co) co->safety_hits[g] += hits, co->safety_steps[g] += cnt;
+    }
 }
 
 AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
@@ -184,14 +207,14 @@ void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, cons
     energy_block(ln, lo, n, v, a, th, fr, fl);
 }
 
-/* Accelerations of a block, group by group (gathered when the block mixes groups). */
+/* Accelerations of a block, group by group (gathered when the block mixes groups); co: see accel_group. */
 AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, const double *v, const double *z,
-                    const double *cap, Blk *b)
+                    const double *cap, Blk *b, WfChunkOut *co)
 {
     const WfScenario *sc = ln->sc;
     const uint16_t *cid = ln->class_id + lo, *gid = ln->group_id + lo;
     if (sc->n_groups == 1) {
-        accel_group(ln, 0, lo, NULL, m, x, b->gap, v, b->vl, b->th, z, cap, cid, b->a);
+        accel_group(ln, 0, lo, NULL, m, x, b->gap, v, b->vl, b->th, z, cap, cid, b->a, co);
         return;
     }
     double gg[B], gv[B], gl[B], gt[B], gz[B], gc[B], ga[B];
@@ -208,7 +231,7 @@ AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, cons
             gz[j] = ln->noisy ? z[k] : 0.0;
             gc[j] = cap ? cap[k] : 0.0;
         }
-        accel_group(ln, g, lo, idx, cnt, x, gg, gv, gl, gt, gz, cap ? gc : NULL, gcl, ga);
+        accel_group(ln, g, lo, idx, cnt, x, gg, gv, gl, gt, gz, cap ? gc : NULL, gcl, ga, co);
         for (size_t j = 0; j < cnt; j++) b->a[idx[j]] = ga[j];
     }
 }
@@ -229,9 +252,9 @@ static void lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
 }
 
 /* Inputs at the step's start, accelerations and (WF_PASS_ENERGY) fuel rates of the block in slots [lo, lo + m);
- * its last vehicle's leader is ld. */
+ * its last vehicle's leader is ld; co: where a counting pass counts the safety filters' interventions, or NULL. */
 AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass,
-                     WfStatsBlock *rec, Blk *b)
+                     WfStatsBlock *rec, Blk *b, WfChunkOut *co)
 {
     const WfScenario *sc = ln->sc;
     const double *x = ln->x_m + lo, *v = ln->v_mps + lo;
@@ -254,7 +277,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     else
         memset(b->th, 0, m * sizeof *b->th);
     int capped = ln->ops->cap && ln->ops->cap(ln->ctx, m, x, v, cap);
-    accel_block(ln, lo, m, x, v, z, capped ? cap : NULL, b);
+    accel_block(ln, lo, m, x, v, z, capped ? cap : NULL, b, co);
     if (pass & WF_PASS_ENERGY) {
         energy_block(ln, lo, m, v, b->a, b->th, b->fr, b->fl);
         if (rec) wf_stats_block(m, v, b->gap, b->fr, cid, sc->n_classes, sc, rec);
@@ -407,16 +430,17 @@ AI int advance_block(WfLane *ln, size_t lo, size_t m, const double *a, const dou
     return flags | stats_after(ln, lo, m, xo, in_window);
 }
 
-/* One block of a pass: slots [lo, lo + m), its last vehicle's leader ld, rec its record's partial sums or NULL. */
+/* One block of a pass: slots [lo, lo + m), its last vehicle's leader ld, rec its record's partial sums or NULL, co
+ * the chunk's safety counts (NULL: not a counting pass). */
 WF_SIMD_CLONES
 static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass, int in_window,
-                     WfStatsBlock *rec)
+                     WfStatsBlock *rec, WfChunkOut *co)
 {
     Blk b;
     if (!(pass & WF_PASS_ACCEL))
         return advance_block(ln, lo, m, ln->out.a_mps2 + lo, ln->out.gap_m + lo, ln->out.v_lead_mps + lo, ln->out.fuel_rate_gps + lo,
                              ln->out.flag + lo, in_window);
-    inputs_block(ln, lo, m, ld, step, pass, rec, &b);
+    inputs_block(ln, lo, m, ld, step, pass, rec, &b, co);
     if (ln->out.a_mps2) memcpy(ln->out.a_mps2 + lo, b.a, m * sizeof *b.a);
     if (ln->out.gap_m) memcpy(ln->out.gap_m + lo, b.gap, m * sizeof *b.gap);
     if (ln->out.v_lead_mps) memcpy(ln->out.v_lead_mps + lo, b.vl, m * sizeof *b.vl);
@@ -469,9 +493,10 @@ static int edge_overlap(const WfLane *ln, size_t i, size_t l, double shift)
     return xl - ln->class_length_m[ln->class_id[l]] - ln->x_m[i] < 0.0 ? WF_STEP_OVERLAP : 0;
 }
 
-/* Blocks [b0, b1) of one chunk, in order; (xs, vs): the chunk's last leader, saved before any update. */
+/* Blocks [b0, b1) of one chunk, in order; (xs, vs): the chunk's last leader, saved before any update; co: see
+ * run_block. */
 static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, size_t nb, double xs, double vs,
-                     const WfLead *front, long step, int pass, int in_window, WfStatsBlock *rec)
+                     const WfLead *front, long step, int pass, int in_window, WfStatsBlock *rec, WfChunkOut *co)
 {
     int fl = 0;
     size_t prev_last = 0;
@@ -484,7 +509,7 @@ static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, s
             ld = (WfLead){xs - ln->class_length_m[ln->class_id[nx]], vs, 0.0};
         else
             ld = (WfLead){ln->x_m[nx] - ln->class_length_m[ln->class_id[nx]], ln->v_mps[nx], 0.0};
-        fl |= run_block(ln, lo, m, &ld, step, pass, in_window, rec ? rec + b : NULL);
+        fl |= run_block(ln, lo, m, &ld, step, pass, in_window, rec ? rec + b : NULL, co);
         if ((pass & WF_PASS_ADVANCE) && ln->ops->moved) ln->ops->moved(ln->ctx, lo, m);
         /* The previous block's edge, while both blocks are in cache. */
         if ((pass & WF_PASS_ADVANCE) && b > b0) fl |= edge_overlap(ln, prev_last, lo, 0.0);
@@ -501,6 +526,32 @@ static int chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_
     return ln->period_m > 0.0 && n > 1 ? edge_overlap(ln, last, first, ln->period_m) : 0;
 }
 
+void wf_lane_safety_init(WfLane *ln)
+{
+    ln->safe = 0;
+    for (size_t g = 0; g < ln->sc->n_groups; g++) ln->safe |= ln->sc->groups[g].safety != NULL;
+    memset(&ln->safety, 0, sizeof ln->safety);
+}
+
+void wf_lane_safety_summary(const WfLane *ln, WfSummary *s)
+{
+    for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
+        s->grp[g].safety_steps = (int64_t)ln->safety.steps[g];
+        s->grp[g].safety_interventions = (int64_t)ln->safety.hits[g];
+    }
+    wf_summary_safety_totals(s);
+}
+
+/* The chunks' counts of a counting pass into the run's: integer sums, so the same whatever the chunks. */
+static void safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
+{
+    for (int t = 0; t < nth; t++)
+        for (size_t g = 0; g < ln->sc->n_groups; g++) {
+            ln->safety.steps[g] += cf[t].safety_steps[g];
+            ln->safety.hits[g] += cf[t].safety_hits[g];
+        }
+}
+
 /* Positions and speeds are updated in place. Race-free and order-free because every vehicle reads only its
  * leader's values from the step's start: within a chunk, vehicle i's leader i + 1 is updated after i; the leader
  * of a chunk's last vehicle is the next chunk's first (or the periodic back vehicle), saved before any update. */
@@ -511,15 +562,21 @@ int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long s
     size_t nb = wf_lane_blocks(first, n);
     int nth = n >= WF_PAR_MIN ? ln->nthreads : 1;
     if ((size_t)nth > nb) nth = (int)nb;
-    int adv = (pass & WF_PASS_ADVANCE) != 0, flags = 0, *cf = ln->chunk_flags;
+    int adv = (pass & WF_PASS_ADVANCE) != 0, count = (pass & WF_PASS_COUNT) && ln->safe, flags = 0;
+    WfChunkOut *cf = ln->chunks;
     double *bx = ln->bound_x, *bv = ln->bound_v;
-    for (int t = 0; t < nth; t++) cf[t] = 0;
+    for (int t = 0; t < nth; t++) {
+        cf[t].flags = 0;
+        if (count) memset(cf[t].safety_steps, 0, sizeof cf[t].safety_steps), memset(cf[t].safety_hits, 0, sizeof cf[t].safety_hits);
+    }
     if (nth <= 1) {
         /* Small roads: no OpenMP region at all (even a one-thread region costs runtime calls every step). */
-        flags = run_chunk(ln, first, n, 0, nb, nb, ln->x_m[first], ln->v_mps[first], front, step, pass, in_window, rec);
+        flags = run_chunk(ln, first, n, 0, nb, nb, ln->x_m[first], ln->v_mps[first], front, step, pass, in_window, rec,
+                          count ? cf : NULL);
+        if (count) safety_add(ln, cf, 1);
         return adv ? flags | chunk_edge(ln, first, n, nb, nb) : 0;
     }
-#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bx, bv, front, step, pass, in_window, rec, adv, cf)
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bx, bv, front, step, pass, in_window, rec, adv, cf, count)
     {
         /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
          * actually running. */
@@ -535,11 +592,13 @@ int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long s
 #pragma omp barrier
         /* Leader of this chunk's last vehicle: the next chunk's first, saved (the front's: chunk 0's, saved). */
         int tn = t + 1 < nt ? t + 1 : 0;
-        int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, bx[tn], bv[tn], front, step, pass, in_window, rec) : 0;
+        int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, bx[tn], bv[tn], front, step, pass, in_window, rec,
+                                     count ? &cf[t] : NULL) : 0;
 #pragma omp barrier
         if (adv && b1 > b0) fl |= chunk_edge(ln, first, n, b1, nb);
-        cf[t] = fl;
+        cf[t].flags = fl;
     }
-    for (int t = 0; t < nth; t++) flags |= cf[t];
+    for (int t = 0; t < nth; t++) flags |= cf[t].flags;
+    if (count) safety_add(ln, cf, nth);
     return adv ? flags : 0;
 }

@@ -1,8 +1,8 @@
 /* The block kernel: one time step of a road's vehicles, block by block of WF_BLOCK consecutive vehicles (road
  * order, leader of vehicle i is i + 1), shared by every boundary. Per block: noise, inputs (gap, leader speed,
- * grade), car-following acceleration and its post-rule (noise, group limits, feasible clip, per-vehicle cap), fuel
- * rate, the record's partial sums, controller memory, left-point statistics, integration and the statistics of the
- * new state. A boundary (the periodic ring in engine.c, the open corridor in corridor.c) describes its storage as a
+ * grade), car-following acceleration and its post-rule (noise, group limits, feasible clip, per-vehicle cap, the
+ * group's safety filter), fuel rate, the record's partial sums, controller memory, left-point statistics,
+ * integration and the statistics of the new state. A boundary (the periodic ring in engine.c, the open corridor in corridor.c) describes its storage as a
  * WfLane and its road features as a WfRoadOps; the vehicles of a step are a logical range of at most two contiguous
  * runs of slots in a circular buffer whose capacity is a multiple of WF_BLOCK, so a block never wraps. */
 #ifndef WAVEFUEL_CORE_BLOCK_H
@@ -17,6 +17,7 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/scenario.h"
 #include "wavefuel/stats.h"
+#include "wavefuel/summary.h"
 #include "util/clock.h"
 
 /* Vehicles per block; also the ring's noise block (changing it changes the draws) and its statistics block. */
@@ -27,6 +28,9 @@
  * statistics, integration). All three in one pass is the fused step; the first two alone export the step's values
  * into the lane's arrays for the outputs, and the advance alone then reads them back. */
 enum { WF_PASS_ACCEL = 1, WF_PASS_ENERGY = 2, WF_PASS_ADVANCE = 4, WF_PASS_FUSED = 7 };
+/* Added to the pass whose accelerations the step applies (not a final instant's record, nor an adaptive solver's
+ * right-hand side): that pass counts the safety filters' interventions. Every pass applies the filters. */
+enum { WF_PASS_COUNT = 8 };
 /* Flags a step returns: some vehicle overlaps its leader, or has a non-finite state, acceleration or fuel rate. */
 enum { WF_STEP_OVERLAP = 1, WF_STEP_FAULT = 2 };
 
@@ -36,6 +40,19 @@ typedef struct WfAccum {
     double   *fuel_g, *stopped_s, *dist_m, *sum_v, *sum_v2, *sum_a, *sum_a2;
     uint32_t *stopped_steps, *steps, *stops, *hard_brakes, *infeasible;
 } WfAccum;
+
+/* What one thread's chunk of a pass reports: its WF_STEP_* flags and, in a counting pass, per driver group, the
+ * vehicle-steps under a safety filter and those whose acceleration the filter changed. */
+typedef struct WfChunkOut {
+    int      flags;
+    uint64_t safety_steps[WF_MAX_GROUPS], safety_hits[WF_MAX_GROUPS];
+} WfChunkOut;
+
+/* Safety-filter counts of a run so far, per driver group (summed over the chunks of every counting pass: integers,
+ * so the same for any thread count); the boundary saves them in its checkpoints when some group has a filter. */
+typedef struct WfSafetyCount {
+    uint64_t steps[WF_MAX_GROUPS], hits[WF_MAX_GROUPS];
+} WfSafetyCount;
 
 /* The front vehicle's leader on an open road: a rear bumper at rear_m driving at v_mps, or, when free_gap_m > 0, a
  * far leader at that gap driving at the vehicle's own speed. */
@@ -89,8 +106,15 @@ typedef struct WfLane {
     double   *x_old_m;              /* positions at the step's start, per slot (NULL: not kept) */
     int       noisy, stateful, nthreads;
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
-    int      *chunk_flags;          /* nthreads + 1 */
+    WfChunkOut *chunks;             /* nthreads + 1 */
+    int       safe;                 /* some driver group has a safety filter (set by wf_lane_safety_init) */
+    WfSafetyCount safety;           /* the counts of the counting passes so far */
 } WfLane;
+
+/* After a boundary filled its lane: whether any group has a safety filter, counts zeroed. */
+void wf_lane_safety_init(WfLane *ln);
+/* The lane's safety counts into the run's summary (groups without a filter stay 0). */
+void wf_lane_safety_summary(const WfLane *ln, WfSummary *s);
 
 /* One pass of step `step` over the logical range of n vehicles from slot `first` (road order, wrapping at cap).
  * front: the front vehicle's leader (ignored when periodic). rec: the record's partial sums, one per block, or

@@ -117,7 +117,7 @@ struct WfCorridor {
     WfLane   lane;
     WfRoadOps ops;
     double  *bound_x, *bound_v;
-    int     *chunk_flags;
+    WfChunkOut *chunks;
     int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
 };
 
@@ -143,7 +143,7 @@ static void corridor_destroy(void *eng)
 #undef FREE
     void *arrays[] = {c->veh.params, c->veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
                       c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g, c->edie.grade_mean_rad,
-                      c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunk_flags};
+                      c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunks};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     free(c);
 }
@@ -557,8 +557,8 @@ static int lane_init(WfCorridor *c, WfError *err)
     size_t nt = (size_t)c->nthreads + 1;
     c->bound_x = calloc(nt, sizeof(double));
     c->bound_v = calloc(nt, sizeof(double));
-    c->chunk_flags = calloc(nt, sizeof(int));
-    if (!c->bound_x || !c->bound_v || !c->chunk_flags) return wf_err(err, WF_ESYS, "out of memory");
+    c->chunks = calloc(nt, sizeof *c->chunks);
+    if (!c->bound_x || !c->bound_v || !c->chunks) return wf_err(err, WF_ESYS, "out of memory");
     c->has_cap = isfinite(sc->road.speed_limit_mps);
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
@@ -568,7 +568,7 @@ static int lane_init(WfCorridor *c, WfError *err)
     *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = c, .cap = vh->cap, .x_m = vh->x_m, .v_mps = vh->v_mps,
                    .class_id = vh->class_id, .group_id = vh->group_id, .grade_seg = c->grade_seg, .mode = c->mode,
                    .x_old_m = c->xold, .nthreads = c->nthreads, .bound_x = c->bound_x, .bound_v = c->bound_v,
-                   .chunk_flags = c->chunk_flags};
+                   .chunks = c->chunks};
     for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
     for (size_t g = 0; g < sc->n_groups; g++) {
         const WfDriverGroup *grp = &sc->groups[g];
@@ -584,6 +584,7 @@ static int lane_init(WfCorridor *c, WfError *err)
     }
     ln->always = c->trip;
     ln->window = c->win;
+    wf_lane_safety_init(ln);
     return 0;
 }
 
@@ -1065,7 +1066,8 @@ static int corridor_step(void *eng, long step, WfError *err)
     int two_pass = records || traj || last, flags;
     lane_exports(c, two_pass);
     if (two_pass) {
-        wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ACCEL | WF_PASS_ENERGY, in_window, NULL);
+        wf_lane_step(&c->lane, vh->first, vh->n, &front, step,
+                     WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window, NULL);
         if (records) {
             WfCorridorRow row;
             record(c, t, &row);
@@ -1077,7 +1079,7 @@ static int corridor_step(void *eng, long step, WfError *err)
         if (last) return WF_LOOP_END;
         flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ADVANCE, in_window, NULL);
     } else {
-        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_FUSED, in_window, NULL);
+        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
     }
     advance_leader(c, t_next);
     phase_overlaps(c, in_window, flags ? vh->n : c->has_vl ? 1 : 0);
@@ -1094,6 +1096,7 @@ static int corridor_close(void *eng, WfError *err)
     for (size_t k = 0; !rc && k < c->veh.n; k++) rc = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, err);
     if (!rc) rc = flush_trips(c, err);
     summarize(c);
+    wf_lane_safety_summary(&c->lane, &c->sim->summary);
     return rc;
 }
 
@@ -1134,6 +1137,7 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
     VAR("edie_fuel", c->edie.fuel_g, ne);
     VAR("edie_class_dist", c->edie.class_dist_m, ncx);
     VAR("edie_class_fuel", c->edie.class_fuel_g, ncx);
+    if (c->lane.safe) VAR("safety", &c->lane.safety, 1); /* absent without a safety filter */
 #undef VAR
     return k;
 }

@@ -29,7 +29,7 @@ typedef struct WfRing {
     int      repaired;      /* the last step repaired an overlap */
     double   phase_s[WF_N_PHASES]; /* wall time per phase */
     double  *bound_x, *bound_v;    /* each chunk's first vehicle at the step's start */
-    int     *chunk_flags;          /* flags raised by each thread's chunk */
+    WfChunkOut *chunks;            /* what each thread's chunk reports */
     long     fault_vehicle;         /* first vehicle with a non-finite state, or -1 */
     struct {                       /* scalars of the state, packed for wf_sim_state */
         int64_t steps_done, overlaps, n_sd, repaired, window_open;
@@ -47,7 +47,7 @@ static void ring_destroy(void *eng)
     WfRing *s = eng;
     wf_fleet_destroy(&s->f);
     free(s->stat_blocks);
-    free(s->chunk_flags);
+    free(s->chunks);
     wf_ode_destroy(&s->ode);
     free(s->xold);
     free(s->vold);
@@ -89,7 +89,7 @@ static void lane_init(WfRing *s)
                    .x_m = f->x_m, .v_mps = f->v_mps, .class_id = f->class_id, .group_id = f->group_id,
                    .slot = f->slot, .grade_seg = f->grade_seg, .mode = f->mode, .x_old_m = s->xold,
                    .noisy = s->noisy, .stateful = s->stateful, .nthreads = s->nthreads, .bound_x = s->bound_x,
-                   .bound_v = s->bound_v, .chunk_flags = s->chunk_flags};
+                   .bound_v = s->bound_v, .chunks = s->chunks};
     for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
     for (size_t g = 0; g < f->n_groups; g++) {
         ln->params[g] = f->group_params[g];
@@ -100,6 +100,7 @@ static void lane_init(WfRing *s)
     ln->window = (WfAccum){.fuel_g = f->fuel_g, .sum_v = f->sum_v, .sum_v2 = f->sum_v2, .sum_a = f->sum_a,
                            .sum_a2 = f->sum_a2, .stopped_steps = f->stopped_steps, .stops = f->stops,
                            .hard_brakes = f->hard_brakes, .infeasible = f->infeasible_steps};
+    wf_lane_safety_init(ln);
 }
 
 /* The step's values go to the fleet's arrays (steps in two passes) or stay in the kernel's blocks (fused). */
@@ -148,8 +149,8 @@ static int ring_create(WfSim *sim, WfError *err)
     for (size_t g = 0; g < sc->n_groups; g++) s->stateful |= sc->groups[g].model->state_size > 0;
     s->bound_x = malloc(((size_t)s->nthreads + 1) * sizeof(double));
     s->bound_v = malloc(((size_t)s->nthreads + 1) * sizeof(double));
-    s->chunk_flags = calloc((size_t)s->nthreads + 1, sizeof(int));
-    if (!s->stat_blocks || !s->bound_x || !s->bound_v || !s->chunk_flags)
+    s->chunks = calloc((size_t)s->nthreads + 1, sizeof *s->chunks);
+    if (!s->stat_blocks || !s->bound_x || !s->bound_v || !s->chunks)
         rc = wf_err(err, WF_ESYS, "out of memory");
     if (!rc && sc->adaptive) rc = ode_init(s, err);
     if (!rc) lane_init(s);
@@ -304,7 +305,7 @@ static int ring_step(void *eng, long step, WfError *err)
     if (step == s->warm_steps && !s->f->window_open) wf_fleet_open_window(s->f);
     lane_exports(s, !fused);
     s->cur_step = step;
-    int pass = fused && !last ? WF_PASS_FUSED : WF_PASS_ACCEL | WF_PASS_ENERGY;
+    int pass = (fused && !last ? WF_PASS_FUSED : WF_PASS_ACCEL | WF_PASS_ENERGY) | (last ? 0 : WF_PASS_COUNT);
     int flags = wf_lane_step(ln, 0, n, NULL, step, pass, in_window, records ? s->stat_blocks : NULL);
     lap(s, fused ? WF_PHASE_FUSED : WF_PHASE_CAR_FOLLOWING, &tp);
     if (records) {
@@ -338,6 +339,7 @@ static int ring_close(void *eng, WfError *err)
     WfRing *s = eng;
     long window = s->steps_done - s->warm_steps;
     wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->sim->summary);
+    wf_lane_safety_summary(&s->lane, &s->sim->summary);
     return 0;
 }
 
@@ -388,6 +390,7 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
     VAR("hard_brakes", f->hard_brakes, n * sizeof *f->hard_brakes);
     VAR("infeasible_steps", f->infeasible_steps, n * sizeof *f->infeasible_steps);
     VAR("mode", f->mode, n * sizeof *f->mode);
+    if (s->lane.safe) VAR("safety", &s->lane.safety, sizeof s->lane.safety); /* absent without a safety filter */
     static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",
                                                            "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
                                                            "ctrl12", "ctrl13", "ctrl14", "ctrl15"};

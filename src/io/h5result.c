@@ -177,10 +177,12 @@ static int write_classes_drivers(hid_t fid, const WfH5Boundary *b, const WfH5Run
         names[c] = vc->name, labels[c] = vc->label, fuels[c] = wf_fuel_name(vc->fuel), duty[c] = wf_duty_name(vc->duty);
         len[c] = sc->classes[c].length_m, dens[c] = vc->fuel_density_g_per_l, kw[c] = vc->kw_per_gps;
     }
-    const char *gn[WF_MAX_GROUPS], *gm[WF_MAX_GROUPS];
+    const char *gn[WF_MAX_GROUPS], *gm[WF_MAX_GROUPS], *gs[WF_MAX_GROUPS];
     double noise[WF_MAX_GROUPS];
-    for (size_t k = 0; k < sc->n_groups; k++)
+    for (size_t k = 0; k < sc->n_groups; k++) {
         gn[k] = sc->groups[k].name, gm[k] = sc->groups[k].model->name, noise[k] = sc->groups[k].noise_mps2;
+        gs[k] = sc->groups[k].safety ? sc->groups[k].safety->name : "none";
+    }
     hid_t g = wf_h5_group(fid, "classes", err), d = g < 0 ? g : wf_h5_group(fid, "drivers", err);
     int rc = g < 0 || d < 0 ||
              wf_h5_write_strings(g, "name", nc, names, "class name (vehicles/NAME.yaml); index = class_id", err) ||
@@ -193,6 +195,9 @@ static int write_classes_drivers(hid_t fid, const WfH5Boundary *b, const WfH5Run
              wf_h5_write_strings(d, "name", ng, gn, "driver group name; index = group_id", err) ||
              wf_h5_write_strings(d, "model", ng, gm, "car-following model or controller", err) ||
              wf_h5_write_f64(d, "noise", 1, &ng, noise, "m/s^2", "acceleration noise standard deviation", err) ||
+             /* only with a filter, like the summary's safety fields: other results keep their datasets */
+             (wf_scenario_has_safety(sc) &&
+              wf_h5_write_strings(d, "safety", ng, gs, "safety filter kind (none: no filter)", err)) ||
              b->fleet(g, d, r, err);
     if (g >= 0) H5Gclose(g);
     if (d >= 0) H5Gclose(d);
@@ -224,7 +229,7 @@ static int create_structure(WfH5Result *w, const WfH5Run *r, WfError *err)
     hid_t fid = w->file->fid;
     int rc = write_meta(w, r, err) || write_classes_drivers(fid, w->b, r, err) ||
              w->b->results(fid, r, WF_H5_ALLOCATE, err) ||
-             wf_h5_summary_write(fid, r->summary, r->sc->n_classes, w->b->summary, WF_H5_ALLOCATE, err);
+             wf_h5_summary_write(fid, r->summary, r->sc, w->b->summary, WF_H5_ALLOCATE, err);
     for (size_t c = 0; !rc && c < w->b->n_cursors; c++) {
         if (!w->n_grp[c]) continue;
         hid_t g = wf_h5_group(fid, w->b->cursor[c].group, err);
@@ -352,7 +357,7 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     WfError later = {0};
     WfError *e = rc ? &later : err;
     if (w->b->results(fid, r, WF_H5_FILL, e) ||
-        wf_h5_summary_write(fid, r->summary, r->sc->n_classes, w->b->summary, WF_H5_FILL, e)) {
+        wf_h5_summary_write(fid, r->summary, r->sc, w->b->summary, WF_H5_FILL, e)) {
         if (!rc) rc = WF_ESYS;
         e = &later;
     }

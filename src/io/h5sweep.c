@@ -169,10 +169,10 @@ static int write_metrics(hid_t fid, const WfSweep *sw, const WfSweepResult *res,
     int64_t *k = malloc(n * nc * sizeof *k);
     int rc = (gc < 0) ? WF_ESYS : (!d || !k) ? wf_err(err, WF_ESYS, "out of memory") : 0;
     for (size_t m = 0; !rc && m < wf_summary_n_fields; m++)
-        if (wf_summary_fields[m].desc[WF_SUMMARY_RING])
+        if (wf_summary_in_sweep(&wf_summary_fields[m]))
             rc = write_metric(g, &wf_summary_fields[m], 0, n, nc, res, d, k, err);
     for (size_t m = 0; !rc && m < wf_summary_n_class_fields; m++)
-        if (wf_summary_class_fields[m].desc[WF_SUMMARY_RING])
+        if (wf_summary_in_sweep(&wf_summary_class_fields[m]))
             rc = write_metric(gc, &wf_summary_class_fields[m], 1, n, nc, res, d, k, err);
     free(d);
     free(k);
@@ -357,9 +357,9 @@ static int read_metrics(hid_t met, hid_t cm, const char *path, WfSweepSaved *sv,
     int rc = 0;
     size_t wc = 0;
     for (size_t m = 0; !rc && m < wf_summary_n_fields; m++)
-        if (wf_summary_fields[m].desc[WF_SUMMARY_RING]) rc = read_metric(met, &wf_summary_fields[m], 0, sv, &wc, path, err);
+        if (wf_summary_in_sweep(&wf_summary_fields[m])) rc = read_metric(met, &wf_summary_fields[m], 0, sv, &wc, path, err);
     for (size_t m = 0; !rc && m < wf_summary_n_class_fields; m++)
-        if (wf_summary_class_fields[m].desc[WF_SUMMARY_RING])
+        if (wf_summary_in_sweep(&wf_summary_class_fields[m]))
             rc = read_metric(cm, &wf_summary_class_fields[m], 1, sv, &wc, path, err);
     return rc;
 }

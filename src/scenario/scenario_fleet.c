@@ -297,6 +297,40 @@ static int load_group_params(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyE
     return 0;
 }
 
+/* The group's optional safety filter: `safety: {kind: NAME, KEY: VALUE...}`, the kind's keys from its own table
+ * (WfParamSpec: defaults, ranges, unknown keys rejected by the loader's unused-key check). */
+static int load_group_safety(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row, (void)env;
+    WfDriverGroup *g = t;
+    WfCfgNode *map = NULL;
+    const char *kind = NULL;
+    char w[1024];
+    if (wf_cfg_map_opt(e, "safety", &map, err)) return WF_EINPUT;
+    if (!map) return 0;
+    if (!wf_cfg_child(map, "kind")) {
+        char known[256] = "";
+        for (size_t k = 0, used = 0; wf_safety_kinds[k]; k++) {
+            int n = snprintf(known + used, sizeof known - used, "%s%s", k ? ", " : "", wf_safety_kinds[k]->name);
+            if (n > 0 && (size_t)n < sizeof known - used) used += (size_t)n;
+        }
+        return wf_err(err, WF_EINPUT, "%s: missing 'kind': the safety filter (%s)", where_of(map, w, sizeof w), known);
+    }
+    if (wf_cfg_string(map, "kind", &kind, err)) return WF_EINPUT;
+    if (wf_safety_find(kind, &g->safety, err)) {
+        wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(map, "kind"), w, sizeof w));
+        return WF_EINPUT;
+    }
+    if (g->safety->param_size > sizeof g->safety_params)
+        return wf_err(err, WF_ESYS, "safety filter %s has too many parameters", g->safety->name);
+    if (wf_cfg_params(map, g->safety->spec, g->safety->n_spec, g->safety_params, err)) return WF_EINPUT;
+    if (g->safety->check && g->safety->check(g->safety_params, err)) {
+        wf_err_prefix(err, "%s: ", where_of(map, w, sizeof w));
+        return WF_EINPUT;
+    }
+    return 0;
+}
+
 /* heterogeneity.spread: one relative spread per key of the model's parameter table. */
 static int load_spread(WfCfgNode *het, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
@@ -366,6 +400,10 @@ static const WfKeySpec driver_rows[] = {
     {.key = "feasible_accel", .type = WF_KEY_CHOICE, .on = WF_ON_BOTH,
      .offset = offsetof(WfDriverGroup, clip_feasible), .choices = feasible,
      .doc = "`clip`: also limit a to the class energy model's a_max(v, θ)"},
+    {.key = "safety", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_group_safety, .doc_type = "map",
+     .doc_default = "none", .doc_range = "`kind`: `gipps`, `ttc`; keys per kind",
+     .doc = "a safety filter after the controller: an upper bound on the acceleration, its interventions counted "
+            "([controllers.md](controllers.md#safety-filters))"},
     {.key = "fraction", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfDriverGroup, fraction),
      .def = NAN, .min = 0, .max = 1, .unit = "(share of vehicles)", .doc_type = "1", .doc_default = "",
      .doc = "as for classes"},

@@ -11,7 +11,7 @@ import tempfile
 sys.path.insert(0, "python")
 from wavefuel import _lib  # noqa: E402
 
-HEADERS = ("energy.h", "vehicle.h", "scenario.h", "fleet.h", "corridor.h", "summary.h", "engine.h", "cf.h")
+HEADERS = ("energy.h", "vehicle.h", "scenario.h", "fleet.h", "corridor.h", "summary.h", "engine.h", "cf.h", "rl.h")
 
 
 def main():

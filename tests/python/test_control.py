@@ -4,8 +4,13 @@
   not through the library) gives the bits of the same group with `model: idm`: every dataset of the result files
   (those naming the model or its parameters aside) and the final state.
 - RingEnv and TrajectoryEnv follow the Gymnasium API: shapes and spaces, determinism for a seed, the ring length
-  drawn per episode, truncation at the horizon, the reward equal to minus the mean fuel rate recomputed here from
-  the class's fuel at the observed speeds.
+  drawn per episode, truncation at the horizon; each term of the reward (fuel of the vehicles in scope, gap bounds,
+  comfort) recomputed here from the states before and after the action (positions, speeds, groups) with numpy and
+  the class's energy model, and their sum.
+- VectorEnv: the bits of the same environments stepped one by one (observations, rewards and their terms,
+  truncations, autoresets), on 1 and 2 threads, rings of different lengths and trajectories of different traces; an
+  environment's observations equal a plain Simulation's driven by set_actions / step / observe.
+- The library's batch calls (wf_sims_set_actions, wf_sims_step, wf_sims_observe) equal the runs stepped alone.
 - Refusals: commands to a group that is not external, the wrong count, an infinite command, an unknown group."""
 import os
 import sys
@@ -135,14 +140,77 @@ def test_ring_env():
         env.reset(seed=s)
         lengths.add(round(float(env.scenario_dict["road"]["length_m"]), 6))
     check("ring_env_length_drawn", len(lengths) == 4 and all(220 <= L <= 270 for L in lengths), lengths)
-    # The reward of a step: minus the mean over vehicles of the class's fuel rate at the step's start speed and
-    # the acceleration (v_end - v_start) / dt, recomputed here.
+    env.close()
+
+
+def reward_by_hand(rw, st0, st1, av, dt, length_m, ring, a_prev, cls="midsize_sedan"):
+    """The reward's terms recomputed from two states (sim.state() at an action's start and end) with numpy and the
+    class's energy model: fuel of the vehicles in scope, the automated vehicles' gaps from their positions, their
+    accelerations and jerks from their speeds (docs/python.md)."""
+    v0, v1, x1 = (np.array(st[k], np.float64) for st, k in ((st0, "v_mps"), (st1, "v_mps"), (st1, "x_m")))
+    group = np.array(st1["group_id"])
+    car = wf.VehicleClass(cls).keys["length_m"][0]
+    if ring:  # ring order, vehicle i + 1 leads i; the last one's leader is vehicle 0 a lap ahead
+        lead_x = np.append(x1[1:], x1[0] + length_m)
+        scope = np.ones(v0.size, bool)
+    else:  # front first: each vehicle's leader is the previous one; the front one's is the virtual leader
+        lead_x = np.append(np.nan, x1[:-1])
+        scope = np.arange(v0.size) >= np.flatnonzero(group == av)[0]
+        if rw.fuel_scope == "all":
+            scope[:] = True
+    fuel = np.mean(wf.energy.fuel(cls, v0, (v1 - v0) / dt, 0.0)[scope])
+    gap = (lead_x - car - x1)[group == av]
+    lo, hi = rw.gap_range_m
+    viol = np.where(gap < lo, (lo - gap) ** 2, np.where(gap > hi, (gap - hi) ** 2, 0.0))
+    a = ((v1 - v0) / dt)[group == av]
+    jerk = np.zeros_like(a) if a_prev is None else (a - a_prev) / dt
+    terms = {"fuel": -rw.w_fuel * fuel, "gap": -rw.w_gap * np.mean(viol),
+             "comfort": -rw.w_accel * np.mean(a * a) - rw.w_jerk * np.mean(jerk * jerk)}
+    return terms, a
+
+
+def close(a, b, tol=1e-12):
+    return abs(a - b) <= tol * max(abs(a), abs(b), 1e-300)
+
+
+def test_reward_terms():
+    """Each term of the reward and their sum against reward_by_hand, over three actions (the jerk from the second),
+    on a ring with gap bounds that bind and on a corridor platoon."""
+    rw = wf.envs.Reward(gap_range_m=(8.0, 9.0), w_gap=0.5, w_accel=0.1, w_jerk=0.01)
+    env = wf.envs.RingEnv(n_av=2, horizon_s=20.0, warmup_s=5.0, action_every=2, reward=rw)
     env.reset(seed=9)
-    v0 = np.array(env.sim.state()["v_mps"])
-    _, r, _, _, info = env.step(np.full(2, 0.5))
-    v1 = np.array(env.sim.state()["v_mps"])
-    want = -np.mean(wf.energy.fuel("midsize_sedan", v0, (v1 - v0) / 0.1, 0.0))
-    check("ring_env_reward_recomputed", abs(r - want) <= 1e-12 * abs(want), (r, want))
+    bad, a_prev, seen = [], None, {k: 0.0 for k in ("fuel", "gap", "comfort")}
+    for u in ([0.5, -1.0], [1.5, 0.2], [-2.0, 0.0]):
+        st0 = {k: np.array(x) for k, x in env.sim.state().items()}
+        _, r, _, _, info = env.step(np.array(u))
+        want, a_prev = reward_by_hand(rw, st0, env.sim.state(), 1, 0.2, env.scenario_dict["road"]["length_m"], True,
+                                      a_prev)
+        got = info["reward_terms"]
+        bad += [(k, got[k], want[k]) for k in want if not close(got[k], want[k])]
+        bad += [] if close(r, sum(got.values()), 1e-15) else [("sum", r, got)]
+        seen = {k: min(seen[k], got[k]) for k in seen}
+    check("reward_terms_ring", not bad and all(x < 0 for x in seen.values()), (bad, seen))
+    env.close()
+    t = np.arange(0.0, 30.1, 1.0)
+    trace = (t, 20.0 + 5.0 * np.sin(2 * np.pi * t / 15.0))
+    for scope in ("platoon", "all"):
+        rw = wf.envs.Reward(fuel_scope=scope, gap_range_m=(30.0, 40.0))
+        env = wf.envs.TrajectoryEnv(trace, n_vehicles=12, humans_per_av=2, reward=rw)
+        env.reset(seed=3)
+        bad, a_prev, gap = [], None, 0.0
+        for u in ([0.3] * 4, [-0.5] * 4):
+            st0 = {k: np.array(x) for k, x in env.sim.state().items()}
+            _, r, _, _, info = env.step(np.array(u))
+            want, a_prev = reward_by_hand(rw, st0, env.sim.state(), 1, 0.1, None, False, a_prev)
+            got = info["reward_terms"]
+            gap = min(gap, got["gap"])
+            bad += [(k, got[k], want[k]) for k in want if not close(got[k], want[k])]
+            bad += [] if close(r, sum(got.values()), 1e-15) else [("sum", r, got)]
+        first_av = int(np.flatnonzero(np.array(env.sim.state()["group_id"]) == 1)[0])
+        check(f"reward_terms_corridor_{scope}", not bad and gap < 0, (bad, gap))
+        if scope == "platoon":
+            print(f"  corridor platoon: the fuel of the {12 - first_av} vehicles from the first automated one back")
+        env.close()
     env.close()
 
 
@@ -162,12 +230,147 @@ def test_trajectory_env(tmp):
     env.close()
 
 
+def single_runs(make, seeds, actions):
+    """Environments made by make(i), each stepped alone with actions[:, i] and reset (from its own generator) when
+    its episode ends: what VectorEnv must reproduce. Returns per step (obs, rewards, truncated, terms, final obs)."""
+    envs = [make(i) for i in range(len(seeds))]
+    first = np.stack([e.reset(seed=s)[0] for e, s in zip(envs, seeds)])
+    out = []
+    for u in actions:
+        rows = [e.step(u[i]) for i, e in enumerate(envs)]
+        obs = np.stack([r[0] for r in rows])
+        trunc = np.array([r[3] for r in rows])
+        final = {i: obs[i].copy() for i in np.flatnonzero(trunc)}
+        for i in final:
+            obs[i] = envs[i].reset()[0]
+        out.append((obs, np.array([r[1] for r in rows]), trunc,
+                    {k: np.array([r[4]["reward_terms"][k] for r in rows]) for k in ("fuel", "gap", "comfort")}, final))
+    for e in envs:
+        e.close()
+    return first, out
+
+
+def test_vector_env(tmp):
+    """VectorEnv against the same environments stepped one by one (bits of observations, rewards, terms,
+    truncations, autoresets), on 1 and 2 threads; and the first environment's observations against a plain
+    Simulation of its episode's scenario driven by set_actions / step / observe."""
+    # Different lengths, and horizons (15, 12 and 18 actions) so that episodes end at different steps.
+    per_env = [{"length_range_m": (220.0 + 20 * i, 230.0 + 20 * i), "horizon_s": h} for i, h in
+               enumerate((3.0, 2.4, 3.6))]
+    kw = dict(n_av=2, warmup_s=2.0, action_every=2, reward=wf.envs.Reward(gap_range_m=(8.0, 9.0)))
+    rng = np.random.default_rng(2)
+    actions = rng.uniform(-2.0, 2.0, (40, 3, 2))
+    first, ref = single_runs(lambda i: wf.envs.RingEnv(**kw, **per_env[i]), [10, 11, 12], actions)
+    for threads in (1, 2):
+        venv = wf.envs.VectorEnv(3, threads=threads, per_env=per_env, **kw)
+        obs, info = venv.reset(seed=10)
+        bad = [] if obs.tobytes() == first.tobytes() and obs.shape == (3, 2, 3) else ["reset"]
+        resets = 0
+        for k, u in enumerate(actions):
+            obs, r, term, trunc, info = venv.step(u)
+            o, rr, tt, terms, final = ref[k]
+            same = (obs.tobytes() == o.tobytes() and r.tobytes() == rr.tobytes() and np.array_equal(trunc, tt)
+                    and not term.any() and all(info["reward_terms"][t].tobytes() == terms[t].tobytes()
+                                               for t in terms)
+                    and all(info["final_obs"][i].tobytes() == final[i].tobytes() for i in final)
+                    and (not final or list(np.flatnonzero(info["_final_obs"])) == sorted(final)))
+            resets += len(final)
+            if not same:
+                bad.append(k)
+        check(f"vector_env_equals_single_envs_threads_{threads}", not bad and resets == 7, (bad[:5], resets))
+        if threads == 2:
+            print(f"  3 rings, {len(actions)} actions, {resets} autoresets: the bits of the environments alone")
+        venv.close()
+    # Environment 0's first episode in a plain Simulation: warm-up, then the same (clipped) commands.
+    sim = wf.Simulation(wf.Scenario.from_dict(ref_scenario(kw, per_env[0], 10)), threads=1)
+    sim.step(20)
+    got = []
+    for u in actions[:15, 0]:
+        sim.set_actions("av", np.clip(u, -3.0, 3.0))
+        sim.step(2)
+        got.append(sim.observe("av"))
+    want = [ref[k][0][0] if not ref[k][2][0] else None for k in range(15)]
+    same = all(w is None or g.tobytes() == w.tobytes() for g, w in zip(got, want))
+    check("vector_env_equals_plain_simulation", same and sum(w is not None for w in want) == 14)
+    # Trajectory environments with different traces, on 2 threads, against the same alone.
+    t = np.arange(0.0, 40.1, 1.0)
+    traces = [{"trace": (t, 20.0 + a * np.sin(2 * np.pi * t / 20.0))} for a in (3.0, 6.0)]
+    kw = dict(n_vehicles=10, humans_per_av=4)
+    acts = rng.uniform(-1.0, 1.0, (30, 2, 2))
+    first, ref = single_runs(lambda i: wf.envs.TrajectoryEnv(**kw, **traces[i]), [4, 5], acts)
+    venv = wf.envs.VectorEnv(2, env=wf.envs.TrajectoryEnv, threads=2, per_env=traces, **kw)
+    obs, _ = venv.reset(seed=4)
+    same = obs.tobytes() == first.tobytes()
+    for k, u in enumerate(acts):
+        obs, r, _, _, info = venv.step(u)
+        same &= obs.tobytes() == ref[k][0].tobytes() and r.tobytes() == ref[k][1].tobytes()
+    check("vector_env_trajectory_equals_single_envs", same and venv.observation_space.shape == (2, 2, 3))
+    venv.close()
+    def refused(fn, text):
+        try:
+            fn()
+        except ValueError as e:
+            return text in str(e)
+        return False
+    check("vector_env_refuses_mixed_n_av",
+          refused(lambda: wf.envs.VectorEnv(2, per_env=[{"n_av": 1}, {"n_av": 2}]), "n_av 2"))
+    check("reward_refuses_bad_values", refused(lambda: wf.envs.Reward(fuel_scope="fleet"), "fuel_scope")
+          and refused(lambda: wf.envs.Reward(gap_range_m=(10, 5)), "gap_range_m")
+          and refused(lambda: wf.envs.Reward(w_jerk=-1), "w_jerk"))
+
+
+def test_sims_batch():
+    """The library's batch calls (engine.h: wf_sims_set_actions, wf_sims_step on 2 threads, wf_sims_observe) on two
+    rings of different lengths and seeds against each run stepped alone through Simulation."""
+    import ctypes as C
+    lib = wf._lib.lib
+    d = dict(RING, fleet=dict(RING["fleet"], drivers=[RING["fleet"]["drivers"][0],
+                                                      dict(RING["fleet"]["drivers"][1], model="external")]))
+    scen = [dict(d, seed=s, road={"length_m": L}) for s, L in ((3, 600.0), (4, 650.0))]
+    batch = [wf.Simulation(wf.Scenario.from_dict(x), threads=1) for x in scen]
+    alone = [wf.Simulation(wf.Scenario.from_dict(x), threads=1) for x in scen]
+    for sim in batch + alone:
+        sim.step(1)
+    ptrs = (C.c_void_p * 2)(*[s._ptr.value for s in batch])
+    groups = np.array([1, 1], dtype=np.uintp)
+    errs, err = (wf._lib.WfError * 2)(), wf._lib.WfError()
+    obs = np.empty((12, 3))
+    rng = np.random.default_rng(5)
+    same, rcs = True, 0
+    for k in range(50):
+        u = rng.uniform(-2.0, 2.0, 12)
+        rcs |= lib.wf_sims_set_actions(ptrs, 2, groups.ctypes.data, u.ctypes.data, 12, C.byref(err))
+        rcs |= lib.wf_sims_step(ptrs, 2, 3, 2, C.addressof(errs))
+        rcs |= lib.wf_sims_observe(ptrs, 2, groups.ctypes.data, obs.ctypes.data, 12, C.byref(err))
+        for i, sim in enumerate(alone):
+            sim.set_actions("av", u[6 * i:6 * i + 6])
+            sim.step(3)
+            same &= sim.observe("av").tobytes() == obs[6 * i:6 * i + 6].tobytes()
+    same &= all(a.state()["x_m"].tobytes() == b.state()["x_m"].tobytes() for a, b in zip(batch, alone))
+    check("sims_batch_equals_runs_alone", same and rcs == 0, rcs)
+    rc = lib.wf_sims_set_actions(ptrs, 2, groups.ctypes.data, np.zeros(11).ctypes.data, 11, C.byref(err))
+    check("sims_batch_refuses_count", rc == 2 and "12 vehicles on the road, got 11 rows" in err.msg.decode(),
+          err.msg)
+
+
+def ref_scenario(kw, per_env, seed):
+    """The scenario of a RingEnv's first episode after reset(seed)."""
+    env = wf.envs.RingEnv(**kw, **per_env)
+    env.reset(seed=seed)
+    d = env.scenario_dict
+    env.close()
+    return d
+
+
 def main():
     with tempfile.TemporaryDirectory() as tmp:
         test_idm_from_python(tmp)
         test_refusals()
         test_ring_env()
         test_trajectory_env(tmp)
+        test_reward_terms()
+        test_vector_env(tmp)
+        test_sims_batch()
     return 1 if failures else 0
 
 

@@ -1,0 +1,162 @@
+#!/usr/bin/python3
+"""Environment steps per second of wavefuel's VectorEnv (issue 17), side by side in one run with the numpy baseline
+(numpy_ring.py, the same ring environment vectorised over environments in numpy):
+
+1. agreement: B rings of wavefuel's VectorEnv and of the baseline from the same state (copied from wavefuel's
+   environments after their reset), without noise (the two generators differ), the same commands (a gap-keeping
+   law of the observations, which never collides: the baseline has no overlap repair), for --check-steps
+   steps: the largest differences of positions, speeds and rewards are printed (the comparison is fair only if they
+   are small; the run fails above 1e-6 m, 1e-6 m/s or 1e-9 relative);
+2. rings: --envs rings of 22 vehicles (1 automated, RingEnv's defaults: IDM humans with 0.2 m/s^2 noise, ring
+   length drawn in [220, 270] m, dt 0.1 s, an action every step), a constant action (0 m/s^2): env-steps per
+   second = envs x steps / time of the step calls, wall and CPU (the process's, all threads), best of --repeats
+   (each repeat times every case in turn), for VectorEnv on 1 and 2 threads and the baseline; no episode ends
+   inside the timed steps (horizon 1e4 s), resets are timed apart;
+3. trajectories: --envs TrajectoryEnvs of 200 vehicles (an automated vehicle after every 4 humans, 40 a platoon)
+   behind a leader replaying a synthetic stop-and-go trace, on 1 and 2 threads.
+
+SUMO + TraCI (the issue's second comparison) is not run: sumo is not installed on this machine.
+OpenMP reads OMP_WAIT_POLICY when the process starts: run the script once per policy (bench/README.md).
+Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/run.py
+       [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600]"""
+import argparse
+import ctypes as C
+import os
+import platform
+import subprocess
+import sys
+import time
+
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+import wavefuel as wf  # noqa: E402
+from numpy_ring import NumpyRing  # noqa: E402
+
+
+def machine():
+    cpu = next((line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name")), "?")
+    gcc = subprocess.run(["cc", "--version"], capture_output=True, text=True).stdout.splitlines()[0]
+    return (f"{cpu}, {os.cpu_count()} cores; Python {platform.python_version()}, numpy {np.__version__}; {gcc}; "
+            f"load average {os.getloadavg()[0]:.2f} at the start")
+
+
+def baseline_for(venv, noise_mps2, seed=0):
+    """A NumpyRing with venv's rings, parameters and current state (read from wavefuel's loaded scenarios)."""
+    e0 = venv.envs[0]
+    sc = C.cast(e0.sim.scenario._ptr, C.POINTER(wf._lib.WfScenario)).contents
+    hum, av = sc.groups[0], sc.groups[1]
+    idm = tuple(hum.params[k] for k in range(5))  # v0_mps, T_s, s0_m, a_mps2, b_mps2 (src/models/cf/idm.c)
+    assert [hum.model.contents.spec[k].key.decode() for k in range(6)] == ["v0_mps", "T_s", "s0_m", "a_mps2",
+                                                                            "b_mps2", "delta"]
+    assert hum.params[5] == 4.0 and not hum.clip_feasible and not av.clip_feasible
+    vc = wf.VehicleClass(e0.vehicle_class)
+    energy = {k: v for k, (v, _) in vc.params.items()}
+    st = [e.sim.state() for e in venv.envs]
+    group = np.array(st[0]["group_id"])
+    base = NumpyRing([e.scenario_dict["road"]["length_m"] for e in venv.envs], group == 1, idm,
+                     ((hum.accel_max_mps2, hum.decel_max_mps2), (av.accel_max_mps2, av.decel_max_mps2)), energy,
+                     vc.keys["length_m"][0], e0.dt_s, noise_mps2, e0.reward,
+                     (e0.action_space.low[0], e0.action_space.high[0]), seed)
+    base.set_state([s["x_m"] for s in st], [s["v_mps"] for s in st])
+    return base
+
+
+def agreement(n_envs, steps):
+    venv = wf.envs.VectorEnv(n_envs, noise_mps2=0.0, horizon_s=1e4, warmup_s=30.0, threads=2)
+    obs_w, _ = venv.reset(seed=5)
+    base = baseline_for(venv, 0.0)
+    obs_b = base.observe()
+    d_obs, d_x, d_v, d_r = np.max(np.abs(obs_w - obs_b)), 0.0, 0.0, 0.0
+    for k in range(steps):
+        # A gap-keeping command (collision-free: the baseline has no overlap repair), from wavefuel's observation.
+        u = np.clip(0.5 * (obs_w[:, :, 1] - obs_w[:, :, 0]) + 0.2 * (obs_w[:, :, 2] - 8.0), -1.0, 1.0)
+        obs_w, r_w, _, _, _ = venv.step(u)
+        obs_b, r_b, _ = base.step(u)
+        x_w = np.array([e.sim.state()["x_m"] for e in venv.envs])
+        v_w = np.array([e.sim.state()["v_mps"] for e in venv.envs])
+        d_x, d_v = max(d_x, np.max(np.abs(x_w - base.x))), max(d_v, np.max(np.abs(v_w - base.v)))
+        d_r = max(d_r, np.max(np.abs(r_w - r_b) / np.abs(r_b)))
+        d_obs = max(d_obs, np.max(np.abs(obs_w - obs_b)))
+    venv.close()
+    ok = d_x <= 1e-6 and d_v <= 1e-6 and d_r <= 1e-9
+    print(f"agreement over {steps} steps of {n_envs} rings (no noise, gap-keeping commands): max |dx| {d_x:.3g} m, "
+          f"max |dv| {d_v:.3g} m/s, max |d obs| {d_obs:.3g}, max relative |d reward| {d_r:.3g}: "
+          f"{'OK' if ok else 'TOO FAR'}")
+    return ok
+
+
+def timed(step, steps):
+    """(wall s, CPU s of the process: all its threads) of `steps` calls."""
+    t, c = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        step()
+    return np.array([time.perf_counter() - t, time.process_time() - c])
+
+
+def bench_vector(n_envs, steps, repeats, baseline=False, **env_kw):
+    """{case: (env-steps per wall second, per CPU second, reset of all environments s)} for VectorEnv on 1 and 2
+    threads (and the numpy baseline of the same rings): each repeat times every case in turn, so that all meet the
+    same load; the best wall and the best CPU time of the repeats."""
+    venvs, rows, cases = {}, {}, {}
+    for threads in (1, 2):
+        name = f"VectorEnv, {threads} thread{'s' if threads > 1 else ''}"
+        venvs[name] = v = wf.envs.VectorEnv(n_envs, threads=threads, **env_kw)
+        t = time.perf_counter()
+        v.reset(seed=1)
+        rows[name] = time.perf_counter() - t
+        cases[name] = lambda v=v, a=np.zeros((n_envs, v.n_av)): v.step(a)
+    if baseline:
+        base = baseline_for(venvs["VectorEnv, 1 thread"], 0.2)
+        cases["numpy baseline"] = lambda a=np.zeros((n_envs, int(base.av.sum()))): base.step(a)
+        rows["numpy baseline"] = float("nan")
+    best = {k: np.array([np.inf, np.inf]) for k in cases}
+    for _ in range(repeats):
+        best = {k: np.minimum(best[k], timed(f, steps)) for k, f in cases.items()}
+    for v in venvs.values():
+        v.close()
+    return {k: (n_envs * steps / best[k][0], n_envs * steps / best[k][1], rows[k]) for k in cases}
+
+
+def stop_and_go(duration_s=600.0):
+    """A synthetic stop-and-go trace (m/s): cruising at 25 m/s with waves down to 5 m/s every 90 s."""
+    t = np.arange(0.0, duration_s + 0.5, 1.0)
+    v = 15.0 + 10.0 * np.cos(2.0 * np.pi * t / 90.0)
+    return t, v
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--envs", type=int, default=64)
+    ap.add_argument("--steps", type=int, default=2000)
+    ap.add_argument("--traj-steps", type=int, default=500)
+    ap.add_argument("--repeats", type=int, default=3)
+    ap.add_argument("--check-steps", type=int, default=600)
+    a = ap.parse_args()
+    print("machine:", machine())
+    ok = agreement(4, a.check_steps)
+    rings = bench_vector(a.envs, a.steps, a.repeats, baseline=True, horizon_s=1e4)
+    base = rings["numpy baseline"]
+    print(f"\n{a.envs} rings of 22 vehicles, {a.steps} steps, best of {a.repeats}:")
+    print("| | env-steps/s (wall) | vs numpy | env-steps per CPU-second | vs numpy | reset of all environments, s |")
+    print("|---|---|---|---|---|---|")
+    for k, (wall, cpu, reset_s) in rings.items():
+        print(f"| {k} | {wall:.3g} | {wall / base[0]:.2f}x | {cpu:.3g} | {cpu / base[1]:.2f}x | {reset_s:.2f} |")
+    traj = bench_vector(a.envs, a.traj_steps, a.repeats, env=wf.envs.TrajectoryEnv, trace=stop_and_go(),
+                        n_vehicles=200, humans_per_av=4)
+    print(f"\n{a.envs} trajectory environments of 200 vehicles, {a.traj_steps} steps, best of {a.repeats}:")
+    print("| | env-steps/s (wall) | vehicle-steps/s (wall) | env-steps per CPU-second | reset of all environments, s |")
+    print("|---|---|---|---|---|")
+    for k, (wall, cpu, reset_s) in traj.items():
+        print(f"| {k} | {wall:.3g} | {wall * 200:.3g} | {cpu:.3g} | {reset_s:.1f} |")
+    for k, (wall, cpu, _) in list(rings.items()) + [(f"traj {k}", v) for k, v in traj.items()]:
+        print(f"BENCH rl_envs case={k.replace(' ', '_').replace(',', '')} env_steps_per_s={wall:.6g} "
+              f"env_steps_per_cpu_s={cpu:.6g} omp_wait_policy={os.environ.get('OMP_WAIT_POLICY', 'default')}")
+    print(f"load average {os.getloadavg()[0]:.2f} at the end")
+    print("SUMO + TraCI: not run (sumo is not installed on this machine)")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,61 @@
+/* Reinforcement-learning steps of a batch of runs (src/core/rl_batch.c; the Python package's RingEnv, TrajectoryEnv
+ * and VectorEnv): in one parallel loop over runs (as wf_sims_step), each run's external group takes its commands,
+ * the run steps, and its observation and reward are computed in C in a fixed order: a run gives the same bits alone
+ * and in any batch, on any number of threads.
+ *
+ * The reward of a run for one action (action_steps steps of dt, lasting dt_action = action_steps x dt) is
+ * fuel + gap + comfort, each <= 0:
+ * - fuel = -w_fuel x the mean fuel rate (g/s per vehicle) of the vehicles in scope: each vehicle's class energy
+ *   model on a flat road at its speed at the action's start and the acceleration (v_end - v_start) / dt_action.
+ *   Scope: all vehicles, or the platoon: the external group's vehicles and the vehicles behind them (on a ring
+ *   every vehicle; on a corridor every vehicle from the front-most of the group back);
+ * - gap = -w_gap x the mean over the group of the squared violation of [gap_min_m, gap_max_m] by its
+ *   bumper-to-bumper gap at the action's end, m^2;
+ * - comfort = -(w_accel x mean a^2 + w_jerk x mean j^2) over the group, a = (v_end - v_start) / dt_action (m/s^2),
+ *   j = (a - the previous action's a) / dt_action (m/s^3; 0 on the first action of the batch's life). */
+#ifndef WAVEFUEL_RL_H
+#define WAVEFUEL_RL_H
+
+#include <stddef.h>
+
+#include "wavefuel/engine.h"
+#include "wavefuel/err.h"
+
+typedef struct WfRlReward {
+    int    scope_all;             /* 1: every vehicle's fuel; 0: the platoon's */
+    double w_fuel;                /* per g/s */
+    double gap_min_m, gap_max_m;
+    double w_gap;                 /* per m^2 */
+    double w_accel;               /* per (m/s^2)^2 */
+    double w_jerk;                /* per (m/s^3)^2 */
+} WfRlReward;
+
+/* What wf_rl_batch_step reports per run, n_runs x WF_RL_N_INFO, in this order. */
+enum { WF_RL_FUEL, WF_RL_GAP, WF_RL_COMFORT, WF_RL_FUEL_RATE_GPS, WF_RL_MEAN_SPEED_MPS, WF_RL_N_INFO };
+
+typedef struct WfRlBatch WfRlBatch;
+
+/* A batch of n_runs runs (begun, external group group[k] of run k), their vehicles on the road now (which must
+ * stay the same during the batch's life: a ring's; a corridor's once its platoon has entered) and the reward rw.
+ * Takes the runs' state now as the first action's start. Ownership: sims borrowed and must outlive the batch (and
+ * not be stepped by anything else meanwhile); *out the caller's until wf_rl_batch_destroy; NULL on failure.
+ * WF_EINPUT for a group that is not external or is empty, action_steps < 1, dt_action_s <= 0. */
+int  wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, const WfRlReward *rw,
+                        long action_steps, double dt_action_s, WfRlBatch **out, WfError *err);
+void wf_rl_batch_destroy(WfRlBatch **b);
+/* Rows of the batch's observations: the groups' sizes added up. */
+size_t wf_rl_batch_rows(const WfRlBatch *b);
+/* The groups' accelerations of the previous action (n_rows, m/s^2; NaN: none, no jerk at the next action), the
+ * batch's: writable, so that a caller replacing one run by rebuilding the batch carries the others' over. */
+double *wf_rl_batch_prev_accel(WfRlBatch *b);
+/* The observation now (n_rows x 3, wf_sims_observe's rows). */
+void wf_rl_batch_observe(const WfRlBatch *b, double *obs);
+/* One action: for every run, in parallel over runs on `threads` OpenMP threads, its commands set (its rows of
+ * actions, n_rows in all, as wf_sims_set_actions), action_steps steps, then its rows of obs (n_rows x 3, may be
+ * NULL), reward (n_runs) and info (n_runs x WF_RL_N_INFO) written. errs: n_runs entries, as wf_sims_step's
+ * (messages prefixed with the run's index); returns the first failure's status (0 on success); a run whose vehicles
+ * on the road changed fails with WF_EINPUT. */
+int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
+                     WfError *errs);
+
+#endif

@@ -1,0 +1,60 @@
+"""Many Simulations stepped as one batch of RL actions in C (include/wavefuel/rl.h): every run's external group
+takes its commands from one array, the runs step in parallel over runs on OpenMP threads (each run single-threaded
+inside, giving the bits it gives alone), and each run's observation, reward and its terms come back as arrays."""
+import ctypes as C
+
+import numpy as np
+
+from . import _lib
+from ._lib import WfError, check, lib
+
+# Columns of info (rl.h: WF_RL_FUEL ...).
+INFO = ("fuel", "gap", "comfort", "fuel_rate_gps", "mean_speed_mps")
+
+
+class RlBatch:
+    """The runs `sims` (Simulations that have begun, held by the caller, stepped only through this batch while it
+    lives; rebuild it when one is replaced) with `groups[k]` the external group of run k (a name or an index),
+    `reward` a wavefuel.envs.Reward, an action lasting action_steps steps of dt_s. The vehicles on each road must
+    stay the same while the batch lives. step() returns arrays that the next call overwrites (copy to keep)."""
+
+    def __init__(self, sims, groups, reward, action_steps, dt_s):
+        self.sims = list(sims)
+        for s in self.sims:
+            s._alive()
+            s._begin()
+        n = len(self.sims)
+        self._ptrs = (C.c_void_p * n)(*[s._ptr.value for s in self.sims])
+        self._groups = np.array([s.group_index(g) for s, g in zip(self.sims, groups)], dtype=np.uintp)
+        self._rw = reward._c()
+        self._b = C.c_void_p()
+        err = WfError()
+        check(lib.wf_rl_batch_create(self._ptrs, n, self._groups.ctypes.data, C.byref(self._rw), int(action_steps),
+                                     float(action_steps * dt_s), C.byref(self._b), C.byref(err)), err)
+        self.n_rows = lib.wf_rl_batch_rows(self._b)
+        self._errs = (WfError * n)()
+        self.obs, self.reward = np.empty((self.n_rows, 3)), np.empty(n)
+        self.info = np.empty((n, len(INFO)))
+        self._args = (self.obs.ctypes.data, self.reward.ctypes.data, self.info.ctypes.data, C.addressof(self._errs))
+        lib.wf_rl_batch_observe(self._b, self.obs.ctypes.data)
+        # The previous action's accelerations (NaN: none), a view of the batch's array: writable.
+        self.prev_accel = np.ctypeslib.as_array(lib.wf_rl_batch_prev_accel(self._b), (self.n_rows,))
+
+    def step(self, actions, threads):
+        """Set every run's commands (n_rows values, runs one after the other), step, and return (obs (n_rows, 3),
+        reward (n_runs,), info (n_runs, len(INFO)))."""
+        u = np.ascontiguousarray(actions, dtype=np.float64)
+        if u.size != self.n_rows:
+            raise _lib.WavefuelError(f"{u.size} actions for the batch's {self.n_rows} automated vehicles")
+        rc = lib.wf_rl_batch_step(self._b, u.ctypes.data, int(threads), *self._args)
+        if rc:
+            k = next((i for i, e in enumerate(self._errs) if e.code), 0)
+            raise _lib.WavefuelError(self._errs[k].msg.decode(errors="replace"), rc)
+        return self.obs, self.reward, self.info
+
+    def close(self):
+        if self._b:
+            lib.wf_rl_batch_destroy(C.byref(self._b))
+
+    def __del__(self):
+        self.close()

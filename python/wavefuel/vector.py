@@ -1,0 +1,136 @@
+"""VectorEnv: B environments (RingEnv or TrajectoryEnv, envs.py) stepped together inside C, the Gymnasium vector API:
+observations (B, n_av, 3), actions (B, n_av), rewards, terminations and truncations (B,), infos a dict of arrays.
+One action of all environments is one library call (batch.py, include/wavefuel/rl.h): every automated vehicle of
+every environment takes its command from one array, and in parallel over environments on OpenMP threads each run
+steps (single-threaded inside) and computes its observation and reward (reward.py): an environment gives the bits it
+gives alone."""
+import numpy as np
+
+from . import _lib
+from .batch import INFO, RlBatch
+from .envs import RingEnv, _box
+
+
+class VectorEnv:
+    """n_envs environments `env(**kwargs, **per_env[i])` (env: RingEnv, TrajectoryEnv or a callable returning
+    one; per_env: optional list of n_envs dicts, e.g. different ring lengths or traces), stepped on `threads`
+    OpenMP threads (None: the library's default, $OMP_NUM_THREADS or all cores). The environments must agree on the
+    number of automated vehicles, dt_s and action_every.
+
+    reset(seed=None, options=None) -> (obs, infos): seed an int (environment i gets seed + i), a list of n_envs
+    seeds, or None (each environment draws from its own generator). step(actions) -> (obs, rewards, terminated,
+    truncated, infos). Autoreset in the same step (Gymnasium's "same-step" mode): an environment whose episode
+    ended is reset at once and its row of obs is the new episode's first observation; infos["final_obs"] and
+    infos["final_info"] hold, for those environments, the last observation and info of the ended episode (None
+    for the others). infos: "t", "fuel_rate_gps", "mean_speed_mps" arrays (n_envs,), "reward_terms" a dict of
+    such arrays, each key K with a boolean mask "_K" (Gymnasium's convention)."""
+
+    metadata = {"autoreset_mode": "SameStep"}
+
+    def __init__(self, n_envs, env=RingEnv, threads=None, per_env=None, **kwargs):
+        if int(n_envs) < 1:
+            raise ValueError(f"n_envs must be at least 1 (got {n_envs})")
+        self.num_envs = int(n_envs)
+        per_env = per_env or [{}] * self.num_envs
+        if len(per_env) != self.num_envs:
+            raise ValueError(f"per_env has {len(per_env)} entries for {self.num_envs} environments")
+        kwargs.setdefault("threads", 1)  # each run single-threaded: the batch is parallel over runs
+        self.envs = [env(**dict(kwargs, **p)) for p in per_env]
+        e0 = self.envs[0]
+        for i, e in enumerate(self.envs):
+            if (e.n_av, e.dt_s, e.action_every) != (e0.n_av, e0.dt_s, e0.action_every):
+                raise ValueError(f"environment {i}: n_av {e.n_av}, dt_s {e.dt_s}, action_every {e.action_every} "
+                                 f"differ from environment 0's ({e0.n_av}, {e0.dt_s}, {e0.action_every})")
+        if any(repr(e.reward) != repr(e0.reward) for e in self.envs):
+            raise ValueError("the environments' rewards differ: give `reward` for all, not in per_env")
+        self.threads = int(threads) if threads is not None else _lib.max_threads()
+        if not 1 <= self.threads <= 4096:
+            raise ValueError(f"threads must be an integer in [1, 4096] (got {threads})")
+        self.n_av, self.dt_s, self.action_every = e0.n_av, e0.dt_s, e0.action_every
+        self.single_observation_space, self.single_action_space = e0.observation_space, e0.action_space
+        self.observation_space = _box(0.0, np.inf, (self.num_envs, self.n_av, 3))
+        self._low = np.stack([e.action_space.low for e in self.envs])
+        self._high = np.stack([e.action_space.high for e in self.envs])
+        self.action_space = _box(self._low, self._high, (self.num_envs, self.n_av))
+        self._u = np.empty((self.num_envs, self.n_av))
+        self._all = np.ones(self.num_envs, bool)
+        self._all.flags.writeable = False
+        self._batch = None
+
+    def _rebuild(self, done=None):
+        """The batch after the environments `done` (None: all) were reset (new runs); the others keep their
+        previous action's accelerations (the jerk's)."""
+        prev = None
+        if self._batch is not None:
+            prev = self._batch.prev_accel.reshape(self.num_envs, self.n_av).copy()
+            self._batch.close()
+        self._batch = RlBatch([e.sim for e in self.envs], [e.AV for e in self.envs], self.envs[0].reward,
+                              self.action_every, self.dt_s)
+        if done is not None:
+            prev[done] = np.nan
+            self._batch.prev_accel[:] = prev.ravel()
+        self._steps = np.array([e.sim.steps_done for e in self.envs], np.int64)
+        self._t0 = np.array([e.t0 for e in self.envs])
+        self._horizon = np.array([e.horizon_s for e in self.envs])
+
+    def reset(self, seed=None, options=None):
+        if seed is None or np.isscalar(seed):
+            seeds = [None if seed is None else int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"{len(seeds)} seeds for {self.num_envs} environments")
+        for e, s in zip(self.envs, seeds):
+            e.reset(seed=s, options=options)
+        self._rebuild()
+        obs = self._batch.obs.reshape(self.num_envs, self.n_av, 3).copy()
+        return obs, _with_masks({"t": self._steps * self.dt_s}, self._all)
+
+    def step(self, actions):
+        if self._batch is None:
+            raise RuntimeError("VectorEnv.step before reset()")
+        u = np.asarray(actions, np.float64).reshape(self.num_envs, self.n_av)
+        # np.minimum/np.maximum into one buffer: np.clip costs several times more on arrays this small.
+        np.minimum(np.maximum(u, self._low, out=self._u), self._high, out=self._u)
+        obs, r, info = self._batch.step(self._u, self.threads)
+        obs, r = obs.reshape(self.num_envs, self.n_av, 3).copy(), r.copy()
+        self._steps += self.action_every
+        t = self._steps * self.dt_s  # as Simulation.t: steps done x dt
+        truncated = t - self._t0 >= self._horizon - 1e-9
+        cols = info.T.copy()  # one copy: the batch's buffers are overwritten by the next step
+        infos = {"t": t, "fuel_rate_gps": cols[3], "mean_speed_mps": cols[4],
+                 "reward_terms": {k: cols[i] for i, k in enumerate(INFO[:3])}}
+        if truncated.any():
+            infos.update(self._autoreset(np.flatnonzero(truncated), obs, infos))
+            obs = self._batch.obs.reshape(self.num_envs, self.n_av, 3).copy()
+        return obs, r, np.zeros(self.num_envs, bool), truncated, _with_masks(infos, self._all)
+
+    def _autoreset(self, done, obs, infos):
+        """Reset the environments `done` (each from its own generator) and return the final_obs / final_info."""
+        final_obs = np.full(self.num_envs, None, object)
+        final_info = np.full(self.num_envs, None, object)
+        for i in done:
+            final_obs[i] = obs[i].copy()
+            final_info[i] = {"t": float(infos["t"][i]), "fuel_rate_gps": float(infos["fuel_rate_gps"][i]),
+                             "mean_speed_mps": float(infos["mean_speed_mps"][i]),
+                             "reward_terms": {k: float(x[i]) for k, x in infos["reward_terms"].items()}}
+            self.envs[i].reset()
+        self._rebuild(done)
+        return {"final_obs": final_obs, "final_info": final_info}
+
+    def close(self):
+        if self._batch is not None:
+            self._batch.close()
+            self._batch = None
+        for e in self.envs:
+            e.close()
+
+
+def _with_masks(infos, every):
+    """Gymnasium's vector infos: each key K with a boolean array "_K" saying which environments have it (every: a
+    read-only all-True mask, shared)."""
+    out = {}
+    for k, x in infos.items():
+        out[k] = _with_masks(x, every) if isinstance(x, dict) else x
+        out["_" + k] = np.array([v is not None for v in x]) if k.startswith("final") else every
+    return out
