@@ -6,6 +6,7 @@
 #   fuzz      clang + compiler-rt (libFuzzer, sanitizers) + LLVM libomp (Archer)  make fuzz, fuzz-smoke, tsan
 #   valgrind  valgrind                                                           make valgrind
 #   mpi       OpenMPI (mpicc, mpirun)                                            make mpi (bin/wavefuel-mpi)
+#   rl        PyTorch, PyYAML (python3-torch, python3-yaml)                      examples/rl/ (training a policy)
 set -euo pipefail
 PKGS=()
 [ $# -eq 0 ] && set -- base
@@ -16,7 +17,8 @@ for set_name in "$@"; do
     fuzz) PKGS+=(clang libclang-rt-14-dev libomp-14-dev) ;;
     valgrind) PKGS+=(valgrind) ;;
     mpi) PKGS+=(libopenmpi-dev openmpi-bin) ;;
-    *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind, mpi)" >&2; exit 2 ;;
+    rl) PKGS+=(python3-torch python3-yaml) ;;
+    *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind, mpi, rl)" >&2; exit 2 ;;
   esac
 done
 missing=()
