@@ -757,10 +757,11 @@ static inline void lanes_store(const V4 *x, double *base, size_t nx, size_t i, s
     if (k + 3 < nc) base[(k + 3) * nx + i] = (*x)[3];
 }
 
-/* A vehicle's distance and fuel into its class's lane of vector v (key: the class, or -1 outside the window). */
-static inline void lanes_add(V4 *cd, V4 *cf, M4 key, size_t v, double d, double fuel)
+/* A vehicle's distance and fuel into its class's lane of vector v (key: the class, or -1 outside the window). Vectors
+ * go by pointer: passing one by value would depend on the target's vector ABI. */
+static inline void lanes_add(V4 *cd, V4 *cf, int64_t key, size_t v, double d, double fuel)
 {
-    M4 hit = ((M4){0, 1, 2, 3} + (int64_t)(4 * v)) == key;
+    M4 hit = ((M4){0, 1, 2, 3} + (int64_t)(4 * v)) == (M4){key, key, key, key};
     *cd += (V4)((M4)(V4){d, d, d, d} & hit);
     *cf += (V4)((M4)(V4){fuel, fuel, fuel, fuel} & hit);
 }
@@ -811,8 +812,7 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, long
             }
             double d = xb - xa;
             sd += d, st += dt, sf += fuel;
-            int64_t kc = in_window ? (int64_t)cl : -1;
-            M4 key = {kc, kc, kc, kc};
+            int64_t key = in_window ? (int64_t)cl : -1;
             lanes_add(&cd0, &cf0, key, 0, d, fuel);
             if (nv > 1) lanes_add(&cd1, &cf1, key, 1, d, fuel);
             if (nv > 2) lanes_add(&cd2, &cf2, key, 2, d, fuel), lanes_add(&cd3, &cf3, key, 3, d, fuel);
