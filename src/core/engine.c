@@ -426,6 +426,7 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 {
     const WfRing *s = eng;
     const WfFleet *f = s->f;
+    if (!fn) return f->group_n[g]; /* a count only: a ring's groups keep their members */
     const double *x = f->x_m, *v = f->v_mps, *len = s->lane.class_length_m;
     size_t n = f->n, k = 0, ssz = s->sc->groups[g].model->state_size;
     for (size_t i = 0; i < n; i++) {
