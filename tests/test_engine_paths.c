@@ -92,14 +92,7 @@ static int run(const char *path, const char *mode, int threads, Out *o)
         memcpy(o->v, f->v_mps, f->n * sizeof(double));
         memcpy(o->fuel, f->fuel_g, f->n * sizeof(double));
         o->safety = wf_sim_summary(sim)->safety_interventions;
-        WfStateVar vars[64];
-        size_t nv = wf_sim_state(sim, vars, 64);
-        for (size_t k = 0; k < nv && k < 64; k++) o->state_size += vars[k].size;
-        o->state = malloc(o->state_size);
-        for (size_t k = 0, off = 0; o->state && k < nv && k < 64; k++) {
-            memcpy(o->state + off, vars[k].data, vars[k].size);
-            off += vars[k].size;
-        }
+        o->state = wf_test_state_copy(sim, &o->state_size);
     }
     wf_sim_destroy(&sim);
     wf_scenario_destroy(&sc);
@@ -285,14 +278,7 @@ static int run_corridor(const char *path, int threads, COut *o)
     if (rc) printf("  %s\n", err.msg);
     if (!rc) {
         o->safety = wf_sim_summary(c)->safety_interventions;
-        WfStateVar vars[WF_MAX_STATE_VARS];
-        size_t nv = wf_sim_state(c, vars, WF_MAX_STATE_VARS);
-        for (size_t k = 0; k < nv; k++) o->state_size += vars[k].size;
-        o->state = malloc(o->state_size);
-        for (size_t k = 0, off = 0; o->state && k < nv; k++) {
-            memcpy(o->state + off, vars[k].data, vars[k].size);
-            off += vars[k].size;
-        }
+        o->state = wf_test_state_copy(c, &o->state_size);
     }
     wf_sim_destroy(&c);
     wf_scenario_destroy(&sc);

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "wavefuel/engine.h"
 #include "wavefuel/vehicle.h"
 
 static int wf_test_failed_;      /* failures in the current case */
@@ -73,5 +74,21 @@ static void wf_test_setup_(void)
     } while (0)
 
 #define TEST_EXIT() return wf_test_fail_total_ ? 1 : 0
+
+/* The run's complete state, what a checkpoint saves (wf_sim_state), concatenated into a new buffer (the caller frees
+ * it; NULL when out of memory), its size in *size. */
+static inline unsigned char *wf_test_state_copy(WfSim *sim, size_t *size)
+{
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS);
+    *size = 0;
+    for (size_t k = 0; k < nv; k++) *size += vars[k].size;
+    unsigned char *buf = malloc(*size ? *size : 1);
+    for (size_t k = 0, off = 0; buf && k < nv; k++) {
+        memcpy(buf + off, vars[k].data, vars[k].size);
+        off += vars[k].size;
+    }
+    return buf;
+}
 
 #endif

@@ -146,5 +146,8 @@ int    wf_sim_restored(WfSim *sim, WfError *err);
 void   wf_sim_set_checkpoint_interval(WfSim *sim, double wall_s);
 /* Solver statistics of a SUNDIALS run: returns 1 and fills *st, or 0 for a fixed-step integrator. */
 int               wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st);
+/* Time-blocked stepping so far (time.block_steps): the windows stepped and those undone and redone one step at a
+ * time (an overlap or a fault in them). Returns the steps per window, or 0 when the run steps one at a time. */
+int               wf_sim_window_stats(const WfSim *sim, long *windows, long *redone);
 
 #endif

@@ -67,6 +67,8 @@ typedef struct WfScenario {
     int     adaptive;             /* 1: a SUNDIALS integrator (cvode, arkode, rk4) configured by `solver` */
     WfOdeConfig solver;
     int     fused_step;           /* 1: steps that record nothing run in one fused pass (same results, faster) */
+    int     block_steps;          /* ring: steps per time-blocked window (0: the default, 1: one step at a time) */
+    long    tile_vehicles;        /* ring: vehicles per tile of a window (0: from the cache size) */
     uint64_t seed;
     long    n_vehicles;
     WfPlacement placement;

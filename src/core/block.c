@@ -28,13 +28,14 @@ int wf_loop_advance(const WfLoop *lp, WfLoopState *st, long n, WfError *err)
 {
     double t0 = wf_wall_now();
     int rc = 0;
-    for (long k = 0; k < n && !st->at_end && !st->reason; k++) {
-        long step = *lp->steps_done;
-        if ((rc = lp->step(lp->ctx, step, err))) {
+    for (long k = 0; k < n && !st->at_end && !st->reason;) {
+        long step = *lp->steps_done, done = 1;
+        if ((rc = lp->step(lp->ctx, step, n - k, &done, err))) {
             if (rc == WF_LOOP_END) st->at_end = 1, rc = 0;
             break;
         }
-        *lp->steps_done = step + 1;
+        *lp->steps_done = step + done;
+        k += done;
         if (lp->stop && *lp->stop) {
             st->reason = *lp->stop == SIGTERM ? "interrupted by SIGTERM" : "interrupted by SIGINT";
             break;
@@ -43,8 +44,9 @@ int wf_loop_advance(const WfLoop *lp, WfLoopState *st, long n, WfError *err)
             if ((rc = lp->checkpoint(lp->ctx, err))) break;
             st->last_ckpt = wf_wall_now();
         }
-        if (lp->progress && (step & 63) == 0 && wf_wall_now() - st->last_progress >= 0.2) {
-            lp->progress(lp->pctx, (double)(step + 1) * lp->dt_s, lp->duration_s, step + 1, lp->n_steps);
+        /* the clock is read when the steps done cross a multiple of 64 */
+        if (lp->progress && (step + done - 1) / 64 * 64 >= step && wf_wall_now() - st->last_progress >= 0.2) {
+            lp->progress(lp->pctx, (double)(step + done) * lp->dt_s, lp->duration_s, step + done, lp->n_steps);
             st->last_progress = wf_wall_now();
         }
     }
@@ -80,6 +82,7 @@ int wf_loop_run(const WfLoop *lp, WfError *err)
 }
 
 static inline size_t idx_of(const WfLane *ln, size_t i) { return ln->slot ? ln->slot[i] : i; }
+static inline size_t sidx_of(const WfLane *ln, size_t i) { return ln->sslot ? ln->sslot[i] : idx_of(ln, i); }
 
 /* A block's values of the step, kept locally by the fused step. */
 typedef struct Blk {
@@ -162,7 +165,7 @@ AI void accel_group(const WfLane *ln, size_t g, size_t lo, const uint32_t *k, si
         double buf[WF_MAX_MODEL_PARAMS];
         for (size_t j = 0; j < cnt; j++) {
             size_t i = lo + (k ? k[j] : j);
-            const void *st = m->state_size ? ln->state[g] + idx_of(ln, i) * ssz : NULL;
+            const void *st = m->state_size ? ln->state[g] + sidx_of(ln, i) * ssz : NULL;
             a[j] = m->accel(params_of(ln, g, i, x[i - lo], buf), st, gap[j], v[j], vl[j]);
         }
     }
@@ -260,7 +263,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     const double *x = ln->x_m + lo, *v = ln->v_mps + lo;
     const uint16_t *cid = ln->class_id + lo;
     double z[B], cap[B];
-    if (ln->noisy) lane_noise(sc->seed, lo, m, step, z);
+    if (ln->noisy) lane_noise(sc->seed, ln->key0 + lo, m, step, z);
     for (size_t k = 0; k + 1 < m; k++) {
         b->gap[k] = x[k + 1] - ln->class_length_m[cid[k + 1]] - x[k];
         b->vl[k] = v[k + 1];
@@ -273,7 +276,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
         b->vl[m - 1] = ld->v_mps;
     }
     if (ln->ops->grade)
-        ln->ops->grade(ln->ctx, lo, m, x, b->th);
+        ln->ops->grade(ln->ctx, ln->grade_seg + lo, m, x, b->th);
     else
         memset(b->th, 0, m * sizeof *b->th);
     int capped = ln->ops->cap && ln->ops->cap(ln->ctx, m, x, v, cap);
@@ -402,7 +405,7 @@ void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v)
         const WfCfModel *cm = sc->groups[g].model;
         if (!cm->state_size || !cm->update_state) continue;
         double buf[WF_MAX_MODEL_PARAMS];
-        cm->update_state(params_of(ln, g, i, ln->x_m[i], buf), ln->state[g] + idx_of(ln, i) * ln->sstride[g],
+        cm->update_state(params_of(ln, g, i, ln->x_m[i], buf), ln->state[g] + sidx_of(ln, i) * ln->sstride[g],
                          ln->out.gap_m[i], v[k], ln->out.v_lead_mps[i], sc->dt_s);
     }
 }
@@ -419,7 +422,7 @@ AI int advance_block(WfLane *ln, size_t lo, size_t m, const double *a, const dou
             const WfCfModel *cm = sc->groups[g].model;
             if (!cm->state_size || !cm->update_state) continue;
             double buf[WF_MAX_MODEL_PARAMS];
-            cm->update_state(params_of(ln, g, i, x[k], buf), ln->state[g] + idx_of(ln, i) * ln->sstride[g], gap[k],
+            cm->update_state(params_of(ln, g, i, x[k], buf), ln->state[g] + sidx_of(ln, i) * ln->sstride[g], gap[k],
                              v[k], vl[k], sc->dt_s);
         }
     }
@@ -493,33 +496,43 @@ static int edge_overlap(const WfLane *ln, size_t i, size_t l, double shift)
     return xl - ln->class_length_m[ln->class_id[l]] - ln->x_m[i] < 0.0 ? WF_STEP_OVERLAP : 0;
 }
 
-/* Blocks [b0, b1) of one chunk, in order; (xs, vs): the chunk's last leader, saved before any update; co: see
- * run_block. */
-static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, size_t nb, double xs, double vs,
-                     const WfLead *front, long step, int pass, int in_window, WfStatsBlock *rec, WfChunkOut *co)
+int wf_lane_tile(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, long step0, int k, const WfLead *lead,
+                 double *tx, double *tv, int pass, int in_window, WfStatsBlock *const *recs, WfChunkOut *co)
 {
     int fl = 0;
-    size_t prev_last = 0;
-    for (size_t b = b0; b < b1; b++) {
-        size_t lo, m = block_at(ln, first, n, b, &lo), nx = (lo + m) % ln->cap;
-        WfLead ld;
-        if (b + 1 == nb)
-            ld = front_lead(ln, first, xs, vs, front);
-        else if (b + 1 == b1)
-            ld = (WfLead){xs - ln->class_length_m[ln->class_id[nx]], vs, 0.0};
-        else
-            ld = (WfLead){ln->x_m[nx] - ln->class_length_m[ln->class_id[nx]], ln->v_mps[nx], 0.0};
-        fl |= run_block(ln, lo, m, &ld, step, pass, in_window, rec ? rec + b : NULL, co);
-        if ((pass & WF_PASS_ADVANCE) && ln->ops->moved) ln->ops->moved(ln->ctx, lo, m);
-        /* The previous block's edge, while both blocks are in cache. */
-        if ((pass & WF_PASS_ADVANCE) && b > b0) fl |= edge_overlap(ln, prev_last, lo, 0.0);
-        prev_last = lo + m - 1;
+    size_t lo0, last = 0;
+    block_at(ln, first, n, b0, &lo0);
+    for (int s = 0; s < k; s++) {
+        if (tx) tx[s] = ln->x_m[lo0], tv[s] = ln->v_mps[lo0];
+        size_t prev_last = 0;
+        for (size_t b = b0; b < b1; b++) {
+            size_t lo, m = block_at(ln, first, n, b, &lo), nx = (lo + m) % ln->cap;
+            WfLead ld = b + 1 == b1 ? lead[s]
+                                    : (WfLead){ln->x_m[nx] - ln->class_length_m[ln->class_id[nx]], ln->v_mps[nx], 0.0};
+            fl |= run_block(ln, lo, m, &ld, step0 + s, pass, in_window, recs && recs[s] ? recs[s] + b : NULL, co);
+            if ((pass & WF_PASS_ADVANCE) && ln->ops->moved) ln->ops->moved(ln->ctx, lo, m);
+            /* The previous block's edge, while both blocks are in cache. */
+            if ((pass & WF_PASS_ADVANCE) && b > b0) fl |= edge_overlap(ln, prev_last, lo, 0.0);
+            prev_last = last = lo + m - 1;
+        }
+        /* The front edge against the leader at the next step's start (it is a vehicle when k > 1). */
+        if ((pass & WF_PASS_ADVANCE) && s + 1 < k && lead[s + 1].rear_m - ln->x_m[last] < 0.0) fl |= WF_STEP_OVERLAP;
     }
     return fl;
 }
 
-/* The edge after the chunk's last block, once the next chunk has moved too. */
-static int chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_t nb)
+/* Blocks [b0, b1) of one chunk for one step; (xs, vs): the chunk's last leader, saved before any update; co: see
+ * run_block. */
+static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, size_t nb, double xs, double vs,
+                     const WfLead *front, long step, int pass, int in_window, WfStatsBlock *rec, WfChunkOut *co)
+{
+    size_t lo, m = block_at(ln, first, n, b1 - 1, &lo), nx = (lo + m) % ln->cap;
+    WfLead ld = b1 == nb ? front_lead(ln, first, xs, vs, front)
+                         : (WfLead){xs - ln->class_length_m[ln->class_id[nx]], vs, 0.0};
+    return wf_lane_tile(ln, first, n, b0, b1, step, 1, &ld, NULL, NULL, pass, in_window, &rec, co);
+}
+
+int wf_lane_chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_t nb)
 {
     size_t lo, m = block_at(ln, first, n, b1 - 1, &lo), last = lo + m - 1;
     if (b1 < nb) return edge_overlap(ln, last, (last + 1) % ln->cap, 0.0);
@@ -542,8 +555,7 @@ void wf_lane_safety_summary(const WfLane *ln, WfSummary *s)
     wf_summary_safety_totals(s);
 }
 
-/* The chunks' counts of a counting pass into the run's: integer sums, so the same whatever the chunks. */
-static void safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
+void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
 {
     for (int t = 0; t < nth; t++)
         for (size_t g = 0; g < ln->sc->n_groups; g++) {
@@ -573,8 +585,8 @@ int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long s
         /* Small roads: no OpenMP region at all (even a one-thread region costs runtime calls every step). */
         flags = run_chunk(ln, first, n, 0, nb, nb, ln->x_m[first], ln->v_mps[first], front, step, pass, in_window, rec,
                           count ? cf : NULL);
-        if (count) safety_add(ln, cf, 1);
-        return adv ? flags | chunk_edge(ln, first, n, nb, nb) : 0;
+        if (count) wf_lane_safety_add(ln, cf, 1);
+        return adv ? flags | wf_lane_chunk_edge(ln, first, n, nb, nb) : 0;
     }
 #pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bx, bv, front, step, pass, in_window, rec, adv, cf, count)
     {
@@ -595,10 +607,10 @@ int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long s
         int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, bx[tn], bv[tn], front, step, pass, in_window, rec,
                                      count ? &cf[t] : NULL) : 0;
 #pragma omp barrier
-        if (adv && b1 > b0) fl |= chunk_edge(ln, first, n, b1, nb);
+        if (adv && b1 > b0) fl |= wf_lane_chunk_edge(ln, first, n, b1, nb);
         cf[t].flags = fl;
     }
     for (int t = 0; t < nth; t++) flags |= cf[t].flags;
-    if (count) safety_add(ln, cf, nth);
+    if (count) wf_lane_safety_add(ln, cf, nth);
     return adv ? flags : 0;
 }

@@ -62,8 +62,9 @@ typedef struct WfLead {
 
 /* What a boundary adds to the rules: each hook sees m consecutive slots from lo and their positions / speeds. */
 typedef struct WfRoadOps {
-    /* grade angle (rad); NULL: flat */
-    void (*grade)(const void *ctx, size_t lo, size_t m, const double *x_m, double *theta_rad);
+    /* grade angle (rad) of m vehicles at x_m; seg: their grade cache (the segment each was last found in); NULL:
+     * flat */
+    void (*grade)(const void *ctx, uint32_t *seg, size_t m, const double *x_m, double *theta_rad);
     /* a cap on each acceleration (m/s^2; the rule: a > cap ? max(cap, -decel_max) : a); returns 0 when there is
      * none for these vehicles; NULL: never one */
     int (*cap)(const void *ctx, size_t m, const double *x_m, const double *v_mps, double *cap_mps2);
@@ -93,8 +94,9 @@ typedef struct WfLane {
     const uint16_t *class_id, *group_id;
     double    class_length_m[WF_MAX_CLASSES];
     /* each group's parameters and controller memory: vehicle in slot i at base + idx * stride with idx = slot[i]
-     * (slot NULL: idx = i); stride 0: one shared block */
-    const uint32_t *slot;
+     * (slot NULL: idx = i) for the parameters and idx = sslot[i] for the memory (sslot NULL: the same as the
+     * parameters'); stride 0: one shared block */
+    const uint32_t *slot, *sslot;
     const unsigned char *params[WF_MAX_GROUPS];
     unsigned char *state[WF_MAX_GROUPS];
     size_t    pstride[WF_MAX_GROUPS], sstride[WF_MAX_GROUPS];
@@ -105,6 +107,7 @@ typedef struct WfLane {
     WfLaneValues out;               /* where a pass exports the step's values */
     double   *x_old_m;              /* positions at the step's start, per slot (NULL: not kept) */
     int       noisy, stateful, nthreads;
+    size_t    key0;                 /* slot i draws the noise of slot key0 + i (a halo's copy of other vehicles) */
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
     WfChunkOut *chunks;             /* nthreads + 1 */
     int       safe;                 /* some driver group has a safety filter (set by wf_lane_safety_init) */
@@ -121,6 +124,20 @@ void wf_lane_safety_summary(const WfLane *ln, WfSummary *s);
  * NULL. Returns WF_STEP_* flags of an advancing pass (overlaps between blocks included, the open front excluded). */
 int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long step, int pass, int in_window,
                  WfStatsBlock *rec);
+/* k steps from step0 of blocks [b0, b1) of that range, block after block at each step: one step is a chunk of
+ * wf_lane_step; more are a tile of a time-blocked window (src/core/window.c). The leader of the last block's last
+ * vehicle at the start of step step0 + s is lead[s] (a vehicle when k > 1); tx, tv (NULL: not kept) receive the
+ * position and speed of the first block's first vehicle at the start of each step (the leader of the tile behind).
+ * recs[s]: step step0 + s's record partial sums, indexed by block, or NULL. Checks the edges between the blocks,
+ * and the front edge after each step but the last (against lead[s + 1]): the caller checks it after the last step,
+ * once the vehicle ahead has moved. co: the safety counts of a counting pass, or NULL. Returns WF_STEP_* flags. */
+int wf_lane_tile(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, long step0, int k, const WfLead *lead,
+                 double *tx, double *tv, int pass, int in_window, WfStatsBlock *const *recs, WfChunkOut *co);
+/* WF_STEP_OVERLAP when the last vehicle of the chunk of blocks ending at b1 overlaps the vehicle ahead (the next
+ * chunk's first, or on a periodic lane the back vehicle one period ahead), once both have moved. */
+int wf_lane_chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_t nb);
+/* The chunks' counts of a counting pass into the run's: integer sums, so the same whatever the chunks. */
+void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth);
 /* Number of blocks of that range (the length of rec). */
 size_t wf_lane_blocks(size_t first, size_t n);
 /* Fuel rate and flag of slots [lo, lo + n) at speeds v and accelerations a (grades theta_rad), class by class. */
@@ -133,13 +150,16 @@ void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window);
 /* Controller memory of slots [lo, lo + n) from the exported gaps and leader speeds and the speeds v. */
 void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v);
 
-/* A run, shared by the boundaries: steps from *steps_done to n_steps; after each step, the stop flag, the checkpoint
- * every checkpoint_every_s of wall time and the progress (about 5 times a second); then, when a signal stopped the
+/* A run, shared by the boundaries: steps from *steps_done to n_steps; after each call of step (one step, or a
+ * window of several), the stop flag, the checkpoint every checkpoint_every_s of wall time and the progress (about 5
+ * times a second); then, when a signal stopped the
  * run, a checkpoint (an interrupted run can always be resumed), the boundary's close and the output's end. */
 enum { WF_LOOP_END = -1 };
 typedef struct WfLoop {
     void  *ctx;
-    int  (*step)(void *ctx, long step, WfError *err); /* 0, WF_LOOP_END after the final instant, or an error */
+    /* Steps from `step`, at most max_steps of them (a boundary may take several at once: time-blocked windows),
+     * their number in *steps: 0, WF_LOOP_END after the final instant, or an error */
+    int  (*step)(void *ctx, long step, long max_steps, long *steps, WfError *err);
     int  (*checkpoint)(void *ctx, WfError *err);       /* NULL: none */
     int  (*close)(void *ctx, WfError *err);            /* summaries of the run (also after an error) */
     int  (*end)(void *ctx, int completed, const char *reason, WfError *err); /* NULL: none */

@@ -499,10 +499,10 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
 
 /* ------------------------------------------------------------------------------------- the open road */
 
-static void corridor_grade(const void *ctx, size_t lo, size_t m, const double *x, double *th)
+static void corridor_grade(const void *ctx, uint32_t *seg, size_t m, const double *x, double *th)
 {
     const WfCorridor *c = ctx;
-    for (size_t k = 0; k < m; k++) th[k] = wf_corridor_grade(c->cs, x[k], &c->grade_seg[lo + k]);
+    for (size_t k = 0; k < m; k++) th[k] = wf_corridor_grade(c->cs, x[k], &seg[k]);
 }
 
 /* The cap of the acceleration at x: never past the speed limit at x within the step, and at least the braking
@@ -1052,8 +1052,10 @@ static int numerical_fault(const WfCorridor *c, long step, WfError *err)
 /* One step: the kernel's pass that computes the step's values (fused with the advance unless a record or a
  * trajectory must see them first), then the open boundary: the virtual leader, overlap repair, Edie and detectors,
  * exits. Returns WF_LOOP_END after the final instant (recorded without a step), 0 after a step, or an error code. */
-static int corridor_step(void *eng, long step, WfError *err)
+static int corridor_step(void *eng, long step, long max_steps, long *steps, WfError *err)
 {
+    (void)max_steps;
+    *steps = 1;
     WfCorridor *c = eng;
     const WfOutput *out = c->sim->out;
     const WfScenario *sc = c->sc;

@@ -11,6 +11,7 @@
 #include "core/block.h"
 #include "core/par.h"
 #include "core/sim.h"
+#include "core/window.h"
 
 typedef struct WfRing {
     WfSim              *sim;  /* the run this engine is the boundary of (outputs, threads, summary) */
@@ -38,14 +39,19 @@ typedef struct WfRing {
     int      stateful;      /* some driver model keeps per-vehicle memory */
     double   sd_sum;
     long     n_sd;
+    WfWindow win;           /* time-blocked stepping (win.k_max 0: one step at a time) */
+    long     per_step_until; /* after a window redone step by step: no window before this step */
+    long     windows, redone;  /* windows stepped, and undone to be redone step by step */
 } WfRing;
 
 static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel);
+static size_t ring_state(void *eng, WfStateVar *vars, size_t max);
 
 static void ring_destroy(void *eng)
 {
     WfRing *s = eng;
     wf_fleet_destroy(&s->f);
+    wf_window_destroy(&s->win);
     free(s->stat_blocks);
     free(s->chunks);
     wf_ode_destroy(&s->ode);
@@ -60,10 +66,10 @@ static void ring_destroy(void *eng)
 
 /* ------------------------------------------------------------------------------------- the ring's road */
 
-static void ring_grade(const void *ctx, size_t lo, size_t m, const double *x, double *th)
+static void ring_grade(const void *ctx, uint32_t *seg, size_t m, const double *x, double *th)
 {
     const WfRing *s = ctx;
-    for (size_t k = 0; k < m; k++) th[k] = wf_road_grade(&s->sc->road, x[k], &s->f->grade_seg[lo + k]);
+    for (size_t k = 0; k < m; k++) th[k] = wf_road_grade(&s->sc->road, x[k], &seg[k]);
 }
 
 /* The speed limit: never accelerate past it within the step. */
@@ -125,6 +131,22 @@ static int ode_init(WfRing *s, WfError *err)
     return wf_ode_create(&cfg, n, sc->road.length_m, ode_rhs, s, 0.0, s->f->x_m, s->f->v_mps, &s->ode, err);
 }
 
+/* Time-blocked stepping (src/core/window.h) for fixed-step schemes on the fused path, when the ring is long enough
+ * for the threads: time.block_steps steps per window (0: WF_WINDOW_STEPS; 1: none), tiles of time.tile_vehicles
+ * (0: from the cache size and the bytes of state per vehicle). */
+static int window_init(WfRing *s, WfError *err)
+{
+    const WfScenario *sc = s->sc;
+    int k = sc->block_steps ? sc->block_steps : WF_WINDOW_STEPS;
+    size_t n = s->f->n;
+    if (s->ode || !sc->fused_step || !wf_window_fits(n, s->nthreads, k)) return 0;
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), bytes = 0;
+    for (size_t j = 0; j < nv; j++) bytes += vars[j].size;
+    size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(bytes / n);
+    return wf_window_create(&s->win, &s->lane, n, k, tile, s->out_every, bytes, err);
+}
+
 static int ring_create(WfSim *sim, WfError *err)
 {
     const WfScenario *sc = sim->sc;
@@ -154,6 +176,7 @@ static int ring_create(WfSim *sim, WfError *err)
         rc = wf_err(err, WF_ESYS, "out of memory");
     if (!rc && sc->adaptive) rc = ode_init(s, err);
     if (!rc) lane_init(s);
+    if (!rc) rc = window_init(s, err);
     return rc;
 }
 
@@ -292,9 +315,69 @@ static void lap(WfRing *s, int phase, double *tp)
 /* One step: the pass that computes the step's values (and, fused, advances), the record and the trajectory at the
  * step's start, then the advance when it is a pass of its own, and the overlap repair. Returns WF_LOOP_END after
  * the final instant (recorded without a step), 0 after a step, or an error code. */
-static int ring_step(void *eng, long step, WfError *err)
+/* Steps a window may take from `step`: none across the opening of the statistics window, a trajectory step or the
+ * final instant, which run one at a time. */
+static long window_steps(const WfRing *s, long step, long max_steps)
+{
+    if (!s->win.k_max || step < s->per_step_until) return 1;
+    long k = s->win.k_max < max_steps ? s->win.k_max : max_steps;
+    if (s->n_steps - step < k) k = s->n_steps - step;
+    if (step < s->warm_steps && s->warm_steps - step < k) k = s->warm_steps - step;
+    if (s->sc->trajectories) {
+        long r = step % s->traj_every;
+        if (!r) return 1;
+        if (s->traj_every - r < k) k = s->traj_every - r;
+    }
+    return k;
+}
+
+/* k steps in one window; *done 0 when some step overlapped or faulted: the state is as before, the steps are then
+ * taken one at a time (their repairs and errors are the per-step path's). Records in step order. */
+static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
+{
+    const WfScenario *sc = s->sc;
+    const WfOutput *out = s->sim->out;
+    size_t nb = s->win.nb, rows, j = 0;
+    int in_window = step >= s->warm_steps, rc = 0;
+    double tp = wf_wall_now();
+    if (step == s->warm_steps && !s->f->window_open) wf_fleet_open_window(s->f);
+    lane_exports(s, 0);
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
+    int flags = wf_window_run(&s->win, &s->lane, s->f->n, step, (int)k, in_window, vars, nv, &rows);
+    lap(s, WF_PHASE_FUSED, &tp);
+    s->windows++;
+    if ((*done = !flags) == 0) {
+        s->redone++;
+        s->per_step_until = step + k;
+        return 0;
+    }
+    s->repaired = 0;
+    for (long q = step; q < step + k && j < rows; q++) {
+        if (q % s->out_every) continue;
+        WfTsRow row;
+        wf_stats_combine(s->win.rec + nb * j++, nb, s->f->n_classes, sc, (double)q * sc->dt_s, s->overlaps, &row);
+        if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
+        lap(s, WF_PHASE_STATISTICS, &tp);
+        WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
+        if (out && out->record && (rc = out->record(out->ctx, s->sim, &rec, err))) return rc;
+        lap(s, WF_PHASE_OUTPUT, &tp);
+    }
+    return 0;
+}
+
+static int ring_step(void *eng, long step, long max_steps, long *steps, WfError *err)
 {
     WfRing *s = eng;
+    long k = window_steps(s, step, max_steps);
+    *steps = 1;
+    if (k > 1) {
+        int done, rc = ring_window(s, step, k, &done, err);
+        if (rc || done) {
+            *steps = k;
+            return rc;
+        }
+    }
     const WfOutput *out = s->sim->out;
     const WfScenario *sc = s->sc;
     WfLane *ln = &s->lane;
@@ -346,6 +429,13 @@ static int ring_close(void *eng, WfError *err)
 const WfFleet *wf_sim_fleet(const WfSim *sim)
 {
     return sim->b == &wf_boundary_periodic ? ((const WfRing *)sim->eng)->f : NULL;
+}
+
+int wf_sim_window_stats(const WfSim *sim, long *windows, long *redone)
+{
+    const WfRing *s = sim->b == &wf_boundary_periodic ? sim->eng : NULL;
+    *windows = s ? s->windows : 0, *redone = s ? s->redone : 0;
+    return s ? s->win.k_max : 0;
 }
 
 int wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st)

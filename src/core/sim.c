@@ -62,11 +62,12 @@ void wf_sim_destroy(WfSim **ps)
 
 static int mlp_command(WfSim *s, long step, WfError *err);
 
-static int step_cb(void *ctx, long step, WfError *err)
+static int step_cb(void *ctx, long step, long max_steps, long *steps, WfError *err)
 {
     WfSim *s = ctx;
+    /* an mlp group's commands are set before every step */
     int rc = s->mlp_rows ? mlp_command(s, step, err) : 0;
-    return rc ? rc : s->b->step(s->eng, step, err);
+    return rc ? rc : s->b->step(s->eng, step, s->mlp_rows ? 1 : max_steps, steps, err);
 }
 
 static int checkpoint_cb(void *ctx, WfError *err)

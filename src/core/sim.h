@@ -18,9 +18,9 @@ typedef struct WfBoundary {
      * its state blocks save). Everything the run needs is allocated here. */
     int    (*create)(WfSim *sim, WfError *err);
     void   (*destroy)(void *eng);
-    /* One step (wf_loop_run's step): 0, WF_LOOP_END after the final instant, or an error. Outputs go through
-     * sim->out, which may be NULL. */
-    int    (*step)(void *eng, long step, WfError *err);
+    /* Steps from `step` (wf_loop_run's step): one, or up to max_steps at once, their number in *steps; 0,
+     * WF_LOOP_END after the final instant, or an error. Outputs go through sim->out, which may be NULL. */
+    int    (*step)(void *eng, long step, long max_steps, long *steps, WfError *err);
     /* Before sim->out->checkpoint: hand the output what it must hold at a checkpoint (NULL: nothing). */
     int    (*flush)(void *eng, WfError *err);
     /* After the last step (or an interruption or error): the run's totals into sim->summary. */

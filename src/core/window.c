@@ -1,0 +1,204 @@
+/* Time-blocked stepping of a periodic lane (window.h). */
+#include "core/window.h"
+
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+#define B WF_BLOCK
+
+/* One thread's scratch: the halo (a copy of the k + 1 vehicles ahead of its chunk, stepped as a lane of its own),
+ * the traces of the halo's and of each tile's first vehicle, the leads of the tile being stepped, its counts. */
+struct WfHalo {
+    double   *x_m, *v_mps, *hx, *hv, *tx, *tv;
+    uint8_t  *mode;
+    uint32_t *grade_seg, *slot, *sslot;
+    unsigned char *state[WF_MAX_GROUPS];
+    WfLead   *lead;
+    WfChunkOut co;
+};
+
+size_t wf_window_tile_default(size_t bytes_per_vehicle)
+{
+    long l2 = sysconf(_SC_LEVEL2_CACHE_SIZE);
+    size_t cache = l2 > 0 ? (size_t)l2 : (size_t)256 << 10; /* unknown: a small L2 */
+    size_t v = cache / 2 / (bytes_per_vehicle ? bytes_per_vehicle : 1);
+    return v < B ? B : v;
+}
+
+int wf_window_fits(size_t n, int nthreads, int k)
+{
+    size_t nth = n >= WF_PAR_MIN ? (size_t)nthreads : 1;
+    return k >= 2 && k + 1 < B && n / B >= 2 * nth;
+}
+
+static void halo_free(WfHalo *h)
+{
+    free(h->x_m), free(h->v_mps), free(h->hx), free(h->hv), free(h->tx), free(h->tv);
+    free(h->mode), free(h->grade_seg), free(h->slot), free(h->sslot), free(h->lead);
+    for (size_t g = 0; g < WF_MAX_GROUPS; g++) free(h->state[g]);
+}
+
+static int halo_alloc(WfHalo *h, const WfLane *ln, size_t k)
+{
+    size_t m = k + 1;
+    int ok = (h->x_m = malloc(m * sizeof(double))) && (h->v_mps = malloc(m * sizeof(double))) &&
+             (h->hx = malloc(k * sizeof(double))) && (h->hv = malloc(k * sizeof(double))) &&
+             (h->tx = malloc(k * sizeof(double))) && (h->tv = malloc(k * sizeof(double))) &&
+             (h->mode = malloc(m)) && (h->slot = malloc(m * sizeof(uint32_t))) &&
+             (h->sslot = malloc(m * sizeof(uint32_t))) && (h->lead = malloc(k * sizeof(WfLead))) &&
+             (!ln->grade_seg || (h->grade_seg = malloc(m * sizeof(uint32_t))));
+    for (size_t g = 0; ok && g < ln->sc->n_groups; g++)
+        if (ln->sstride[g]) ok = (h->state[g] = malloc(m * ln->sstride[g])) != NULL;
+    for (size_t j = 0; ok && j < m; j++) h->sslot[j] = (uint32_t)j;
+    return ok;
+}
+
+void wf_window_destroy(WfWindow *w)
+{
+    if (w->halo)
+        for (int t = 0; t < w->nthreads; t++) halo_free(&w->halo[t]);
+    free(w->halo);
+    free(w->rec);
+    free(w->backup);
+    memset(w, 0, sizeof *w);
+}
+
+int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, int k_max, size_t tile_vehicles, long out_every,
+                     size_t state_bytes, WfError *err)
+{
+    *w = (WfWindow){.k_max = k_max, .tile_blocks = (tile_vehicles + B - 1) / B, .nthreads = ln->nthreads,
+                    .nb = wf_lane_blocks(0, n), .out_every = out_every, .backup_bytes = state_bytes};
+    if (!w->tile_blocks) w->tile_blocks = 1;
+    w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
+    w->halo = calloc((size_t)w->nthreads, sizeof *w->halo);
+    w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
+    w->backup = malloc(state_bytes);
+    int ok = w->halo && w->rec && w->backup;
+    for (int t = 0; ok && t < w->nthreads; t++) ok = halo_alloc(&w->halo[t], ln, (size_t)k_max);
+    if (ok) return 0;
+    wf_window_destroy(w);
+    return wf_err(err, WF_ESYS, "out of memory for time-blocked stepping (a copy of the state: %zu bytes; "
+                  "time.block_steps: 1 steps one step at a time without it)", state_bytes);
+}
+
+/* The k + 1 vehicles from slot c as they are at the window's start, and a lane over that copy: the same
+ * parameters, classes and noise keys (key0), its own memory, modes and grade cache, no accumulators. */
+static WfLane halo_take(WfHalo *h, const WfLane *ln, size_t c, size_t k)
+{
+    WfLane hl = *ln;
+    for (size_t j = 0; j <= k; j++) {
+        size_t i = c + j, g = ln->group_id[i], idx = ln->slot ? ln->slot[i] : i;
+        h->x_m[j] = ln->x_m[i], h->v_mps[j] = ln->v_mps[i], h->mode[j] = ln->mode[i];
+        h->slot[j] = (uint32_t)idx;
+        if (h->grade_seg) h->grade_seg[j] = ln->grade_seg[i];
+        if (ln->sstride[g]) memcpy(h->state[g] + j * ln->sstride[g], ln->state[g] + idx * ln->sstride[g], ln->sstride[g]);
+    }
+    hl.x_m = h->x_m, hl.v_mps = h->v_mps, hl.mode = h->mode, hl.grade_seg = h->grade_seg;
+    hl.class_id = ln->class_id + c, hl.group_id = ln->group_id + c;
+    hl.slot = h->slot, hl.sslot = h->sslot, hl.key0 = ln->key0 + c;
+    for (size_t g = 0; g < WF_MAX_GROUPS; g++) hl.state[g] = h->state[g];
+    hl.cap = k + 1, hl.period_m = 0.0;
+    hl.always = hl.window = (WfAccum){0};
+    hl.out = (WfLaneValues){0};
+    hl.x_old_m = NULL;
+    return hl;
+}
+
+/* The trace of the halo's first vehicle over k steps (into hx, hv): its leader, the halo's last vehicle, is held at
+ * its position at the start; only the vehicles it does not reach in time matter, and none of them is traced. */
+static void halo_run(WfHalo *h, WfLane *hl, size_t k, long step0, int in_window)
+{
+    for (size_t s = 0; s < k; s++)
+        h->lead[s] = (WfLead){h->x_m[k] - hl->class_length_m[hl->class_id[k]], h->v_mps[k], 0.0};
+    wf_lane_tile(hl, 0, k, 0, 1, step0, (int)k, h->lead, h->hx, h->hv, WF_PASS_FUSED, in_window, NULL, NULL);
+}
+
+/* The leads of a tile whose leader is the vehicle in slot c with trace (x, v), shift: a period on the ring's
+ * wrap (as block.c's front_lead). */
+static void leads_of(const WfLane *ln, size_t c, const double *x, const double *v, double shift, size_t k, WfLead *ld)
+{
+    double len = ln->class_length_m[ln->class_id[c]];
+    for (size_t s = 0; s < k; s++) ld[s] = (WfLead){(shift != 0.0 ? x[s] + shift : x[s]) - len, v[s], 0.0};
+}
+
+/* Thread t's share of every state variable, copied (dir 0: into the backup; 1: back). */
+static void backup_share(WfWindow *w, const WfStateVar *vars, size_t n_vars, int t, int nt, int dir)
+{
+    unsigned char *bk = w->backup;
+    for (size_t j = 0; j < n_vars; j++) {
+        size_t a = vars[j].size * (size_t)t / (size_t)nt, b = vars[j].size * (size_t)(t + 1) / (size_t)nt;
+        unsigned char *d = vars[j].data;
+        if (dir)
+            memcpy(d + a, bk + a, b - a);
+        else
+            memcpy(bk + a, d + a, b - a);
+        bk += vars[j].size;
+    }
+}
+
+/* Thread t of nt: its chunk for k steps, tile by tile from the front. */
+static int run_chunk_window(WfWindow *w, WfLane *ln, size_t n, long step0, size_t k, int in_window, int pass,
+                            WfStatsBlock *const *recs, int t, size_t b0, size_t b1)
+{
+    WfHalo *h = &w->halo[t];
+    size_t nb = w->nb, c = b1 < nb ? b1 * B : 0;
+    WfLane hl = halo_take(h, ln, c, k);
+#pragma omp barrier
+    int fl = 0;
+    if (b1 <= b0) return 0;
+    halo_run(h, &hl, k, step0, in_window);
+    leads_of(ln, c, h->hx, h->hv, b1 < nb ? 0.0 : ln->period_m, k, h->lead);
+    for (size_t e = b1; e > b0;) {
+        size_t s0 = e - b0 > w->tile_blocks ? e - w->tile_blocks : b0;
+        fl |= wf_lane_tile(ln, 0, n, s0, e, step0, (int)k, h->lead, h->tx, h->tv, pass, in_window, recs, &h->co);
+        /* the tile's front edge after the last step: the tile ahead has finished */
+        if (e < b1) fl |= wf_lane_chunk_edge(ln, 0, n, e, nb);
+        leads_of(ln, s0 * B, h->tx, h->tv, 0.0, k, h->lead);
+        e = s0;
+    }
+    return fl;
+}
+
+int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_window, const WfStateVar *vars,
+                  size_t n_vars, size_t *n_rows)
+{
+    WfStatsBlock *recs[B];
+    size_t rows = 0, nb = w->nb;
+    for (int s = 0; s < k; s++)
+        recs[s] = (step0 + s) % w->out_every == 0 ? w->rec + nb * rows++ : NULL;
+    int nth = n >= WF_PAR_MIN ? w->nthreads : 1, flags = 0, count = ln->safe, nt = 1;
+    int pass = WF_PASS_FUSED | WF_PASS_COUNT;
+    WfChunkOut *cf = ln->chunks;
+#pragma omp parallel num_threads(nth) if (nth > 1) default(none) \
+    shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, pass, cf, nt)
+    {
+#ifdef _OPENMP
+        int t = omp_get_thread_num(), team = omp_get_num_threads();
+#else
+        int t = 0, team = 1;
+#endif
+        /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
+         * actually running. */
+        size_t b0 = nb * (size_t)t / (size_t)team, b1 = nb * (size_t)(t + 1) / (size_t)team;
+        if (t == 0) nt = team;
+        memset(&w->halo[t].co, 0, sizeof w->halo[t].co);
+        backup_share(w, vars, n_vars, t, team, 0);
+        int fl = run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, t, b0, b1);
+#pragma omp barrier
+        if (b1 > b0) fl |= wf_lane_chunk_edge(ln, 0, n, b1, nb);
+        cf[t].flags = fl;
+    }
+    for (int t = 0; t < nt; t++) flags |= cf[t].flags;
+    if (flags) {
+        backup_share(w, vars, n_vars, 0, 1, 1);
+        return flags;
+    }
+    if (count)
+        for (int t = 0; t < nt; t++) wf_lane_safety_add(ln, &w->halo[t].co, 1);
+    *n_rows = rows;
+    return 0;
+}

@@ -1,0 +1,59 @@
+/* Time-blocked stepping of a periodic lane (issue 20): k fused steps at a time, with one synchronisation of the
+ * threads per window instead of one per step, and each tile of vehicles kept in cache across its k steps.
+ *
+ * On a single lane information flows one way: a vehicle's step reads only itself and its leader at the step's
+ * start. Each thread owns a chunk of consecutive blocks for the whole window and steps it tile by tile from its
+ * front to its back, every tile k steps; a tile's leader at each step is the first vehicle of the tile ahead,
+ * recorded while that tile ran (its trace). The chunk's front tile follows the next chunk's first vehicle, whose
+ * trace the thread computes itself, redundantly, from a copy of the k + 1 vehicles there taken at the window's start
+ * (the halo): the same block kernel with the same counter-based noise, so the same bits. Records keep one row of
+ * block partial sums per record step and are combined in block order afterwards, as the per-step path does.
+ *
+ * A step that overlaps or faults must be repaired before the next (the repair sweeps the whole ring): when any step
+ * of a window flags, the window's state is restored from a copy taken at its start and the caller redoes the steps
+ * one at a time, so the results are those of the per-step path, bit for bit, for any k, tile size and threads. */
+#ifndef WAVEFUEL_CORE_WINDOW_H
+#define WAVEFUEL_CORE_WINDOW_H
+
+#include "core/block.h"
+
+typedef struct WfHalo WfHalo;
+
+typedef struct WfWindow {
+    int           k_max;       /* steps per window */
+    size_t        tile_blocks; /* blocks of WF_BLOCK vehicles per tile */
+    int           nthreads;    /* threads of the lane (a team may be smaller) */
+    size_t        nb;          /* blocks of the lane */
+    long          out_every;   /* steps between records */
+    WfHalo       *halo;        /* one per thread */
+    WfStatsBlock *rec;         /* rec_rows rows of nb partial sums: the window's record steps in order */
+    size_t        rec_rows;
+    unsigned char *backup;     /* the state at the window's start */
+    size_t        backup_bytes;
+} WfWindow;
+
+/* Defaults: steps per window, and the vehicles of a tile from the cache of one core (half its L2 over bytes_per_
+ * vehicle, the state a step reads and writes). */
+enum { WF_WINDOW_STEPS = 16 };
+size_t wf_window_tile_default(size_t bytes_per_vehicle);
+
+/* Whether a periodic lane of n vehicles can step in windows of k steps on nthreads: every chunk at least two blocks
+ * and the halo (k + 1 vehicles) inside one block. */
+int wf_window_fits(size_t n, int nthreads, int k);
+
+/* The window of lane ln (its n vehicles, threads and groups) for windows of up to k_max steps, tiles of
+ * tile_vehicles (rounded up to blocks), records every out_every steps and a backup of state_bytes. Owns everything
+ * it allocates until wf_window_destroy; 0 or WF_ESYS (out of memory, with the size). */
+int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, int k_max, size_t tile_vehicles, long out_every,
+                     size_t state_bytes, WfError *err);
+void wf_window_destroy(WfWindow *w);
+
+/* k fused steps (2 <= k <= k_max) of the periodic lane's n vehicles from step step0, all inside or all outside the
+ * statistics window. vars: the run's complete state (what a checkpoint saves), copied at the start. Returns 0 when
+ * every step ran clean: the safety counts are added to the lane's, and rows[j] (j < *n_rows) are the partial sums
+ * of the j-th step s of the window with (step0 + s) % out_every == 0. Otherwise returns the WF_STEP_* flags, with
+ * the state restored as it was at step0 and nothing counted: the caller redoes the steps one at a time. */
+int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_window, const WfStateVar *vars,
+                  size_t n_vars, size_t *n_rows);
+
+#endif

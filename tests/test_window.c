@@ -1,0 +1,224 @@
+/* Time-blocked stepping (time.block_steps, src/core/window.c) gives the bits of stepping one step at a time: final
+ * positions, speeds, the complete checkpoint state (accumulators, modes, controller memory, safety counts) and every
+ * time-series record, for windows of 2 to 37 steps, tiles of one block to the whole chunk, 1 and 2 threads, records
+ * every step or every 3 steps (windows that start between records), a statistics window opening inside the run,
+ * trajectories, a run stepped in pieces as Python steps it, and windows that must be undone and redone because a
+ * vehicle overlapped inside them. Each run also reports how many windows it took, so a path that silently fell back
+ * to one step at a time fails. */
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "wavefuel/engine.h"
+#include "wavefuel/scenario.h"
+#include "wf_test.h"
+
+/* A graded ring of 5000 vehicles (20 blocks: two threads split it), three classes, a speed limit, noisy heterogeneous IDM with the feasible
+ * clip, a controller with memory (PI with saturation) under a safety filter. */
+static const char *ring_yaml =
+    "seed: 11\n"
+    "road:\n  length_m: 100000\n  speed_limit_mps: 24\n"
+    "  grade: {points: [[0, 0.0], [20000, 0.02], [50000, 0.0], [70000, -0.02]]}\n"
+    "time: {duration_s: 12, dt_s: 0.1, output_interval_s: 0.1, warmup_s: 3.3}\n"
+    "fleet:\n  vehicles: 5000\n  placement: random\n"
+    "  classes:\n    - {class: midsize_sedan, fraction: 0.5}\n    - {class: midsize_suv, fraction: 0.3}\n"
+    "    - {class: class8_tractor, fraction: 0.2}\n"
+    "  drivers:\n"
+    "    - {model: idm, fraction: 0.6, noise_mps2: 0.3, feasible_accel: clip,\n"
+    "       heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1}}}\n"
+    "    - {model: idm, fraction: 0.3, noise_mps2: 0.2}\n"
+    "    - {model: pi_saturation, fraction: 0.1, safety: {kind: gipps, gap_min_m: 6}}\n"
+    "initial: {state: equilibrium, jitter_m: 0.5}\n";
+
+/* Noise far beyond what the brakes absorb: overlaps in many windows. */
+static const char *overlap_yaml =
+    "seed: 7\nroad: {length_m: 60000}\ntime: {duration_s: 20, dt_s: 0.1, output_interval_s: 0.5}\n"
+    "fleet:\n  vehicles: 5000\n  classes: [{class: midsize_sedan, fraction: 1}]\n"
+    "  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]\n"
+    "initial: {state: equilibrium}\n";
+
+typedef struct Out {
+    size_t n;
+    double *x, *v;
+    WfTsRow rows[128];
+    size_t n_rows;
+    unsigned char *state;
+    size_t state_size;
+    long windows, redone;
+} Out;
+
+static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
+{
+    (void)err;
+    Out *o = ctx;
+    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) {
+        WfTsRow *row = &o->rows[o->n_rows++];
+        WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(sim)->n_classes);
+    }
+    return 0;
+}
+
+static void out_free(Out *o)
+{
+    free(o->x), free(o->v), free(o->state);
+    memset(o, 0, sizeof *o);
+}
+
+/* One run with the overrides; piece > 0: stepped piece steps at a time (wf_sim_step), as Python does. */
+static int run(const char *path, const char *const *set, size_t n_set, int threads, long piece, Out *o)
+{
+    WfError err = {0};
+    WfScenario *sc = NULL;
+    WfSim *sim = NULL;
+#ifdef _OPENMP
+    omp_set_num_threads(threads);
+#else
+    (void)threads;
+#endif
+    memset(o, 0, sizeof *o);
+    int rc = wf_scenario_load(path, set, n_set, &sc, &err);
+    if (!rc) rc = wf_sim_create(sc, &sim, &err);
+    WfOutput out = {.record = keep_row, .ctx = o};
+    if (!rc && piece <= 0) rc = wf_sim_run(sim, &out, NULL, NULL, NULL, &err);
+    if (!rc && piece > 0) {
+        rc = wf_sim_begin(sim, &out, &err);
+        while (!rc && !wf_sim_done(sim)) rc = wf_sim_step(sim, piece, &err);
+    }
+    if (rc) printf("  %s\n", err.msg);
+    if (!rc) {
+        const WfFleet *f = wf_sim_fleet(sim);
+        o->n = f->n;
+        o->x = malloc(f->n * sizeof(double));
+        o->v = malloc(f->n * sizeof(double));
+        memcpy(o->x, f->x_m, f->n * sizeof(double));
+        memcpy(o->v, f->v_mps, f->n * sizeof(double));
+        o->state = wf_test_state_copy(sim, &o->state_size);
+        wf_sim_window_stats(sim, &o->windows, &o->redone);
+    }
+    wf_sim_destroy(&sim);
+    wf_scenario_destroy(&sc);
+    return rc;
+}
+
+static void compare(const Out *o, const Out *ref, const char *what)
+{
+    CHECK(o->x && ref->x, "%s: a run failed", what);
+    if (!o->x || !ref->x) return;
+    CHECK(memcmp(o->x, ref->x, o->n * sizeof(double)) == 0, "%s: positions differ", what);
+    CHECK(memcmp(o->v, ref->v, o->n * sizeof(double)) == 0, "%s: speeds differ", what);
+    CHECK(o->n_rows == ref->n_rows && o->n_rows > 0, "%s: %zu records, reference %zu", what, o->n_rows, ref->n_rows);
+    for (size_t r = 0; r < o->n_rows && r < ref->n_rows; r++)
+        CHECK(memcmp(&o->rows[r], &ref->rows[r], sizeof o->rows[r]) == 0, "%s: record %zu (t = %g s) differs", what, r,
+              ref->rows[r].v[WF_TS_T]);
+    CHECK(o->state_size == ref->state_size && memcmp(o->state, ref->state, o->state_size) == 0,
+          "%s: the checkpoint state (accumulators, modes, controller memory, safety counts) differs", what);
+}
+
+static const char *write_yaml(const char *text, char *dir, char *path, size_t size)
+{
+    if (!mkdtemp(dir)) return NULL;
+    snprintf(path, size, "%s/s.yaml", dir);
+    FILE *f = fopen(path, "w");
+    fputs(text, f);
+    fclose(f);
+    return path;
+}
+
+static void remove_yaml(const char *dir, const char *path)
+{
+    unlink(path);
+    rmdir(dir);
+}
+
+typedef struct Variant {
+    const char *set[4];
+    size_t n_set;
+    int threads;
+    long piece;
+} Variant;
+
+/* Every variant against the reference (one step at a time, one thread); returns the reference's last overlap count
+ * and the variants' windows and redone windows (summed). */
+static double compare_variants(const char *text, const Variant *vs, size_t nv, const char *const *extra,
+                               size_t n_extra, long *windows, long *redone)
+{
+    char dir[] = "/tmp/wf_test_window.XXXXXX", path[128];
+    if (!write_yaml(text, dir, path, sizeof path)) return -1;
+    const char *set[8] = {"time.block_steps=1"};
+    for (size_t j = 0; j < n_extra; j++) set[1 + j] = extra[j];
+    Out ref, o;
+    CHECK(run(path, set, 1 + n_extra, 1, 0, &ref) == 0, "reference run failed");
+    CHECK(ref.windows == 0, "the reference took %ld windows", ref.windows);
+    *windows = *redone = 0;
+    for (size_t k = 0; k < nv; k++) {
+        const char *vset[8];
+        size_t n = 0;
+        for (size_t j = 0; j < vs[k].n_set; j++) vset[n++] = vs[k].set[j];
+        for (size_t j = 0; j < n_extra; j++) vset[n++] = extra[j];
+        char what[256];
+        snprintf(what, sizeof what, "%s %s%s, %d thread(s)%s", vs[k].set[0], vs[k].n_set > 1 ? vs[k].set[1] : "",
+                 n_extra ? " (+ overrides)" : "", vs[k].threads, vs[k].piece ? ", stepped in pieces" : "");
+        CHECK(run(path, vset, n, vs[k].threads, vs[k].piece, &o) == 0, "%s: run failed", what);
+        compare(&o, &ref, what);
+        CHECK(o.windows > 0, "%s: no window was taken", what);
+        *windows += o.windows, *redone += o.redone;
+        out_free(&o);
+    }
+    double overlaps = ref.n_rows ? ref.rows[ref.n_rows - 1].v[WF_TS_OVERLAPS] : -1;
+    out_free(&ref);
+    remove_yaml(dir, path);
+    return overlaps;
+}
+
+static const Variant variants[] = {
+    {{"time.block_steps=2", "time.tile_vehicles=256"}, 2, 1, 0},
+    {{"time.block_steps=16"}, 1, 1, 0},
+    {{"time.block_steps=16"}, 1, 2, 0},
+    {{"time.block_steps=5", "time.tile_vehicles=1000"}, 2, 2, 0},
+    {{"time.block_steps=37", "time.tile_vehicles=700"}, 2, 2, 0},
+    {{"time.block_steps=16"}, 1, 2, 7},
+};
+#define N_VARIANTS (sizeof variants / sizeof *variants)
+
+static void test_windows_bitwise_equal(void)
+{
+    long windows, redone;
+    compare_variants(ring_yaml, variants, N_VARIANTS, NULL, 0, &windows, &redone);
+    printf("  graded ring of 5000 vehicles, records every step: %ld windows, the same bits as one step at a time\n",
+           windows);
+    CHECK(redone == 0, "%ld windows redone without an overlap", redone);
+}
+
+/* Records every 3 steps (windows begin between records) and trajectories every 1.3 s (steps of their own). */
+static void test_windows_records_and_trajectories(void)
+{
+    const char *extra[] = {"time.output_interval_s=0.3", "output.trajectories=true",
+                           "output.trajectory_interval_s=1.3"};
+    long windows, redone;
+    compare_variants(ring_yaml, variants, N_VARIANTS, extra, 3, &windows, &redone);
+    printf("  records every 3 steps, trajectories every 13: %ld windows, the same bits\n", windows);
+    CHECK(redone == 0, "%ld windows redone without an overlap", redone);
+}
+
+/* Overlaps: the windows they fall in are undone and redone one step at a time, repairs included. */
+static void test_windows_redone_on_overlap(void)
+{
+    long windows, redone;
+    double overlaps = compare_variants(overlap_yaml, variants, N_VARIANTS, NULL, 0, &windows, &redone);
+    printf("  noisy ring of 5000 vehicles: %.0f overlap events, %ld of %ld windows redone, the same bits\n", overlaps,
+           redone, windows);
+    CHECK(overlaps > 50, "only %.0f overlap events: the test would not exercise the redo", overlaps);
+    CHECK(redone > 0 && redone < windows, "%ld of %ld windows redone", redone, windows);
+}
+
+int main(void)
+{
+    RUN(test_windows_bitwise_equal);
+    RUN(test_windows_records_and_trajectories);
+    RUN(test_windows_redone_on_overlap);
+    TEST_EXIT();
+}
