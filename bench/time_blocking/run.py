@@ -37,7 +37,8 @@ def one_run(binary, n, threads, mode, tmp):
     cmd = ["/usr/bin/time", "-f", "%M", binary, "run", SCENARIO, "-q", "-o", out, "--threads", str(threads),
            "--set", f"fleet.vehicles={n}", "--set", f"road.length_m={25 * n}",
            "--set", f"time.duration_s={steps / 10:g}"] + MODES[mode]
-    p = subprocess.run(cmd, capture_output=True, text=True)
+    env = dict(os.environ, WAVEFUEL_VEHICLES=os.path.join(ROOT, "vehicles"))  # the copied binary's class files
+    p = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if p.returncode:
         sys.exit(f"{' '.join(cmd)} failed: {p.stderr}")
     rss_kib = int(p.stderr.strip().splitlines()[-1])

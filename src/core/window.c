@@ -10,7 +10,7 @@
 
 #define B WF_BLOCK
 
-/* One thread's scratch: the halo (a copy of the k + 1 vehicles ahead of its chunk, stepped as a lane of its own),
+/* One chunk's scratch: the halo (a copy of the k + 1 vehicles ahead of the chunk, stepped as a lane of its own),
  * the traces of the halo's and of each tile's first vehicle, the leads of the tile being stepped, its counts. */
 struct WfHalo {
     double   *x_m, *v_mps, *hx, *hv, *tx, *tv;
@@ -18,7 +18,8 @@ struct WfHalo {
     uint32_t *grade_seg, *slot, *sslot;
     unsigned char *state[WF_MAX_GROUPS];
     WfLead   *lead;
-    WfChunkOut co;
+    WfLane    hl;        /* the lane over the halo */
+    WfChunkOut co;       /* the chunk's flags and safety counts */
 };
 
 size_t wf_window_tile_default(size_t bytes_per_vehicle)
@@ -60,7 +61,7 @@ static int halo_alloc(WfHalo *h, const WfLane *ln, size_t k)
 void wf_window_destroy(WfWindow *w)
 {
     if (w->halo)
-        for (int t = 0; t < w->nthreads; t++) halo_free(&w->halo[t]);
+        for (size_t c = 0; c < w->n_chunks; c++) halo_free(&w->halo[c]);
     free(w->halo);
     free(w->rec);
     free(w->backup);
@@ -73,12 +74,14 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, int k_max, size_t 
     *w = (WfWindow){.k_max = k_max, .tile_blocks = (tile_vehicles + B - 1) / B, .nthreads = ln->nthreads,
                     .nb = wf_lane_blocks(0, n), .out_every = out_every, .backup_bytes = state_bytes};
     if (!w->tile_blocks) w->tile_blocks = 1;
+    size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)(n >= WF_PAR_MIN ? w->nthreads : 1);
+    w->n_chunks = w->nb / 2 < most ? w->nb / 2 : most;
     w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
-    w->halo = calloc((size_t)w->nthreads, sizeof *w->halo);
+    w->halo = calloc(w->n_chunks, sizeof *w->halo);
     w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
     w->backup = malloc(state_bytes);
     int ok = w->halo && w->rec && w->backup;
-    for (int t = 0; ok && t < w->nthreads; t++) ok = halo_alloc(&w->halo[t], ln, (size_t)k_max);
+    for (size_t c = 0; ok && c < w->n_chunks; c++) ok = halo_alloc(&w->halo[c], ln, (size_t)k_max);
     if (ok) return 0;
     wf_window_destroy(w);
     return wf_err(err, WF_ESYS, "out of memory for time-blocked stepping (a copy of the state: %zu bytes; "
@@ -140,17 +143,22 @@ static void backup_share(WfWindow *w, const WfStateVar *vars, size_t n_vars, int
     }
 }
 
-/* Thread t of nt: its chunk for k steps, tile by tile from the front. */
-static int run_chunk_window(WfWindow *w, WfLane *ln, size_t n, long step0, size_t k, int in_window, int pass,
-                            WfStatsBlock *const *recs, int t, size_t b0, size_t b1)
+/* Chunk c: blocks [*b0, *b1). */
+static void chunk_at(const WfWindow *w, size_t c, size_t *b0, size_t *b1)
 {
-    WfHalo *h = &w->halo[t];
-    size_t nb = w->nb, c = b1 < nb ? b1 * B : 0;
-    WfLane hl = halo_take(h, ln, c, k);
-#pragma omp barrier
+    *b0 = w->nb * c / w->n_chunks, *b1 = w->nb * (c + 1) / w->n_chunks;
+}
+
+/* Chunk c for k steps, tile by tile from the front, after its halo was taken (halo_take). */
+static int run_chunk_window(WfWindow *w, WfLane *ln, size_t n, long step0, size_t k, int in_window, int pass,
+                            WfStatsBlock *const *recs, size_t ci)
+{
+    WfHalo *h = &w->halo[ci];
+    size_t nb = w->nb, b0, b1;
+    chunk_at(w, ci, &b0, &b1);
+    size_t c = b1 < nb ? b1 * B : 0;
     int fl = 0;
-    if (b1 <= b0) return 0;
-    halo_run(h, &hl, k, step0, in_window);
+    halo_run(h, &h->hl, k, step0, in_window);
     leads_of(ln, c, h->hx, h->hv, b1 < nb ? 0.0 : ln->period_m, k, h->lead);
     for (size_t e = b1; e > b0;) {
         size_t s0 = e - b0 > w->tile_blocks ? e - w->tile_blocks : b0;
@@ -167,38 +175,47 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
                   size_t n_vars, size_t *n_rows)
 {
     WfStatsBlock *recs[B];
-    size_t rows = 0, nb = w->nb;
+    size_t rows = 0, nb = w->nb, nc = w->n_chunks;
     for (int s = 0; s < k; s++)
         recs[s] = (step0 + s) % w->out_every == 0 ? w->rec + nb * rows++ : NULL;
-    int nth = n >= WF_PAR_MIN ? w->nthreads : 1, flags = 0, count = ln->safe, nt = 1;
+    int nth = n >= WF_PAR_MIN ? w->nthreads : 1, flags = 0;
     int pass = WF_PASS_FUSED | WF_PASS_COUNT;
-    WfChunkOut *cf = ln->chunks;
 #pragma omp parallel num_threads(nth) if (nth > 1) default(none) \
-    shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, pass, cf, nt)
+    shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass)
     {
 #ifdef _OPENMP
         int t = omp_get_thread_num(), team = omp_get_num_threads();
 #else
         int t = 0, team = 1;
 #endif
-        /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
-         * actually running. */
-        size_t b0 = nb * (size_t)t / (size_t)team, b1 = nb * (size_t)(t + 1) / (size_t)team;
-        if (t == 0) nt = team;
-        memset(&w->halo[t].co, 0, sizeof w->halo[t].co);
         backup_share(w, vars, n_vars, t, team, 0);
-        int fl = run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, t, b0, b1);
-#pragma omp barrier
-        if (b1 > b0) fl |= wf_lane_chunk_edge(ln, 0, n, b1, nb);
-        cf[t].flags = fl;
+        /* every chunk's halo before any chunk moves (the loop's end is a barrier, after the backup too) */
+#pragma omp for schedule(static)
+        for (size_t c = 0; c < nc; c++) {
+            size_t b0, b1;
+            chunk_at(w, c, &b0, &b1);
+            memset(&w->halo[c].co, 0, sizeof w->halo[c].co);
+            w->halo[c].hl = halo_take(&w->halo[c], ln, b1 < nb ? b1 * B : 0, (size_t)k);
+        }
+        /* Chunks go to whichever thread is free: a thread that the system deschedules holds up one chunk, not a
+         * share of the ring. */
+#pragma omp for schedule(dynamic, 1)
+        for (size_t c = 0; c < nc; c++)
+            w->halo[c].co.flags = run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, c);
+#pragma omp for schedule(static)
+        for (size_t c = 0; c < nc; c++) {
+            size_t b0, b1;
+            chunk_at(w, c, &b0, &b1);
+            w->halo[c].co.flags |= wf_lane_chunk_edge(ln, 0, n, b1, nb);
+        }
     }
-    for (int t = 0; t < nt; t++) flags |= cf[t].flags;
+    for (size_t c = 0; c < nc; c++) flags |= w->halo[c].co.flags;
     if (flags) {
         backup_share(w, vars, n_vars, 0, 1, 1);
         return flags;
     }
-    if (count)
-        for (int t = 0; t < nt; t++) wf_lane_safety_add(ln, &w->halo[t].co, 1);
+    if (ln->safe)
+        for (size_t c = 0; c < nc; c++) wf_lane_safety_add(ln, &w->halo[c].co, 1);
     *n_rows = rows;
     return 0;
 }

@@ -2,11 +2,12 @@
  * threads per window instead of one per step, and each tile of vehicles kept in cache across its k steps.
  *
  * On a single lane information flows one way: a vehicle's step reads only itself and its leader at the step's
- * start. Each thread owns a chunk of consecutive blocks for the whole window and steps it tile by tile from its
- * front to its back, every tile k steps; a tile's leader at each step is the first vehicle of the tile ahead,
- * recorded while that tile ran (its trace). The chunk's front tile follows the next chunk's first vehicle, whose
- * trace the thread computes itself, redundantly, from a copy of the k + 1 vehicles there taken at the window's start
- * (the halo): the same block kernel with the same counter-based noise, so the same bits. Records keep one row of
+ * start. The ring is cut into chunks of consecutive blocks (WF_WINDOW_CHUNKS per thread), each stepped by one
+ * thread tile by tile from its front to its back, every tile k steps; a tile's leader at each step is the first
+ * vehicle of the tile ahead, recorded while that tile ran (its trace). The chunk's front tile follows the next
+ * chunk's first vehicle, whose trace the thread computes itself, redundantly, from a copy of the k + 1 vehicles there
+ * taken at the window's start (the halo): the same block kernel with the same counter-based noise, so the same bits.
+ * Chunks are independent within a window, so they go to whichever thread is free. Records keep one row of
  * block partial sums per record step and are combined in block order afterwards, as the per-step path does.
  *
  * A step that overlaps or faults must be repaired before the next (the repair sweeps the whole ring): when any step
@@ -24,8 +25,9 @@ typedef struct WfWindow {
     size_t        tile_blocks; /* blocks of WF_BLOCK vehicles per tile */
     int           nthreads;    /* threads of the lane (a team may be smaller) */
     size_t        nb;          /* blocks of the lane */
+    size_t        n_chunks;    /* chunks of at least two blocks, stepped by whichever thread is free */
     long          out_every;   /* steps between records */
-    WfHalo       *halo;        /* one per thread */
+    WfHalo       *halo;        /* one per chunk */
     WfStatsBlock *rec;         /* rec_rows rows of nb partial sums: the window's record steps in order */
     size_t        rec_rows;
     unsigned char *backup;     /* the state at the window's start */
@@ -34,7 +36,7 @@ typedef struct WfWindow {
 
 /* Defaults: steps per window, and the vehicles of a tile from the cache of one core (half its L2 over bytes_per_
  * vehicle, the state a step reads and writes). */
-enum { WF_WINDOW_STEPS = 16 };
+enum { WF_WINDOW_STEPS = 16, WF_WINDOW_CHUNKS = 8 /* per thread */ };
 size_t wf_window_tile_default(size_t bytes_per_vehicle);
 
 /* Whether a periodic lane of n vehicles can step in windows of k steps on nthreads: every chunk at least two blocks
