@@ -380,13 +380,17 @@ AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, i
     const double *restrict x = ln->x_m + lo, *restrict v = ln->v_mps + lo;
     const uint16_t *cid = ln->class_id + lo;
     uint8_t *restrict mode = ln->mode + lo;
-    uint8_t stop[B];
+    uint8_t stop[B], slow[B], fast[B];
     double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps, ll[B];
     int bad = 0, over = 0;
+    /* The hysteresis in bytes (the moving bit is bit 0), so that both loops vectorise: a moving vehicle stops below
+     * v_stop, a stopped one moves again above v_go. */
+    _Static_assert(WF_MODE_MOVING == 1, "the stop hysteresis below takes the moving bit as bit 0");
+    for (size_t k = 0; k < m; k++) slow[k] = (uint8_t)(v[k] < v_stop), fast[k] = (uint8_t)(v[k] > v_go);
     for (size_t k = 0; k < m; k++) {
-        int moving = mode[k] & WF_MODE_MOVING, st = moving & (v[k] < v_stop), go = !moving & (v[k] > v_go);
-        stop[k] = (uint8_t)st;
-        mode[k] = (uint8_t)((mode[k] & ~WF_MODE_MOVING) | ((moving & !st) | go) * WF_MODE_MOVING);
+        uint8_t md = mode[k], moving = md & 1u, st = moving & slow[k], go = (uint8_t)(moving ^ 1u) & fast[k];
+        stop[k] = st;
+        mode[k] = (uint8_t)((md & ~1u) | (moving ^ st) | go);
     }
     accum_after(&ln->always, lo, m, x, xo, stop);
     if (in_window) accum_after(&ln->window, lo, m, x, xo, stop);
