@@ -135,7 +135,8 @@ const double     *wf_sim_phase_times(const WfSim *sim);
 typedef struct WfStateVar {
     const char *name;
     void       *data;
-    size_t      size; /* bytes */
+    size_t      size;   /* bytes */
+    size_t      stride; /* bytes per vehicle when the block is a ring's per-vehicle array (in road order); else 0 */
 } WfStateVar;
 /* Room for the blocks of a checkpoint: a ring has at most 16 + WF_MAX_GROUPS, a corridor at most 39, and the
  * result writer adds at most 22 (rows of compressed datasets still in memory). */

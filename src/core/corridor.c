@@ -1116,7 +1116,7 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
     size_t ncx = c->edie.nx * c->sc->n_classes;
 #define VAR(nm, ptr, count)                                                                     \
     do {                                                                                        \
-        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (size_t)(count) * sizeof *(ptr)}; \
+        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (size_t)(count) * sizeof *(ptr), 0}; \
         k++;                                                                                    \
     } while (0)
     VAR("scalars", &c->st, 1);

@@ -460,26 +460,32 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
     s->ck.repaired = s->repaired;
     s->ck.sd_sum = s->sd_sum;
     s->ck.window_open = f->window_open;
-#define VAR(nm, ptr, bytes)                                               \
-    do {                                                                  \
-        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (bytes)}; \
-        k++;                                                              \
+#define VAR(nm, ptr, bytes)                                                  \
+    do {                                                                     \
+        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (bytes), 0}; \
+        k++;                                                                 \
+    } while (0)
+    /* a per-vehicle array: time-blocked windows copy it tile by tile */
+#define VEH(nm, ptr)                                                                                      \
+    do {                                                                                                 \
+        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), n * sizeof *(ptr), sizeof *(ptr)};       \
+        k++;                                                                                             \
     } while (0)
     VAR("scalars", &s->ck, sizeof s->ck);
-    VAR("x", f->x_m, n * sizeof *f->x_m);
-    VAR("v", f->v_mps, n * sizeof *f->v_mps);
-    if (f->grade_seg) VAR("grade_seg", f->grade_seg, n * sizeof *f->grade_seg); /* NULL on a flat road */
-    VAR("x_start", f->x_start_m, n * sizeof *f->x_start_m);
-    VAR("fuel", f->fuel_g, n * sizeof *f->fuel_g);
-    VAR("stopped_steps", f->stopped_steps, n * sizeof *f->stopped_steps);
-    VAR("sum_v", f->sum_v, n * sizeof *f->sum_v);
-    VAR("sum_v2", f->sum_v2, n * sizeof *f->sum_v2);
-    VAR("sum_a", f->sum_a, n * sizeof *f->sum_a);
-    VAR("sum_a2", f->sum_a2, n * sizeof *f->sum_a2);
-    VAR("stops", f->stops, n * sizeof *f->stops);
-    VAR("hard_brakes", f->hard_brakes, n * sizeof *f->hard_brakes);
-    VAR("infeasible_steps", f->infeasible_steps, n * sizeof *f->infeasible_steps);
-    VAR("mode", f->mode, n * sizeof *f->mode);
+    VEH("x", f->x_m);
+    VEH("v", f->v_mps);
+    if (f->grade_seg) VEH("grade_seg", f->grade_seg); /* NULL on a flat road */
+    VEH("x_start", f->x_start_m);
+    VEH("fuel", f->fuel_g);
+    VEH("stopped_steps", f->stopped_steps);
+    VEH("sum_v", f->sum_v);
+    VEH("sum_v2", f->sum_v2);
+    VEH("sum_a", f->sum_a);
+    VEH("sum_a2", f->sum_a2);
+    VEH("stops", f->stops);
+    VEH("hard_brakes", f->hard_brakes);
+    VEH("infeasible_steps", f->infeasible_steps);
+    VEH("mode", f->mode);
     if (s->lane.safe) VAR("safety", &s->lane.safety, sizeof s->lane.safety); /* absent without a safety filter */
     static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",
                                                            "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
@@ -489,6 +495,7 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
         if (ssz) VAR(state_names[g], f->group_state[g], f->group_n[g] * ssz);
     }
 #undef VAR
+#undef VEH
     return k;
 }
 

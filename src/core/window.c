@@ -81,6 +81,7 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, int k_max, size_t 
     w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
     w->backup = malloc(state_bytes);
     int ok = w->halo && w->rec && w->backup;
+    if (ok) memset(w->backup, 0, state_bytes); /* its pages now, not in the first window */
     for (size_t c = 0; ok && c < w->n_chunks; c++) ok = halo_alloc(&w->halo[c], ln, (size_t)k_max);
     if (ok) return 0;
     wf_window_destroy(w);
@@ -128,18 +129,30 @@ static void leads_of(const WfLane *ln, size_t c, const double *x, const double *
     for (size_t s = 0; s < k; s++) ld[s] = (WfLead){(shift != 0.0 ? x[s] + shift : x[s]) - len, v[s], 0.0};
 }
 
-/* Thread t's share of every state variable, copied (dir 0: into the backup; 1: back). */
-static void backup_share(WfWindow *w, const WfStateVar *vars, size_t n_vars, int t, int nt, int dir)
+/* Thread t's share of the state variables that are not per-vehicle arrays (all: every variable), copied (dir 0:
+ * into the backup; 1: back). */
+static void backup_share(WfWindow *w, const WfStateVar *vars, size_t n_vars, int t, int nt, int dir, int all)
 {
     unsigned char *bk = w->backup;
-    for (size_t j = 0; j < n_vars; j++) {
+    for (size_t j = 0; j < n_vars; bk += vars[j++].size) {
+        if (vars[j].stride && !all) continue;
         size_t a = vars[j].size * (size_t)t / (size_t)nt, b = vars[j].size * (size_t)(t + 1) / (size_t)nt;
         unsigned char *d = vars[j].data;
         if (dir)
             memcpy(d + a, bk + a, b - a);
         else
             memcpy(bk + a, d + a, b - a);
-        bk += vars[j].size;
+    }
+}
+
+/* The per-vehicle arrays of slots [lo, hi) into the backup, as a tile begins: the copy reads what the tile is
+ * about to load anyway. */
+static void backup_tile(WfWindow *w, const WfStateVar *vars, size_t n_vars, size_t lo, size_t hi)
+{
+    unsigned char *bk = w->backup;
+    for (size_t j = 0; j < n_vars; bk += vars[j++].size) {
+        size_t st = vars[j].stride;
+        if (st) memcpy(bk + lo * st, (unsigned char *)vars[j].data + lo * st, (hi - lo) * st);
     }
 }
 
@@ -151,7 +164,7 @@ static void chunk_at(const WfWindow *w, size_t c, size_t *b0, size_t *b1)
 
 /* Chunk c for k steps, tile by tile from the front, after its halo was taken (halo_take). */
 static int run_chunk_window(WfWindow *w, WfLane *ln, size_t n, long step0, size_t k, int in_window, int pass,
-                            WfStatsBlock *const *recs, size_t ci)
+                            WfStatsBlock *const *recs, const WfStateVar *vars, size_t n_vars, size_t ci)
 {
     WfHalo *h = &w->halo[ci];
     size_t nb = w->nb, b0, b1;
@@ -162,6 +175,7 @@ static int run_chunk_window(WfWindow *w, WfLane *ln, size_t n, long step0, size_
     leads_of(ln, c, h->hx, h->hv, b1 < nb ? 0.0 : ln->period_m, k, h->lead);
     for (size_t e = b1; e > b0;) {
         size_t s0 = e - b0 > w->tile_blocks ? e - w->tile_blocks : b0;
+        backup_tile(w, vars, n_vars, s0 * B, e * B < n ? e * B : n);
         fl |= wf_lane_tile(ln, 0, n, s0, e, step0, (int)k, h->lead, h->tx, h->tv, pass, in_window, recs, &h->co);
         /* the tile's front edge after the last step: the tile ahead has finished */
         if (e < b1) fl |= wf_lane_chunk_edge(ln, 0, n, e, nb);
@@ -188,7 +202,7 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
 #else
         int t = 0, team = 1;
 #endif
-        backup_share(w, vars, n_vars, t, team, 0);
+        backup_share(w, vars, n_vars, t, team, 0, 0);
         /* every chunk's halo before any chunk moves (the loop's end is a barrier, after the backup too) */
 #pragma omp for schedule(static)
         for (size_t c = 0; c < nc; c++) {
@@ -201,7 +215,7 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
          * share of the ring. */
 #pragma omp for schedule(dynamic, 1)
         for (size_t c = 0; c < nc; c++)
-            w->halo[c].co.flags = run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, c);
+            w->halo[c].co.flags = run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, vars, n_vars, c);
 #pragma omp for schedule(static)
         for (size_t c = 0; c < nc; c++) {
             size_t b0, b1;
@@ -211,7 +225,7 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
     }
     for (size_t c = 0; c < nc; c++) flags |= w->halo[c].co.flags;
     if (flags) {
-        backup_share(w, vars, n_vars, 0, 1, 1);
+        backup_share(w, vars, n_vars, 0, 1, 1, 1);
         return flags;
     }
     if (ln->safe)

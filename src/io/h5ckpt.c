@@ -84,7 +84,7 @@ static int pending_blocks(const WfCkptSeries *sp, size_t ns, WfStateVar *vars, s
         if (!s->pend) continue;
         if (*n_vars >= WF_MAX_STATE_VARS)
             return wf_err(err, WF_ESYS, "checkpoint: more than %d state blocks", WF_MAX_STATE_VARS);
-        vars[(*n_vars)++] = (WfStateVar){s->block, s->pend, s->n_pend * (s->cols ? s->cols : 1) * sizeof *s->pend};
+        vars[(*n_vars)++] = (WfStateVar){s->block, s->pend, s->n_pend * (s->cols ? s->cols : 1) * sizeof *s->pend, 0};
     }
     return 0;
 }
