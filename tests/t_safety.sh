@@ -51,6 +51,11 @@ if ! printf '%s' "$out_safe" | grep -q "^warning" &&
    printf '%s' "$out_safe" | grep -q "^safety filter gipps, group av: vehicle-steps 300 | interventions [1-9]"; then
   ok scripted_filtered_summary_line
 else ko scripted_filtered_summary_line "$out_safe"; fi
+# `wavefuel info` of the result warns as the run did (the same line), and not for the filtered run.
+info_free=$($BIN info "$tmp/free.h5" 2>&1); info_safe=$($BIN info "$tmp/safe.h5" 2>&1)
+if [ "$(printf '%s\n' "$info_free" | grep '^warning')" = "$(printf '%s\n' "$out_free" | grep '^warning')" ] &&
+   printf '%s' "$info_free" | grep -q "^warning: [1-9]" && ! printf '%s' "$info_safe" | grep -q "^warning"
+then ok info_warns_of_repairs; else ko info_warns_of_repairs "$info_free"; fi
 if msg=$($PY - "$tmp/free.h5" "$tmp/safe.h5" <<'PY' 2>&1
 import sys, h5py, numpy as np
 free, safe = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")

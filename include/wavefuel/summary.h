@@ -129,5 +129,7 @@ void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const 
 /* The lines after it: each safety-filtered group's counts (group fields printed), then, when the run repaired
  * overlaps, a warning that its results include repaired collisions. Prints nothing for a run with neither. */
 void wf_summary_print_safety(FILE *out, const WfSummary *s, WfSummaryBoundary b, const WfScenario *sc);
+/* That warning, when `repaired` (the summary's overlaps) is positive (`wavefuel run` and `wavefuel info`). */
+void wf_summary_warn_repairs(FILE *out, long long repaired);
 
 #endif

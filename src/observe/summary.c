@@ -252,7 +252,11 @@ void wf_summary_print_safety(FILE *out, const WfSummary *s, WfSummaryBoundary b,
         }
         fprintf(out, "\n");
     }
-    long long repaired = (long long)(s->overlaps + s->counts.overlaps);
+    wf_summary_warn_repairs(out, (long long)(s->overlaps + s->counts.overlaps));
+}
+
+void wf_summary_warn_repairs(FILE *out, long long repaired)
+{
     if (repaired > 0)
         fprintf(out, "warning: %lld overlap repair%s: these results include repaired collisions (a follower put at gap 0 "
                 "and stopped; docs/metrics.md)\n", repaired, repaired == 1 ? "" : "s");
