@@ -86,7 +86,7 @@ static inline size_t sidx_of(const WfLane *ln, size_t i) { return ln->sslot ? ln
 
 /* A block's values of the step, kept locally by the fused step. */
 typedef struct Blk {
-    double a[B], th[B], fr[B], gap[B], vl[B];
+    double a[B], th[B], fr[B], gap[B], vl[B], ll[B]; /* ll[k]: the length of vehicle k + 1 (the leader's) */
     uint8_t fl[B];
 } Blk;
 
@@ -264,8 +264,9 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     const uint16_t *cid = ln->class_id + lo;
     double z[B], cap[B];
     if (ln->noisy) lane_noise(sc->seed, ln->key0 + lo, m, step, z);
+    for (size_t k = 0; k + 1 < m; k++) b->ll[k] = ln->class_length_m[cid[k + 1]];
     for (size_t k = 0; k + 1 < m; k++) {
-        b->gap[k] = x[k + 1] - ln->class_length_m[cid[k + 1]] - x[k];
+        b->gap[k] = x[k + 1] - b->ll[k] - x[k];
         b->vl[k] = v[k + 1];
     }
     if (ld->free_gap_m > 0.0) {
@@ -373,8 +374,9 @@ AI void accum_after(const WfAccum *ac, size_t lo, size_t m, const double *restri
 }
 
 /* Statistics of the new state: stops (hysteresis between v_stop and v_go), distances from xo, overlaps inside the
- * block (its last vehicle's is checked once every block has moved) and non-finite states. */
-AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, int in_window)
+ * block (its last vehicle's is checked once every block has moved) and non-finite states. lead_len[k]: the length of
+ * vehicle k + 1, as the step's inputs took it (NULL: looked up). */
+AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, const double *lead_len, int in_window)
 {
     const WfScenario *sc = ln->sc;
     const double *restrict x = ln->x_m + lo, *restrict v = ln->v_mps + lo;
@@ -396,8 +398,11 @@ AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, i
     if (in_window) accum_after(&ln->window, lo, m, x, xo, stop);
     /* integer OR reductions vectorise without reassociating any floating-point sum */
     for (size_t k = 0; k < m; k++) bad |= (x[k] - x[k] != 0.0) | (v[k] - v[k] != 0.0);
-    for (size_t k = 0; k + 1 < m; k++) ll[k] = ln->class_length_m[cid[k + 1]];
-    for (size_t k = 0; k + 1 < m; k++) over |= x[k + 1] - ll[k] - x[k] < 0.0;
+    if (!lead_len) {
+        for (size_t k = 0; k + 1 < m; k++) ll[k] = ln->class_length_m[cid[k + 1]];
+        lead_len = ll;
+    }
+    for (size_t k = 0; k + 1 < m; k++) over |= x[k + 1] - lead_len[k] - x[k] < 0.0;
     return (over ? WF_STEP_OVERLAP : 0) | (bad ? WF_STEP_FAULT : 0);
 }
 
@@ -416,7 +421,7 @@ void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v)
 
 /* Controller memory (with the step's inputs), statistics, integration of the block. */
 AI int advance_block(WfLane *ln, size_t lo, size_t m, const double *a, const double *gap, const double *vl,
-                     const double *fr, const uint8_t *fl, int in_window)
+                     const double *fr, const uint8_t *fl, const double *lead_len, int in_window)
 {
     const WfScenario *sc = ln->sc;
     double *x = ln->x_m + lo, *v = ln->v_mps + lo, xo[B];
@@ -434,7 +439,7 @@ AI int advance_block(WfLane *ln, size_t lo, size_t m, const double *a, const dou
     memcpy(xo, x, m * sizeof *x);
     if (ln->x_old_m) memcpy(ln->x_old_m + lo, x, m * sizeof *x);
     ln->ig->step(m, sc->dt_s, x, v, a);
-    return flags | stats_after(ln, lo, m, xo, in_window);
+    return flags | stats_after(ln, lo, m, xo, lead_len, in_window);
 }
 
 /* One block of a pass: slots [lo, lo + m), its last vehicle's leader ld, rec its record's partial sums or NULL, co
@@ -446,7 +451,7 @@ static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long ste
     Blk b;
     if (!(pass & WF_PASS_ACCEL))
         return advance_block(ln, lo, m, ln->out.a_mps2 + lo, ln->out.gap_m + lo, ln->out.v_lead_mps + lo, ln->out.fuel_rate_gps + lo,
-                             ln->out.flag + lo, in_window);
+                             ln->out.flag + lo, NULL, in_window);
     inputs_block(ln, lo, m, ld, step, pass, rec, &b, co);
     if (ln->out.a_mps2) memcpy(ln->out.a_mps2 + lo, b.a, m * sizeof *b.a);
     if (ln->out.gap_m) memcpy(ln->out.gap_m + lo, b.gap, m * sizeof *b.gap);
@@ -455,7 +460,7 @@ static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long ste
     if ((pass & WF_PASS_ENERGY) && ln->out.fuel_rate_gps) memcpy(ln->out.fuel_rate_gps + lo, b.fr, m * sizeof *b.fr);
     if ((pass & WF_PASS_ENERGY) && ln->out.flag) memcpy(ln->out.flag + lo, b.fl, m * sizeof *b.fl);
     if (!(pass & WF_PASS_ADVANCE)) return 0;
-    return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, in_window);
+    return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, b.ll, in_window);
 }
 
 void wf_lane_stats_before(WfLane *ln, size_t lo, size_t n, int in_window)
@@ -470,7 +475,7 @@ void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window)
 {
     for (size_t b0 = 0; b0 < n; b0 += B) {
         size_t i = lo + b0, m = n - b0 < B ? n - b0 : B;
-        stats_after(ln, i, m, ln->x_old_m + i, in_window);
+        stats_after(ln, i, m, ln->x_old_m + i, NULL, in_window);
     }
 }
 
