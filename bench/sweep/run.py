@@ -61,6 +61,8 @@ def main():
     ap.add_argument("--out", default=os.path.join(ROOT, "output", "bench_sweep"))
     a = ap.parse_args()
     os.makedirs(a.out, exist_ok=True)
+    # The copied binary finds no vehicle classes beside itself: name the checkout's (docs/energy.md).
+    os.environ.setdefault("WAVEFUEL_VEHICLES", os.path.join(ROOT, "vehicles"))
     # Private copies: a rebuild of bin/ during the measurement (make in another shell) must not break or skew it.
     global BIN, MPI_BIN
     for name in ("BIN", "MPI_BIN"):

@@ -322,6 +322,8 @@ def main():
     cpu = next((ln.split(":", 1)[1].strip() for ln in open("/proc/cpuinfo") if ln.startswith("model name")), "?")
     res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"),
                machine=f"{cpu}, {os.cpu_count()} cores", sumo_version=sumo_version, repeats=args.repeats, rows=[])
+    # The copied binary finds no vehicle classes beside itself: name the checkout's (docs/energy.md).
+    os.environ.setdefault("WAVEFUEL_VEHICLES", os.path.join(ROOT, "vehicles"))
     t_start = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="wf_vs_sumo_") as tmp:
         binary = os.path.join(tmp, "wavefuel")
@@ -354,6 +356,7 @@ def main():
         res["git_hash"] = res["rows"][0]["wf1"]["git_hash"] if res["rows"] else "unknown"
     res["total_s"] = time.perf_counter() - t_start
     res = json_keys(res)
+    os.makedirs(args.out, exist_ok=True)
     with open(os.path.join(args.out, "results.json"), "w") as f:
         json.dump(res, f, indent=1)
     with open(os.path.join(args.out, "results.csv"), "w", newline="") as f:
