@@ -13,6 +13,34 @@ No overlap repair (wavefuel's, for vehicles that would overlap after a step): th
 import numpy as np
 
 
+def circles_fuel(e, v, a):
+    """CIRCLES light-duty fuel rate (g/s) on a flat road, the model's operations in their order; e: the class's
+    parameters {key: value}."""
+    v = np.maximum(v, 0.0)
+    P = e["p0"] + e["p1"] * v + e["p2"] * v * v
+    Q = e["q0"] + e["q1"] * np.maximum(v, 1e-12)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        floor = -P / (2.0 * Q)
+    ap = np.where(np.isnan(floor), a, np.maximum(a, floor))
+    f = (e["c0"] + e["c1"] * v + e["c2"] * v * v + e["c3"] * v * v * v + e["p0"] * a + e["p1"] * a * v
+         + e["p2"] * a * v * v + e["q0"] * ap * ap + e["q1"] * ap * ap * v)
+    f = np.maximum(f, np.where(v <= e["v_c"], e["beta"], 0.0))
+    a_cut = e["a0"] + e["a1"] * v + e["a3"] * v * v
+    f = np.where((v > e["v_c"]) & (a <= a_cut), 0.0, f)
+    return np.where((v < 0.1) & (np.abs(a) < 0.01), e["f_idle"], f)
+
+
+def reward_terms(rw, rate, gap_m, a_av, a_prev, dt):
+    """The terms of wavefuel.envs.Reward rw (B,) and a_av (the next a_prev) from the mean fuel rate (B,) of the
+    vehicles in scope, the automated vehicles' gaps and accelerations (B, n_av) and their previous accelerations
+    a_prev (NaN on an episode's first action: no jerk)."""
+    g = gap_m
+    viol = np.maximum(rw.gap_range_m[0] - g, 0.0) ** 2 + np.maximum(g - rw.gap_range_m[1], 0.0) ** 2
+    jerk = np.where(np.isnan(a_prev), 0.0, (a_av - a_prev) / dt)
+    return {"fuel": -rw.w_fuel * rate, "gap": -rw.w_gap * viol.mean(axis=1),
+            "comfort": -(rw.w_accel * (a_av * a_av).mean(axis=1) + rw.w_jerk * (jerk * jerk).mean(axis=1))}, a_av
+
+
 class NumpyRing:
     """B rings of N vehicles, automated ones where `av` (a boolean (N,) mask, the same for all rings). idm: the
     humans' (v0_mps, T_s, s0_m, a_mps2, b_mps2); limits: (accel_max, decel_max) m/s^2 of each group
@@ -47,20 +75,7 @@ class NumpyRing:
         return np.stack((self.v[:, self.av], vl[:, self.av], gap[:, self.av]), axis=-1)
 
     def fuel(self, v, a):
-        """CIRCLES light-duty fuel rate (g/s) on a flat road, the model's operations in their order."""
-        e = self.e
-        v = np.maximum(v, 0.0)
-        P = e["p0"] + e["p1"] * v + e["p2"] * v * v
-        Q = e["q0"] + e["q1"] * np.maximum(v, 1e-12)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            floor = -P / (2.0 * Q)
-        ap = np.where(np.isnan(floor), a, np.maximum(a, floor))
-        f = (e["c0"] + e["c1"] * v + e["c2"] * v * v + e["c3"] * v * v * v + e["p0"] * a + e["p1"] * a * v
-             + e["p2"] * a * v * v + e["q0"] * ap * ap + e["q1"] * ap * ap * v)
-        f = np.maximum(f, np.where(v <= e["v_c"], e["beta"], 0.0))
-        a_cut = e["a0"] + e["a1"] * v + e["a3"] * v * v
-        f = np.where((v > e["v_c"]) & (a <= a_cut), 0.0, f)
-        return np.where((v < 0.1) & (np.abs(a) < 0.01), e["f_idle"], f)
+        return circles_fuel(self.e, v, a)
 
     def step(self, action):
         """One step of every ring with the automated vehicles' commands action (B, n_av); returns (obs, reward,
@@ -84,14 +99,7 @@ class NumpyRing:
         self.x = self.x + np.where(run, dx_run, dx_stop)
         self.v = np.where(run, vn, 0.0)
         obs = self.observe()
-        rw = self.rw
         a = (self.v - v) / dt
-        rate = self.fuel(v, a).mean(axis=1)
-        g = obs[:, :, 2]
-        viol = np.maximum(rw.gap_range_m[0] - g, 0.0) ** 2 + np.maximum(g - rw.gap_range_m[1], 0.0) ** 2
-        a_av = a[:, self.av]
-        jerk = np.where(np.isnan(self.a_prev), 0.0, (a_av - self.a_prev) / dt)
-        self.a_prev = a_av
-        terms = {"fuel": -rw.w_fuel * rate, "gap": -rw.w_gap * viol.mean(axis=1),
-                 "comfort": -(rw.w_accel * (a_av * a_av).mean(axis=1) + rw.w_jerk * (jerk * jerk).mean(axis=1))}
+        terms, self.a_prev = reward_terms(self.rw, self.fuel(v, a).mean(axis=1), obs[:, :, 2], a[:, self.av],
+                                          self.a_prev, dt)
         return obs, terms["fuel"] + terms["gap"] + terms["comfort"], terms
