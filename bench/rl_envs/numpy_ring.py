@@ -13,6 +13,18 @@ No overlap repair (wavefuel's, for vehicles that would overlap after a step): th
 import numpy as np
 
 
+def idm_accel(idm, v, vl, gap):
+    """IDM (delta 4) acceleration, m/s^2, of idm = (v0_mps, T_s, s0_m, a_mps2, b_mps2) at speed v, leader speed vl
+    and gap (m), in the engine's order of operations (src/models/cf/idm.c), the gap floored at 1 mm."""
+    v0, T, s0, a, b = idm
+    x = v / v0
+    x2 = x * x
+    dyn = v * T + v * (v - vl) / (2.0 * np.sqrt(a * b))
+    s_star = s0 + np.where(dyn > 0.0, dyn, 0.0)
+    r = s_star / np.where(gap > 1e-3, gap, 1e-3)
+    return a * (1.0 - x2 * x2 - r * r)
+
+
 def circles_fuel(e, v, a):
     """CIRCLES light-duty fuel rate (g/s) on a flat road, the model's operations in their order; e: the class's
     parameters {key: value}."""
@@ -51,8 +63,7 @@ class NumpyRing:
         self.L = np.asarray(length_m, np.float64)[:, None]
         self.av = np.asarray(av, bool)
         self.B, self.N = self.L.shape[0], self.av.size
-        self.v0, self.T, self.s0, self.a, self.b = idm
-        self.den = 2.0 * np.sqrt(self.a * self.b)
+        self.idm = idm
         (hmax, hdec), (amax, adec) = limits
         self.amax = np.where(self.av, amax, hmax)
         self.dmax = np.where(self.av, adec, hdec)
@@ -82,12 +93,7 @@ class NumpyRing:
         terms) as wavefuel's VectorEnv (every vehicle in the fuel's scope: a ring)."""
         gap, vl = self._lead()
         v, dt = self.v, self.dt
-        x = v / self.v0
-        x2 = x * x
-        dyn = v * self.T + v * (v - vl) / self.den
-        s_star = self.s0 + np.where(dyn > 0.0, dyn, 0.0)
-        r = s_star / np.where(gap > 1e-3, gap, 1e-3)
-        acc = self.a * (1.0 - x2 * x2 - r * r)
+        acc = idm_accel(self.idm, v, vl, gap)
         if self.noise > 0.0:
             acc = acc + np.where(self.av, 0.0, self.noise) * self.rng.standard_normal(acc.shape)
         acc[:, self.av] = np.clip(action, self.lo, self.hi)

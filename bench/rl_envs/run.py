@@ -20,7 +20,6 @@ OpenMP reads OMP_WAIT_POLICY when the process starts: run the script once per po
 Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/run.py
        [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600]"""
 import argparse
-import ctypes as C
 import os
 import platform
 import subprocess
@@ -33,6 +32,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import wavefuel as wf  # noqa: E402
 from numpy_ring import NumpyRing  # noqa: E402
+from ring_spec import ring_spec  # noqa: E402
 
 
 def machine():
@@ -44,21 +44,10 @@ def machine():
 
 def baseline_for(venv, noise_mps2, seed=0):
     """A NumpyRing with venv's rings, parameters and current state (read from wavefuel's loaded scenarios)."""
-    e0 = venv.envs[0]
-    sc = C.cast(e0.sim.scenario._ptr, C.POINTER(wf._lib.WfScenario)).contents
-    hum, av = sc.groups[0], sc.groups[1]
-    idm = tuple(hum.params[k] for k in range(5))  # v0_mps, T_s, s0_m, a_mps2, b_mps2 (src/models/cf/idm.c)
-    assert [hum.model.contents.spec[k].key.decode() for k in range(6)] == ["v0_mps", "T_s", "s0_m", "a_mps2",
-                                                                            "b_mps2", "delta"]
-    assert hum.params[5] == 4.0 and not hum.clip_feasible and not av.clip_feasible
-    vc = wf.VehicleClass(e0.vehicle_class)
-    energy = {k: v for k, (v, _) in vc.params.items()}
+    p = ring_spec(venv.envs)
+    base = NumpyRing(p["length_m"], p["av"], p["idm"], p["limits"], p["energy"], p["car_m"], p["dt_s"], noise_mps2,
+                     p["reward"], p["action_range"], seed)
     st = [e.sim.state() for e in venv.envs]
-    group = np.array(st[0]["group_id"])
-    base = NumpyRing([e.scenario_dict["road"]["length_m"] for e in venv.envs], group == 1, idm,
-                     ((hum.accel_max_mps2, hum.decel_max_mps2), (av.accel_max_mps2, av.decel_max_mps2)), energy,
-                     vc.keys["length_m"][0], e0.dt_s, noise_mps2, e0.reward,
-                     (e0.action_space.low[0], e0.action_space.high[0]), seed)
     base.set_state([s["x_m"] for s in st], [s["v_mps"] for s in st])
     return base
 
