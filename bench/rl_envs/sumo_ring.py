@@ -43,13 +43,16 @@ through setSpeed with the IDM formula of its observation (so that every vehicle 
 wavefuel's ring of 22 IDM drivers from rest: the mean speed and the automated vehicle's speed and gap every 10 s.
 Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/sumo_ring.py --check"""
 import argparse
+import contextlib
 import importlib
+import io
 import math
 import os
 import shutil
 import subprocess
 import sys
 import tempfile
+import time
 
 import numpy as np
 
@@ -135,17 +138,18 @@ def write_ring(d, length_m, n, spec, laps, perturb_m=0.0):
 
 
 def proc_cpu_s(pid):
-    """User + system CPU seconds of process pid so far (/proc/<pid>/stat fields 14 and 15)."""
-    with open(f"/proc/{pid}/stat") as f:
-        fields = f.read().rpartition(")")[2].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+    """CPU seconds process pid has run so far, all its threads: the first field of /proc/<pid>/schedstat, in ns
+    (/proc/<pid>/stat's utime and stime count 10 ms ticks: too coarse for a 40 ms loop)."""
+    with open(f"/proc/{pid}/schedstat") as f:
+        return int(f.read().split()[0]) * 1e-9
 
 
 class SumoRing:
-    """One ring environment in its own SUMO simulation. spec: ring_spec.ring_spec()'s dict (length_m: this ring's
-    length, made sumo_length's); client: "traci" or "libsumo"; mode: one of MODES; horizon_s: how long the run may be stepped after the
-    warm-up (the routes' laps); perturb_m: vehicle 0 starts this far ahead of its even place. step(action) -> (obs (1, 3), reward, terms) as numpy_ring.NumpyRing.step for B = 1.
-    Owns a temporary directory and the SUMO simulation until close()."""
+    """One ring environment in its own SUMO simulation. spec: ring_spec.ring_spec()'s dict; length_m: this ring's
+    length (made sumo_length's); client: "traci" or "libsumo"; mode: one of MODES; horizon_s: how long the run may
+    be stepped after the warm-up (the routes' laps); perturb_m: vehicle 0 starts this far ahead of its even place.
+    step(action) -> (obs (1, 3), reward, terms) as numpy_ring.NumpyRing.step for B = 1. Owns a temporary directory
+    and the SUMO simulation until close()."""
 
     _labels = 0
 
@@ -178,7 +182,8 @@ class SumoRing:
         """Start SUMO, drive the warm-up; returns the first observation."""
         self.close_sim()
         if self.client == "traci":
-            self.mod.start(self._cmd(), label=self.label, stdout=subprocess.DEVNULL)
+            with contextlib.redirect_stdout(io.StringIO()):  # traci prints "Retrying" while sumo starts
+                self.mod.start(self._cmd(), label=self.label, stdout=subprocess.DEVNULL)
             self.sim = self.mod.getConnection(self.label)
             self.pid = self.sim._process.pid
         else:
@@ -227,7 +232,7 @@ class SumoRing:
         return self.obs, terms["fuel"][0] + terms["gap"][0] + terms["comfort"][0], terms
 
     def cpu_s(self):
-        """CPU seconds of the SUMO process so far (traci; for libsumo SUMO is this process: 0, counted there)."""
+        """CPU seconds of the sumo process so far (traci; for libsumo SUMO is this process: 0, counted there)."""
         return proc_cpu_s(self.pid) if self.client == "traci" and self.sim is not None else 0.0
 
     def collisions(self):
@@ -244,6 +249,55 @@ class SumoRing:
     def close(self):
         self.close_sim()
         shutil.rmtree(self.dir, ignore_errors=True)
+
+
+def timed(envs, steps, step=None):
+    """(wall s, CPU s of this process and of the sumo processes, CPU s of the sumo processes alone) of `steps`
+    rounds of step(env) on every environment in turn (default: the action 0 m/s^2). With libsumo SUMO runs in this
+    process: its CPU is in the second figure, the third is 0."""
+    step = step or (lambda e: e.step(0.0))
+    c_sumo = sum(e.cpu_s() for e in envs)
+    t, c = time.perf_counter(), time.process_time()
+    for _ in range(steps):
+        for e in envs:
+            step(e)
+    wall, cpu = time.perf_counter() - t, time.process_time() - c
+    sumo = sum(e.cpu_s() for e in envs) - c_sumo
+    return np.array([wall, cpu + sumo, sumo])
+
+
+def bench(spec, n_envs, steps, repeats, client="traci", mode="subscriptions"):
+    """{env_steps_per_s, env_steps_per_cpu_s, reset_s, collisions, ... (µs per env-step)} of n_envs SUMO rings
+    (the lengths of spec["length_m"] in turn) stepped in turn with the action 0, best of repeats (back to back on
+    the same rings, each continuing the last); also the same rings' SUMO steps alone (simulationStep, nothing set
+    or read: the floor of any TraCI loop) and the reward's numpy (the floor of this one's Python side)."""
+    envs = [SumoRing(spec, spec["length_m"][i % len(spec["length_m"])], client, mode,
+                     horizon_s=(2 * repeats + 1) * steps * spec["dt_s"]) for i in range(n_envs)]
+    try:
+        t = time.perf_counter()
+        for e in envs:
+            e.reset()
+        reset_s = time.perf_counter() - t
+        best, bare = np.full(3, np.inf), np.full(3, np.inf)
+        for _ in range(repeats):
+            best = np.minimum(best, timed(envs, steps))
+            bare = np.minimum(bare, timed(envs, steps, lambda e: e.sim.simulationStep()))
+        e = envs[0]
+        v = e.v + 0.1
+        reward_s = min(timed([e], steps, lambda _: reward_terms(
+            e.spec["reward"], circles_fuel(e.spec["energy"], e.v, (v - e.v) / e.dt).mean(keepdims=True),
+            e.obs[None, :, 2], np.zeros((1, 1)), e.a_prev, e.dt))[0] for _ in range(repeats))
+        for e in envs:
+            e.close_sim()
+        collisions = sum(e.collisions() for e in envs)
+    finally:
+        for e in envs:
+            e.close()
+    n = n_envs * steps
+    return dict(env_steps_per_s=n / best[0], env_steps_per_cpu_s=n / best[1], reset_s=reset_s,
+                collisions=collisions, calls_per_step=CALLS_PER_STEP[mode](envs[0].n),
+                sumo_cpu_us=1e6 * best[2] / n, bare_us=1e6 * bare[0] / n, bare_cpu_us=1e6 * bare[1] / n,
+                bare_sumo_cpu_us=1e6 * bare[2] / n, reward_us=1e6 * reward_s / steps)
 
 
 def check(client, seconds=60.0, length_m=230.0, perturb_m=3.0, tol=1e-9):
