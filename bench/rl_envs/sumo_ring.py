@@ -35,8 +35,8 @@ code the numpy baseline runs.
 SUMO's Python clients: traci (a TCP socket to a sumo process, any number of them) and libsumo (SUMO in this
 process: one simulation per process, so one environment), from the Debian packages sumo / sumo-tools
 (tools/install-deps.sh sumo) or $SUMO_HOME/tools. Differences from wavefuel's RingEnv, none of which costs SUMO
-time: humans without acceleration noise (SUMO's IDM has none: its sigma is ignored, checked by `--check`), a start
-at rest instead of at equilibrium.
+time: humans without acceleration noise (SUMO's IDM has none: its sigma is ignored, shown by `--check`), a start
+at rest instead of at equilibrium (reset drives warmup_s from rest), ring lengths rounded to whole cm per edge.
 
 `--check` compares the dynamics with wavefuel: the same ring from rest, no noise, the automated vehicle commanded
 through setSpeed with the IDM formula of its observation (so that every vehicle should drive IDM), against
@@ -98,10 +98,10 @@ def sumo_length(length_m, n):
     return k * round(length_m / k, 2)  # edge_m = this / k gives back the cm
 
 
-def write_ring(d, length_m, n, spec, laps, perturb_m=0.0):
+def write_ring(d, length_m, n, spec, laps, perturb_m=0.0, sigma=0.0):
     """The network and routes of the ring of lap sumo_length(length_m, n) in directory d: n vehicles at rest,
     evenly spaced (vehicle 0 moved perturb_m forward), vehicle 0 the automated one (type "av"), the others
-    "human"."""
+    "human"; sigma: SUMO's driver imperfection (its IDM ignores it: sigma_effect)."""
     k = n // VEH_PER_EDGE
     edge_m = sumo_length(length_m, n) / k
     spacing_m = edge_m / VEH_PER_EDGE
@@ -123,7 +123,7 @@ def write_ring(d, length_m, n, spec, laps, perturb_m=0.0):
         f.write("<routes>\n")
         for name, dec in (("human", hdec), ("av", adec)):
             f.write(f'  <vType id="{name}" carFollowModel="IDM" accel="{a!r}" decel="{b!r}" emergencyDecel="{dec!r}" '
-                    f'sigma="0" tau="{T!r}" minGap="{s0!r}" length="{spec["car_m"]!r}" maxSpeed="{v0!r}" delta="4" '
+                    f'sigma="{sigma!r}" tau="{T!r}" minGap="{s0!r}" length="{spec["car_m"]!r}" maxSpeed="{v0!r}" delta="4" '
                     'speedFactor="1" speedDev="0"/>\n')
         for j in range(k):
             edges = " ".join(f"e{(j + m) % k}" for m in range(k))
@@ -147,14 +147,15 @@ def proc_cpu_s(pid):
 class SumoRing:
     """One ring environment in its own SUMO simulation. spec: ring_spec.ring_spec()'s dict; length_m: this ring's
     length (made sumo_length's); client: "traci" or "libsumo"; mode: one of MODES; horizon_s: how long the run may
-    be stepped after the warm-up (the routes' laps); perturb_m: vehicle 0 starts this far ahead of its even place.
+    be stepped after the warm-up (the routes' laps); perturb_m: vehicle 0 starts this far ahead of its even place;
+    sigma: write_ring's.
     step(action) -> (obs (1, 3), reward, terms) as numpy_ring.NumpyRing.step for B = 1. Owns a temporary directory
     and the SUMO simulation until close()."""
 
     _labels = 0
 
     def __init__(self, spec, length_m, client="traci", mode="subscriptions", n_vehicles=22, warmup_s=60.0,
-                 horizon_s=1000.0, perturb_m=0.0):
+                 horizon_s=1000.0, perturb_m=0.0, sigma=0.0):
         if mode not in MODES:
             raise ValueError(f"mode must be one of {', '.join(MODES)} (got {mode!r})")
         self.spec, self.client, self.mode, self.n = spec, client, mode, n_vehicles
@@ -166,7 +167,7 @@ class SumoRing:
         self.ids = [f"v{i}" for i in range(n_vehicles)]
         self.dir = tempfile.mkdtemp(prefix="wf_sumo_ring_")
         laps = math.ceil(spec["idm"][0] * (warmup_s + horizon_s) / self.L) + 2
-        write_ring(self.dir, self.L, n_vehicles, spec, laps, perturb_m)
+        write_ring(self.dir, self.L, n_vehicles, spec, laps, perturb_m, sigma)
         self.mod = clients()[client]
         self.sim = self.pid = None
         SumoRing._labels += 1
@@ -300,6 +301,22 @@ def bench(spec, n_envs, steps, repeats, client="traci", mode="subscriptions"):
                 bare_sumo_cpu_us=1e6 * bare[2] / n, reward_us=1e6 * reward_s / steps)
 
 
+def sigma_effect(client, spec, length_m=230.0, seconds=30.0, sigma=0.5):
+    """Largest speed difference (m/s) over every vehicle and step between SUMO rings with sigma 0 and `sigma`,
+    from rest with vehicle 0 3 m ahead, every vehicle driving SUMO's IDM: 0 when SUMO's IDM has no noise."""
+    runs = []
+    for sg in (0.0, sigma):  # one after the other: libsumo holds one simulation at a time
+        ring = SumoRing(spec, length_m, client, "calls", warmup_s=0.1, horizon_s=seconds, perturb_m=3.0, sigma=sg)
+        ring.reset()
+        v = []
+        for _ in range(int(round(seconds / spec["dt_s"]))):
+            ring.sim.simulationStep()
+            v.append([ring.sim.vehicle.getSpeed(vid) for vid in ring.ids])
+        ring.close()
+        runs.append(np.array(v))
+    return float(np.max(np.abs(runs[0] - runs[1])))
+
+
 def check(client, seconds=60.0, length_m=230.0, perturb_m=3.0, tol=1e-9):
     """The dynamics check of the module's docstring; True when every speed (m/s) and the automated vehicle's gap (m)
     agree with wavefuel's within tol at every step."""
@@ -350,6 +367,9 @@ def check(client, seconds=60.0, length_m=230.0, perturb_m=3.0, tol=1e-9):
     ok = d_v <= tol and d_gap <= tol and collisions == 0
     print(f"max |dv| over every vehicle and step {d_v:.3g} m/s, max |d gap| of vehicle 0 {d_gap:.3g} m: "
           f"{'OK' if ok else 'TOO FAR'} (tolerance {tol:g})")
+    d_sigma = sigma_effect(client, spec)
+    print(f"SUMO's IDM with sigma 0.5 against sigma 0 (every vehicle IDM, 30 s): max |dv| {d_sigma:.3g} m/s: "
+          f"{'no noise in SUMO: its humans drive without RingEnv noise' if d_sigma == 0 else 'sigma acts'}")
     return ok
 
 
@@ -357,12 +377,11 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--check", action="store_true", help="compare the dynamics with wavefuel's (the default)")
     ap.add_argument("--seconds", type=float, default=60.0)
-    ap.parse_args()
+    a = ap.parse_args()
     why = available()
     if why:
         print(f"SUMO ring: not run: {why}")
         return 0
-    a = ap.parse_args()
     return 0 if all([check(c, a.seconds) for c in clients()]) else 1
 
 
