@@ -143,7 +143,8 @@ def bench_sumo(n_envs, counts, steps, repeats, vector_1thread):
         split = (f"{1e6 / cpu - r['sumo_cpu_us']:.0f} / {r['sumo_cpu_us']:.0f}" if client == "traci" else
                  f"{1e6 / cpu:.0f} (SUMO in process)")
         bare = f"{r['bare_us']:.0f}; " + (f"{r['bare_sumo_cpu_us']:.0f}" if client == "traci" else "in process")
-        print(f"| {client}, {mode} | {n} | {r['calls_per_step']} | {wall:.3g} | {1e6 / wall:.0f} | {split} | "
+        trips = r["calls_per_step"] if client == "traci" else f"0 ({r['calls_per_step']} calls in process)"
+        print(f"| {client}, {mode} | {n} | {trips} | {wall:.3g} | {1e6 / wall:.0f} | {split} | "
               f"{w1 / wall:.0f}x, {c1 / cpu:.0f}x | {bare} | {r['reward_us']:.0f} | {r['reset_s']:.2f} | "
               f"{r['collisions']} |")
     best = max(rows, key=lambda k: rows[k]["env_steps_per_s"])
