@@ -5,8 +5,8 @@ al.) drives SUMO for reinforcement learning.
 
 The ring (RingEnv's parameters, read from a RingEnv by ring_spec.py): 22 vehicles of the class's length on one lane
 of length L (drawn in RingEnv's [220, 270] m). As bench/vs_sumo builds its rings: a regular polygon of straight
-edges (here one per 2 vehicles: 11 edges of L/11) with their lengths set, netconvert without internal links, so the
-lap is exactly L; every vehicle's route is one lap from its start edge repeated for more laps than the run drives.
+edges (here one per 2 vehicles: 11 edges of L/11, in whole cm: sumo_length) with their lengths set, netconvert
+without internal links, so the lap is exactly their sum; every vehicle's route is one lap from its start edge repeated for more laps than the run drives.
 Humans: SUMO's IDM with RingEnv's parameters (v0 = maxSpeed with speedFactor 1 on lanes of 40 m/s, T = tau, s0 =
 minGap, a = accel, b = decel, delta 4, decel_max = emergencyDecel), sigma 0; the ballistic update
 (--step-method.ballistic), dt 0.1 s, no teleports (--time-to-teleport -1), collisions only warned about (a collision
@@ -19,8 +19,9 @@ to the action space and to the group's limits (as wavefuel's external group appl
 off SUMO's safe-speed, maximum-acceleration and maximum-deceleration overrides, so the vehicle drives exactly the
 commanded acceleration over the next step (ballistic: x += (v + v') dt / 2), as wavefuel's external group does;
 with the default speed mode SUMO would silently replace a command above its own safe speed, another environment.
-setAcceleration (SUMO >= 1.9) sets a speed ramp over a duration after which SUMO's model takes over again: one
-setSpeed a step is the same command with the plainest meaning (Flow sends slowDown(id, v + a dt, 1e-3): the same).
+setAcceleration(id, a, duration) holds an acceleration for a duration, after which SUMO's model takes over again:
+one setSpeed a step is the same command with the plainest meaning (Flow sends slowDown(id, v + a dt, 1e-3): the
+same).
 
 Observation, reward: own speed, leader speed and gap (getLeader's distance + the vehicle's minGap: SUMO measures it
 from front bumper + minGap to the leader's back) and every vehicle's speed for the reward (every vehicle of a ring is
@@ -38,9 +39,11 @@ process: one simulation per process, so one environment), from the Debian packag
 time: humans without acceleration noise (SUMO's IDM has none: its sigma is ignored, shown by `--check`), a start
 at rest instead of at equilibrium (reset drives warmup_s from rest), ring lengths rounded to whole cm per edge.
 
-`--check` compares the dynamics with wavefuel: the same ring from rest, no noise, the automated vehicle commanded
-through setSpeed with the IDM formula of its observation (so that every vehicle should drive IDM), against
-wavefuel's ring of 22 IDM drivers from rest: the mean speed and the automated vehicle's speed and gap every 10 s.
+`--check` compares the dynamics with wavefuel's (check()): a 230.01 m ring from rest, vehicle 0 3 m ahead of its
+even place, no noise, the automated vehicle commanded through setSpeed with the IDM formula of its observation (so
+that every vehicle should drive IDM), against wavefuel's ring of 22 IDM drivers: every vehicle's speed and the
+automated vehicle's gap at every step for 60 s (within 1e-9), the mean speed every 10 s printed; and shows that
+SUMO's IDM ignores sigma (sigma_effect()).
 Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/sumo_ring.py --check"""
 import argparse
 import contextlib
@@ -204,7 +207,6 @@ class SumoRing:
         self.a_prev = np.full((1, 1), np.nan)
         lead, gap = veh.getLeader(self.ids[0], self.L)
         self.obs = np.array([[self.v[0], self.v[self.ids.index(lead)], gap + self.s0]])
-        self.t_s = self.warmup_s
         return self.obs
 
     def _read(self):
@@ -229,7 +231,6 @@ class SumoRing:
         acc = (self.v - v_start) / dt
         terms, self.a_prev = reward_terms(self.spec["reward"], circles_fuel(self.spec["energy"], v_start, acc)
                                           .mean(keepdims=True), self.obs[None, :, 2], acc[None, :1], self.a_prev, dt)
-        self.t_s += dt
         return self.obs, terms["fuel"][0] + terms["gap"][0] + terms["comfort"][0], terms
 
     def cpu_s(self):
