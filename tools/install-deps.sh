@@ -7,6 +7,7 @@
 #   valgrind  valgrind                                                           make valgrind
 #   mpi       OpenMPI (mpicc, mpirun)                                            make mpi (bin/wavefuel-mpi)
 #   rl        PyTorch, PyYAML (python3-torch, python3-yaml)                      examples/rl/ (training a policy)
+#   sumo      SUMO, netconvert, Python traci and libsumo (sumo, sumo-tools)      bench/vs_sumo, bench/rl_envs
 set -euo pipefail
 PKGS=()
 [ $# -eq 0 ] && set -- base
@@ -18,7 +19,8 @@ for set_name in "$@"; do
     valgrind) PKGS+=(valgrind) ;;
     mpi) PKGS+=(libopenmpi-dev openmpi-bin) ;;
     rl) PKGS+=(python3-torch python3-yaml) ;;
-    *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind, mpi, rl)" >&2; exit 2 ;;
+    sumo) PKGS+=(sumo sumo-tools) ;;
+    *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind, mpi, rl, sumo)" >&2; exit 2 ;;
   esac
 done
 missing=()

@@ -13,6 +13,46 @@ No overlap repair (wavefuel's, for vehicles that would overlap after a step): th
 import numpy as np
 
 
+def idm_accel(idm, v, vl, gap):
+    """IDM (delta 4) acceleration, m/s^2, of idm = (v0_mps, T_s, s0_m, a_mps2, b_mps2) at speed v, leader speed vl
+    and gap (m), in the engine's order of operations (src/models/cf/idm.c), the gap floored at 1 mm."""
+    v0, T, s0, a, b = idm
+    x = v / v0
+    x2 = x * x
+    dyn = v * T + v * (v - vl) / (2.0 * np.sqrt(a * b))
+    s_star = s0 + np.where(dyn > 0.0, dyn, 0.0)
+    r = s_star / np.where(gap > 1e-3, gap, 1e-3)
+    return a * (1.0 - x2 * x2 - r * r)
+
+
+def circles_fuel(e, v, a):
+    """CIRCLES light-duty fuel rate (g/s) on a flat road, the model's operations in their order; e: the class's
+    parameters {key: value}."""
+    v = np.maximum(v, 0.0)
+    P = e["p0"] + e["p1"] * v + e["p2"] * v * v
+    Q = e["q0"] + e["q1"] * np.maximum(v, 1e-12)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        floor = -P / (2.0 * Q)
+    ap = np.where(np.isnan(floor), a, np.maximum(a, floor))
+    f = (e["c0"] + e["c1"] * v + e["c2"] * v * v + e["c3"] * v * v * v + e["p0"] * a + e["p1"] * a * v
+         + e["p2"] * a * v * v + e["q0"] * ap * ap + e["q1"] * ap * ap * v)
+    f = np.maximum(f, np.where(v <= e["v_c"], e["beta"], 0.0))
+    a_cut = e["a0"] + e["a1"] * v + e["a3"] * v * v
+    f = np.where((v > e["v_c"]) & (a <= a_cut), 0.0, f)
+    return np.where((v < 0.1) & (np.abs(a) < 0.01), e["f_idle"], f)
+
+
+def reward_terms(rw, rate, gap_m, a_av, a_prev, dt):
+    """The terms of wavefuel.envs.Reward rw (B,) and a_av (the next a_prev) from the mean fuel rate (B,) of the
+    vehicles in scope, the automated vehicles' gaps and accelerations (B, n_av) and their previous accelerations
+    a_prev (NaN on an episode's first action: no jerk)."""
+    g = gap_m
+    viol = np.maximum(rw.gap_range_m[0] - g, 0.0) ** 2 + np.maximum(g - rw.gap_range_m[1], 0.0) ** 2
+    jerk = np.where(np.isnan(a_prev), 0.0, (a_av - a_prev) / dt)
+    return {"fuel": -rw.w_fuel * rate, "gap": -rw.w_gap * viol.mean(axis=1),
+            "comfort": -(rw.w_accel * (a_av * a_av).mean(axis=1) + rw.w_jerk * (jerk * jerk).mean(axis=1))}, a_av
+
+
 class NumpyRing:
     """B rings of N vehicles, automated ones where `av` (a boolean (N,) mask, the same for all rings). idm: the
     humans' (v0_mps, T_s, s0_m, a_mps2, b_mps2); limits: (accel_max, decel_max) m/s^2 of each group
@@ -23,8 +63,7 @@ class NumpyRing:
         self.L = np.asarray(length_m, np.float64)[:, None]
         self.av = np.asarray(av, bool)
         self.B, self.N = self.L.shape[0], self.av.size
-        self.v0, self.T, self.s0, self.a, self.b = idm
-        self.den = 2.0 * np.sqrt(self.a * self.b)
+        self.idm = idm
         (hmax, hdec), (amax, adec) = limits
         self.amax = np.where(self.av, amax, hmax)
         self.dmax = np.where(self.av, adec, hdec)
@@ -47,32 +86,14 @@ class NumpyRing:
         return np.stack((self.v[:, self.av], vl[:, self.av], gap[:, self.av]), axis=-1)
 
     def fuel(self, v, a):
-        """CIRCLES light-duty fuel rate (g/s) on a flat road, the model's operations in their order."""
-        e = self.e
-        v = np.maximum(v, 0.0)
-        P = e["p0"] + e["p1"] * v + e["p2"] * v * v
-        Q = e["q0"] + e["q1"] * np.maximum(v, 1e-12)
-        with np.errstate(divide="ignore", invalid="ignore"):
-            floor = -P / (2.0 * Q)
-        ap = np.where(np.isnan(floor), a, np.maximum(a, floor))
-        f = (e["c0"] + e["c1"] * v + e["c2"] * v * v + e["c3"] * v * v * v + e["p0"] * a + e["p1"] * a * v
-             + e["p2"] * a * v * v + e["q0"] * ap * ap + e["q1"] * ap * ap * v)
-        f = np.maximum(f, np.where(v <= e["v_c"], e["beta"], 0.0))
-        a_cut = e["a0"] + e["a1"] * v + e["a3"] * v * v
-        f = np.where((v > e["v_c"]) & (a <= a_cut), 0.0, f)
-        return np.where((v < 0.1) & (np.abs(a) < 0.01), e["f_idle"], f)
+        return circles_fuel(self.e, v, a)
 
     def step(self, action):
         """One step of every ring with the automated vehicles' commands action (B, n_av); returns (obs, reward,
         terms) as wavefuel's VectorEnv (every vehicle in the fuel's scope: a ring)."""
         gap, vl = self._lead()
         v, dt = self.v, self.dt
-        x = v / self.v0
-        x2 = x * x
-        dyn = v * self.T + v * (v - vl) / self.den
-        s_star = self.s0 + np.where(dyn > 0.0, dyn, 0.0)
-        r = s_star / np.where(gap > 1e-3, gap, 1e-3)
-        acc = self.a * (1.0 - x2 * x2 - r * r)
+        acc = idm_accel(self.idm, v, vl, gap)
         if self.noise > 0.0:
             acc = acc + np.where(self.av, 0.0, self.noise) * self.rng.standard_normal(acc.shape)
         acc[:, self.av] = np.clip(action, self.lo, self.hi)
@@ -84,14 +105,7 @@ class NumpyRing:
         self.x = self.x + np.where(run, dx_run, dx_stop)
         self.v = np.where(run, vn, 0.0)
         obs = self.observe()
-        rw = self.rw
         a = (self.v - v) / dt
-        rate = self.fuel(v, a).mean(axis=1)
-        g = obs[:, :, 2]
-        viol = np.maximum(rw.gap_range_m[0] - g, 0.0) ** 2 + np.maximum(g - rw.gap_range_m[1], 0.0) ** 2
-        a_av = a[:, self.av]
-        jerk = np.where(np.isnan(self.a_prev), 0.0, (a_av - self.a_prev) / dt)
-        self.a_prev = a_av
-        terms = {"fuel": -rw.w_fuel * rate, "gap": -rw.w_gap * viol.mean(axis=1),
-                 "comfort": -(rw.w_accel * (a_av * a_av).mean(axis=1) + rw.w_jerk * (jerk * jerk).mean(axis=1))}
+        terms, self.a_prev = reward_terms(self.rw, self.fuel(v, a).mean(axis=1), obs[:, :, 2], a[:, self.av],
+                                          self.a_prev, dt)
         return obs, terms["fuel"] + terms["gap"] + terms["comfort"], terms

@@ -15,12 +15,19 @@
 3. trajectories: --envs TrajectoryEnvs of 200 vehicles (an automated vehicle after every 4 humans, 40 a platoon)
    behind a leader replaying a synthetic stop-and-go trace, on 1 and 2 threads.
 
-SUMO + TraCI (the issue's second comparison) is not run: sumo is not installed on this machine.
+4. SUMO + TraCI (the issue's second comparison; sumo_ring.py: the same rings, --envs lengths, in SUMO, one SUMO
+   simulation per environment as Flow runs them, the automated vehicle commanded and observed every step from
+   Python, the reward in numpy), where sumo and its Python client are installed (tools/install-deps.sh sumo;
+   skipped with a message otherwise): the dynamics check of sumo_ring.py, then 1, 4, ... (--sumo-envs)
+   environments stepped in turn with the action 0 for --sumo-steps steps, through traci (a socket to each sumo
+   process) reading by single calls and by subscriptions, and through libsumo (SUMO inside this process, one
+   simulation per process: one environment) where importable; best of --repeats, wall and CPU (this process and
+   the sumo processes: /proc/<pid>/stat), and the ratio of VectorEnv on 1 thread to each.
 OpenMP reads OMP_WAIT_POLICY when the process starts: run the script once per policy (bench/README.md).
 Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/run.py
-       [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600]"""
+       [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600] [--sumo-envs 1,4,64]
+       [--sumo-steps 500]"""
 import argparse
-import ctypes as C
 import os
 import platform
 import subprocess
@@ -33,6 +40,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 import wavefuel as wf  # noqa: E402
 from numpy_ring import NumpyRing  # noqa: E402
+from ring_spec import ring_spec  # noqa: E402
+import sumo_ring  # noqa: E402
 
 
 def machine():
@@ -44,21 +53,10 @@ def machine():
 
 def baseline_for(venv, noise_mps2, seed=0):
     """A NumpyRing with venv's rings, parameters and current state (read from wavefuel's loaded scenarios)."""
-    e0 = venv.envs[0]
-    sc = C.cast(e0.sim.scenario._ptr, C.POINTER(wf._lib.WfScenario)).contents
-    hum, av = sc.groups[0], sc.groups[1]
-    idm = tuple(hum.params[k] for k in range(5))  # v0_mps, T_s, s0_m, a_mps2, b_mps2 (src/models/cf/idm.c)
-    assert [hum.model.contents.spec[k].key.decode() for k in range(6)] == ["v0_mps", "T_s", "s0_m", "a_mps2",
-                                                                            "b_mps2", "delta"]
-    assert hum.params[5] == 4.0 and not hum.clip_feasible and not av.clip_feasible
-    vc = wf.VehicleClass(e0.vehicle_class)
-    energy = {k: v for k, (v, _) in vc.params.items()}
+    p = ring_spec(venv.envs)
+    base = NumpyRing(p["length_m"], p["av"], p["idm"], p["limits"], p["energy"], p["car_m"], p["dt_s"], noise_mps2,
+                     p["reward"], p["action_range"], seed)
     st = [e.sim.state() for e in venv.envs]
-    group = np.array(st[0]["group_id"])
-    base = NumpyRing([e.scenario_dict["road"]["length_m"] for e in venv.envs], group == 1, idm,
-                     ((hum.accel_max_mps2, hum.decel_max_mps2), (av.accel_max_mps2, av.decel_max_mps2)), energy,
-                     vc.keys["length_m"][0], e0.dt_s, noise_mps2, e0.reward,
-                     (e0.action_space.low[0], e0.action_space.high[0]), seed)
     base.set_state([s["x_m"] for s in st], [s["v_mps"] for s in st])
     return base
 
@@ -119,6 +117,47 @@ def bench_vector(n_envs, steps, repeats, baseline=False, **env_kw):
     return {k: (n_envs * steps / best[k][0], n_envs * steps / best[k][1], rows[k]) for k in cases}
 
 
+def bench_sumo(n_envs, counts, steps, repeats, vector_1thread):
+    """The SUMO cases (item 4 of the docstring): prints their table; vector_1thread: VectorEnv's (env-steps per wall
+    second, per CPU second) on 1 thread. Returns the BENCH lines' cases {name: (wall, cpu)}."""
+    venv = wf.envs.VectorEnv(n_envs, horizon_s=1e4, threads=1)
+    venv.reset(seed=1)  # the rings bench_vector timed (the same seed): their lengths
+    spec = ring_spec(venv.envs)
+    venv.close()
+    ok = all([sumo_ring.check(c) for c in sumo_ring.clients()])
+    rows = {}
+    for client in sumo_ring.clients():
+        for mode in sumo_ring.MODES:
+            for n in (counts if client == "traci" else [1]):  # libsumo: one simulation per process
+                print(f"  SUMO {client} {mode}, {n} environment(s), load {os.getloadavg()[0]:.2f}", flush=True)
+                rows[(client, mode, n)] = sumo_ring.bench(spec, n, steps, repeats, client, mode)
+    w1, c1 = vector_1thread
+    print(f"\nSUMO rings of 22 vehicles ({n_envs} ring lengths, cm edges), {steps} steps of every environment, "
+          f"action 0, best of {repeats}; VectorEnv on 1 thread: {w1:.3g} env-steps/s wall, {c1:.3g} per CPU-second:")
+    print("| client, observation | environments | round trips per env-step | env-steps/s (wall) | µs per env-step "
+          "(wall) | CPU µs per env-step: Python / sumo | VectorEnv 1 thread / this: wall, CPU | simulationStep alone: "
+          "µs per env-step (wall; sumo CPU) | numpy reward, µs per env-step | reset of all, s | collisions |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    for (client, mode, n), r in rows.items():
+        wall, cpu = r["env_steps_per_s"], r["env_steps_per_cpu_s"]
+        split = (f"{1e6 / cpu - r['sumo_cpu_us']:.0f} / {r['sumo_cpu_us']:.0f}" if client == "traci" else
+                 f"{1e6 / cpu:.0f} (SUMO in process)")
+        bare = f"{r['bare_us']:.0f}; " + (f"{r['bare_sumo_cpu_us']:.0f}" if client == "traci" else "in process")
+        trips = r["calls_per_step"] if client == "traci" else f"0 ({r['calls_per_step']} calls in process)"
+        print(f"| {client}, {mode} | {n} | {trips} | {wall:.3g} | {1e6 / wall:.0f} | {split} | "
+              f"{w1 / wall:.0f}x, {c1 / cpu:.0f}x | {bare} | {r['reward_us']:.0f} | {r['reset_s']:.2f} | "
+              f"{r['collisions']} |")
+    best = max(rows, key=lambda k: rows[k]["env_steps_per_s"])
+    traci = max((k for k in rows if k[0] == "traci"), key=lambda k: rows[k]["env_steps_per_s"])
+    for label, k in (("fastest SUMO case", best), ("fastest traci case", traci)):
+        ratio = w1 / rows[k]["env_steps_per_s"]
+        print(f"VectorEnv 1 thread / {label} ({', '.join(map(str, k))} env): {ratio:.0f}x wall, "
+              f"{c1 / rows[k]['env_steps_per_cpu_s']:.0f}x CPU: the issue's 100x "
+              f"{'met' if ratio >= 100 else 'NOT met'}")
+    out = {f"sumo {c} {m} {n}env": (r["env_steps_per_s"], r["env_steps_per_cpu_s"]) for (c, m, n), r in rows.items()}
+    return out, ok
+
+
 def stop_and_go(duration_s=600.0):
     """A synthetic stop-and-go trace (m/s): cruising at 25 m/s with waves down to 5 m/s every 90 s."""
     t = np.arange(0.0, duration_s + 0.5, 1.0)
@@ -133,6 +172,8 @@ def main():
     ap.add_argument("--traj-steps", type=int, default=500)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--check-steps", type=int, default=600)
+    ap.add_argument("--sumo-envs", default="1,4,64", help="numbers of SUMO environments stepped in turn")
+    ap.add_argument("--sumo-steps", type=int, default=500)
     a = ap.parse_args()
     print("machine:", machine())
     ok = agreement(4, a.check_steps)
@@ -150,11 +191,20 @@ def main():
     print("|---|---|---|---|---|")
     for k, (wall, cpu, reset_s) in traj.items():
         print(f"| {k} | {wall:.3g} | {wall * 200:.3g} | {cpu:.3g} | {reset_s:.1f} |")
-    for k, (wall, cpu, _) in list(rings.items()) + [(f"traj {k}", v) for k, v in traj.items()]:
+    cases = [(k, (wall, cpu)) for k, (wall, cpu, _) in
+             list(rings.items()) + [(f"traj {k}", v) for k, v in traj.items()]]
+    why = sumo_ring.available()
+    if why:
+        print(f"\nSUMO + TraCI: not run: {why}")
+    else:
+        sumo, sumo_ok = bench_sumo(a.envs, [int(x) for x in a.sumo_envs.split(",")], a.sumo_steps, a.repeats,
+                                   rings["VectorEnv, 1 thread"][:2])
+        cases += list(sumo.items())
+        ok = ok and sumo_ok
+    for k, (wall, cpu) in cases:
         print(f"BENCH rl_envs case={k.replace(' ', '_').replace(',', '')} env_steps_per_s={wall:.6g} "
               f"env_steps_per_cpu_s={cpu:.6g} omp_wait_policy={os.environ.get('OMP_WAIT_POLICY', 'default')}")
     print(f"load average {os.getloadavg()[0]:.2f} at the end")
-    print("SUMO + TraCI: not run (sumo is not installed on this machine)")
     return 0 if ok else 1
 
 
