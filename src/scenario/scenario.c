@@ -274,13 +274,15 @@ static const WfKeySpec time_rows[] = {
     {.key = "block_steps", .type = WF_KEY_INTEGER, .on = WF_ON_RING, .offset = offsetof(WfScenario, block_steps),
      .size = sizeof(int), .def = 0, .imin = 0, .imax = 200, .doc_default = "0 (16)", .doc_range = "0, 1, …, 200",
      .off_msg = "time.block_steps applies to rings: a corridor steps one step at a time",
-     .doc = "ring, fixed-step schemes on the fused path: steps per time-blocked window. Each thread steps its part "
-            "of the ring tile by tile, every tile `block_steps` steps while it stays in cache, following the tile "
-            "ahead through the trace of its first vehicle, and the threads meet once per window instead of once per "
-            "step. Results are bit-identical to stepping one step at a time (`tests/test_window.c`); a window in "
-            "which a vehicle overlaps or a fault appears is undone and redone one step at a time. Costs a copy of "
-            "the state (about the run's memory again). 1: one step at a time; rings shorter than 512 vehicles per "
-            "thread, trajectory steps and the step that opens the statistics window are stepped one at a time"},
+     .doc = "ring, fixed-step schemes on the fused path: steps per time-blocked window. The ring is cut into chunks "
+            "(8 per thread) that go to whichever thread is free; a chunk is stepped tile by tile, every tile "
+            "`block_steps` steps while it stays in cache, following the tile ahead through the trace of its first "
+            "vehicle, and the threads meet once per window instead of once per step. Results are bit-identical to "
+            "stepping one step at a time (`tests/test_window.c`); a window in which a vehicle overlaps or a fault "
+            "appears is undone and redone one step at a time. Costs a copy of the state (about the run's memory "
+            "again). 1: one step at a time. Stepped one at a time whatever the value: rings shorter than 512 "
+            "vehicles per thread, trajectory steps, the step that opens the statistics window, runs with a "
+            "`model: mlp` group, `fused_step: false`, the SUNDIALS integrators"},
     {.key = "tile_vehicles", .type = WF_KEY_INTEGER, .on = WF_ON_RING, .offset = offsetof(WfScenario, tile_vehicles),
      .size = sizeof(long), .def = 0, .imin = 0, .imax = 1000000000L, .doc_default = "0 (from the L2 cache)",
      .off_msg = "time.tile_vehicles applies to rings: a corridor steps one step at a time",
