@@ -23,7 +23,9 @@ typedef struct WfEnergyModel {
     int (*check)(void *params, WfError *err);
     /* n evaluations. Inputs: v_mps (may be negative), a_mps2, theta_rad (road grade angle).
      * project != 0 clips a to a_max(v, theta) before evaluating fuel. Outputs (each may be NULL
-     * except fuel_gps): fuel rate g/s, flag (WF_FEASIBLE...). Pure; no allocation. */
+     * except fuel_gps): fuel rate g/s, flag (WF_FEASIBLE...). Pure; no allocation; element-wise: element i's outputs
+     * are the same bits whatever the other elements and n (the engine evaluates a block's largest class over the
+     * whole block and overwrites the others' results). */
     void (*eval)(const void *params, size_t n, const double *v_mps, const double *a_mps2,
                  const double *theta_rad, int project, double *fuel_gps, uint8_t *flag);
     /* Largest feasible acceleration at speed v and grade theta, m/s^2. */

@@ -190,12 +190,19 @@ AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, con
     uint8_t gfl[B];
     uint32_t idx[B];
     for (size_t b0 = 0; b0 < n; b0 += B) {
-        size_t m = n - b0 < B ? n - b0 : B;
+        size_t m = n - b0 < B ? n - b0 : B, count[WF_MAX_CLASSES] = {0}, major = 0;
+        for (size_t k = 0; k < m; k++) count[cid[b0 + k]]++;
+        for (size_t c = 1; c < sc->n_classes; c++) major = count[c] > count[major] ? c : major;
+        /* The block's largest class over the whole block, in place, then each other class gathered and written
+         * over its vehicles: the fewest gathers. A vehicle's fuel rate does not depend on the others evaluated with
+         * it (an energy model's eval is element-wise), so the bits are those of evaluating each class alone. */
+        const WfVehicleClass *vm = &sc->classes[major].vc;
+        vm->model->eval(vm->params, m, v + b0, a + b0, th + b0, 0, fr + b0, fl + b0);
         for (size_t c = 0; c < sc->n_classes; c++) {
+            if (c == major || !count[c]) continue;
             size_t cnt = 0;
             for (size_t k = 0; k < m; k++)
                 if (cid[b0 + k] == c) idx[cnt++] = (uint32_t)(b0 + k);
-            if (!cnt) continue;
             for (size_t j = 0; j < cnt; j++) gv[j] = v[idx[j]], ga[j] = a[idx[j]], gt[j] = th[idx[j]];
             const WfVehicleClass *vc = &sc->classes[c].vc;
             vc->model->eval(vc->params, cnt, gv, ga, gt, 0, gf, gfl);
