@@ -312,9 +312,6 @@ static void lap(WfRing *s, int phase, double *tp)
     *tp = tq;
 }
 
-/* One step: the pass that computes the step's values (and, fused, advances), the record and the trajectory at the
- * step's start, then the advance when it is a pass of its own, and the overlap repair. Returns WF_LOOP_END after
- * the final instant (recorded without a step), 0 after a step, or an error code. */
 /* Steps a window may take from `step`: none across the opening of the statistics window, a trajectory step or the
  * final instant, which run one at a time. */
 static long window_steps(const WfRing *s, long step, long max_steps)
@@ -366,6 +363,9 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     return 0;
 }
 
+/* One step, or a window of them (ring_window) when one fits before max_steps; one step is the pass that computes the step's values (and, fused, advances), the record and the trajectory at the
+ * step's start, then the advance when it is a pass of its own, and the overlap repair. Returns WF_LOOP_END after
+ * the final instant (recorded without a step), 0 after a step, or an error code. */
 static int ring_step(void *eng, long step, long max_steps, long *steps, WfError *err)
 {
     WfRing *s = eng;
