@@ -363,9 +363,10 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     return 0;
 }
 
-/* One step, or a window of them (ring_window) when one fits before max_steps; one step is the pass that computes the step's values (and, fused, advances), the record and the trajectory at the
- * step's start, then the advance when it is a pass of its own, and the overlap repair. Returns WF_LOOP_END after
- * the final instant (recorded without a step), 0 after a step, or an error code. */
+/* A window of steps (ring_window) when one fits before max_steps, else one step: the pass that computes the step's
+ * values (and, fused, advances), the record and the trajectory at the step's start, then the advance when it is a
+ * pass of its own, and the overlap repair. *steps: the steps taken. Returns WF_LOOP_END after the final instant
+ * (recorded without a step), 0 after the steps, or an error code. */
 static int ring_step(void *eng, long step, long max_steps, long *steps, WfError *err)
 {
     WfRing *s = eng;
