@@ -588,7 +588,7 @@ int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long s
 {
     if (!n) return 0;
     size_t nb = wf_lane_blocks(first, n);
-    int nth = n >= WF_PAR_MIN ? ln->nthreads : 1;
+    int nth = wf_lane_threads(n, ln->nthreads);
     if ((size_t)nth > nb) nth = (int)nb;
     int adv = (pass & WF_PASS_ADVANCE) != 0, count = (pass & WF_PASS_COUNT) && ln->safe, flags = 0;
     WfChunkOut *cf = ln->chunks;

@@ -23,6 +23,8 @@
 /* Vehicles per block; also the ring's noise block (changing it changes the draws) and its statistics block. */
 #define WF_BLOCK WF_STATS_BLOCK
 #define WF_PAR_MIN 4096 /* vehicles below which a step runs on one thread (OpenMP overhead dominates) */
+/* The threads a step of n vehicles asks for, of the run's nthreads. */
+static inline int wf_lane_threads(size_t n, int nthreads) { return n >= WF_PAR_MIN ? nthreads : 1; }
 
 /* Parts of a step (wf_lane_step's pass): inputs and acceleration, fuel rate, and the advance (controller memory,
  * statistics, integration). All three in one pass is the fused step; the first two alone export the step's values

@@ -844,7 +844,7 @@ static void phase_measure(WfCorridor *c, long step, int in_window)
 {
     const WfCorridorVehicles *vh = &c->veh;
     size_t nx = c->edie.nx, nd = c->det.n_det;
-    int nth = vh->n >= WF_PAR_MIN ? c->nthreads : 1;
+    int nth = wf_lane_threads(vh->n, c->nthreads);
     if (nth <= 1) {
         measure_range(c, step, in_window, 0, nx, 0, nd);
         return;

@@ -32,8 +32,7 @@ size_t wf_window_tile_default(size_t bytes_per_vehicle)
 
 int wf_window_fits(size_t n, int nthreads, int k)
 {
-    size_t nth = n >= WF_PAR_MIN ? (size_t)nthreads : 1;
-    return k >= 2 && k + 1 < B && n / B >= 2 * nth;
+    return k >= 2 && k + 1 < B && n / B >= 2 * (size_t)wf_lane_threads(n, nthreads);
 }
 
 static void halo_free(WfHalo *h)
@@ -71,10 +70,10 @@ void wf_window_destroy(WfWindow *w)
 int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, int k_max, size_t tile_vehicles, long out_every,
                      size_t state_bytes, WfError *err)
 {
-    *w = (WfWindow){.k_max = k_max, .tile_blocks = (tile_vehicles + B - 1) / B, .nthreads = ln->nthreads,
-                    .nb = wf_lane_blocks(0, n), .out_every = out_every, .backup_bytes = state_bytes};
+    *w = (WfWindow){.k_max = k_max, .tile_blocks = (tile_vehicles + B - 1) / B,
+                    .nthreads = wf_lane_threads(n, ln->nthreads), .nb = wf_lane_blocks(0, n), .out_every = out_every};
     if (!w->tile_blocks) w->tile_blocks = 1;
-    size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)(n >= WF_PAR_MIN ? w->nthreads : 1);
+    size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)w->nthreads;
     w->n_chunks = w->nb / 2 < most ? w->nb / 2 : most;
     w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
     w->halo = calloc(w->n_chunks, sizeof *w->halo);
@@ -192,7 +191,7 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
     size_t rows = 0, nb = w->nb, nc = w->n_chunks;
     for (int s = 0; s < k; s++)
         recs[s] = (step0 + s) % w->out_every == 0 ? w->rec + nb * rows++ : NULL;
-    int nth = n >= WF_PAR_MIN ? w->nthreads : 1, flags = 0;
+    int nth = w->nthreads, flags = 0;
     int pass = WF_PASS_FUSED | WF_PASS_COUNT;
 #pragma omp parallel num_threads(nth) if (nth > 1) default(none) \
     shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass)

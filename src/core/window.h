@@ -23,7 +23,7 @@ typedef struct WfHalo WfHalo;
 typedef struct WfWindow {
     int           k_max;       /* steps per window */
     size_t        tile_blocks; /* blocks of WF_BLOCK vehicles per tile */
-    int           nthreads;    /* threads of the lane (a team may be smaller) */
+    int           nthreads;    /* threads a window asks for (wf_lane_threads; a team may be smaller) */
     size_t        nb;          /* blocks of the lane */
     size_t        n_chunks;    /* chunks of at least two blocks, stepped by whichever thread is free */
     long          out_every;   /* steps between records */
@@ -31,7 +31,6 @@ typedef struct WfWindow {
     WfStatsBlock *rec;         /* rec_rows rows of nb partial sums: the window's record steps in order */
     size_t        rec_rows;
     unsigned char *backup;     /* the state at the window's start */
-    size_t        backup_bytes;
 } WfWindow;
 
 /* Defaults: steps per window, and the vehicles of a tile from the cache of one core (half its L2 over bytes_per_
