@@ -41,8 +41,17 @@ typedef struct WfFleet {
     double   *x_start_m, *fuel_g, *sum_v, *sum_v2, *sum_a, *sum_a2;
     uint32_t *stopped_steps, *stops, *hard_brakes, *infeasible_steps;
     uint8_t  *mode;      /* bit 0: moving (above v_go since the last stop); bit 1: braking hard; bit 2: fault */
-    /* initial equilibrium (for the record) */
+    /* initial equilibrium (for the record; on a multi-lane ring, lane 0's) */
     double    v_init_mps;
+    /* lanes (road.lanes): lane l holds the slots from lane_first(l) on, lane_n[l] of them, in ring order (the
+     * leader of a lane's last vehicle is its first, one lap ahead). With one lane the arrays below are NULL and the
+     * slot of a vehicle is the vehicle. Otherwise vehicles move between slots when they change lanes: id[s] is the
+     * vehicle in slot s (its index at the start), pos[v] the slot of vehicle v. */
+    size_t    n_lanes, lane_n[WF_MAX_LANES];
+    uint8_t  *lane;          /* per slot */
+    uint32_t *id, *pos;
+    int64_t  *lc_ready_step; /* per slot: the first step at which the vehicle may change lanes again */
+    uint32_t *lane_changes, *cut_ins; /* per slot: changes made; vehicles that entered the lane right ahead of it */
 } WfFleet;
 
 enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };
@@ -71,6 +80,14 @@ static inline const void *wf_fleet_params(const WfFleet *f, const WfScenario *sc
     (void)sc;
     size_t g = f->group_id[i];
     return f->group_params[g] + wf_fleet_slot(f, i) * f->group_param_stride[g];
+}
+
+/* The first slot of lane l. */
+static inline size_t wf_fleet_lane_first(const WfFleet *f, size_t l)
+{
+    size_t s = 0;
+    for (size_t k = 0; k < l; k++) s += f->lane_n[k];
+    return s;
 }
 
 /* Vehicle i's length (m): its class's. */

@@ -11,10 +11,12 @@
 #include "wavefuel/ode.h"
 #include "wavefuel/road.h"
 #include "wavefuel/safety.h"
+#include "wavefuel/lanechange.h"
 #include "wavefuel/vehicle.h"
 
 #define WF_MAX_CLASSES      16
 #define WF_MAX_GROUPS       16
+#define WF_MAX_LANES        8  /* lanes of a road (road.lanes) */
 #define WF_MAX_MODEL_PARAMS 32 /* doubles in one model's parameter struct */
 
 typedef enum { WF_PLACE_RANDOM = 0, WF_PLACE_INTERLEAVED = 1, WF_PLACE_EXPLICIT = 2 } WfPlacement;
@@ -54,6 +56,9 @@ typedef struct WfDriverGroup {
                                             NULL otherwise */
     const WfSafetyKind *safety;          /* borrowed registry entry: the group's safety filter; NULL: none */
     double           safety_params[WF_MAX_SAFETY_PARAMS]; /* the filter's parameter struct (all doubles) */
+    /* borrowed registry entry: the group's lane-change model on a multi-lane road; NULL: never changes lanes */
+    const WfLaneChangeModel *lc;
+    double           lc_params[WF_MAX_LC_PARAMS]; /* the model's parameter struct (all doubles) */
 } WfDriverGroup;
 
 typedef struct WfScenario {
@@ -71,6 +76,11 @@ typedef struct WfScenario {
     long    tile_vehicles;        /* ring: vehicles per tile of a window (0: from the cache size) */
     uint64_t seed;
     long    n_vehicles;
+    /* lanes (road.lanes, 1 to WF_MAX_LANES), their passing rule (WF_LANE_RULE_*) and each lane's vehicles at the
+     * start (fleet.lane_counts; lane 0 is the rightmost and holds vehicles 0 .. lane_counts[0] - 1 of the
+     * placement, lane 1 the next ones, ...) */
+    int     n_lanes, lane_rule;
+    long    lane_counts[WF_MAX_LANES];
     WfPlacement placement;
     WfClassShare  classes[WF_MAX_CLASSES];
     size_t        n_classes;

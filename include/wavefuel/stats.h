@@ -42,6 +42,10 @@ void wf_stats_block(size_t m, const double *v, const double *gap, const double *
  * second moment about the fleet mean: no cancellation when the spread is tiny). */
 void wf_stats_combine(const WfStatsBlock *blocks, size_t n_blocks, size_t n_classes, const WfScenario *sc,
                       double t_s, int64_t overlaps, WfTsRow *row);
+/* The same over the lanes of a multi-lane ring, lane after lane: lane l's lane_nb[l] blocks follow lane l - 1's
+ * (waves are counted around each lane). */
+void wf_stats_combine_lanes(const WfStatsBlock *blocks, const size_t *lane_nb, size_t n_lanes, size_t n_classes,
+                            const WfScenario *sc, double t_s, int64_t overlaps, WfTsRow *row);
 
 
 /* Aggregates over the statistics window: WfSummary (wavefuel/summary.h). */

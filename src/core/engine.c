@@ -9,6 +9,7 @@
 #include <string.h>
 
 #include "core/block.h"
+#include "core/lanes.h"
 #include "core/par.h"
 #include "core/sim.h"
 #include "core/window.h"
@@ -42,6 +43,15 @@ typedef struct WfRing {
     WfWindow win;           /* time-blocked stepping (win.k_max 0: one step at a time) */
     long     per_step_until; /* after a window redone step by step: no window before this step */
     long     windows, redone;  /* windows stepped, and undone to be redone step by step */
+    /* a multi-lane ring (f->n_lanes > 1): each lane as the kernel sees it (lane_views), its record blocks, the
+     * lane changes' scratch and what they did (totals, and since the last record) */
+    WfLane   lanes[WF_MAX_LANES];
+    size_t   lane_nb[WF_MAX_LANES];
+    WfLaneChanges lcs;
+    struct {
+        int64_t changes, cut_ins, rec_changes, rec_cut_ins;
+        uint64_t lane_n[WF_MAX_LANES];
+    } lk;
 } WfRing;
 
 static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel);
@@ -52,6 +62,7 @@ static void ring_destroy(void *eng)
     WfRing *s = eng;
     wf_fleet_destroy(&s->f);
     wf_window_destroy(&s->win);
+    wf_lanes_destroy(&s->lcs);
     free(s->stat_blocks);
     free(s->chunks);
     wf_ode_destroy(&s->ode);
@@ -109,12 +120,69 @@ static void lane_init(WfRing *s)
     wf_lane_safety_init(ln);
 }
 
+/* Each lane of a multi-lane ring as the kernel sees it: the ring's lane with every per-slot array from the lane's
+ * first slot, a ring of its own; its noise from blocks numbered from l * 2^32 (slot keys from l * 2^40), so that
+ * no two lanes share draws. Rebuilt whenever the lanes' counts or the exports change. */
+static void lane_views(WfRing *s)
+{
+    const WfFleet *f = s->f;
+#define OFF(p) ((p) ? (p) + first : (p))
+    for (size_t l = 0, first = 0; f->n_lanes > 1 && l < f->n_lanes; first += f->lane_n[l++]) {
+        WfLane *v = &s->lanes[l];
+        WfSafetyCount keep = v->safety;
+        const WfLane *a = &s->lane;
+        *v = *a;
+        v->cap = f->lane_n[l];
+        v->x_m = OFF(a->x_m), v->v_mps = OFF(a->v_mps), v->class_id = OFF(a->class_id);
+        v->group_id = OFF(a->group_id), v->slot = OFF(a->slot), v->sslot = OFF(a->sslot);
+        v->grade_seg = OFF(a->grade_seg), v->mode = OFF(a->mode), v->x_old_m = OFF(a->x_old_m);
+        WfAccum *ac[2] = {&v->always, &v->window};
+        for (int q = 0; q < 2; q++)
+            *ac[q] = (WfAccum){OFF(ac[q]->fuel_g), OFF(ac[q]->stopped_s), OFF(ac[q]->dist_m), OFF(ac[q]->sum_v),
+                               OFF(ac[q]->sum_v2), OFF(ac[q]->sum_a), OFF(ac[q]->sum_a2), OFF(ac[q]->stopped_steps),
+                               OFF(ac[q]->steps), OFF(ac[q]->stops), OFF(ac[q]->hard_brakes), OFF(ac[q]->infeasible)};
+        WfLaneValues *o = &v->out;
+        *o = (WfLaneValues){OFF(o->a_mps2), OFF(o->gap_m), OFF(o->v_lead_mps), OFF(o->theta_rad),
+                            OFF(o->fuel_rate_gps), OFF(o->flag)};
+        v->key0 = (size_t)l << 40;
+        v->safety = keep;
+    }
+#undef OFF
+}
+
 /* The step's values go to the fleet's arrays (steps in two passes) or stay in the kernel's blocks (fused). */
 static void lane_exports(WfRing *s, int on)
 {
     WfFleet *f = s->f;
     s->lane.out = on ? (WfLaneValues){f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps, f->flag}
                      : (WfLaneValues){0};
+    lane_views(s);
+}
+
+/* One pass of a step over the ring: its one lane, or each lane of a multi-lane ring as a ring of its own, the
+ * record's partial sums lane after lane (s->lane_nb: each lane's blocks). Returns the WF_STEP_* flags. */
+static int lanes_step(WfRing *s, long step, int pass, int in_window, WfStatsBlock *rec)
+{
+    const WfFleet *f = s->f;
+    if (f->n_lanes < 2) {
+        s->lane_nb[0] = wf_lane_blocks(0, f->n);
+        return wf_lane_step(&s->lane, 0, f->n, NULL, step, pass, in_window, rec);
+    }
+    int flags = 0;
+    for (size_t l = 0; l < f->n_lanes; l++) {
+        WfLane *v = &s->lanes[l];
+        s->lane_nb[l] = v->cap ? wf_lane_blocks(0, v->cap) : 0;
+        if (!v->cap) continue;
+        flags |= wf_lane_step(v, 0, v->cap, NULL, step, pass, in_window, rec);
+        if (rec) rec += s->lane_nb[l];
+    }
+    return flags;
+}
+
+/* The record of the step's start from the partial sums lanes_step left, lane after lane. */
+static void lanes_record(const WfRing *s, const WfStatsBlock *rec, double t, WfTsRow *row)
+{
+    wf_stats_combine_lanes(rec, s->lane_nb, s->f->n_lanes, s->f->n_classes, s->sc, t, s->overlaps, row);
 }
 
 static int ode_init(WfRing *s, WfError *err)
@@ -139,7 +207,7 @@ static int window_init(WfRing *s, WfError *err)
     const WfScenario *sc = s->sc;
     int k = sc->block_steps ? sc->block_steps : WF_WINDOW_STEPS;
     size_t n = s->f->n;
-    if (s->ode || !sc->fused_step || !wf_window_fits(n, s->nthreads, k)) return 0;
+    if (s->ode || !sc->fused_step || s->f->n_lanes > 1 || !wf_window_fits(n, s->nthreads, k)) return 0;
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), bytes = 0;
     for (size_t j = 0; j < nv; j++) bytes += vars[j].size;
@@ -166,7 +234,7 @@ static int ring_create(WfSim *sim, WfError *err)
     s->traj_every = wf_scenario_trajectory_every(sc);
     s->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
     s->fault_vehicle = -1;
-    s->stat_blocks = malloc((wf_lane_blocks(0, s->f->n) + 1) * sizeof *s->stat_blocks);
+    s->stat_blocks = malloc((wf_lane_blocks(0, s->f->n) + s->f->n_lanes + 1) * sizeof *s->stat_blocks);
     for (size_t g = 0; g < sc->n_groups; g++) s->noisy |= sc->groups[g].noise_mps2 > 0.0;
     for (size_t g = 0; g < sc->n_groups; g++) s->stateful |= sc->groups[g].model->state_size > 0;
     s->bound_x = malloc(((size_t)s->nthreads + 1) * sizeof(double));
@@ -175,7 +243,9 @@ static int ring_create(WfSim *sim, WfError *err)
     if (!s->stat_blocks || !s->bound_x || !s->bound_v || !s->chunks)
         rc = wf_err(err, WF_ESYS, "out of memory");
     if (!rc && sc->adaptive) rc = ode_init(s, err);
+    if (!rc) rc = wf_lanes_create(&s->lcs, sc, s->f->n, s->f->n_lanes, err);
     if (!rc) lane_init(s);
+    if (!rc) lane_views(s);
     if (!rc) rc = window_init(s, err);
     return rc;
 }
@@ -245,6 +315,8 @@ static int advance_ode(WfRing *s, long step, int in_window, WfError *err)
     return 0;
 }
 
+/* After a step that flagged: the first vehicle with a non-finite state (s->fault_vehicle), or the overlaps repaired
+ * lane by lane from the front (a vehicle overlapping its leader is put right behind it, at rest). */
 static long phase_overlaps(WfRing *s)
 {
     WfFleet *f = s->f;
@@ -255,9 +327,9 @@ static long phase_overlaps(WfRing *s)
     long bad = 0, nonfinite = 0;
     WF_PAR_FOR(n >= WF_PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, v, f, L, mode) reduction(+ : bad, nonfinite)",
     for (size_t i = 0; i < n; i++) {
-        size_t lead = i + 1 < n ? i + 1 : 0;
-        double xl = x[lead] + (i + 1 < n ? 0.0 : L);
-        bad += xl - wf_fleet_length(f, lead) - x[i] < 0.0;
+        double lap;
+        size_t lead = wf_lanes_leader(f, L, i, &lap);
+        bad += x[lead] + lap - wf_fleet_length(f, lead) - x[i] < 0.0;
         nonfinite += !isfinite(x[i]) || !isfinite(v[i]) || (mode[i] & WF_MODE_FAULT);
     });
     /* A non-finite state, acceleration or fuel rate is a numerical fault: the run stops (see wf_sim_run). */
@@ -269,23 +341,27 @@ static long phase_overlaps(WfRing *s)
             }
         return 0;
     }
-    if (!bad || n < 2) return 0;
+    if (!bad) return 0;
     long total = 0;
-    for (int pass = 0; pass < 3; pass++) {
-        long fixed = 0;
-        for (size_t j = n; j-- > 0;) {
-            size_t lead = j + 1 < n ? j + 1 : 0;
-            double xl = f->x_m[lead] + (j + 1 < n ? 0.0 : L);
-            if (xl - wf_fleet_length(f, lead) - f->x_m[j] < 0.0) {
-                /* Distance and passages follow the repaired position (they are taken from positions). */
-                f->x_m[j] = xl - wf_fleet_length(f, lead);
-                f->v_mps[j] = 0.0;
-                fixed++;
+    for (size_t l = 0, first = 0; l < f->n_lanes; first += f->lane_n[l++]) {
+        size_t nl = f->lane_n[l];
+        for (int pass = 0; nl >= 2 && pass < 3; pass++) {
+            long fixed = 0;
+            for (size_t j = first + nl; j-- > first;) {
+                double lap;
+                size_t lead = wf_lanes_leader(f, L, j, &lap);
+                double xl = f->x_m[lead] + lap;
+                if (xl - wf_fleet_length(f, lead) - f->x_m[j] < 0.0) {
+                    /* Distance and passages follow the repaired position (they are taken from positions). */
+                    f->x_m[j] = xl - wf_fleet_length(f, lead);
+                    f->v_mps[j] = 0.0;
+                    fixed++;
+                }
             }
+            s->overlaps += fixed;
+            total += fixed;
+            if (!fixed) break;
         }
-        s->overlaps += fixed;
-        total += fixed;
-        if (!fixed) break;
     }
     return total;
 }
@@ -294,14 +370,15 @@ static long phase_overlaps(WfRing *s)
 static int numerical_fault(WfRing *s, long step, WfError *err)
 {
     const WfFleet *f = s->f;
-    size_t i = (size_t)s->fault_vehicle, n = f->n, lead = i + 1 < n ? i + 1 : 0;
+    double lap;
+    size_t i = (size_t)s->fault_vehicle, lead = wf_lanes_leader(f, s->sc->road.length_m, i, &lap);
     const WfDriverGroup *g = &s->sc->groups[f->group_id[i]];
     return wf_err(err, WF_ESYS,
                   "numerical fault at t = %.9g s: vehicle %zu (driver group '%s', model %s, class %s): a non-finite "
                   "acceleration, fuel rate or state (now x = %g m, v = %g m/s; leader vehicle %zu at v = %g m/s); "
                   "partial results kept",
-                  (double)(step + 1) * s->sc->dt_s, i, g->name, g->model->name, s->sc->classes[f->class_id[i]].vc.name,
-                  f->x_m[i], f->v_mps[i], lead, f->v_mps[lead]);
+                  (double)(step + 1) * s->sc->dt_s, f->id ? (size_t)f->id[i] : i, g->name, g->model->name, s->sc->classes[f->class_id[i]].vc.name,
+                  f->x_m[i], f->v_mps[i], f->id ? (size_t)f->id[lead] : lead, f->v_mps[lead]);
 }
 
 
@@ -363,6 +440,19 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     return 0;
 }
 
+/* The lane changes at the start of a step of a multi-lane ring (src/core/lanes.h), every per-vehicle array of the
+ * state moving with its vehicle. */
+static void lane_changes(WfRing *s, long step)
+{
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
+    WfLaneStep ls = wf_lanes_change(&s->lcs, s->sc, s->f, step, vars, nv, s->nthreads);
+    if (!ls.changes) return;
+    lane_views(s);
+    s->lk.changes += ls.changes, s->lk.cut_ins += ls.cut_ins;
+    s->lk.rec_changes += ls.changes, s->lk.rec_cut_ins += ls.cut_ins;
+}
+
 /* A window of steps (ring_window) when one fits before max_steps, else one step: the pass that computes the step's
  * values (and, fused, advances), the record and the trajectory at the step's start, then the advance when it is a
  * pass of its own, and the overlap repair. *steps: the steps taken. Returns WF_LOOP_END after the final instant
@@ -381,20 +471,19 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     }
     const WfOutput *out = s->sim->out;
     const WfScenario *sc = s->sc;
-    WfLane *ln = &s->lane;
-    size_t n = s->f->n;
     int in_window = step >= s->warm_steps, records = step % s->out_every == 0, last = step == s->n_steps, rc = 0;
     int traj = sc->trajectories && step % s->traj_every == 0, fused = !s->ode && sc->fused_step && !traj;
     double t = (double)step * sc->dt_s, tp = wf_wall_now();
     if (step == s->warm_steps && !s->f->window_open) wf_fleet_open_window(s->f);
+    if (s->f->n_lanes > 1 && step > 0 && !last) lane_changes(s, step);
     lane_exports(s, !fused);
     s->cur_step = step;
     int pass = (fused && !last ? WF_PASS_FUSED : WF_PASS_ACCEL | WF_PASS_ENERGY) | (last ? 0 : WF_PASS_COUNT);
-    int flags = wf_lane_step(ln, 0, n, NULL, step, pass, in_window, records ? s->stat_blocks : NULL);
+    int flags = lanes_step(s, step, pass, in_window, records ? s->stat_blocks : NULL);
     lap(s, fused ? WF_PHASE_FUSED : WF_PHASE_CAR_FOLLOWING, &tp);
     if (records) {
         WfTsRow row;
-        wf_stats_combine(s->stat_blocks, wf_lane_blocks(0, n), s->f->n_classes, sc, t, s->overlaps, &row);
+        lanes_record(s, s->stat_blocks, t, &row);
         if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
         lap(s, WF_PHASE_STATISTICS, &tp);
         WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
@@ -410,7 +499,7 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
         if ((rc = advance_ode(s, step, in_window, err))) return rc;
         flags = WF_STEP_OVERLAP; /* the solver's state is checked in full */
     } else if (!fused) {
-        flags = wf_lane_step(ln, 0, n, NULL, step, WF_PASS_ADVANCE, in_window, NULL);
+        flags = lanes_step(s, step, WF_PASS_ADVANCE, in_window, NULL);
     }
     s->repaired = flags ? phase_overlaps(s) > 0 : 0;
     /* A fused step without an overlap did its integration in its one pass: no clock read (a small ring's step
@@ -420,11 +509,28 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     return 0;
 }
 
+/* A multi-lane ring's safety counts: each lane's, summed into the ring's lane (what the summary and the checkpoint
+ * read); restored, they stay with lane 0's view. */
+static void lanes_safety(WfRing *s, int restore)
+{
+    if (s->f->n_lanes < 2) return;
+    WfSafetyCount *all = &s->lane.safety;
+    if (restore) {
+        for (size_t l = 0; l < s->f->n_lanes; l++) s->lanes[l].safety = l ? (WfSafetyCount){{0}, {0}} : *all;
+        return;
+    }
+    *all = (WfSafetyCount){{0}, {0}};
+    for (size_t l = 0; l < s->f->n_lanes; l++)
+        for (size_t g = 0; g < WF_MAX_GROUPS; g++)
+            all->steps[g] += s->lanes[l].safety.steps[g], all->hits[g] += s->lanes[l].safety.hits[g];
+}
+
 /* The run's totals (also after an interruption or an error). */
 static int ring_close(void *eng, WfError *err)
 {
     (void)err;
     WfRing *s = eng;
+    lanes_safety(s, 0);
     long window = s->steps_done - s->warm_steps;
     wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->sim->summary);
     wf_lane_safety_summary(&s->lane, &s->sim->summary);
@@ -465,6 +571,8 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
     s->ck.repaired = s->repaired;
     s->ck.sd_sum = s->sd_sum;
     s->ck.window_open = f->window_open;
+    for (size_t l = 0; l < f->n_lanes; l++) s->lk.lane_n[l] = f->lane_n[l];
+    lanes_safety(s, 0);
 #define VAR(nm, ptr, bytes)                                                  \
     do {                                                                     \
         if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (bytes), 0}; \
@@ -491,6 +599,17 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
     VEH("hard_brakes", f->hard_brakes);
     VEH("infeasible_steps", f->infeasible_steps);
     VEH("mode", f->mode);
+    if (f->n_lanes > 1) { /* vehicles move between slots: what they are moves with them */
+        VAR("lanes", &s->lk, sizeof s->lk);
+        VEH("class", f->class_id);
+        VEH("group", f->group_id);
+        if (f->slot) VEH("slot", f->slot);
+        VEH("lane", f->lane);
+        VEH("id", f->id);
+        VEH("lc_ready_step", f->lc_ready_step);
+        VEH("lane_changes", f->lane_changes);
+        VEH("cut_ins", f->cut_ins);
+    }
     if (s->lane.safe) VAR("safety", &s->lane.safety, sizeof s->lane.safety); /* absent without a safety filter */
     static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",
                                                            "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
@@ -506,7 +625,6 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
 
 static int ring_restored(void *eng, WfError *err)
 {
-    (void)err;
     WfRing *s = eng;
     s->steps_done = (long)s->ck.steps_done;
     s->overlaps = s->ck.overlaps;
@@ -514,6 +632,19 @@ static int ring_restored(void *eng, WfError *err)
     s->repaired = (int)s->ck.repaired;
     s->sd_sum = s->ck.sd_sum;
     s->f->window_open = (int)s->ck.window_open;
+    WfFleet *f = s->f;
+    if (f->n_lanes > 1) {
+        size_t total = 0;
+        for (size_t l = 0; l < f->n_lanes; l++) total += f->lane_n[l] = (size_t)s->lk.lane_n[l];
+        if (total != f->n) return wf_err(err, WF_EINPUT, "checkpoint: the lanes hold %zu vehicles, not %zu", total, f->n);
+        for (size_t j = 0; j < f->n; j++) {
+            if (f->id[j] >= f->n) return wf_err(err, WF_EINPUT, "checkpoint: slot %zu holds vehicle %u of %zu", j,
+                                                (unsigned)f->id[j], f->n);
+            f->pos[f->id[j]] = (uint32_t)j;
+        }
+        lane_views(s);
+        lanes_safety(s, 1);
+    }
     /* A SUNDIALS solver restarts from the restored state (as after a noise change): exact with noise or
      * controller memory, where the uninterrupted run restarts at every step too; within tolerance otherwise. */
     if (s->ode) {
@@ -533,9 +664,9 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
     size_t n = f->n, k = 0, ssz = s->sc->groups[g].model->state_size;
     for (size_t i = 0; i < n; i++) {
         if (f->group_id[i] != g) continue;
-        size_t l = i + 1 < n ? i + 1 : 0;
-        double gap = i + 1 < n ? x[l] - len[f->class_id[l]] - x[i]
-                               : ((x[0] + s->sc->road.length_m) - len[f->class_id[0]]) - x[i];
+        double lap;
+        size_t l = wf_lanes_leader(f, s->sc->road.length_m, i, &lap);
+        double gap = (x[l] + lap) - len[f->class_id[l]] - x[i];
         if (fn) fn(ctx, k, f->group_state[g] + wf_fleet_slot(f, i) * ssz, v[i], v[l], gap);
         k++;
     }

@@ -16,7 +16,8 @@ void wf_fleet_destroy(WfFleet **pf)
     void *arrays[] = {f->x_m, f->v_mps, f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps,
                       f->flag, f->grade_seg, f->class_id, f->group_id, f->slot, f->x_start_m, f->fuel_g,
                       f->stopped_steps, f->sum_v, f->sum_v2, f->sum_a, f->sum_a2, f->stops, f->hard_brakes,
-                      f->infeasible_steps, f->mode};
+                      f->infeasible_steps, f->mode, f->lane, f->id, f->pos, f->lc_ready_step, f->lane_changes,
+                      f->cut_ins};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
         free(f->group_params[g]);
@@ -207,6 +208,16 @@ int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, d
 static int fleet_alloc(const WfScenario *sc, WfFleet *f, WfError *err)
 {
     size_t n = f->n;
+    f->n_lanes = sc->n_lanes > 1 ? (size_t)sc->n_lanes : 1;
+    f->lane_n[0] = n;
+    for (size_t l = 0; f->n_lanes > 1 && l < f->n_lanes; l++) f->lane_n[l] = (size_t)sc->lane_counts[l];
+    if (f->n_lanes > 1) {
+        ALLOC(f->lane, n); ALLOC(f->id, n); ALLOC(f->pos, n); ALLOC(f->lc_ready_step, n); ALLOC(f->lane_changes, n);
+        ALLOC(f->cut_ins, n);
+        for (size_t l = 0, i = 0; l < f->n_lanes; l++)
+            for (size_t k = 0; k < f->lane_n[l]; k++, i++) f->lane[i] = (uint8_t)l;
+        for (size_t i = 0; i < n; i++) f->id[i] = f->pos[i] = (uint32_t)i;
+    }
     f->multipass = sc->adaptive || sc->trajectories || !sc->fused_step;
     ALLOC(f->x_m, n); ALLOC(f->v_mps, n);
     if (f->multipass) {
@@ -298,34 +309,37 @@ static int initial_gaps(const WfScenario *sc, WfFleet *f, double *gap, double *v
     return 0;
 }
 
-/* Positions and speeds from the gaps, jitter and perturbation; modes and controller memory. */
-static int initial_state(const WfScenario *sc, WfFleet *f, const double *gap, double v0, WfError *err)
+/* Positions and speeds from the gaps, jitter and perturbation; modes and controller memory. f: the fleet, or one
+ * lane of it, whose first vehicle is vehicle `first` of the fleet (jitter draws and the perturbation name vehicles
+ * of the fleet). */
+static int initial_state(const WfScenario *sc, WfFleet *f, size_t first, const double *gap, double v0, WfError *err)
 {
     size_t n = f->n;
     double L = sc->road.length_m;
-    f->v_init_mps = v0;
+    long pv = sc->perturb_vehicle >= (long)first && sc->perturb_vehicle < (long)(first + n)
+                  ? sc->perturb_vehicle - (long)first : -1;
     /* x_0 = length_0 so vehicle 0's rear bumper sits at 0; x_{i+1} = x_i + gap_i + length_{i+1}. */
     f->x_m[0] = wf_fleet_length(f, 0);
     for (size_t i = 0; i + 1 < n; i++) f->x_m[i + 1] = f->x_m[i] + gap[i] + wf_fleet_length(f, i + 1);
     for (size_t i = 0; i < n; i++) f->v_mps[i] = v0;
     for (size_t i = 0; sc->jitter_m > 0 && i < n; i++) {
         double u[2];
-        wf_rng_uniform2(sc->seed, WF_RNG_JITTER, i, 0, u);
+        wf_rng_uniform2(sc->seed, WF_RNG_JITTER, first + i, 0, u);
         f->x_m[i] += sc->jitter_m * (2.0 * u[0] - 1.0);
     }
-    if (sc->perturb_vehicle >= 0) {
-        f->x_m[sc->perturb_vehicle] += sc->perturb_dx_m;
-        f->v_mps[sc->perturb_vehicle] += sc->perturb_dv_mps;
-        if (f->v_mps[sc->perturb_vehicle] < 0.0)
+    if (pv >= 0) {
+        f->x_m[pv] += sc->perturb_dx_m;
+        f->v_mps[pv] += sc->perturb_dv_mps;
+        if (f->v_mps[pv] < 0.0)
             return wf_err(err, WF_EINPUT,
                           "%s: initial.perturbation.dv_mps makes vehicle %ld's speed negative (%.6g m/s)", sc->path,
-                          sc->perturb_vehicle, f->v_mps[sc->perturb_vehicle]);
+                          sc->perturb_vehicle, f->v_mps[pv]);
     }
     for (size_t i = 0; i < n; i++)
         if (!(ring_gap(f, L, i) >= 0.0))
             return wf_err(err, WF_EINPUT,
                           "%s: the initial perturbation or jitter makes vehicle %zu overlap its leader (gap %.6g m)",
-                          sc->path, i, ring_gap(f, L, i));
+                          sc->path, first + i, ring_gap(f, L, i));
     for (size_t i = 0; i < n; i++) {
         f->mode[i] = f->v_mps[i] > sc->v_go_mps ? WF_MODE_MOVING : 0;
         size_t g = f->group_id[i], lead = i + 1 < n ? i + 1 : 0;
@@ -352,8 +366,17 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     /* The gaps: the fleet's array when it has one, else scratch until the first step. */
     if (!rc && !(gap = f->gap_m ? f->gap_m : malloc(f->n * sizeof *gap)))
         rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", f->n);
-    if (!rc) rc = initial_gaps(sc, f, gap, &v0, err);
-    if (!rc) rc = initial_state(sc, f, gap, v0, err);
+    /* Each lane starts as a single-lane ring of its vehicles would. */
+    for (size_t l = 0, first = 0; !rc && l < f->n_lanes; first += f->lane_n[l++]) {
+        WfFleet lf = *f;
+        lf.n = f->lane_n[l];
+        lf.x_m += first, lf.v_mps += first, lf.class_id += first, lf.group_id += first, lf.mode += first;
+        if (f->slot) lf.slot += first;
+        if (!lf.n) continue;
+        rc = initial_gaps(sc, &lf, gap + first, &v0, err);
+        if (!rc) rc = initial_state(sc, &lf, first, gap + first, v0, err);
+        if (!l) f->v_init_mps = v0;
+    }
     if (gap != f->gap_m) free(gap);
     if (rc) {
         wf_fleet_destroy(&f);

@@ -28,8 +28,9 @@ static size_t ring_series(const WfH5Run *r, WfCkptSeries *sp)
     hsize_t n = wf_sim_fleet(r->sim)->n, frames = frames_of(r->sc);
     hsize_t cr = wf_h5_series_chunk_rows(n, frames < 16 ? frames : 16);
     size_t k = 0;
-    for (size_t i = 0; r->sc->trajectories && i < WF_RING_TRAJ_N_COLS; i++)
-        sp[k++] = (WfCkptSeries){.col = &wf_ring_traj_columns[i], .cols = i < 4 ? n : 0, .chunk_rows = cr,
+    size_t ncol = wf_sim_fleet(r->sim)->n_lanes > 1 ? WF_RING_TRAJ_N_COLS : WF_RING_TRAJ_LANE;
+    for (size_t i = 0; r->sc->trajectories && i < ncol; i++)
+        sp[k++] = (WfCkptSeries){.col = &wf_ring_traj_columns[i], .cols = i == 4 ? 0 : n, .chunk_rows = cr,
                                  .cursor = CUR_TRAJ};
     return k;
 }
@@ -102,7 +103,8 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
     /* One buffer for both element types (8 bytes each): at 10^7 vehicles a second one would be 80 MB more peak. */
     double *d = malloc((n ? n : 1) * sizeof *d);
     int rc = !d ? wf_err(err, WF_ESYS, "out of memory") : 0;
-    for (size_t c = 0; !rc && c < WF_VEH_N_COLS; c++) {
+    size_t ncol = f->n_lanes > 1 ? WF_VEH_N_COLS : WF_VEH_N_SINGLE;
+    for (size_t c = 0; !rc && c < ncol; c++) {
         const WfObsColumn *col = &wf_vehicle_columns[c];
         if (col->at_start && fill) continue;
         for (size_t i = 0; (col->at_start || fill) && i < n; i++) {
@@ -123,10 +125,11 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
             char name[160];
             snprintf(name, sizeof name, "param_%s", m->spec[p].key);
             if (H5Lexists(g, name, H5P_DEFAULT) > 0) continue;
-            for (size_t i = 0; i < n; i++) {
+            for (size_t id = 0; id < n; id++) {
+                size_t i = f->pos ? f->pos[id] : id; /* its slot */
                 const WfCfModel *mi = sc->groups[f->group_id[i]].model;
                 const WfParamSpec *sp = wf_param_find(mi->spec, mi->n_spec, m->spec[p].key);
-                d[i] = sp ? wf_param_get(wf_fleet_params(f, sc, i), sp) : NAN;
+                d[id] = sp ? wf_param_get(wf_fleet_params(f, sc, i), sp) : NAN;
             }
             rc = wf_h5_write_f64(g, name, 1, &dn, d, m->spec[p].unit, m->spec[p].doc, err);
         }
@@ -176,15 +179,14 @@ static int ring_results(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err
 
 static size_t ring_frame_len(const WfH5Run *r)
 {
-    (void)r;
-    return 0; /* the frame is the fleet's arrays */
+    const WfFleet *f = wf_sim_fleet(r->sim);
+    return f->n_lanes > 1 && r->sc->trajectories ? 5 * f->n : 0; /* else the frame is the fleet's arrays */
 }
 
 /* The per-step arrays exist at trajectory steps (the engine takes its multi-pass path then). */
 static size_t ring_frame(const WfH5Run *r, const double *t_s, double *scratch, const double **cols)
 {
-    (void)scratch;
-    wf_ring_traj_frame(wf_sim_fleet(r->sim), t_s, cols);
+    wf_ring_traj_frame(wf_sim_fleet(r->sim), t_s, scratch, cols);
     return 1;
 }
 

@@ -35,7 +35,7 @@ extern const WfColumn wf_ts_class_column;       /* ring */
 extern const WfColumn wf_corridor_class_column; /* corridor */
 
 /* ---- /vehicles (ring): one value per vehicle */
-enum { WF_VEH_N_COLS = 16 };
+enum { WF_VEH_N_COLS = 19, WF_VEH_N_SINGLE = 16 }; /* the columns from WF_VEH_N_SINGLE on: multi-lane rings */
 extern const WfObsColumn wf_vehicle_columns[WF_VEH_N_COLS];
 /* What the per-vehicle values are computed from (borrowed). */
 typedef struct WfVehicleView {
@@ -43,8 +43,8 @@ typedef struct WfVehicleView {
     const WfScenario *sc;
     double            window_s;   /* length of the statistics window */
 } WfVehicleView;
-/* Value of column `col` of vehicle i (integers as exact doubles). */
-double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t i);
+/* Value of column `col` of vehicle `id` (its index at the start; integers as exact doubles). */
+double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t id);
 
 /* ---- /trips (corridor): one row per trip, float64 (integers are exact below 2^53) */
 enum { WF_TRIP_N_COLS = 16 };
@@ -53,11 +53,13 @@ double wf_trip_value(const WfTrip *t, size_t col);
 
 /* ---- /trajectories: ring frames [time x vehicle] (the arrays, then the frame times); corridor points, one row
  * per vehicle on the road per frame */
-enum { WF_RING_TRAJ_N_COLS = 5, WF_CORRIDOR_TRAJ_N_COLS = 6 };
+enum { WF_RING_TRAJ_N_COLS = 6, WF_CORRIDOR_TRAJ_N_COLS = 6 };
+enum { WF_RING_TRAJ_LANE = 5 }; /* the ring's lane column: multi-lane rings only */
 extern const WfColumn wf_ring_traj_columns[WF_RING_TRAJ_N_COLS];
 extern const WfColumn wf_corridor_traj_columns[WF_CORRIDOR_TRAJ_N_COLS];
-/* The ring's frame at time t: the columns' arrays (the fleet's, borrowed; &t for the time). */
-void wf_ring_traj_frame(const WfFleet *f, const double *t_s, const double **cols);
+/* The ring's frame at time t: the columns' arrays (the fleet's, borrowed; &t for the time). A multi-lane ring's
+ * vehicles move between slots: its columns are gathered vehicle by vehicle into frame (5 n doubles). */
+void wf_ring_traj_frame(const WfFleet *f, const double *t_s, double *frame, const double **cols);
 /* The corridor's frame at time t_s in road order (front first) into frame (WF_CORRIDOR_TRAJ_N_COLS columns of
  * cap values each; cap >= the vehicles on the road); cols receives the columns' starts. Returns the points. */
 size_t wf_corridor_traj_frame(const WfCorridorVehicles *vh, double t_s, double *frame, size_t cap,

@@ -54,16 +54,33 @@ void wf_stats_block(size_t m, const double *v, const double *gap, const double *
 void wf_stats_combine(const WfStatsBlock *b, size_t nb, size_t nc, const WfScenario *sc, double t_s,
                       int64_t overlaps, WfTsRow *row)
 {
+    wf_stats_combine_lanes(b, &nb, 1, nc, sc, t_s, overlaps, row);
+}
+
+void wf_stats_combine_lanes(const WfStatsBlock *b, const size_t *lane_nb, size_t n_lanes, size_t nc,
+                            const WfScenario *sc, double t_s, int64_t overlaps, WfTsRow *row)
+{
     double n = 0, sv = 0, sg = 0, stopped = 0, waves = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY;
+    double v_wave = sc->wave_speed_mps;
+    size_t nb = 0;
     memset(row, 0, sizeof *row);
-    for (size_t k = 0; k < nb; k++) {
-        n += b[k].n, sv += b[k].sum_v, sg += b[k].sum_gap, stopped += b[k].stopped, waves += b[k].waves;
-        /* The follower of block k's first vehicle is the previous block's last (the last block's for block 0). */
-        waves += b[k].first_slow && !b[k ? k - 1 : nb - 1].last_slow;
-        vmin = fmin(vmin, b[k].vmin);
-        vmax = fmax(vmax, b[k].vmax);
-        gmin = fmin(gmin, b[k].gmin);
-        for (size_t c = 0; c < nc; c++) row->class_fuel_rate_gps[c] += b[k].class_fuel_rate_gps[c];
+    for (size_t l = 0; l < n_lanes; l++) {
+        size_t b0 = nb, nl = lane_nb[l];
+        double lane_waves = 0, lane_vmax = -INFINITY;
+        for (size_t k = b0; k < b0 + nl; k++) {
+            n += b[k].n, sv += b[k].sum_v, sg += b[k].sum_gap, stopped += b[k].stopped, lane_waves += b[k].waves;
+            /* The follower of block k's first vehicle is the previous block's last (the lane's last block's for its
+             * first). */
+            lane_waves += b[k].first_slow && !b[k > b0 ? k - 1 : b0 + nl - 1].last_slow;
+            vmin = fmin(vmin, b[k].vmin);
+            lane_vmax = fmax(lane_vmax, b[k].vmax);
+            gmin = fmin(gmin, b[k].gmin);
+            for (size_t c = 0; c < nc; c++) row->class_fuel_rate_gps[c] += b[k].class_fuel_rate_gps[c];
+        }
+        /* Every vehicle of a lane slow: one wave spanning it (no start was found above). */
+        waves += (nl && lane_waves == 0 && lane_vmax < v_wave) ? 1.0 : lane_waves;
+        vmax = fmax(vmax, lane_vmax);
+        nb += nl;
     }
     double mean = sv / n, m2 = 0.0, fuel = 0.0;
     for (size_t k = 0; k < nb; k++) {
@@ -71,15 +88,13 @@ void wf_stats_combine(const WfStatsBlock *b, size_t nb, size_t nc, const WfScena
         m2 += b[k].m2 + b[k].n * d * d;
     }
     for (size_t c = 0; c < nc; c++) fuel += row->class_fuel_rate_gps[c];
-    double v_wave = sc->wave_speed_mps;
     row->v[WF_TS_T] = t_s;
     row->v[WF_TS_MEAN_V] = mean;
     row->v[WF_TS_SD_V] = sqrt(m2 / n);
     row->v[WF_TS_MIN_V] = vmin;
     row->v[WF_TS_MAX_V] = vmax;
     row->v[WF_TS_FRAC_STOPPED] = stopped / n;
-    /* Every vehicle slow: one wave spanning the ring (no start was found above). */
-    row->v[WF_TS_WAVES] = (waves == 0 && vmax < v_wave) ? 1.0 : waves;
+    row->v[WF_TS_WAVES] = waves;
     row->v[WF_TS_FUEL_RATE] = fuel;
     row->v[WF_TS_MEAN_GAP] = sg / n;
     row->v[WF_TS_MIN_GAP] = gmin;

@@ -13,6 +13,7 @@ const WfColumn wf_ring_traj_columns[WF_RING_TRAJ_N_COLS] = {
     {"a", "m/s^2", "acceleration applied from this instant"},
     {"fuel_rate", "g/s", "fuel rate [time x vehicle]"},
     {"t", "s", "time of each frame"},
+    {"lane", "1", "lane (0: the rightmost) [time x vehicle]; multi-lane rings only"},
 };
 
 const WfColumn wf_corridor_traj_columns[WF_CORRIDOR_TRAJ_N_COLS] = {
@@ -24,9 +25,18 @@ const WfColumn wf_corridor_traj_columns[WF_CORRIDOR_TRAJ_N_COLS] = {
     {"fuel_rate", "g/s", "fuel rate"},
 };
 
-void wf_ring_traj_frame(const WfFleet *f, const double *t_s, const double **cols)
+void wf_ring_traj_frame(const WfFleet *f, const double *t_s, double *frame, const double **cols)
 {
     cols[0] = f->x_m, cols[1] = f->v_mps, cols[2] = f->a_mps2, cols[3] = f->fuel_rate_gps, cols[4] = t_s;
+    if (!f->pos) return;
+    size_t n = f->n;
+    double *c[5] = {frame, frame + n, frame + 2 * n, frame + 3 * n, frame + 4 * n};
+    for (size_t id = 0; id < n; id++) {
+        size_t s = f->pos[id];
+        c[0][id] = f->x_m[s], c[1][id] = f->v_mps[s], c[2][id] = f->a_mps2[s], c[3][id] = f->fuel_rate_gps[s];
+        c[4][id] = f->lane[s];
+    }
+    cols[0] = c[0], cols[1] = c[1], cols[2] = c[2], cols[3] = c[3], cols[WF_RING_TRAJ_LANE] = c[4];
 }
 
 size_t wf_corridor_traj_frame(const WfCorridorVehicles *vh, double t_s, double *frame, size_t cap,

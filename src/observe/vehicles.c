@@ -6,7 +6,7 @@
 #include "wavefuel/vehicle.h"
 
 enum { V_CLASS, V_GROUP, V_LENGTH, V_DIST, V_FUEL, V_L100, V_MPG, V_STOPS, V_STOPPED, V_MEAN_V, V_VAR_V, V_VAR_A,
-       V_HARD, V_INFEAS, V_X, V_V };
+       V_HARD, V_INFEAS, V_X, V_V, V_LANE, V_CHANGES, V_CUT_INS };
 
 const WfObsColumn wf_vehicle_columns[WF_VEH_N_COLS] = {
     {{"class_id", "1", "index into /classes"}, WF_COL_I64, 1},
@@ -25,6 +25,10 @@ const WfObsColumn wf_vehicle_columns[WF_VEH_N_COLS] = {
     {{"infeasible_steps", "1", "steps whose acceleration exceeded the class a_max"}, WF_COL_I64, 0},
     {{"final_x", "m", "unwrapped position at the end"}, WF_COL_F64, 0},
     {{"final_v", "m/s", "speed at the end"}, WF_COL_F64, 0},
+    /* multi-lane rings only (from WF_VEH_N_SINGLE on) */
+    {{"final_lane", "1", "lane at the end (0: the rightmost)"}, WF_COL_I64, 0},
+    {{"lane_changes", "1", "lane changes made (the whole run)"}, WF_COL_I64, 0},
+    {{"cut_ins", "1", "vehicles that changed into the lane right ahead of it (the whole run)"}, WF_COL_I64, 0},
 };
 
 /* Population variance over time from the sums of samples and of their squares (clamped at 0: rounding). */
@@ -33,9 +37,10 @@ static double time_var(double sum, double sum2, double steps)
     return steps > 0 ? fmax(0.0, sum2 / steps - (sum / steps) * (sum / steps)) : 0.0;
 }
 
-double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t i)
+double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t id)
 {
     const WfFleet *f = v->f;
+    size_t i = f->pos ? f->pos[id] : id; /* its slot */
     const WfVehicleClass *vc = &v->sc->classes[f->class_id[i]].vc;
     double win_steps = v->window_s / v->sc->dt_s;
     switch (col) {
@@ -54,6 +59,9 @@ double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t i)
     case V_HARD: return f->hard_brakes[i];
     case V_INFEAS: return f->infeasible_steps[i];
     case V_X: return f->x_m[i];
+    case V_LANE: return f->lane[i];
+    case V_CHANGES: return f->lane_changes[i];
+    case V_CUT_INS: return f->cut_ins[i];
     default: return f->v_mps[i];
     }
 }

@@ -171,6 +171,7 @@ static int load_road_type(WfCfgNode *road, const WfKeySpec *row, void *t, WfKeyE
 }
 
 static const char *const road_types[] = {"ring", "corridor", NULL};
+static const char *const lane_rules[] = {"symmetric", "keep_right", NULL};
 
 static const WfKeySpec ring_grade_rows[] = {
     {.key = "points", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .flags = WF_KEY_NOREAD,
@@ -192,6 +193,15 @@ static const WfKeySpec road_rows[] = {
      .offset = offsetof(WfScenario, road.speed_limit_mps), .def = INFINITY, .min = 0.1, .max = 100, .unit = "m/s",
      .doc = "no vehicle accelerates past it (the acceleration is capped at (limit − v)/dt); corridor: the limit "
             "everywhere (zones may lower it)"},
+    {.key = "lanes", .type = WF_KEY_INTEGER, .on = WF_ON_RING, .offset = offsetof(WfScenario, n_lanes),
+     .size = sizeof(int), .def = 1, .imin = 1, .imax = WF_MAX_LANES, .doc_range = "1, 2, …, 8",
+     .off_msg = "road.lanes applies to rings: corridors have one lane",
+     .doc = "lanes of the ring, numbered from 0 (the rightmost); vehicles change lanes by their group's "
+            "`lane_change` model ([lanes.md](lanes.md))"},
+    {.key = "lane_rule", .type = WF_KEY_CHOICE, .on = WF_ON_RING, .offset = offsetof(WfScenario, lane_rule),
+     .choices = lane_rules, .off_msg = "road.lane_rule applies to multi-lane rings",
+     .doc = "passing rule of the lane-change models: `symmetric` (pass on either side), `keep_right` (MOBIL's "
+            "European rules: a bias to the right lane, no regard for the new follower on a change to the right)"},
     {.key = "grade", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .flags = WF_KEY_FLAT, .hook = load_grade,
      .sub = &ring_grade_keys},
     /* A corridor's grade profile is not periodic and its zones name driver parameters: scenario_corridor.c reads
@@ -239,6 +249,11 @@ static int check_time(WfCfgNode *root, const WfKeySpec *row, void *t, WfKeyEnv *
         return wf_err(err, WF_EINPUT, "%s: time.duration_s (%s s) must be a whole multiple of time.dt_s (%s s)",
                       sc->path, WF_NUM(sc->duration_s), WF_NUM(sc->dt_s));
     if (nsteps > 1e12) return wf_err(err, WF_EINPUT, "%s: more than 1e12 steps: reduce duration or raise dt", sc->path);
+    if (sc->adaptive && sc->n_lanes > 1)
+        return wf_err(err, WF_EINPUT,
+                      "%s: time.integrator %s steps single-lane rings (lane changes move vehicles between steps, which "
+                      "the adaptive solvers would integrate across): use ballistic or euler with road.lanes = %d",
+                      sc->path, sc->integrator, sc->n_lanes);
     if (sc->warmup_s >= sc->duration_s)
         return wf_err(err, WF_EINPUT, "%s: time.warmup_s (%s s) must be shorter than time.duration_s (%s s)",
                       sc->path, WF_NUM(sc->warmup_s), WF_NUM(sc->duration_s));

@@ -331,6 +331,65 @@ static int load_group_safety(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyE
     return 0;
 }
 
+/* The group's lane-change model on a multi-lane ring: `lane_change: {model: NAME, KEY: VALUE...}` (the model's keys
+ * from its own table), `lane_change: {model: none}` to never change lanes; absent: `mobil` with its defaults. */
+static int load_group_lane_change(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row, (void)env;
+    WfDriverGroup *g = t;
+    WfCfgNode *map = NULL;
+    const char *name = "mobil";
+    char w[1024];
+    if (wf_cfg_map_opt(e, "lane_change", &map, err)) return WF_EINPUT;
+    if (map && wf_cfg_string(map, "model", &name, err)) return WF_EINPUT;
+    g->lc = NULL;
+    if (!strcmp(name, "none")) return 0;
+    if (wf_lc_model_find(name, &g->lc, err)) {
+        wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(map, "model"), w, sizeof w));
+        return WF_EINPUT;
+    }
+    if (g->lc->param_size > sizeof g->lc_params)
+        return wf_err(err, WF_ESYS, "lane-change model %s has too many parameters", g->lc->name);
+    if (wf_cfg_params(map, g->lc->spec, g->lc->n_spec, g->lc_params, err)) return WF_EINPUT;
+    if (g->lc->check && g->lc->check(g->lc_params, err)) {
+        wf_err_prefix(err, "%s: ", where_of(map, w, sizeof w));
+        return WF_EINPUT;
+    }
+    return 0;
+}
+
+/* fleet.lane_counts: the vehicles of each lane at the start, summing to fleet.vehicles; absent: as equal as
+ * possible, the lower lanes taking the remainder. */
+static int load_lane_counts(WfCfgNode *fleet, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)row, (void)env;
+    WfScenario *sc = t;
+    WfCfgNode *seq = NULL;
+    char w[1024];
+    long L = sc->n_lanes, n = sc->n_vehicles, sum = 0;
+    if (wf_cfg_seq_opt(fleet, "lane_counts", &seq, err)) return WF_EINPUT;
+    if (!seq) {
+        for (long l = 0; l < L; l++) sc->lane_counts[l] = n / L + (l < n % L);
+        return 0;
+    }
+    if (seq->n_child != (size_t)L)
+        return wf_err(err, WF_EINPUT, "%s: fleet.lane_counts lists %zu lanes but road.lanes is %ld",
+                      where_of(seq, w, sizeof w), seq->n_child, L);
+    for (long l = 0; l < L; l++) {
+        double v;
+        if (wf_cfg_node_double(seq->child[l], 0, (double)n, "(vehicles)", &v, err)) return WF_EINPUT;
+        if (v != floor(v))
+            return wf_err(err, WF_EINPUT, "%s: expected a whole number of vehicles (got %s)",
+                          where_of(seq->child[l], w, sizeof w), WF_NUM(v));
+        sc->lane_counts[l] = (long)v;
+        sum += (long)v;
+    }
+    if (sum != n)
+        return wf_err(err, WF_EINPUT, "%s: fleet.lane_counts sum to %ld but fleet.vehicles is %ld",
+                      where_of(seq, w, sizeof w), sum, n);
+    return 0;
+}
+
 /* heterogeneity.spread: one relative spread per key of the model's parameter table. */
 static int load_spread(WfCfgNode *het, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
@@ -404,6 +463,10 @@ static const WfKeySpec driver_rows[] = {
      .doc_default = "none", .doc_range = "`kind`: `gipps`, `ttc`; keys per kind",
      .doc = "a safety filter after the controller: an upper bound on the acceleration, its interventions counted "
             "([controllers.md](controllers.md#safety-filters))"},
+    {.key = "lane_change", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .hook = load_group_lane_change,
+     .doc_type = "map", .doc_default = "`model: mobil`", .doc_range = "`model`: `mobil`, `none`; keys per model",
+     .off_msg = "lane_change applies to multi-lane rings: corridors have one lane",
+     .doc = "how the group's vehicles change lanes on a multi-lane ring; `none`: never ([lanes.md](lanes.md))"},
     {.key = "fraction", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfDriverGroup, fraction),
      .def = NAN, .min = 0, .max = 1, .unit = "(share of vehicles)", .doc_type = "1", .doc_default = "",
      .doc = "as for classes"},
@@ -591,6 +654,11 @@ static const WfKeySpec fleet_rows[] = {
     {.key = "vehicles", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .flags = WF_KEY_REQUIRED, .hook = load_vehicles,
      .min = 1, .max = 1e9, .unit = "(count)", .off_msg = "a corridor has no fixed fleet size: vehicles come from "
      "corridor.inflow", .doc_type = "integer", .doc_range = "≥ 1", .doc = "N"},
+    {.key = "lane_counts", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .hook = load_lane_counts,
+     .off_msg = "fleet.lane_counts applies to multi-lane rings", .doc_type = "list of integers",
+     .doc_default = "equal shares", .doc_range = "one per lane, summing to N",
+     .doc = "vehicles of each lane at the start: lane 0 holds vehicles 0, 1, … of the placement, lane 1 the next "
+            "ones; each lane starts as a single-lane ring would (`initial`)"},
     {.key = "placement", .type = WF_KEY_CHOICE, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, placement),
      .choices = fleet_places,
      .doc = "how classes and driver groups are laid around the ring: shuffled by seed, spread evenly, or listed with "
