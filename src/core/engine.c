@@ -13,6 +13,7 @@
 #include "core/par.h"
 #include "core/sim.h"
 #include "core/window.h"
+#include "observe/columns.h"
 
 typedef struct WfRing {
     WfSim              *sim;  /* the run this engine is the boundary of (outputs, threads, summary) */
@@ -49,9 +50,12 @@ typedef struct WfRing {
     size_t   lane_nb[WF_MAX_LANES];
     WfLaneChanges lcs;
     struct {
-        int64_t changes, cut_ins, rec_changes, rec_cut_ins;
+        WfLaneCounts total;
+        int64_t  rec_changes, rec_cut_ins, n_rows; /* since the last record; records kept */
         uint64_t lane_n[WF_MAX_LANES];
     } lk;
+    double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
+    size_t   lane_row_len, lane_rows_max;
 } WfRing;
 
 static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel);
@@ -63,6 +67,7 @@ static void ring_destroy(void *eng)
     wf_fleet_destroy(&s->f);
     wf_window_destroy(&s->win);
     wf_lanes_destroy(&s->lcs);
+    free(s->lane_rows);
     free(s->stat_blocks);
     free(s->chunks);
     wf_ode_destroy(&s->ode);
@@ -244,6 +249,12 @@ static int ring_create(WfSim *sim, WfError *err)
         rc = wf_err(err, WF_ESYS, "out of memory");
     if (!rc && sc->adaptive) rc = ode_init(s, err);
     if (!rc) rc = wf_lanes_create(&s->lcs, sc, s->f->n, s->f->n_lanes, err);
+    if (!rc && s->f->n_lanes > 1) {
+        s->lane_row_len = 3 + s->f->n_lanes * WF_LANE_N_COLS;
+        s->lane_rows_max = (size_t)wf_scenario_records(sc, s->out_every);
+        if (!(s->lane_rows = calloc(s->lane_rows_max * s->lane_row_len, sizeof *s->lane_rows)))
+            rc = wf_err(err, WF_ESYS, "out of memory for the lane records");
+    }
     if (!rc) lane_init(s);
     if (!rc) lane_views(s);
     if (!rc) rc = window_init(s, err);
@@ -446,11 +457,27 @@ static void lane_changes(WfRing *s, long step)
 {
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
-    WfLaneStep ls = wf_lanes_change(&s->lcs, s->sc, s->f, step, vars, nv, s->nthreads);
-    if (!ls.changes) return;
+    int64_t cut0 = s->lk.total.cut_ins;
+    long changes = wf_lanes_change(&s->lcs, s->sc, s->f, step, vars, nv, s->nthreads, &s->lk.total);
+    if (!changes) return;
     lane_views(s);
-    s->lk.changes += ls.changes, s->lk.cut_ins += ls.cut_ins;
-    s->lk.rec_changes += ls.changes, s->lk.rec_cut_ins += ls.cut_ins;
+    s->lk.rec_changes += changes, s->lk.rec_cut_ins += s->lk.total.cut_ins - cut0;
+}
+
+/* A multi-lane ring's lanes at a record (/lanes): each lane's record from its own blocks. */
+static void lanes_observe(WfRing *s, const WfStatsBlock *rec, double t)
+{
+    const WfFleet *f = s->f;
+    if (f->n_lanes < 2 || s->lk.n_rows >= (int64_t)s->lane_rows_max) return;
+    double *row = s->lane_rows + (size_t)s->lk.n_rows++ * s->lane_row_len;
+    row[0] = t, row[1] = (double)s->lk.rec_changes, row[2] = (double)s->lk.rec_cut_ins;
+    s->lk.rec_changes = s->lk.rec_cut_ins = 0;
+    for (size_t l = 0; l < f->n_lanes; l++) {
+        WfTsRow lr;
+        if (s->lane_nb[l]) wf_stats_combine(rec, s->lane_nb[l], f->n_classes, s->sc, t, s->overlaps, &lr);
+        wf_lane_values(&lr, (double)f->lane_n[l], s->sc->road.length_m, row + 3 + l * WF_LANE_N_COLS);
+        rec += s->lane_nb[l];
+    }
 }
 
 /* A window of steps (ring_window) when one fits before max_steps, else one step: the pass that computes the step's
@@ -484,6 +511,7 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     if (records) {
         WfTsRow row;
         lanes_record(s, s->stat_blocks, t, &row);
+        lanes_observe(s, s->stat_blocks, t);
         if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
         lap(s, WF_PHASE_STATISTICS, &tp);
         WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
@@ -549,6 +577,15 @@ int wf_sim_window_stats(const WfSim *sim, long *windows, long *redone)
     return s ? s->win.k_max : 0;
 }
 
+int wf_sim_lanes(const WfSim *sim, WfLaneObs *out)
+{
+    const WfRing *s = sim->b == &wf_boundary_periodic ? sim->eng : NULL;
+    if (!s || s->f->n_lanes < 2) return 0;
+    *out = (WfLaneObs){.n_lanes = s->f->n_lanes, .n_rows = (size_t)s->lk.n_rows, .row_len = s->lane_row_len,
+                       .rows = s->lane_rows, .pair = &s->lk.total.pair[0][0], .lane_cut_ins = s->lk.total.lane_cut_ins};
+    return 1;
+}
+
 int wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st)
 {
     const WfRing *s = sim->b == &wf_boundary_periodic ? sim->eng : NULL;
@@ -601,6 +638,7 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
     VEH("mode", f->mode);
     if (f->n_lanes > 1) { /* vehicles move between slots: what they are moves with them */
         VAR("lanes", &s->lk, sizeof s->lk);
+        VAR("lane_rows", s->lane_rows, s->lane_rows_max * s->lane_row_len * sizeof *s->lane_rows);
         VEH("class", f->class_id);
         VEH("group", f->group_id);
         if (f->slot) VEH("slot", f->slot);

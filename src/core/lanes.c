@@ -220,11 +220,10 @@ static void permute(WfLaneChanges *lc, const WfStateVar *vars, size_t nv)
     }
 }
 
-WfLaneStep wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long step, const WfStateVar *vars,
-                           size_t nv, int nthreads)
+long wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long step, const WfStateVar *vars,
+                     size_t nv, int nthreads, WfLaneCounts *cnt)
 {
-    WfLaneStep out = {0, 0};
-    if (!lc->active) return out;
+    if (!lc->active) return 0;
     size_t n = f->n, nlanes = f->n_lanes, rot[WF_MAX_LANES] = {0};
     double L = sc->road.length_m;
     Road r = {sc, f, lc->p_m, L, {0}};
@@ -246,7 +245,8 @@ WfLaneStep wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, 
     int nth = wf_lane_threads(n, nthreads);
     WF_PAR_FOR(nth > 1, "omp parallel for schedule(static) num_threads(nth) default(none) shared(lc, r, n, step)",
                for (size_t i = 0; i < n; i++) decide(lc, &r, i, step););
-    if (!(out.changes = resolve(lc, &r))) return out;
+    long changes = resolve(lc, &r);
+    if (!changes) return 0;
     size_t newn[WF_MAX_LANES];
     for (size_t m = 0, j = 0; m < nlanes; m++) j += newn[m] = new_order(lc, &r, m, j);
     permute(lc, vars, nv);
@@ -255,15 +255,19 @@ WfLaneStep wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, 
         for (size_t k = 0; k < newn[l]; k++, j++) {
             f->lane[j] = (uint8_t)l;
             f->pos[f->id[j]] = (uint32_t)j;
-            if (!lc->dir[lc->perm[j]]) continue;
+            int8_t d = lc->dir[lc->perm[j]];
+            if (!d) continue;
             f->x_m[j] -= lc->shift_m[j];
             f->x_start_m[j] -= lc->shift_m[j];
             f->lc_ready_step[j] = step + lc->interval_steps[f->group_id[j]];
             f->lane_changes[j]++;
+            cnt->changes++;
+            cnt->pair[l - (size_t)(long)d][l]++;
             if (newn[l] < 2) continue;
             f->cut_ins[k ? j - 1 : j + newn[l] - 1]++; /* the vehicle it now leads */
-            out.cut_ins++;
+            cnt->cut_ins++;
+            cnt->lane_cut_ins[l]++;
         }
     }
-    return out;
+    return changes;
 }

@@ -38,16 +38,19 @@ typedef struct WfLaneChanges {
 int  wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_lanes, WfError *err);
 void wf_lanes_destroy(WfLaneChanges *lc);
 
-/* What the changes of a step did. */
-typedef struct WfLaneStep {
-    long changes, cut_ins;
-} WfLaneStep;
+/* What lane changes did, summed over steps (integers: the same for any thread count). */
+typedef struct WfLaneCounts {
+    int64_t changes, cut_ins;                         /* cut-ins: changes into a gap that had a follower */
+    int64_t pair[WF_MAX_LANES][WF_MAX_LANES];         /* changes from lane i to lane j */
+    int64_t lane_cut_ins[WF_MAX_LANES];               /* cut-ins into each lane */
+} WfLaneCounts;
 
-/* The lane changes of step `step`: decisions from the state at its start, then the moves. vars: every per-vehicle
- * array of the ring's state (stride > 0), permuted with the vehicles; f's lane counts, lanes, ids and slots of ids
- * follow. nthreads: the decisions run in parallel (their result does not depend on it). */
-WfLaneStep wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long step, const WfStateVar *vars,
-                           size_t nv, int nthreads);
+/* The lane changes of step `step`: decisions from the state at its start, then the moves; their counts are added to
+ * *cnt, and their number returned. vars: every per-vehicle array of the ring's state (stride > 0), permuted with the
+ * vehicles; f's lane counts, lanes, ids and slots of ids follow. nthreads: the decisions run in parallel (their
+ * result does not depend on it). */
+long wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long step, const WfStateVar *vars,
+                     size_t nv, int nthreads, WfLaneCounts *cnt);
 
 /* Slot of the leader of the vehicle in slot i, and in *lap_m what to add to its position (the ring's length for the
  * lane's last vehicle, whose leader is the lane's first); a vehicle alone in its lane leads itself. */

@@ -46,6 +46,16 @@ typedef struct WfVehicleView {
 /* Value of column `col` of vehicle `id` (its index at the start; integers as exact doubles). */
 double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t id);
 
+/* ---- /lanes (multi-lane rings): per record and lane, per record, and the run's counts (src/observe/lanes.c) */
+enum { WF_LANE_VEHICLES, WF_LANE_DENSITY, WF_LANE_FLOW, WF_LANE_MEAN_V, WF_LANE_SD_V, WF_LANE_WAVES,
+       WF_LANE_FUEL_RATE, WF_LANE_MEAN_GAP, WF_LANE_N_COLS };
+enum { WF_LANE_REC_N_COLS = 3, WF_LANE_CNT_N_COLS = 5 };
+extern const WfObsColumn wf_lane_columns[WF_LANE_N_COLS];
+extern const WfObsColumn wf_lane_record_columns[WF_LANE_REC_N_COLS];
+extern const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS];
+/* A lane's columns from its record (wf_stats_combine over its blocks) and its n vehicles, on a ring of length_m. */
+void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out);
+
 /* ---- /trips (corridor): one row per trip, float64 (integers are exact below 2^53) */
 enum { WF_TRIP_N_COLS = 16 };
 extern const WfColumn wf_trip_columns[WF_TRIP_N_COLS];

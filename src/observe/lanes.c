@@ -1,0 +1,45 @@
+/* The lanes of a multi-lane ring (/lanes, docs/output.md): each lane's record at every output instant, the lane
+ * changes and cut-ins between records, and the run's counts per lane pair, lane and driver group. */
+#include "observe/columns.h"
+
+const WfObsColumn wf_lane_columns[WF_LANE_N_COLS] = {
+    {{"vehicles", "1", "vehicles in the lane [time x lane]"}, WF_COL_F64, 0},
+    {{"density", "veh/km", "vehicles per km of the lane [time x lane]"}, WF_COL_F64, 0},
+    {{"flow", "veh/h", "density times mean speed [time x lane]"}, WF_COL_F64, 0},
+    {{"mean_speed", "m/s", "mean speed of the lane's vehicles [time x lane]"}, WF_COL_F64, 0},
+    {{"sd_speed", "m/s", "speed standard deviation (population) of the lane's vehicles [time x lane]"}, WF_COL_F64, 0},
+    {{"waves", "1", "stop-and-go waves around the lane (as /timeseries/waves) [time x lane]"}, WF_COL_F64, 0},
+    {{"fuel_rate", "g/s", "fuel rate of the lane's vehicles [time x lane]"}, WF_COL_F64, 0},
+    {{"mean_gap", "m", "mean bumper-to-bumper gap in the lane [time x lane]"}, WF_COL_F64, 0},
+};
+
+const WfObsColumn wf_lane_record_columns[WF_LANE_REC_N_COLS] = {
+    {{"t", "s", "time of each record"}, WF_COL_F64, 0},
+    {{"lane_changes", "1", "lane changes since the previous record [time]"}, WF_COL_F64, 0},
+    {{"cut_ins", "1", "lane changes into a gap with a follower (a cut-in ahead of it) since the previous record "
+                      "[time]"}, WF_COL_F64, 0},
+};
+
+const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS] = {
+    {{"pair_changes", "1", "lane changes from lane i (row) to lane j (column) over the run [lane x lane]"},
+     WF_COL_I64, 0},
+    {{"lane_cut_ins", "1", "cut-ins into each lane over the run [lane]"}, WF_COL_I64, 0},
+    {{"group_lane_changes", "1", "lane changes made by each driver group's vehicles over the run [group]"},
+     WF_COL_I64, 0},
+    {{"group_cut_ins", "1", "cut-ins suffered by each driver group's vehicles over the run [group]"}, WF_COL_I64, 0},
+    {{"group_cut_in_rate", "1/h", "cut-ins suffered per vehicle-hour by each driver group over the run [group]"},
+     WF_COL_F64, 0},
+};
+
+void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out)
+{
+    double k = n / (length_m / 1000.0), v = n > 0 ? row->v[WF_TS_MEAN_V] : 0.0;
+    out[WF_LANE_VEHICLES] = n;
+    out[WF_LANE_DENSITY] = k;
+    out[WF_LANE_FLOW] = k * v * 3.6;
+    out[WF_LANE_MEAN_V] = v;
+    out[WF_LANE_SD_V] = n > 0 ? row->v[WF_TS_SD_V] : 0.0;
+    out[WF_LANE_WAVES] = n > 0 ? row->v[WF_TS_WAVES] : 0.0;
+    out[WF_LANE_FUEL_RATE] = n > 0 ? row->v[WF_TS_FUEL_RATE] : 0.0;
+    out[WF_LANE_MEAN_GAP] = n > 0 ? row->v[WF_TS_MEAN_GAP] : 0.0;
+}
