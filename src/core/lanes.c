@@ -6,7 +6,6 @@
 #include <string.h>
 
 #include "core/block.h"
-#include "core/par.h"
 #include "wavefuel/lanechange.h"
 
 int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_lanes, WfError *err)
@@ -28,8 +27,9 @@ int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_
     lc->perm = malloc(n * sizeof *lc->perm);
     lc->shift_m = malloc(n * sizeof *lc->shift_m);
     lc->scratch = malloc(n * sizeof(double));
+    lc->blk = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blk);
     if (!lc->p_m || !lc->tgt[0] || !lc->tgt[1] || !lc->dir || !lc->adv_mps2 || !lc->claim || !lc->perm ||
-        !lc->shift_m || !lc->scratch)
+        !lc->shift_m || !lc->scratch || !lc->blk)
         return wf_err(err, WF_ESYS, "out of memory for the lane changes of %zu vehicles", n);
     return 0;
 }
@@ -45,6 +45,7 @@ void wf_lanes_destroy(WfLaneChanges *lc)
     free(lc->perm);
     free(lc->shift_m);
     free(lc->scratch);
+    free(lc->blk);
     *lc = (WfLaneChanges){0};
 }
 
@@ -85,66 +86,143 @@ static void neighbours(WfLaneChanges *lc, const Road *r, const size_t *rot, size
     const WfFleet *f = r->f;
     size_t nl = f->lane_n[l], nm = f->lane_n[m], fl = r->first[l], fm = r->first[m];
     uint32_t *tgt = lc->tgt[d];
+    const double *p = r->p;
     if (!nm) {
         for (size_t k = 0; k < nl; k++) tgt[fl + k] = UINT32_MAX;
         return;
     }
-    for (size_t q = 0, j = 0; q < nl; q++) {
-        size_t i = fl + (rot[l] + q) % nl;
-        while (j < nm && r->p[fm + (rot[m] + j) % nm] < r->p[i]) j++;
-        tgt[i] = (uint32_t)((rot[m] + (j == nm ? 0 : j)) % nm);
+    /* q walks lane l from its rearmost vehicle (slot index kl), j counts lane m's vehicles behind it (index km) */
+    size_t kl = rot[l], km = rot[m], j = 0;
+    for (size_t q = 0; q < nl; q++) {
+        double pi = p[fl + kl];
+        while (j < nm && p[fm + km] < pi) {
+            j++;
+            km = km + 1 < nm ? km + 1 : 0;
+        }
+        tgt[fl + kl] = (uint32_t)(j == nm ? rot[m] : km);
+        kl = kl + 1 < nl ? kl + 1 : 0;
     }
 }
 
-/* The advantage of vehicle i (slot k of lane l, own acceleration own_now) moving in direction d (0 right, 1 left). */
-static double advantage(const WfLaneChanges *lc, const Road *r, size_t i, size_t l, size_t k, int d, double own_now)
+/* The accelerations a change concerns, for a batch of vehicles at once (WfLcCase's six, each a list of who, gap,
+ * own speed, leader speed). */
+enum { EV_OWN_NOW, EV_OWN_NEW, EV_NEW_NOW, EV_NEW_NEW, EV_OLD_NOW, EV_OLD_NEW, EV_N };
+typedef struct Batch {
+    uint32_t who[EV_N][WF_BLOCK];
+    double   gap[EV_N][WF_BLOCK], v[EV_N][WF_BLOCK], vl[EV_N][WF_BLOCK], a[EV_N][WF_BLOCK];
+    uint32_t cand[WF_BLOCK];       /* the changer of each case */
+    uint8_t  has_new[WF_BLOCK], has_old[WF_BLOCK];
+    uint32_t idx[WF_BLOCK];
+    double   gg[WF_BLOCK], gv[WF_BLOCK], gl[WF_BLOCK], ga[WF_BLOCK];
+} Batch;
+
+/* Car-following accelerations a[j] of vehicles who[j] (their own model or controller, parameters and memory, before
+ * noise and limits): group by group, through the model's block form when the group shares one parameter set and
+ * keeps no memory (the same arithmetic as accel(), so the same bits), else accel() per vehicle. */
+static void eval(const Road *r, Batch *bt, int e, size_t cnt)
 {
     const WfFleet *f = r->f;
-    const WfDriverGroup *grp = &r->sc->groups[f->group_id[i]];
+    const WfScenario *sc = r->sc;
+    const uint32_t *who = bt->who[e];
+    for (size_t g = 0; g < sc->n_groups; g++) {
+        const WfCfModel *m = sc->groups[g].model;
+        size_t c = 0;
+        for (size_t j = 0; j < cnt; j++)
+            if (f->group_id[who[j]] == g) bt->idx[c++] = (uint32_t)j;
+        if (!c) continue;
+        if (m->accel_block && !m->state_size && !f->group_param_stride[g]) {
+            for (size_t q = 0; q < c; q++) {
+                size_t j = bt->idx[q];
+                bt->gg[q] = bt->gap[e][j], bt->gv[q] = bt->v[e][j], bt->gl[q] = bt->vl[e][j];
+            }
+            m->accel_block(f->group_params[g], 0, c, bt->gg, bt->gv, bt->gl, bt->ga);
+            for (size_t q = 0; q < c; q++) bt->a[e][bt->idx[q]] = bt->ga[q];
+            continue;
+        }
+        for (size_t q = 0; q < c; q++) {
+            size_t j = bt->idx[q];
+            bt->a[e][j] = accel_of(r, who[j], bt->gap[e][j], bt->v[e][j], bt->vl[e][j]);
+        }
+    }
+}
+
+static inline void put(Batch *bt, int e, size_t c, size_t who, double gap, double v, double vl)
+{
+    bt->who[e][c] = (uint32_t)who, bt->gap[e][c] = gap, bt->v[e][c] = v, bt->vl[e][c] = vl;
+}
+
+/* The decisions of the m vehicles of lane l from slot i0: each one's side with the larger positive advantage (the
+ * right one at a tie), or none. */
+static void decide_block(WfLaneChanges *lc, const Road *r, size_t l, size_t i0, size_t m, long step, Batch *bt)
+{
+    const WfFleet *f = r->f;
+    const WfScenario *sc = r->sc;
     const double *x = f->x_m, *v = f->v_mps, *p = r->p, L = r->L;
-    size_t m = d ? l + 1 : l - 1, nm = f->lane_n[m], nl = f->lane_n[l], fl = r->first[l];
-    double len_i = len_of(r, i);
-    WfLcCase c = {.own_now = own_now};
-    if (!nm) {
-        c.own_new = accel_of(r, i, L - len_i, v[i], v[i]); /* alone in the lane: it follows itself a lap ahead */
-    } else {
-        size_t tg = lc->tgt[d][i], g = r->first[m] + tg, fo = r->first[m] + (tg ? tg - 1 : nm - 1);
-        double gap_new = fwd(p[i], p[g], L) - len_of(r, g), gap_fo_new = fwd(p[fo], p[i], L) - len_i;
-        if (!(gap_new > 0.0) || !(gap_fo_new > 0.0)) return -INFINITY;
-        /* the new follower's gap now, as the kernel takes it: its leader is the next slot, a lap ahead at the wrap */
-        double gap_fo_now = x[g] + (tg ? 0.0 : L) - len_of(r, g) - x[fo];
-        c.own_new = accel_of(r, i, gap_new, v[i], v[g]);
-        c.has_new = 1;
-        c.new_now = accel_of(r, fo, gap_fo_now, v[fo], v[g]);
-        c.new_new = accel_of(r, fo, gap_fo_new, v[fo], v[i]);
+    size_t fl = r->first[l], nl = f->lane_n[l];
+    for (size_t k = 0; k < m; k++) {
+        size_t i = i0 + k, kl = i - fl + 1 < nl ? i - fl + 1 : 0, ld = fl + kl;
+        lc->dir[i] = 0, lc->adv_mps2[i] = 0.0;
+        put(bt, EV_OWN_NOW, k, i, x[ld] + (kl ? 0.0 : L) - len_of(r, ld) - x[i], v[i], v[ld]);
     }
-    if (nl >= 2) {
-        size_t ko = k ? k - 1 : nl - 1, o = fl + ko, kl = k + 1 < nl ? k + 1 : 0, ld = fl + kl;
-        c.has_old = 1;
-        c.old_now = accel_of(r, o, x[i] + (k ? 0.0 : L) - len_i - x[o], v[o], v[i]);
-        c.old_new = nl == 2 ? accel_of(r, o, L - len_of(r, o), v[o], v[o])
-                            : accel_of(r, o, fwd(p[o], p[ld], L) - len_of(r, ld), v[o], v[ld]);
-    }
-    return grp->lc->advantage(grp->lc_params, d ? WF_LANE_LEFT : WF_LANE_RIGHT, r->sc->lane_rule, &c);
-}
-
-/* Vehicle i's choice: the side with the larger positive advantage (the right one at a tie), or none. */
-static void decide(WfLaneChanges *lc, const Road *r, size_t i, long step)
-{
-    const WfFleet *f = r->f;
-    const WfDriverGroup *grp = &r->sc->groups[f->group_id[i]];
-    lc->dir[i] = 0;
-    if (!grp->lc || step < f->lc_ready_step[i]) return;
-    size_t l = f->lane[i], fl = r->first[l], nl = f->lane_n[l], k = i - fl, kl = k + 1 < nl ? k + 1 : 0;
-    double own_now = accel_of(r, i, f->x_m[fl + kl] + (kl ? 0.0 : r->L) - len_of(r, fl + kl) - f->x_m[i], f->v_mps[i],
-                              f->v_mps[fl + kl]);
-    double best = 0.0;
+    eval(r, bt, EV_OWN_NOW, m);
+    double own_now[WF_BLOCK];
+    memcpy(own_now, bt->a[EV_OWN_NOW], m * sizeof *own_now);
     for (int d = 0; d < 2; d++) {
         if ((d == 0 && l == 0) || (d == 1 && l + 1 == f->n_lanes)) continue;
-        double a = advantage(lc, r, i, l, k, d, own_now);
-        if (a > best) best = a, lc->dir[i] = (int8_t)(d ? WF_LANE_LEFT : WF_LANE_RIGHT);
+        size_t tl = d ? l + 1 : l - 1, nm = f->lane_n[tl], fm = r->first[tl], c = 0;
+        for (size_t k = 0; k < m; k++) {
+            size_t i = i0 + k, ki = i - fl;
+            const WfDriverGroup *grp = &sc->groups[f->group_id[i]];
+            if (!grp->lc || step < f->lc_ready_step[i]) continue;
+            double len_i = len_of(r, i);
+            bt->cand[c] = (uint32_t)k;
+            bt->has_new[c] = nm > 0, bt->has_old[c] = nl >= 2;
+            if (!nm) {
+                put(bt, EV_OWN_NEW, c, i, L - len_i, v[i], v[i]); /* alone in the lane: it follows itself */
+                put(bt, EV_NEW_NOW, c, i, 1.0, 0.0, 0.0), put(bt, EV_NEW_NEW, c, i, 1.0, 0.0, 0.0);
+            } else {
+                size_t tg = lc->tgt[d][i], g = fm + tg, fo = fm + (tg ? tg - 1 : nm - 1);
+                double gap_new = fwd(p[i], p[g], L) - len_of(r, g), gap_fo_new = fwd(p[fo], p[i], L) - len_i;
+                if (!(gap_new > 0.0) || !(gap_fo_new > 0.0)) continue; /* no room: unsafe */
+                put(bt, EV_OWN_NEW, c, i, gap_new, v[i], v[g]);
+                /* the new follower's gap now, as the kernel takes it: its leader is the next slot (a lap ahead at the
+                 * lane's wrap) */
+                put(bt, EV_NEW_NOW, c, fo, x[g] + (tg ? 0.0 : L) - len_of(r, g) - x[fo], v[fo], v[g]);
+                put(bt, EV_NEW_NEW, c, fo, gap_fo_new, v[fo], v[i]);
+            }
+            if (nl >= 2) {
+                size_t ko = ki ? ki - 1 : nl - 1, o = fl + ko, kl = ki + 1 < nl ? ki + 1 : 0, ld = fl + kl;
+                put(bt, EV_OLD_NOW, c, o, x[i] + (ki ? 0.0 : L) - len_i - x[o], v[o], v[i]);
+                if (nl == 2) put(bt, EV_OLD_NEW, c, o, L - len_of(r, o), v[o], v[o]);
+                else put(bt, EV_OLD_NEW, c, o, fwd(p[o], p[ld], L) - len_of(r, ld), v[o], v[ld]);
+            } else {
+                put(bt, EV_OLD_NOW, c, i, 1.0, 0.0, 0.0), put(bt, EV_OLD_NEW, c, i, 1.0, 0.0, 0.0);
+            }
+            c++;
+        }
+        if (!c) continue;
+        for (int e = EV_OWN_NEW; e < EV_N; e++) eval(r, bt, e, c);
+        for (size_t q = 0; q < c; q++) {
+            size_t k = bt->cand[q], i = i0 + k;
+            const WfDriverGroup *grp = &sc->groups[f->group_id[i]];
+            WfLcCase cs = {own_now[k], bt->a[EV_OWN_NEW][q], bt->a[EV_NEW_NOW][q], bt->a[EV_NEW_NEW][q],
+                           bt->a[EV_OLD_NOW][q], bt->a[EV_OLD_NEW][q], bt->has_new[q], bt->has_old[q]};
+            double adv = grp->lc->advantage(grp->lc_params, d ? WF_LANE_LEFT : WF_LANE_RIGHT, sc->lane_rule, &cs);
+            if (adv > lc->adv_mps2[i]) lc->adv_mps2[i] = adv, lc->dir[i] = (int8_t)(d ? WF_LANE_LEFT : WF_LANE_RIGHT);
+        }
     }
-    lc->adv_mps2[i] = best;
+}
+
+/* The decisions of the blocks lc->blk[0 .. nblk), shared among the threads of the team that calls it (if any). */
+static void decide_all(WfLaneChanges *lc, const Road *r, long step, size_t nblk)
+{
+    const WfFleet *f = r->f;
+    Batch bt;
+#pragma omp for schedule(static)
+    for (size_t b = 0; b < nblk; b++) {
+        size_t i0 = lc->blk[b], l = f->lane[i0], end = r->first[l] + f->lane_n[l];
+        decide_block(lc, r, l, i0, end - i0 < WF_BLOCK ? end - i0 : WF_BLOCK, step, &bt);
+    }
 }
 
 /* One gap per step takes one vehicle: a claim beats another only with a larger advantage (slot order breaks ties). */
@@ -242,9 +320,17 @@ long wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long s
         if (l > 0) neighbours(lc, &r, rot, l, l - 1, 0);
         if (l + 1 < nlanes) neighbours(lc, &r, rot, l, l + 1, 1);
     }
+    /* the decisions, block by block of each lane (blocks of WF_BLOCK slots from each lane's first) */
+    size_t nblk = 0;
+    for (size_t l = 0; l < nlanes; l++)
+        for (size_t k = 0; k < f->lane_n[l]; k += WF_BLOCK) lc->blk[nblk++] = (uint32_t)(r.first[l] + k);
     int nth = wf_lane_threads(n, nthreads);
-    WF_PAR_FOR(nth > 1, "omp parallel for schedule(static) num_threads(nth) default(none) shared(lc, r, n, step)",
-               for (size_t i = 0; i < n; i++) decide(lc, &r, i, step););
+    if (nth > 1) {
+#pragma omp parallel num_threads(nth) default(none) shared(lc, r, step, nblk)
+        decide_all(lc, &r, step, nblk);
+    } else {
+        decide_all(lc, &r, step, nblk);
+    }
     long changes = resolve(lc, &r);
     if (!changes) return 0;
     size_t newn[WF_MAX_LANES];

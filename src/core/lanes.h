@@ -31,6 +31,7 @@ typedef struct WfLaneChanges {
     uint32_t *perm;          /* per new slot: the old slot */
     double   *shift_m;       /* per new slot: what its position moves by (whole laps, to stay in lane order) */
     unsigned char *scratch;  /* one per-vehicle array while it is permuted */
+    uint32_t *blk;           /* the first slot of each block of the decisions */
     int64_t   interval_steps[WF_MAX_GROUPS]; /* each group's least steps between two changes */
 } WfLaneChanges;
 
