@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Units against the docs: every dataset of a ring result (with trajectories), a ring result of a SUNDIALS integrator
-# (/solver) and a corridor result (trips, detectors, Edie, trajectories) must be listed in docs/output.md's tables
+# (/solver), a multi-lane ring result (/lanes and its per-vehicle columns) and a corridor result (trips, detectors, Edie, trajectories) must be listed in docs/output.md's tables
 # ("Every dataset", "Every dataset of a corridor result", "/solver") with exactly the `units` attribute the file
 # has (exact string: `g` is not `kg`), and every row of those tables must exist in the file of its kind. A sweep
 # table's /metrics/NAME and /class_metrics/NAME carry the units of /summary/NAME (docs/sweeps.md: "as in a run file").
@@ -16,7 +16,8 @@ run() { "$BIN" run "$@" -q --force 2>&1; }
 SF="--set fleet.drivers[0].safety.kind=ttc"
 if ! run tests/data/tiny_ring.yaml -o "$tmp/ring.h5" --set time.duration_s=6 $SF ||
    ! run tests/data/tiny_ring.yaml -o "$tmp/cvode.h5" --set time.duration_s=1 --set time.warmup_s=0 --set time.integrator=cvode ||
-   ! run tests/data/tiny_corridor.yaml -o "$tmp/corridor.h5" --set time.duration_s=60 $SF; then
+   ! run tests/data/tiny_corridor.yaml -o "$tmp/corridor.h5" --set time.duration_s=60 $SF ||
+   ! run scenarios/ring_lanes.yaml -o "$tmp/lanes.h5" --set time.duration_s=20 --set time.warmup_s=5 $SF; then
   echo "FAIL units_runs"; exit 1
 fi
 cat >"$tmp/sweep.yaml" <<EOF
@@ -77,6 +78,12 @@ compare("units_ring_solver_vs_docs", cv, {**ring, **solver}, False)
 missing = [d for d in solver if d not in cv]
 print(("FAIL" if missing else "PASS") + " units_solver_table_exists" + (": " + ", ".join(missing) if missing else ""))
 compare("units_corridor_vs_docs", datasets(tmp + "/corridor.h5"), corridor, True)
+lanes = table("Every dataset a multi-lane ring adds")
+# (its FollowerStopper group adds param_KEY datasets the ring table does not list: they depend on the models used)
+compare("units_lanes_vs_docs", {d: u for d, u in datasets(tmp + "/lanes.h5").items()
+                                if d in ring or not d.startswith("/vehicles/param_")}, {**ring, **lanes}, False)
+missing = [d for d in lanes if d not in datasets(tmp + "/lanes.h5")]
+print(("FAIL" if missing else "PASS") + " units_lanes_table_exists" + (": " + ", ".join(missing) if missing else ""))
 sw = datasets(tmp + "/sweep.h5")
 want = {d: ring.get("/summary/" + d.split("/")[-1]) for d in sw if d.startswith(("/metrics/", "/class_metrics/"))}
 want["/class_metrics/class_count"] = "1"  # a sweep-only column: vehicles of the class

@@ -2,9 +2,10 @@
  *   keydoc keys SECTION ring|corridor   a scenario section's key table (include/wavefuel/keys.h)
  *   keydoc params MODEL                 a car-following model's parameter table (WfParamSpec)
  *   keydoc safety KIND                  a safety filter's parameter table (WfParamSpec)
+ *   keydoc lanechange MODEL             a lane-change model's parameter table (WfParamSpec)
  *   keydoc integrators                  the integrator registry
  *   keydoc list                         every table the docs must hold: "keys SECTION BOUNDARY", "params MODEL",
- *                                       "safety KIND", "integrators", one a line
+ *                                       "safety KIND", "lanechange MODEL", "integrators", one a line
  * Exit status 2 for an unknown section or model. The rows come from the tables the loader reads (keys.h, param.h,
  * integrator.h); the doc text of a row is its doc_* fields, or derived from its type, unit, default and range. */
 #include <math.h>
@@ -14,6 +15,7 @@
 #include "wavefuel/cf.h"
 #include "wavefuel/integrator.h"
 #include "wavefuel/keys.h"
+#include "wavefuel/lanechange.h"
 #include "wavefuel/param.h"
 #include "wavefuel/safety.h"
 
@@ -171,6 +173,7 @@ static int list(void)
     }
     for (size_t i = 0; wf_cf_models[i]; i++) printf("params %s\n", wf_cf_models[i]->name);
     for (size_t i = 0; wf_safety_kinds[i]; i++) printf("safety %s\n", wf_safety_kinds[i]->name);
+    for (size_t i = 0; wf_lc_models[i]; i++) printf("lanechange %s\n", wf_lc_models[i]->name);
     printf("integrators\n");
     return 0;
 }
@@ -206,6 +209,15 @@ int main(int argc, char **argv)
         }
         return param_markdown(stdout, k->spec, k->n_spec) ? 1 : 0;
     }
+    if (argc == 3 && !strcmp(argv[1], "lanechange")) {
+        const WfLaneChangeModel *m = NULL;
+        WfError err = {0};
+        if (wf_lc_model_find(argv[2], &m, &err)) {
+            fprintf(stderr, "keydoc: %s\n", err.msg);
+            return 2;
+        }
+        return param_markdown(stdout, m->spec, m->n_spec) ? 1 : 0;
+    }
     if (argc == 4 && !strcmp(argv[1], "keys")) {
         const WfKeyTable *t = wf_key_table_find(argv[2]);
         int on = !strcmp(argv[3], "ring") ? WF_ON_RING : !strcmp(argv[3], "corridor") ? WF_ON_CORRIDOR : 0;
@@ -215,6 +227,6 @@ int main(int argc, char **argv)
         }
         return keys_markdown(stdout, t, on) ? 1 : 0;
     }
-    fprintf(stderr, "usage: keydoc keys SECTION ring|corridor | params MODEL | safety KIND | integrators | list\n");
+    fprintf(stderr, "usage: keydoc keys SECTION ring|corridor | params MODEL | safety KIND | lanechange MODEL | integrators | list\n");
     return 2;
 }
