@@ -65,6 +65,8 @@ typedef struct WfSummary {
     int64_t safety_interventions;     /* sum over the groups */
     int64_t collisions_repaired;      /* 1: the run repaired overlaps (its results include collisions), else 0 */
     WfGroupSummary grp[WF_MAX_GROUPS];
+    /* Written only for a ring of several lanes (WF_SUMMARY_IF_LANES), whole run: */
+    int64_t lane_changes, cut_ins;
 } WfSummary;
 
 /* Which road a summary describes: the index of a field's description. */
@@ -92,11 +94,12 @@ typedef struct WfSummaryField {
     WfSummaryPrint print[WF_SUMMARY_N_BOUNDARIES];
     double        print_mul, print_div; /* printed value = value x mul / div (0: 1); dist_m in km: div 1000 */
     int           sweep_only; /* not in /summary, only a column of the sweep table */
-    int           when;       /* WF_SUMMARY_ALWAYS, or WF_SUMMARY_IF_SAFETY: in /summary, `info`, the printed
-                                 summary and Python only for runs with a safety filter; never in the sweep table */
+    int           when;       /* WF_SUMMARY_ALWAYS, or WF_SUMMARY_IF_SAFETY (IF_LANES): in /summary, `info`, the
+                                 printed summary and Python only for runs with a safety filter (rings of several
+                                 lanes); never in the sweep table */
 } WfSummaryField;
 
-enum { WF_SUMMARY_ALWAYS = 0, WF_SUMMARY_IF_SAFETY = 1 };
+enum { WF_SUMMARY_ALWAYS = 0, WF_SUMMARY_IF_SAFETY = 1, WF_SUMMARY_IF_LANES = 2 };
 
 #define WF_SUMMARY_SUM  ((size_t)-1)
 #define WF_SUMMARY_NONE ((size_t)-2)

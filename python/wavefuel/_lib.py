@@ -11,6 +11,7 @@ CHECKOUT_DIR = os.path.dirname(os.path.dirname(PACKAGE_DIR))
 
 WF_MAX_CLASSES = 16
 WF_MAX_GROUPS = 16
+WF_MAX_LANES = 8
 WF_MAX_MODEL_PARAMS = 32
 WF_MAX_SAFETY_PARAMS = 8
 WF_EINPUT = 2
@@ -135,7 +136,9 @@ class WfFleet(C.Structure):
                 ("n_classes", C.c_size_t), ("class_n", C.c_size_t * WF_MAX_CLASSES), ("window_open", C.c_int),
                 ("x_start_m", _dp), ("fuel_g", _dp), ("sum_v", _dp), ("sum_v2", _dp), ("sum_a", _dp),
                 ("sum_a2", _dp), ("stopped_steps", _u32p), ("stops", _u32p), ("hard_brakes", _u32p),
-                ("infeasible_steps", _u32p), ("mode", _u8p), ("v_init_mps", C.c_double)]
+                ("infeasible_steps", _u32p), ("mode", _u8p), ("v_init_mps", C.c_double),
+                ("n_lanes", C.c_size_t), ("lane_n", C.c_size_t * WF_MAX_LANES), ("lane", _u8p), ("id", _u32p),
+                ("pos", _u32p), ("lc_ready_step", C.POINTER(C.c_int64)), ("lane_changes", _u32p), ("cut_ins", _u32p)]
 
 
 class WfCorridorVehicles(C.Structure):
@@ -170,7 +173,8 @@ class WfSummary(C.Structure):
         ("overlaps", C.c_int64), ("trips", C.c_int64), ("mean_travel_time_s", C.c_double),
         ("mean_trip_fuel_g", C.c_double), ("mean_queue_delay_s", C.c_double), ("counts", WfCorridorCounts),
         ("on_road", C.c_int64), ("cls", WfClassSummary * WF_MAX_CLASSES), ("safety_interventions", C.c_int64),
-        ("collisions_repaired", C.c_int64), ("grp", WfGroupSummary * WF_MAX_GROUPS)]
+        ("collisions_repaired", C.c_int64), ("grp", WfGroupSummary * WF_MAX_GROUPS), ("lane_changes", C.c_int64),
+        ("cut_ins", C.c_int64)]
 
 
 class WfSummaryPrint(C.Structure):

@@ -172,7 +172,11 @@ class Simulation:
         f = lib.wf_sim_fleet(self._ptr).contents
         names = ("x_m", "v_mps", "class_id", "group_id", "fuel_g", "a_mps2", "gap_m", "v_lead_mps", "theta_rad",
                  "fuel_rate_gps", "flag")
-        return {k: _view(getattr(f, k), f.n, self._run) for k in names if getattr(f, k)}
+        views = {k: _view(getattr(f, k), f.n, self._run) for k in names if getattr(f, k)}
+        if f.n_lanes > 1:  # a multi-lane ring: each slot's lane and vehicle
+            views["lane"] = _view(f.lane, f.n, self._run)
+            views["vehicle"] = _view(f.id, f.n, self._run)
+        return views
 
     def state(self):
         """The vehicles now, as a dict of numpy arrays (read-only).
@@ -182,6 +186,10 @@ class Simulation:
         group_id (indices into scenario.classes / scenario.groups), fuel_g (fuel burnt in the statistics window,
         0 before the warm-up ends); a_mps2, gap_m, v_lead_mps, theta_rad, fuel_rate_gps, flag only where the run
         keeps them fleet-wide (two-pass steps: SUNDIALS integrators, trajectories, time.fused_step false).
+        A multi-lane ring (road.lanes > 1) orders its slots by lane (0 the rightmost), then along the lane (slot
+        i + 1 leads slot i within a lane, the lane's first slot leads its last, one lap ahead); vehicles move
+        between slots when they change lanes, and two more views say what each slot holds now: lane, and vehicle
+        (the vehicle's index in the fleet at the start, as in the result file).
 
         Corridor: the vehicles on the road now in road order (index 0 the front, most downstream, vehicle; each
         vehicle's leader is the previous one): x_m (from the entrance), v_mps, a_mps2, gap_m, v_lead_mps,

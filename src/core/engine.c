@@ -562,6 +562,7 @@ static int ring_close(void *eng, WfError *err)
     long window = s->steps_done - s->warm_steps;
     wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->sim->summary);
     wf_lane_safety_summary(&s->lane, &s->sim->summary);
+    s->sim->summary.lane_changes = s->lk.total.changes, s->sim->summary.cut_ins = s->lk.total.cut_ins;
     return 0;
 }
 
