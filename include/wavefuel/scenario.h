@@ -81,6 +81,7 @@ typedef struct WfScenario {
      * placement, lane 1 the next ones, ...) */
     int     n_lanes, lane_rule;
     long    lane_counts[WF_MAX_LANES];
+    double  lane_speed_limit_mps[WF_MAX_LANES]; /* road.lane_speed_limits_mps (default: the road's; +inf: none) */
     WfPlacement placement;
     WfClassShare  classes[WF_MAX_CLASSES];
     size_t        n_classes;

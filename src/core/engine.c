@@ -49,6 +49,10 @@ typedef struct WfRing {
     WfLane   lanes[WF_MAX_LANES];
     size_t   lane_nb[WF_MAX_LANES];
     WfLaneChanges lcs;
+    struct RingLaneCtx {           /* what the road's hooks see of each lane (WfLane.ctx) */
+        const struct WfRing *s;
+        double speed_limit_mps;
+    } lane_ctx[WF_MAX_LANES];
     struct {
         WfLaneCounts total;
         int64_t  rec_changes, rec_cut_ins, n_rows; /* since the last record; records kept */
@@ -84,16 +88,17 @@ static void ring_destroy(void *eng)
 
 static void ring_grade(const void *ctx, uint32_t *seg, size_t m, const double *x, double *th)
 {
-    const WfRing *s = ctx;
+    const WfRing *s = ((const struct RingLaneCtx *)ctx)->s;
     for (size_t k = 0; k < m; k++) th[k] = wf_road_grade(&s->sc->road, x[k], &seg[k]);
 }
 
-/* The speed limit: never accelerate past it within the step. */
+/* The lane's speed limit: never accelerate past it within the step. */
 static int ring_cap(const void *ctx, size_t m, const double *x, const double *v, double *cap)
 {
     (void)x;
-    const WfRing *s = ctx;
-    double vlim = s->sc->road.speed_limit_mps, dt = s->sc->dt_s;
+    const struct RingLaneCtx *lc = ctx;
+    double vlim = lc->speed_limit_mps, dt = lc->s->sc->dt_s;
+    if (!isfinite(vlim)) return 0;
 #pragma omp simd
     for (size_t k = 0; k < m; k++) cap[k] = (vlim - v[k]) / dt;
     return 1;
@@ -104,10 +109,14 @@ static void lane_init(WfRing *s)
 {
     WfFleet *f = s->f;
     const WfScenario *sc = s->sc;
-    s->ops = (WfRoadOps){.grade = sc->road.n_grade ? ring_grade : NULL,
-                         .cap = isfinite(sc->road.speed_limit_mps) ? ring_cap : NULL};
+    int capped = 0;
+    for (size_t l = 0; l < f->n_lanes; l++) {
+        s->lane_ctx[l] = (struct RingLaneCtx){s, f->n_lanes > 1 ? sc->lane_speed_limit_mps[l] : sc->road.speed_limit_mps};
+        capped |= isfinite(s->lane_ctx[l].speed_limit_mps);
+    }
+    s->ops = (WfRoadOps){.grade = sc->road.n_grade ? ring_grade : NULL, .cap = capped ? ring_cap : NULL};
     WfLane *ln = &s->lane;
-    *ln = (WfLane){.sc = sc, .ig = s->ig, .ops = &s->ops, .ctx = s, .cap = f->n, .period_m = sc->road.length_m,
+    *ln = (WfLane){.sc = sc, .ig = s->ig, .ops = &s->ops, .ctx = &s->lane_ctx[0], .cap = f->n, .period_m = sc->road.length_m,
                    .x_m = f->x_m, .v_mps = f->v_mps, .class_id = f->class_id, .group_id = f->group_id,
                    .slot = f->slot, .grade_seg = f->grade_seg, .mode = f->mode, .x_old_m = s->xold,
                    .noisy = s->noisy, .stateful = s->stateful, .nthreads = s->nthreads, .bound_x = s->bound_x,
@@ -150,6 +159,7 @@ static void lane_views(WfRing *s)
         *o = (WfLaneValues){OFF(o->a_mps2), OFF(o->gap_m), OFF(o->v_lead_mps), OFF(o->theta_rad),
                             OFF(o->fuel_rate_gps), OFF(o->flag)};
         v->key0 = (size_t)l << 40;
+        v->ctx = &s->lane_ctx[l];
         v->safety = keep;
     }
 #undef OFF
