@@ -12,6 +12,7 @@ CHECKOUT_DIR = os.path.dirname(os.path.dirname(PACKAGE_DIR))
 WF_MAX_CLASSES = 16
 WF_MAX_GROUPS = 16
 WF_MAX_LANES = 8
+WF_MAX_LC_PARAMS = 8
 WF_MAX_MODEL_PARAMS = 32
 WF_MAX_SAFETY_PARAMS = 8
 WF_EINPUT = 2
@@ -101,7 +102,8 @@ class WfDriverGroup(C.Structure):
                 ("indices", C.c_void_p), ("n_indices", C.c_size_t), ("placement", C.c_int),
                 ("class_index", C.c_int), ("plugin", C.c_void_p), ("mlp", C.c_void_p),
                 ("safety", C.c_void_p),
-                ("safety_params", C.c_double * WF_MAX_SAFETY_PARAMS)]
+                ("safety_params", C.c_double * WF_MAX_SAFETY_PARAMS), ("lc", C.c_void_p),
+                ("lc_params", C.c_double * WF_MAX_LC_PARAMS)]
 
 
 class WfScenario(C.Structure):
@@ -110,7 +112,9 @@ class WfScenario(C.Structure):
                 ("output_interval_s", C.c_double), ("warmup_s", C.c_double), ("integrator", C.c_char * 32),
                 ("adaptive", C.c_int), ("solver", WfOdeConfig), ("fused_step", C.c_int), ("block_steps", C.c_int),
                 ("tile_vehicles", C.c_long), ("seed", C.c_uint64),
-                ("n_vehicles", C.c_long), ("placement", C.c_int),
+                ("n_vehicles", C.c_long), ("n_lanes", C.c_int), ("lane_rule", C.c_int),
+                ("lane_counts", C.c_long * WF_MAX_LANES), ("lane_speed_limit_mps", C.c_double * WF_MAX_LANES),
+                ("placement", C.c_int),
                 ("classes", WfClassShare * WF_MAX_CLASSES), ("n_classes", C.c_size_t),
                 ("groups", WfDriverGroup * WF_MAX_GROUPS), ("n_groups", C.c_size_t), ("init_state", C.c_int),
                 ("perturb_vehicle", C.c_long)] + [(f, C.c_double) for f in (

@@ -79,21 +79,30 @@ typedef struct CorridorRunState {
     long     n_sd;
 } CorridorRunState;
 
-struct WfCorridor {
-    WfSim                *sim; /* the run this engine is the boundary of (outputs, threads, summary) */
-    const WfScenario     *sc;  /* borrowed */
-    const WfCorridorSpec *cs;  /* borrowed: sc->corridor */
-    const WfIntegrator   *ig;
-    WfCorridorVehicles    veh;
-    size_t   pstride, sstride; /* doubles of parameters, bytes of controller state, per slot */
-    double   L;
-    /* per slot */
+/* One lane of the road: a circular buffer of slots (veh: its first slot, count and capacity, the arrays from the
+ * lane's own slots) with every per-slot array the same way, and the lane as the kernel sees it. Lane l's slots are
+ * [l cap, (l + 1) cap) of each allocation (held by lane 0's pointers). */
+typedef struct CorLane {
+    struct WfCorridor *c;   /* the corridor (the road hooks' context is the lane) */
+    WfCorridorVehicles veh;
     double   *xold;
     uint32_t *cell;         /* the Edie cell of the step when it lies inside one cell, else UINT32_MAX */
     uint32_t *grade_seg;
     uint8_t  *mode;
     double   *t_arr, *t_ent, *v_ent;
     WfAccum   trip, win;    /* accumulators over the trip and over the statistics window */
+    WfLane    lane;         /* the vehicles as the kernel sees them */
+} CorLane;
+
+struct WfCorridor {
+    WfSim                *sim; /* the run this engine is the boundary of (outputs, threads, summary) */
+    const WfScenario     *sc;  /* borrowed */
+    const WfCorridorSpec *cs;  /* borrowed: sc->corridor */
+    const WfIntegrator   *ig;
+    size_t   pstride, sstride; /* doubles of parameters, bytes of controller state, per slot */
+    double   L;
+    size_t   n_lanes;
+    CorLane  ln[WF_MAX_LANES];
     CorridorRunState st;
     /* trips not yet handed to the output (none at a checkpoint) */
     WfTrip   trips[TRIP_BUF];
@@ -112,13 +121,13 @@ struct WfCorridor {
     /* run */
     long     n_steps, out_every, traj_every, warm_steps;
     int      nthreads;
-    long     fault_slot;
-    /* the vehicles as the kernel sees them */
-    WfLane   lane;
+    long     fault_slot;    /* the slot of a vehicle with a non-finite state in lane fault_lane, or -1 */
+    size_t   fault_lane;
     WfRoadOps ops;
     double  *bound_x, *bound_v;
     WfChunkOut *chunks;
     int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
+    WfSafetyCount safety;   /* the lanes' safety counts summed (safety_total) */
 };
 
 /* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names; the others
@@ -138,10 +147,10 @@ struct WfCorridor {
 static void corridor_destroy(void *eng)
 {
     WfCorridor *c = eng;
-#define FREE(nm, field) free(c->field);
+#define FREE(nm, field) free(c->ln[0].field);
     SAVED_SLOT_ARRAYS(FREE) STEP_SLOT_ARRAYS(FREE)
 #undef FREE
-    void *arrays[] = {c->veh.params, c->veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
+    void *arrays[] = {c->ln[0].veh.params, c->ln[0].veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
                       c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g, c->edie.grade_mean_rad,
                       c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunks};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
@@ -165,7 +174,8 @@ static double limit_at(const WfCorridor *c, double x)
  * multiplied (overlapping zones multiply). buf holds WF_MAX_MODEL_PARAMS doubles. */
 static const double *params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
 {
-    const WfCorridor *c = ctx;
+    const CorLane *ln = ctx;
+    const WfCorridor *c = ln->c;
     const double *p = own;
     for (size_t z = 0; z < c->cs->n_zones; z++) {
         const WfCorridorZone *zn = &c->cs->zones[z];
@@ -186,7 +196,7 @@ static const double *params_at(const void *ctx, size_t group, const double *own,
     do {                                                                                             \
         /* +1: never a 0-byte request */                                                             \
         if (!((ptr) = calloc((size_t)(count) + 1, sizeof *(ptr))))                                   \
-            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", c->veh.cap); \
+            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", c->ln[0].veh.cap); \
     } while (0)
 
 /* The vehicle buffer. Capacity: fronts on the road lie in [0, L) and bodies do not overlap, so consecutive fronts
@@ -206,13 +216,28 @@ static int alloc_vehicles(WfCorridor *c, WfError *err)
         if (sc->groups[g].model->state_size > ssz) ssz = sc->groups[g].model->state_size;
     c->pstride = WF_MAX_MODEL_PARAMS;
     c->sstride = (ssz + 15) / 16 * 16;
-    WfCorridorVehicles *v = &c->veh;
-    v->cap = cap;
-#define ALLOC_SLOTS(nm, field) ALLOC(c->field, cap);
+    size_t nl = c->n_lanes;
+    CorLane *l0 = &c->ln[0];
+    l0->veh.cap = cap;
+#define ALLOC_SLOTS(nm, field) ALLOC(l0->field, nl * cap);
     SAVED_SLOT_ARRAYS(ALLOC_SLOTS) STEP_SLOT_ARRAYS(ALLOC_SLOTS)
 #undef ALLOC_SLOTS
-    ALLOC(v->params, cap * c->pstride);
-    ALLOC(v->state, cap * (c->sstride ? c->sstride : 1));
+    ALLOC(l0->veh.params, nl * cap * c->pstride);
+    ALLOC(l0->veh.state, nl * cap * (c->sstride ? c->sstride : 1));
+    /* lane l: its slots from l cap on, in every array */
+    for (size_t l = 0; l < nl; l++) {
+        CorLane *ln = &c->ln[l];
+        size_t o = l * cap;
+        ln->c = c;
+#define VIEW(nm, field) ln->field = l0->field + o;
+        if (l) {
+            SAVED_SLOT_ARRAYS(VIEW) STEP_SLOT_ARRAYS(VIEW)
+            ln->veh.cap = cap;
+            ln->veh.params = l0->veh.params + o * c->pstride;
+            ln->veh.state = l0->veh.state + o * c->sstride;
+        }
+#undef VIEW
+    }
     return 0;
 }
 
@@ -316,15 +341,16 @@ static int corridor_create(WfSim *sim, WfError *err)
     c->cs = sc->corridor;
     c->L = sc->road.length_m;
     c->fault_slot = -1;
-    /* The back of an empty road is slot 64 (any slot would do): entries then reach the buffer's end after 65
-     * vehicles, so every run longer than that steps a range wrapping around it, as long runs do. */
-    c->veh.first = 64;
+    c->n_lanes = 1;
     c->n_steps = wf_scenario_n_steps(sc);
     c->out_every = wf_scenario_output_every(sc);
     c->traj_every = wf_scenario_trajectory_every(sc);
     c->warm_steps = (long)ceil(sc->warmup_s / sc->dt_s - 1e-9);
     int rc = wf_integrator_find(sc->integrator, &c->ig, err);
     if (!rc) rc = alloc_vehicles(c, err);
+    /* The back of an empty lane is slot 64 (any slot would do): entries then reach the buffer's end after 65
+     * vehicles, so every run longer than that steps a range wrapping around it, as long runs do. */
+    for (size_t l = 0; !rc && l < c->n_lanes; l++) c->ln[l].veh.first = 64;
     if (!rc) rc = alloc_entrance(c, err);
     if (!rc) rc = alloc_measure(c, err);
     if (!rc) init_boundary(c);
@@ -427,10 +453,10 @@ static int arrivals(WfCorridor *c, double t, WfError *err)
  * corridor.inflow.insert_decel_mps2: the gap is safe for joining the stream at the stream's speed. The own free
  * speed is the model's equilibrium speed at the far gap of an empty road (where the leader's speed is taken to be
  * that too). At most one vehicle enters per step. */
-static int try_insert(WfCorridor *c, double t, long step, WfError *err)
+static int try_insert(WfCorridor *c, CorLane *ln, double t, long step, WfError *err)
 {
     if (c->st.counts.queued == 0) return 0;
-    WfCorridorVehicles *vh = &c->veh;
+    WfCorridorVehicles *vh = &ln->veh;
     if (vh->n >= vh->cap) return 0; /* cannot happen while gaps stay >= 0 (see corridor_create) */
     if (!c->st.have_cand) {
         int rc = draw_candidate(c, err);
@@ -439,7 +465,7 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     const WfScenario *sc = c->sc;
     const WfDriverGroup *grp = &sc->groups[c->st.cand_group];
     double buf[WF_MAX_MODEL_PARAMS];
-    const double *p = params_at(c, c->st.cand_group, c->st.cand_params, 0.0, buf);
+    const double *p = params_at(ln, c->st.cand_group, c->st.cand_params, 0.0, buf);
     double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, 0.0));
     double v_hi = isfinite(vcap) ? vcap : 100.0;
     double gap, vl;
@@ -476,8 +502,8 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     vh->class_id[s] = c->st.cand_class;
     vh->group_id[s] = c->st.cand_group;
     memcpy(vh->params + s * c->pstride, c->st.cand_params, grp->model->param_size);
-    c->grade_seg[s] = 0;
-    c->mode[s] = vin > sc->v_go_mps ? WF_MODE_MOVING : 0;
+    ln->grade_seg[s] = 0;
+    ln->mode[s] = vin > sc->v_go_mps ? WF_MODE_MOVING : 0;
     double ta = c->queue_t[c->st.q_head];
     c->st.q_head = (c->st.q_head + 1) % c->q_cap;
     c->st.counts.queued--;
@@ -486,11 +512,11 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
     c->st.counts.delayed += t - ta > 0.5 * sc->dt_s;
     c->st.cls_entered[c->st.cand_class]++;
     if (step >= c->warm_steps) c->st.w_entries++;
-    c->t_arr[s] = ta, c->t_ent[s] = t, c->v_ent[s] = vin;
-    c->trip.fuel_g[s] = c->trip.dist_m[s] = c->trip.stopped_s[s] = 0.0;
-    c->trip.stops[s] = c->trip.hard_brakes[s] = c->trip.infeasible[s] = 0;
-    c->win.fuel_g[s] = c->win.dist_m[s] = c->win.stopped_s[s] = 0.0;
-    c->win.steps[s] = c->win.stops[s] = c->win.hard_brakes[s] = c->win.infeasible[s] = 0;
+    ln->t_arr[s] = ta, ln->t_ent[s] = t, ln->v_ent[s] = vin;
+    ln->trip.fuel_g[s] = ln->trip.dist_m[s] = ln->trip.stopped_s[s] = 0.0;
+    ln->trip.stops[s] = ln->trip.hard_brakes[s] = ln->trip.infeasible[s] = 0;
+    ln->win.fuel_g[s] = ln->win.dist_m[s] = ln->win.stopped_s[s] = 0.0;
+    ln->win.steps[s] = ln->win.stops[s] = ln->win.hard_brakes[s] = ln->win.infeasible[s] = 0;
     if (grp->model->state_size && grp->model->init_state)
         grp->model->init_state(vh->params + s * c->pstride, vh->state + s * c->sstride, gap, vin, vl);
     c->st.have_cand = 0;
@@ -501,7 +527,8 @@ static int try_insert(WfCorridor *c, double t, long step, WfError *err)
 
 static void corridor_grade(const void *ctx, uint32_t *seg, size_t m, const double *x, double *th)
 {
-    const WfCorridor *c = ctx;
+    const CorLane *ln = ctx;
+    const WfCorridor *c = ln->c;
     for (size_t k = 0; k < m; k++) th[k] = wf_corridor_grade(c->cs, x[k], &seg[k]);
 }
 
@@ -510,7 +537,8 @@ static void corridor_grade(const void *ctx, uint32_t *seg, size_t m, const doubl
  * reaches corridor.zone_decel_mps2, the vehicle brakes at least that hard. */
 static int corridor_cap(const void *ctx, size_t m, const double *x, const double *v, double *cap)
 {
-    const WfCorridor *c = ctx;
+    const CorLane *ln = ctx;
+    const WfCorridor *c = ln->c;
     double dt = c->sc->dt_s;
     for (size_t k = 0; k < m; k++) {
         double cp = INFINITY, vlim = limit_at(c, x[k]);
@@ -536,9 +564,10 @@ static int corridor_cap(const void *ctx, size_t m, const double *x, const double
 WF_SIMD_CLONES
 static void step_cells(const void *ctx, size_t lo, size_t m)
 {
-    const WfCorridor *c = ctx;
-    const double *restrict xa = c->xold + lo, *restrict xb = c->veh.x_m + lo;
-    uint32_t *restrict cell = c->cell + lo;
+    const CorLane *ln = ctx;
+    const WfCorridor *c = ln->c;
+    const double *restrict xa = ln->xold + lo, *restrict xb = ln->veh.x_m + lo;
+    uint32_t *restrict cell = ln->cell + lo;
     double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx;
     uint32_t last = (uint32_t)(c->edie.nx - 1);
     for (size_t k = 0; k < m; k++) {
@@ -553,7 +582,6 @@ static void step_cells(const void *ctx, size_t lo, size_t m)
 static int lane_init(WfCorridor *c, WfError *err)
 {
     const WfScenario *sc = c->sc;
-    WfCorridorVehicles *vh = &c->veh;
     size_t nt = (size_t)c->nthreads + 1;
     c->bound_x = calloc(nt, sizeof(double));
     c->bound_v = calloc(nt, sizeof(double));
@@ -564,27 +592,31 @@ static int lane_init(WfCorridor *c, WfError *err)
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
                          .moved = step_cells,
                          .params_at = params_at};
-    WfLane *ln = &c->lane;
-    *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = c, .cap = vh->cap, .x_m = vh->x_m, .v_mps = vh->v_mps,
-                   .class_id = vh->class_id, .group_id = vh->group_id, .grade_seg = c->grade_seg, .mode = c->mode,
-                   .x_old_m = c->xold, .nthreads = c->nthreads, .bound_x = c->bound_x, .bound_v = c->bound_v,
-                   .chunks = c->chunks};
-    for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
-    for (size_t g = 0; g < sc->n_groups; g++) {
-        const WfDriverGroup *grp = &sc->groups[g];
-        int het = 0;
-        for (size_t k = 0; k < grp->model->n_spec; k++) het |= grp->spread[k] > 0.0;
-        ln->params[g] = het ? (const unsigned char *)vh->params : (const unsigned char *)grp->params;
-        ln->pstride[g] = het ? c->pstride * sizeof(double) : 0;
-        ln->state[g] = vh->state;
-        ln->sstride[g] = c->sstride;
-        for (size_t z = 0; z < c->cs->n_zones; z++) ln->zoned[g] |= c->hw_off[g][z] >= 0;
-        ln->noisy |= grp->noise_mps2 > 0.0;
-        ln->stateful |= grp->model->state_size > 0;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        CorLane *cl = &c->ln[l];
+        WfCorridorVehicles *vh = &cl->veh;
+        WfLane *ln = &cl->lane;
+        *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = cl, .cap = vh->cap, .x_m = vh->x_m,
+                       .v_mps = vh->v_mps, .class_id = vh->class_id, .group_id = vh->group_id,
+                       .grade_seg = cl->grade_seg, .mode = cl->mode, .x_old_m = cl->xold, .nthreads = c->nthreads,
+                       .bound_x = c->bound_x, .bound_v = c->bound_v, .chunks = c->chunks};
+        for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
+        for (size_t g = 0; g < sc->n_groups; g++) {
+            const WfDriverGroup *grp = &sc->groups[g];
+            int het = 0;
+            for (size_t k = 0; k < grp->model->n_spec; k++) het |= grp->spread[k] > 0.0;
+            ln->params[g] = het ? (const unsigned char *)vh->params : (const unsigned char *)grp->params;
+            ln->pstride[g] = het ? c->pstride * sizeof(double) : 0;
+            ln->state[g] = vh->state;
+            ln->sstride[g] = c->sstride;
+            for (size_t z = 0; z < c->cs->n_zones; z++) ln->zoned[g] |= c->hw_off[g][z] >= 0;
+            ln->noisy |= grp->noise_mps2 > 0.0;
+            ln->stateful |= grp->model->state_size > 0;
+        }
+        ln->always = cl->trip;
+        ln->window = cl->win;
+        wf_lane_safety_init(ln);
     }
-    ln->always = c->trip;
-    ln->window = c->win;
-    wf_lane_safety_init(ln);
     return 0;
 }
 
@@ -592,9 +624,12 @@ static int lane_init(WfCorridor *c, WfError *err)
  * vehicles move) or stay in the kernel's blocks; the fuel rate is always kept (Edie and detectors read it). */
 static void lane_exports(WfCorridor *c, int on)
 {
-    WfCorridorVehicles *vh = &c->veh;
-    c->lane.out = on ? (WfLaneValues){vh->a_mps2, vh->gap_m, vh->v_lead_mps, vh->theta_rad, vh->fuel_rate_gps, vh->flag}
-                     : (WfLaneValues){.fuel_rate_gps = vh->fuel_rate_gps};
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        WfCorridorVehicles *vh = &c->ln[l].veh;
+        c->ln[l].lane.out = on ? (WfLaneValues){vh->a_mps2, vh->gap_m, vh->v_lead_mps, vh->theta_rad,
+                                                vh->fuel_rate_gps, vh->flag}
+                               : (WfLaneValues){.fuel_rate_gps = vh->fuel_rate_gps};
+    }
 }
 
 /* The front vehicle's leader: the virtual leader, or a far one at the vehicle's own speed. */
@@ -607,13 +642,13 @@ static WfLead front_leader(const WfCorridor *c)
  * behind it and stopped, front to back so a repaired leader is seen by its follower; each event is counted. A
  * non-finite state is a numerical fault (the run stops). Checks the `upto` front vehicles (the kernel flags
  * overlaps and faults behind the front). */
-static void phase_overlaps(WfCorridor *c, int in_window, size_t upto)
+static void phase_overlaps(WfCorridor *c, CorLane *ln, int in_window, size_t upto)
 {
-    WfCorridorVehicles *vh = &c->veh;
+    WfCorridorVehicles *vh = &ln->veh;
     for (size_t k = 0; k < vh->n && k < upto; k++) {
         size_t s = wf_corridor_slot(vh, k);
-        if (!isfinite(vh->x_m[s]) || !isfinite(vh->v_mps[s]) || (c->mode[s] & WF_MODE_FAULT)) {
-            c->fault_slot = (long)s;
+        if (!isfinite(vh->x_m[s]) || !isfinite(vh->v_mps[s]) || (ln->mode[s] & WF_MODE_FAULT)) {
+            c->fault_slot = (long)s, c->fault_lane = (size_t)(ln - c->ln);
             return;
         }
         double limit;
@@ -627,12 +662,12 @@ static void phase_overlaps(WfCorridor *c, int in_window, size_t upto)
         }
         if (vh->x_m[s] > limit) {
             double d = limit - vh->x_m[s];
-            c->trip.dist_m[s] += d;
-            if (in_window) c->win.dist_m[s] += d;
+            ln->trip.dist_m[s] += d;
+            if (in_window) ln->win.dist_m[s] += d;
             vh->x_m[s] = limit;
             vh->v_mps[s] = 0.0;
             c->st.counts.overlaps++;
-            step_cells(c, s, 1);
+            step_cells(ln, s, 1);
         }
     }
 }
@@ -698,11 +733,11 @@ static inline void detector_vehicle(WfCorridor *c, size_t jd, size_t q, double x
 
 /* First index k in [lo, hi) whose position pos (x_m or xold, by slot) is below x (or at most x unless strict), by
  * bisection: k runs from the front vehicle backwards, so positions fall along k, before and after the step. */
-static size_t first_below(const WfCorridor *c, const double *pos, double x, int strict, size_t lo, size_t hi)
+static size_t first_below(const CorLane *ln, const double *pos, double x, int strict, size_t lo, size_t hi)
 {
     while (lo < hi) {
         size_t mid = lo + (hi - lo) / 2;
-        double p = pos[wf_corridor_slot(&c->veh, mid)];
+        double p = pos[wf_corridor_slot(&ln->veh, mid)];
         if (strict ? p < x : p <= x) hi = mid;
         else lo = mid + 1;
     }
@@ -714,8 +749,8 @@ static size_t first_below(const WfCorridor *c, const double *pos, double x, int 
  * beyond the range and the longest length, or end it before the range, add nothing (a 1 m margin covers the
  * rounding of cell indices). Visiting only these, still in road order, gives every sum the same additions in the
  * same order, and lets the threads of the parallel measurement share the vehicles instead of each visiting all. */
-static void measure_span(const WfCorridor *c, size_t i_lo, size_t i_hi, size_t q_lo, size_t q_hi, size_t *k0,
-                         size_t *k1)
+static void measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, size_t i_hi, size_t q_lo,
+                         size_t q_hi, size_t *k0, size_t *k1)
 {
     const WfScenario *sc = c->sc;
     double x_lo = INFINITY, x_hi = -INFINITY, len = 0.0;
@@ -729,8 +764,8 @@ static void measure_span(const WfCorridor *c, size_t i_lo, size_t i_hi, size_t q
         x_lo = xd < x_lo ? xd : x_lo;
         x_hi = xd + len > x_hi ? xd + len : x_hi;
     }
-    *k0 = first_below(c, c->xold, x_hi + 1.0, 0, 0, c->veh.n);
-    *k1 = first_below(c, c->veh.x_m, x_lo - 1.0, 1, *k0, c->veh.n);
+    *k0 = first_below(ln, ln->xold, x_hi + 1.0, 0, 0, ln->veh.n);
+    *k1 = first_below(ln, ln->veh.x_m, x_lo - 1.0, 1, *k0, ln->veh.n);
 }
 
 /* The running sums of one Edie cell of the step's row and of its class profiles are held in registers while
@@ -769,17 +804,18 @@ static inline void lanes_add(V4 *cd, V4 *cf, int64_t key, size_t v, double d, do
 /* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, with nv class vectors
  * (a constant at each call: the vectors stay in registers). The common case, a step inside one cell (d = span,
  * w = span / span = 1 exactly), adds the same values as edie_vehicle through the cell's running sums. */
-static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, long step, int in_window, size_t i_lo,
-                                                             size_t i_hi, size_t q_lo, size_t q_hi, const int nv)
+static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, const CorLane *ln, long step,
+                                                             int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
+                                                             size_t q_hi, const int nv)
 {
-    const WfCorridorVehicles *vh = &c->veh;
+    const WfCorridorVehicles *vh = &ln->veh;
     WfEdie *e = &c->edie;
     size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0, nx = e->nx;
     size_t nc = c->sc->n_classes, held = SIZE_MAX; /* the cell whose sums are in registers */
     double dt = c->sc->dt_s, *row_d = e->dist_m + j * nx, *row_t = e->time_s + j * nx, *row_f = e->fuel_g + j * nx;
     double *cdist = e->class_dist_m, *cfuel = e->class_fuel_g;
-    const double *xold = c->xold, *x = vh->x_m, *rate = vh->fuel_rate_gps;
-    const uint32_t *cell = c->cell;
+    const double *xold = ln->xold, *x = vh->x_m, *rate = vh->fuel_rate_gps;
+    const uint32_t *cell = ln->cell;
     const uint16_t *cls = vh->class_id;
     double sd = 0.0, st = 0.0, sf = 0.0;
     V4 cd0 = {0}, cd1 = {0}, cd2 = {0}, cd3 = {0}, cf0 = {0}, cf1 = {0}, cf2 = {0}, cf3 = {0};
@@ -794,7 +830,7 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, long
         held = SIZE_MAX;                                                                                            \
     } while (0)
     size_t k0, k1;
-    measure_span(c, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
+    measure_span(c, ln, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
     /* Road order is descending slot order, wrapping from slot 0 to the last. */
     for (size_t k = k0, s = k0 < k1 ? wf_corridor_slot(vh, k0) : 0; k < k1; k++, s = s ? s - 1 : vh->cap - 1) {
         size_t cl = cls[s], i = cell[s];
@@ -827,13 +863,13 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, long
 }
 
 WF_SIMD_CLONES
-static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
-                          size_t q_hi)
+static void measure_range(WfCorridor *c, const CorLane *ln, long step, int in_window, size_t i_lo, size_t i_hi,
+                          size_t q_lo, size_t q_hi)
 {
     size_t nc = c->sc->n_classes;
-    if (nc <= 4) measure_nv(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 1);
-    else if (nc <= 8) measure_nv(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 2);
-    else measure_nv(c, step, in_window, i_lo, i_hi, q_lo, q_hi, 4);
+    if (nc <= 4) measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 1);
+    else if (nc <= 8) measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 2);
+    else measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 4);
 }
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
@@ -842,21 +878,24 @@ static void measure_range(WfCorridor *c, long step, int in_window, size_t i_lo, 
  * (measure_span). */
 static void phase_measure(WfCorridor *c, long step, int in_window)
 {
-    const WfCorridorVehicles *vh = &c->veh;
     size_t nx = c->edie.nx, nd = c->det.n_det;
-    int nth = wf_lane_threads(vh->n, c->nthreads);
-    if (nth <= 1) {
-        measure_range(c, step, in_window, 0, nx, 0, nd);
-        return;
-    }
-#pragma omp parallel num_threads(nth) default(none) shared(c, step, in_window, nx, nd)
-    {
+    /* lane after lane: each cell's sums run lane by lane, each lane in road order */
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const CorLane *ln = &c->ln[l];
+        int nth = wf_lane_threads(ln->veh.n, c->nthreads);
+        if (nth <= 1) {
+            measure_range(c, ln, step, in_window, 0, nx, 0, nd);
+            continue;
+        }
+#pragma omp parallel num_threads(nth) default(none) shared(c, ln, step, in_window, nx, nd)
+        {
 #ifdef _OPENMP
-        size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads();
+            size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads();
 #else
-        size_t t = 0, nt = 1;
+            size_t t = 0, nt = 1;
 #endif
-        measure_range(c, step, in_window, nx * t / nt, nx * (t + 1) / nt, nd * t / nt, nd * (t + 1) / nt);
+            measure_range(c, ln, step, in_window, nx * t / nt, nx * (t + 1) / nt, nd * t / nt, nd * (t + 1) / nt);
+        }
     }
 }
 
@@ -872,42 +911,42 @@ static int flush_trips(void *eng, WfError *err)
 }
 
 /* A vehicle's window totals join its class's; its trip joins the buffer. */
-static int finish_vehicle(WfCorridor *c, size_t s, double t_exit, int completed, WfError *err)
+static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit, int completed, WfError *err)
 {
-    const WfCorridorVehicles *vh = &c->veh;
+    const WfCorridorVehicles *vh = &ln->veh;
     size_t cl = vh->class_id[s];
-    c->st.cls_fuel[cl] += c->win.fuel_g[s];
-    c->st.cls_dist[cl] += c->win.dist_m[s];
-    c->st.cls_stops[cl] += c->win.stops[s];
-    c->st.cls_infeas[cl] += c->win.infeasible[s];
-    c->st.cls_steps[cl] += c->win.steps[s];
-    c->st.tot_hard += c->win.hard_brakes[s];
-    c->st.tot_stopped_s += c->win.stopped_s[s];
+    c->st.cls_fuel[cl] += ln->win.fuel_g[s];
+    c->st.cls_dist[cl] += ln->win.dist_m[s];
+    c->st.cls_stops[cl] += ln->win.stops[s];
+    c->st.cls_infeas[cl] += ln->win.infeasible[s];
+    c->st.cls_steps[cl] += ln->win.steps[s];
+    c->st.tot_hard += ln->win.hard_brakes[s];
+    c->st.tot_stopped_s += ln->win.stopped_s[s];
     if (completed) {
         c->st.trips_done++;
-        c->st.sum_trip_time += t_exit - c->t_ent[s];
-        c->st.sum_trip_fuel += c->trip.fuel_g[s];
+        c->st.sum_trip_time += t_exit - ln->t_ent[s];
+        c->st.sum_trip_fuel += ln->trip.fuel_g[s];
         c->st.cls_trips[cl]++;
-        c->st.cls_trip_time[cl] += t_exit - c->t_ent[s];
-        c->st.cls_trip_fuel[cl] += c->trip.fuel_g[s];
+        c->st.cls_trip_time[cl] += t_exit - ln->t_ent[s];
+        c->st.cls_trip_fuel[cl] += ln->trip.fuel_g[s];
     }
     WfTrip *tr = &c->trips[c->n_trips++];
     *tr = (WfTrip){.serial = vh->serial[s], .class_id = vh->class_id[s], .group_id = vh->group_id[s],
-                   .completed = (uint8_t)completed, .t_arrival_s = c->t_arr[s], .t_entry_s = c->t_ent[s],
-                   .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = c->v_ent[s], .fuel_g = c->trip.fuel_g[s],
-                   .dist_m = c->trip.dist_m[s], .time_stopped_s = c->trip.stopped_s[s], .stops = c->trip.stops[s],
-                   .hard_brakes = c->trip.hard_brakes[s], .infeasible_steps = c->trip.infeasible[s]};
+                   .completed = (uint8_t)completed, .t_arrival_s = ln->t_arr[s], .t_entry_s = ln->t_ent[s],
+                   .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = ln->v_ent[s], .fuel_g = ln->trip.fuel_g[s],
+                   .dist_m = ln->trip.dist_m[s], .time_stopped_s = ln->trip.stopped_s[s], .stops = ln->trip.stops[s],
+                   .hard_brakes = ln->trip.hard_brakes[s], .infeasible_steps = ln->trip.infeasible[s]};
     return c->n_trips == TRIP_BUF ? flush_trips(c, err) : 0;
 }
 
 /* Vehicles whose front has reached L leave (front first); with the speed outflow each one becomes the virtual
  * leader: its rear bumper drives on at the prescribed speed. */
-static int phase_exits(WfCorridor *c, double t_end, int in_window, WfError *err)
+static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, WfError *err)
 {
-    WfCorridorVehicles *vh = &c->veh;
+    WfCorridorVehicles *vh = &ln->veh;
     while (vh->n > 0 && vh->x_m[wf_corridor_slot(vh, 0)] >= c->L) {
         size_t s = wf_corridor_slot(vh, 0);
-        int rc = finish_vehicle(c, s, t_end, 1, err);
+        int rc = finish_vehicle(c, ln, s, t_end, 1, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
             size_t seg = c->st.vl_seg;
             c->st.vl_xref = vh->x_m[s] - vh->length_m[s];
@@ -931,30 +970,37 @@ static void advance_leader(WfCorridor *c, double t)
     c->st.vl_v = wf_profile_value(p, t, &c->st.vl_seg);
 }
 
+/* The road's record: sums lane after lane, each lane front first; waves and gaps within each lane. */
 static void record(const WfCorridor *c, double t, WfCorridorRow *row)
 {
-    const WfCorridorVehicles *vh = &c->veh;
     const WfScenario *sc = c->sc;
-    size_t n = vh->n;
+    size_t n = 0, ngap = 0;
     memset(row, 0, sizeof *row);
     double sv = 0, sg = 0, stopped = 0, waves = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY, fuel = 0;
-    int prev_slow = 0;
-    for (size_t k = 0; k < n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        double v = vh->v_mps[s];
-        sv += v;
-        stopped += v < sc->v_stop_mps;
-        int slow = v < sc->wave_speed_mps;
-        waves += slow && !prev_slow;
-        prev_slow = slow;
-        vmin = fmin(vmin, v), vmax = fmax(vmax, v);
-        row->class_fuel_rate_gps[vh->class_id[s]] += vh->fuel_rate_gps[s];
-        if (k > 0) sg += vh->gap_m[s], gmin = fmin(gmin, vh->gap_m[s]);
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const WfCorridorVehicles *vh = &c->ln[l].veh;
+        int prev_slow = 0;
+        for (size_t k = 0; k < vh->n; k++) {
+            size_t s = wf_corridor_slot(vh, k);
+            double v = vh->v_mps[s];
+            sv += v;
+            stopped += v < sc->v_stop_mps;
+            int slow = v < sc->wave_speed_mps;
+            waves += slow && !prev_slow;
+            prev_slow = slow;
+            vmin = fmin(vmin, v), vmax = fmax(vmax, v);
+            row->class_fuel_rate_gps[vh->class_id[s]] += vh->fuel_rate_gps[s];
+            if (k > 0) sg += vh->gap_m[s], gmin = fmin(gmin, vh->gap_m[s]);
+        }
+        n += vh->n, ngap += vh->n ? vh->n - 1 : 0;
     }
     double mean = n ? sv / (double)n : NAN, m2 = 0.0;
-    for (size_t k = 0; k < n; k++) {
-        double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
-        m2 += d * d;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const WfCorridorVehicles *vh = &c->ln[l].veh;
+        for (size_t k = 0; k < vh->n; k++) {
+            double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
+            m2 += d * d;
+        }
     }
     for (size_t cl = 0; cl < sc->n_classes; cl++) fuel += row->class_fuel_rate_gps[cl];
     row->v[WF_CTS_T] = t;
@@ -966,8 +1012,8 @@ static void record(const WfCorridor *c, double t, WfCorridorRow *row)
     row->v[WF_CTS_FRAC_STOPPED] = n ? stopped / (double)n : 0.0;
     row->v[WF_CTS_WAVES] = waves;
     row->v[WF_CTS_FUEL_RATE] = fuel;
-    row->v[WF_CTS_MEAN_GAP] = n > 1 ? sg / (double)(n - 1) : NAN;
-    row->v[WF_CTS_MIN_GAP] = n > 1 ? gmin : NAN;
+    row->v[WF_CTS_MEAN_GAP] = ngap ? sg / (double)ngap : NAN;
+    row->v[WF_CTS_MIN_GAP] = ngap ? gmin : NAN;
     row->v[WF_CTS_OVERLAPS] = (double)c->st.counts.overlaps;
     row->v[WF_CTS_ARRIVED] = (double)c->st.counts.arrived;
     row->v[WF_CTS_ENTERED] = (double)c->st.counts.entered;
@@ -1039,7 +1085,7 @@ static void summarize(WfCorridor *c)
 
 static int numerical_fault(const WfCorridor *c, long step, WfError *err)
 {
-    const WfCorridorVehicles *vh = &c->veh;
+    const WfCorridorVehicles *vh = &c->ln[c->fault_lane].veh;
     size_t s = (size_t)c->fault_slot;
     const WfDriverGroup *g = &c->sc->groups[vh->group_id[s]];
     return wf_err(err, WF_ESYS,
@@ -1059,35 +1105,67 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     WfCorridor *c = eng;
     const WfOutput *out = c->sim->out;
     const WfScenario *sc = c->sc;
-    WfCorridorVehicles *vh = &c->veh;
+    size_t nl = c->n_lanes, on_road = 0;
     double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
     int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
-    int traj = sc->trajectories && step % c->traj_every == 0, rc;
-    if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, t, step, err))) return rc;
+    int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
+    if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, &c->ln[0], t, step, err))) return rc;
     WfLead front = front_leader(c);
-    int two_pass = records || traj || last, flags;
+    int two_pass = records || traj || last;
     lane_exports(c, two_pass);
     if (two_pass) {
-        wf_lane_step(&c->lane, vh->first, vh->n, &front, step,
-                     WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window, NULL);
+        for (size_t l = 0; l < nl; l++) {
+            CorLane *ln = &c->ln[l];
+            wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front, step,
+                         WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window, NULL);
+            on_road += ln->veh.n;
+        }
         if (records) {
             WfCorridorRow row;
             record(c, t, &row);
-            if (in_window && vh->n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
+            if (in_window && on_road) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
             WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
             if (out && out->record && (rc = out->record(out->ctx, c->sim, &rec, err))) return rc;
         }
         if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c->sim, t, err))) return rc;
         if (last) return WF_LOOP_END;
-        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_ADVANCE, in_window, NULL);
+        for (size_t l = 0; l < nl; l++) {
+            CorLane *ln = &c->ln[l];
+            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front, step, WF_PASS_ADVANCE, in_window,
+                                    NULL);
+        }
     } else {
-        flags = wf_lane_step(&c->lane, vh->first, vh->n, &front, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
+        for (size_t l = 0; l < nl; l++) {
+            CorLane *ln = &c->ln[l];
+            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front, step, WF_PASS_FUSED | WF_PASS_COUNT,
+                                    in_window, NULL);
+        }
     }
     advance_leader(c, t_next);
-    phase_overlaps(c, in_window, flags ? vh->n : c->has_vl ? 1 : 0);
-    if (c->fault_slot >= 0) return numerical_fault(c, step, err);
+    for (size_t l = 0; l < nl; l++) {
+        CorLane *ln = &c->ln[l];
+        phase_overlaps(c, ln, in_window, flags[l] ? ln->veh.n : c->has_vl ? 1 : 0);
+        if (c->fault_slot >= 0) return numerical_fault(c, step, err);
+    }
     phase_measure(c, step, in_window);
-    return phase_exits(c, t_next, in_window, err);
+    for (size_t l = 0; l < nl; l++)
+        if ((rc = phase_exits(c, &c->ln[l], t_next, in_window, err))) return rc;
+    return 0;
+}
+
+/* The safety counts of every lane, summed (what the summary and a checkpoint hold); restored, they stay with lane 0. */
+static WfSafetyCount *safety_total(WfCorridor *c, int restore)
+{
+    WfSafetyCount *all = &c->safety;
+    if (restore) {
+        for (size_t l = 0; l < c->n_lanes; l++) c->ln[l].lane.safety = l ? (WfSafetyCount){{0}, {0}} : *all;
+        return all;
+    }
+    *all = (WfSafetyCount){{0}, {0}};
+    for (size_t l = 0; l < c->n_lanes; l++)
+        for (size_t g = 0; g < WF_MAX_GROUPS; g++)
+            all->steps[g] += c->ln[l].lane.safety.steps[g], all->hits[g] += c->ln[l].lane.safety.hits[g];
+    return all;
 }
 
 /* The vehicles still on the road: their window totals count, their trips are reported as unfinished. */
@@ -1095,15 +1173,21 @@ static int corridor_close(void *eng, WfError *err)
 {
     WfCorridor *c = eng;
     int rc = flush_trips(c, err);
-    for (size_t k = 0; !rc && k < c->veh.n; k++) rc = finish_vehicle(c, wf_corridor_slot(&c->veh, k), NAN, 0, err);
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const CorLane *ln = &c->ln[l];
+        for (size_t k = 0; !rc && k < ln->veh.n; k++)
+            rc = finish_vehicle(c, ln, wf_corridor_slot(&ln->veh, k), NAN, 0, err);
+    }
     if (!rc) rc = flush_trips(c, err);
     summarize(c);
-    wf_lane_safety_summary(&c->lane, &c->sim->summary);
+    WfLane all = c->ln[0].lane;
+    all.safety = *safety_total(c, 0);
+    wf_lane_safety_summary(&all, &c->sim->summary);
     return rc;
 }
 
 const WfCorridor *wf_sim_corridor(const WfSim *sim) { return sim->b == &wf_boundary_open ? sim->eng : NULL; }
-const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->veh; }
+const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->ln[0].veh; }
 const WfCorridorCounts *wf_corridor_counts(const WfCorridor *c) { return &c->st.counts; }
 const WfDetectors *wf_corridor_detectors(const WfCorridor *c) { return &c->det; }
 const WfEdie *wf_corridor_edie(const WfCorridor *c) { return &c->edie; }
@@ -1111,8 +1195,8 @@ const WfEdie *wf_corridor_edie(const WfCorridor *c) { return &c->edie; }
 static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
 {
     WfCorridor *c = eng;
-    WfCorridorVehicles *vh = &c->veh;
-    size_t cap = vh->cap, k = 0, nd = c->det.n_int * c->det.n_det, ne = c->edie.nx * c->edie.nt;
+    WfCorridorVehicles *vh = &c->ln[0].veh;
+    size_t cap = vh->cap, nl = c->n_lanes, k = 0, nd = c->det.n_int * c->det.n_det, ne = c->edie.nx * c->edie.nt;
     size_t ncx = c->edie.nx * c->sc->n_classes;
 #define VAR(nm, ptr, count)                                                                     \
     do {                                                                                        \
@@ -1120,13 +1204,19 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
         k++;                                                                                    \
     } while (0)
     VAR("scalars", &c->st, 1);
-    VAR("first", &vh->first, 1);
-    VAR("n", &vh->n, 1);
-#define SAVE_SLOTS(nm, field) VAR(nm, c->field, cap);
+    /* each lane's buffer indices: lane 0's as "first" and "n", lane l's as "firstL" and "nL" */
+    static const char *const firsts[WF_MAX_LANES] = {"first", "first1", "first2", "first3", "first4", "first5",
+                                                     "first6", "first7"};
+    static const char *const counts[WF_MAX_LANES] = {"n", "n1", "n2", "n3", "n4", "n5", "n6", "n7"};
+    for (size_t l = 0; l < nl; l++) {
+        VAR(firsts[l], &c->ln[l].veh.first, 1);
+        VAR(counts[l], &c->ln[l].veh.n, 1);
+    }
+#define SAVE_SLOTS(nm, field) VAR(nm, c->ln[0].field, nl * cap);
     SAVED_SLOT_ARRAYS(SAVE_SLOTS)
 #undef SAVE_SLOTS
-    VAR("params", vh->params, cap * c->pstride);
-    if (c->sstride) VAR("controller_state", vh->state, cap * c->sstride);
+    VAR("params", vh->params, nl * cap * c->pstride);
+    if (c->sstride) VAR("controller_state", vh->state, nl * cap * c->sstride);
     VAR("queue_t", c->queue_t, c->q_cap);
     if (nd) {
         VAR("det_count", c->det.count, nd);
@@ -1139,7 +1229,7 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
     VAR("edie_fuel", c->edie.fuel_g, ne);
     VAR("edie_class_dist", c->edie.class_dist_m, ncx);
     VAR("edie_class_fuel", c->edie.class_fuel_g, ncx);
-    if (c->lane.safe) VAR("safety", &c->lane.safety, 1); /* absent without a safety filter */
+    if (c->ln[0].lane.safe) VAR("safety", safety_total(c, 0), 1); /* absent without a safety filter */
 #undef VAR
     return k;
 }
@@ -1148,49 +1238,60 @@ static int corridor_restored(void *eng, WfError *err)
 {
     WfCorridor *c = eng;
     const WfScenario *sc = c->sc;
-    const WfCorridorVehicles *vh = &c->veh;
     const CorridorRunState *st = &c->st;
     const WfCorridorCounts *n = &st->counts;
     const char *bad = NULL;
-    if (vh->first >= vh->cap || vh->n > vh->cap) bad = "vehicle buffer indices";
-    else if (st->steps_done < 0 || st->steps_done > c->n_steps) bad = "step";
-    else if (st->q_head >= c->q_cap || n->queued < 0 || (uint64_t)n->queued > c->q_cap) bad = "entrance queue";
-    else if (n->arrived != n->entered + n->queued || n->entered != n->exited + (int64_t)vh->n) bad = "counters";
-    else if (st->have_cand && (st->cand_class >= sc->n_classes || st->cand_group >= sc->n_groups)) bad = "candidate";
-    for (size_t k = 0; !bad && k < vh->n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        if (vh->class_id[s] >= sc->n_classes || vh->group_id[s] >= sc->n_groups) bad = "class or driver group";
+    int64_t on_road = 0;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const WfCorridorVehicles *vh = &c->ln[l].veh;
+        if (vh->first >= vh->cap || vh->n > vh->cap) bad = "vehicle buffer indices";
+        for (size_t k = 0; !bad && k < vh->n; k++) {
+            size_t s = wf_corridor_slot(vh, k);
+            if (vh->class_id[s] >= sc->n_classes || vh->group_id[s] >= sc->n_groups) bad = "class or driver group";
+        }
+        on_road += (int64_t)vh->n;
     }
+    if (bad) {
+    } else if (st->steps_done < 0 || st->steps_done > c->n_steps) bad = "step";
+    else if (st->q_head >= c->q_cap || n->queued < 0 || (uint64_t)n->queued > c->q_cap) bad = "entrance queue";
+    else if (n->arrived != n->entered + n->queued || n->entered != n->exited + on_road) bad = "counters";
+    else if (st->have_cand && (st->cand_class >= sc->n_classes || st->cand_group >= sc->n_groups)) bad = "candidate";
     if (bad)
         return wf_err(err, WF_EINPUT, "%s: the restored state does not fit this corridor (%s at step %ld)", sc->path,
                       bad, st->steps_done);
+    safety_total(c, 1);
     c->fault_slot = -1;
     c->n_trips = 0;
     return 0;
 }
 
 /* Group g's vehicles front first; the front vehicle follows the step's front leader (front_leader). */
+/* Group g's vehicles lane after lane, each lane front first; a lane's front vehicle follows the step's front leader
+ * (front_leader). */
 static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 {
     WfCorridor *c = eng;
-    const WfCorridorVehicles *vh = &c->veh;
-    const double *x = vh->x_m, *v = vh->v_mps, *len = c->lane.class_length_m;
     WfLead front = front_leader(c);
     size_t k = 0;
-    for (size_t r = 0; r < vh->n; r++) {
-        size_t s = wf_corridor_slot(vh, r);
-        if (vh->group_id[s] != g) continue;
-        double gap, vl;
-        if (r > 0) {
-            size_t p = wf_corridor_slot(vh, r - 1);
-            gap = x[p] - len[vh->class_id[p]] - x[s], vl = v[p];
-        } else if (front.free_gap_m > 0.0) {
-            gap = front.free_gap_m, vl = v[s];
-        } else {
-            gap = front.rear_m - x[s], vl = front.v_mps;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const CorLane *ln = &c->ln[l];
+        const WfCorridorVehicles *vh = &ln->veh;
+        const double *x = vh->x_m, *v = vh->v_mps, *len = ln->lane.class_length_m;
+        for (size_t r = 0; r < vh->n; r++) {
+            size_t s = wf_corridor_slot(vh, r);
+            if (vh->group_id[s] != g) continue;
+            double gap, vl;
+            if (r > 0) {
+                size_t p = wf_corridor_slot(vh, r - 1);
+                gap = x[p] - len[vh->class_id[p]] - x[s], vl = v[p];
+            } else if (front.free_gap_m > 0.0) {
+                gap = front.free_gap_m, vl = v[s];
+            } else {
+                gap = front.rear_m - x[s], vl = front.v_mps;
+            }
+            if (fn) fn(ctx, k, vh->state + s * c->sstride, v[s], vl, gap);
+            k++;
         }
-        if (fn) fn(ctx, k, vh->state + s * c->sstride, v[s], vl, gap);
-        k++;
     }
     return k;
 }
