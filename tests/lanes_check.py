@@ -5,7 +5,8 @@ reason on failure and prints a one-line account of what it measured on success.
   equalise FILE.h5 TOL                   lane counts of a 2-lane ring within TOL of each other over the last third
   lane_share FILE.h5 OP SHARE            lane 0's mean count over the second half, compared (gt/le) with SHARE * N
   identical A.h5 B.h5                    every dataset equal bit for bit (meta wall times, threads left out)
-  physical FILE.h5                       per-frame lane order, positive gaps, conservation, counted lane changes
+  physical FILE.h5                       per-frame lane order, positive gaps, conservation, counted lane changes,
+                                         each vehicle's ballistic update across its changes
 """
 import sys
 
@@ -108,7 +109,9 @@ def physical(path):
     assert np.all(lane >= 0) and np.all(lane == np.round(lane)), "lane values"
     assert np.all(np.isfinite(x)), "non-finite positions"
     min_gap = np.inf
+    frame_gaps = []
     for k in range(n_frames):
+        all_gaps = []
         for l in np.unique(lane[k]):
             ids = np.nonzero(lane[k] == l)[0]
             p = np.mod(x[k, ids], L)
@@ -120,6 +123,9 @@ def physical(path):
             gaps = gaps - length[np.roll(ids, -1)]
             assert np.all(gaps > 0), f"frame {k} (t = {t[k]:g} s) lane {l}: gap {gaps.min():g} m"
             min_gap = min(min_gap, float(gaps.min()))
+            all_gaps.append(gaps)
+        all_gaps = np.concatenate(all_gaps)
+        frame_gaps.append((all_gaps.min(), all_gaps.mean()))
     assert np.all(lane.shape[1] == n), "vehicle count"
     jumps = np.abs(np.diff(lane, axis=0))
     assert np.all(jumps <= 1), "a vehicle moved more than one lane in a step"
@@ -132,8 +138,44 @@ def physical(path):
     cut = int(ve["cut_ins"][()].sum())
     assert 0 <= cut <= counted, (cut, counted)
     assert int(f["summary/overlaps"][()]) == 0, "overlaps repaired"
+    # no change at the final instant: the last frame's lanes are the previous frame's
+    assert np.array_equal(lane[-1], lane[-2]), "lanes changed at the final instant"
+    # x, v and a move with their vehicle through the changes: the ballistic update of each vehicle holds from frame
+    # to frame (where it does not stop), up to whole laps: a vehicle entering a lane takes the lap of that lane's
+    # positions (src/core/lanes.c, new_order), so x may move by a multiple of L at a change, and only then
+    v, a = tr["v"][()], tr["a"][()]
+    assert f["meta/integrator"][()] in (b"ballistic", "ballistic"), f["meta/integrator"][()]
+    moving = v[1:] > 0
+    ev = np.abs(v[1:] - v[:-1] - a[:-1] * dt)[moving]
+    step = x[1:] - x[:-1]
+    ex = step - v[:-1] * dt - 0.5 * a[:-1] * dt * dt
+    laps = np.round(ex / L)
+    res = np.abs(ex - laps * L)[moving]
+    scale = max(1.0, float(np.abs(x).max()))
+    assert ev.max() < 1e-9 and res.max() < 1e-9 * scale, (ev.max(), res.max())
+    jumps_at = laps != 0
+    assert not np.any(jumps_at & (np.diff(lane, axis=0) == 0)), "x moved by a lap without a lane change"
+    n_lap_jumps = int(jumps_at.sum())
+    assert np.array_equal(ve["final_x"][()], x[-1]) and np.array_equal(ve["final_v"][()], v[-1]), "final state"
+    # the distance of the statistics window: the frames' increments without the lap moves
+    warm = int(np.argmin(np.abs(t - float(f["meta/warmup"][()]))))
+    dist = np.sum((step - laps * L)[warm:], axis=0)
+    dist_err = float(np.max(np.abs(ve["distance"][()] - dist)))
+    assert dist_err < 1e-6, f"distance differs from the frames by {dist_err} m"
+    # the records at the frames' instants: the fleet's speeds and the lanes' gaps
+    ts = f["timeseries"]
+    rt = ts["t"][()]
+    for j, tj in enumerate(rt):
+        k = int(np.argmin(np.abs(t - tj)))
+        if abs(t[k] - tj) > 1e-9 * max(1.0, tj):
+            continue
+        for name, want, tol in (("mean_speed", v[k].mean(), 1e-12), ("max_speed", v[k].max(), 0),
+                                ("min_speed", v[k].min(), 0), ("min_gap", frame_gaps[k][0], 1e-12 * scale),
+                                ("mean_gap", frame_gaps[k][1], 1e-12 * scale)):
+            got = float(ts[name][j])
+            assert abs(got - want) <= tol * max(1.0, abs(want)), f"t = {tj:g}: {name} {got} != {want}"
     print(f"{n_frames} frames x {n} vehicles: least gap {min_gap:.3f} m, {counted} lane changes seen in the frames "
-          f"and counted, {cut} cut-ins")
+          f"and counted, {cut} cut-ins, {n_lap_jumps} changes moving x by a lap")
 
 
 if __name__ == "__main__":
