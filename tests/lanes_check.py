@@ -5,8 +5,9 @@ reason on failure and prints a one-line account of what it measured on success.
   equalise FILE.h5 TOL                   lane counts of a 2-lane ring within TOL of each other over the last third
   lane_share FILE.h5 OP SHARE            lane 0's mean count over the second half, compared (gt/le) with SHARE * N
   identical A.h5 B.h5                    every dataset equal bit for bit (meta wall times, threads left out)
-  physical FILE.h5                       per-frame lane order, positive gaps, conservation, counted lane changes,
+  physical FILE.h5 [STEPS,...]           per-frame lane order, positive gaps, conservation, counted lane changes,
                                          each vehicle's ballistic update across its changes
+  mobil_replay FILE.h5 RULE              every step's lane changes against MOBIL recomputed here (all-IDM rings)
 """
 import sys
 
@@ -96,7 +97,7 @@ def identical(pa, pb):
     print(f"{len(oa) - len(skip & set(oa))} datasets equal, {changes} lane changes")
 
 
-def physical(path):
+def physical(path, min_steps=None):
     f = h5py.File(path, "r")
     tr, ve = f["trajectories"], f["vehicles"]
     x, lane = tr["x"][()], tr["lane"][()].astype(np.int64)
@@ -135,6 +136,16 @@ def physical(path):
     assert np.array_equal(per_vehicle, ve["lane_changes"][()]), "per-vehicle lane changes differ from the frames"
     assert np.array_equal(lane[-1], ve["final_lane"][()]), "final_lane differs from the last frame"
     assert counted == seen and counted > 0, (counted, seen)
+    # lane l starts with the vehicles after those of lanes 0..l-1 (fleet.lane_counts)
+    assert np.all(np.diff(lane[0]) >= 0), "the first frame's lanes are not in vehicle order"
+    # min_interval_s: a vehicle of group g changes again min_steps[g] steps after a change at the earliest
+    if min_steps is not None:
+        want = [int(s) for s in min_steps.split(",")]
+        gid = ve["group_id"][()]
+        for g, w in enumerate(want):
+            gaps_steps = [np.diff(np.nonzero(jumps[:, i])[0]) for i in np.nonzero(gid == g)[0]]
+            gaps_steps = np.concatenate([s for s in gaps_steps if len(s)] or [np.array([w], dtype=np.int64)])
+            assert gaps_steps.min() >= w, f"group {g}: changes {gaps_steps.min()} steps apart (least {w})"
     cut = int(ve["cut_ins"][()].sum())
     assert 0 <= cut <= counted, (cut, counted)
     assert int(f["summary/overlaps"][()]) == 0, "overlaps repaired"
@@ -178,11 +189,130 @@ def physical(path):
           f"and counted, {cut} cut-ins, {n_lap_jumps} changes moving x by a lap")
 
 
+def idm(gap, v, vl, v0=30.0, T=1.0, s0=2.0, am=1.0, b=1.5):
+    """IDM (Treiber, Hennecke & Helbing 2000) with wavefuel's defaults; docs/models.md."""
+    s_star = s0 + max(0.0, v * T + v * (v - vl) / (2.0 * np.sqrt(am * b)))
+    return am * (1.0 - (v / v0) ** 4 - (s_star / max(gap, 1e-3)) ** 2)
+
+
+def mobil_replay(path, rule, p=0.2, th=0.1, bias=0.3, b_safe=4.0, interval=10):
+    """Every step's lane changes of an all-IDM ring (default parameters, frames every step) recomputed here from
+    MOBIL as Kesting, Treiber & Helbing (2007) state it, with the engine's documented protocol: decisions from the
+    state at the step's start (frame k's positions and speeds, frame k-1's lanes), accelerations before noise, the
+    larger positive advantage of the two sides (the right one at a tie), no vehicle twice within `interval` steps,
+    one vehicle per target gap (the larger advantage). Decisions within 1e-9 m/s^2 of a boundary are not judged."""
+    f = h5py.File(path, "r")
+    tr, ve = f["trajectories"], f["vehicles"]
+    x, v, lane = tr["x"][()], tr["v"][()], tr["lane"][()].astype(np.int64)
+    L = float(f["meta/road_length"][()])
+    length = ve["length"][()]
+    n_frames, n = x.shape
+    n_lanes = int(lane.max()) + 1
+    ready = np.zeros(n, dtype=np.int64)
+    p, th, bias, b_safe, interval = float(p), float(th), float(bias), float(b_safe), int(interval)
+    fwd = lambda a, b: (b - a) % L
+    agree = unsure = 0
+    for k in range(1, n_frames - 1):
+        pos, vel, ln = np.mod(x[k], L), v[k], lane[k - 1]
+        # each lane's vehicles in the order of their positions around the ring
+        order = {}
+        for l in range(n_lanes):
+            ids = np.nonzero(ln == l)[0]
+            order[l] = ids[np.argsort(pos[ids], kind="stable")]
+
+        def leader_in(l, i):  # index in order[l] of the first vehicle at or ahead of i's position
+            q = order[l]
+            j = int(np.searchsorted(pos[q], pos[i], side="left"))
+            return j % len(q)
+
+        best_dir, best_adv, best_key, close = np.zeros(n, dtype=np.int64), np.zeros(n), {}, False
+        for i in range(n):
+            if k < ready[i]:
+                continue
+            l = int(ln[i])
+            q = order[l]
+            ki = int(np.nonzero(q == i)[0][0])
+            nl = len(q)
+            ld = q[(ki + 1) % nl]
+            own_gap = L - length[i] if nl == 1 else fwd(pos[i], pos[ld]) - length[ld]
+            own_now = idm(own_gap, vel[i], vel[ld])
+            for d in (-1, 1):
+                m = l + d
+                if m < 0 or m >= n_lanes:
+                    continue
+                qm = order[m]
+                has_new = len(qm) > 0
+                if not has_new:
+                    own_new = idm(L - length[i], vel[i], vel[i])
+                else:
+                    jg = leader_in(m, i)
+                    g, fo = qm[jg], qm[jg - 1]
+                    gap_new = fwd(pos[i], pos[g]) - length[g]
+                    gap_fo_new = fwd(pos[fo], pos[i]) - length[i]
+                    if not (gap_new > 0 and gap_fo_new > 0):
+                        continue
+                    own_new = idm(gap_new, vel[i], vel[g])
+                    gap_fo_now = L - length[g] if len(qm) == 1 else fwd(pos[fo], pos[g]) - length[g]
+                    new_now = idm(gap_fo_now, vel[fo], vel[g])
+                    new_new = idm(gap_fo_new, vel[fo], vel[i])
+                if own_new < -b_safe or (has_new and new_new < -b_safe):
+                    if min(abs(own_new + b_safe), abs(new_new + b_safe) if has_new else 1.0) < 1e-9:
+                        close = True
+                    continue
+                dn = new_new - new_now if has_new else 0.0
+                do = 0.0
+                if nl >= 2:
+                    o = q[ki - 1]
+                    old_now = idm(fwd(pos[o], pos[i]) - length[i], vel[o], vel[i])
+                    old_new = idm(L - length[o], vel[o], vel[o]) if nl == 2 else \
+                        idm(fwd(pos[o], pos[ld]) - length[ld], vel[o], vel[ld])
+                    do = old_new - old_now
+                own = own_new - own_now
+                if rule == "symmetric":
+                    a = own + p * (dn + do) - th
+                elif d > 0:
+                    a = own + p * dn - (th + bias)
+                else:
+                    a = own + p * do - (th - bias)
+                if abs(a) < 1e-9 or abs(a - best_adv[i]) < 1e-9 and best_dir[i]:
+                    close = True
+                if a > best_adv[i]:
+                    best_adv[i], best_dir[i] = a, d
+                    best_key[i] = (m, int(qm[jg]) if has_new else -1)
+        # one vehicle per target gap: the larger advantage
+        claims = {}
+        for i in np.nonzero(best_dir)[0]:
+            key = best_key[i]
+            if key not in claims or best_adv[i] > best_adv[claims[key]]:
+                claims[key] = i
+        want = np.zeros(n, dtype=np.int64)
+        for i in claims.values():
+            want[i] = best_dir[i]
+        got = lane[k] - lane[k - 1]
+        if not np.array_equal(want, got):
+            if close:
+                unsure += 1
+                # follow the engine from here on
+            else:
+                bad = np.nonzero(want != got)[0]
+                raise AssertionError(f"step {k} (t = {tr['t'][k]:g} s): vehicles {bad.tolist()} change by "
+                                     f"{got[bad].tolist()}, MOBIL says {want[bad].tolist()} "
+                                     f"(advantages {best_adv[bad].round(6).tolist()})")
+        else:
+            agree += 1
+        ready[got != 0] = k + interval
+    total = int(np.abs(np.diff(lane, axis=0)).sum())
+    assert total > 0, "no lane changes to check"
+    assert unsure <= (n_frames - 2) // 100, f"{unsure} steps too close to a boundary to judge"
+    print(f"{agree} steps of {n_frames - 2} agree with MOBIL recomputed here ({total} changes), {unsure} too close to "
+          f"call")
+
+
 if __name__ == "__main__":
     cmd, args = sys.argv[1], sys.argv[2:]
     try:
         {"same_lane": same_lane, "equalise": equalise, "lane_share": lane_share, "identical": identical,
-         "physical": physical}[cmd](*args)
+         "physical": physical, "mobil_replay": mobil_replay}[cmd](*args)
     except AssertionError as e:
         print(f"{cmd}: {e}")
         sys.exit(1)

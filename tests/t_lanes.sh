@@ -10,8 +10,11 @@
 # e. interrupted by SIGTERM and resumed: the bytes of the uninterrupted run;
 # f. every frame (written every step): positions in each lane ordered with positive gaps, vehicles conserved,
 #    the lane changes in /vehicles equal to those seen between frames, each vehicle's ballistic update across its
-#    changes, its distance from the frames, the records' speeds and gaps from the frames;
-# g. refusals: exit status 2, the key named, no file written.
+#    changes, its distance from the frames, the records' speeds and gaps from the frames, and no vehicle changing
+#    again sooner than its group's min_interval_s (1 s, 2 s: 10, 20 steps);
+# g. refusals: exit status 2, the key named, no file written;
+# h. every step's lane changes of all-IDM rings (symmetric, 3 lanes, keep_right) equal MOBIL recomputed from the
+#    frames in numpy.
 set -u
 cd "$(dirname "$0")/.." || exit 1
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
@@ -170,19 +173,51 @@ else ko resume_with_lane_changes_bit_identical "reference run failed"; fi
 # ------------------------------------------------------------------ f. physical sanity, every step
 # Trajectories every step (the interval equals dt): the ring of b, shortened, plus a 3-lane variant.
 two_lane "$tmp/every.yaml" symmetric 60 "45, 15" 3000 120 0.1
-if run "$tmp/every.yaml" -o "$tmp/every.h5"; then check physical_two_lanes_every_step $CHECK physical "$tmp/every.h5"
+if run "$tmp/every.yaml" -o "$tmp/every.h5"; then check physical_two_lanes_every_step $CHECK physical "$tmp/every.h5" 10
 else ko physical_two_lanes_every_step "run failed"; fi
 # A lane empty at the start fills from the other: its newcomers take the lap of the first one's position, so some
 # changes move x by a whole lap (lanes_check.py counts them; distance must not see them).
 two_lane "$tmp/empty.yaml" symmetric 60 "60, 0" 3000 200 0.1
-if run "$tmp/empty.yaml" -o "$tmp/empty.h5"; then check physical_empty_lane_fills $CHECK physical "$tmp/empty.h5"
+if run "$tmp/empty.yaml" -o "$tmp/empty.h5"; then check physical_empty_lane_fills $CHECK physical "$tmp/empty.h5" 10
 else ko physical_empty_lane_fills "run failed"; fi
 # The big ring's mix on 1500 m with 90 vehicles (50, 25, 15).
 sed -e 's/vehicles: 13000/vehicles: 90/' -e 's/lane_counts: .*/lane_counts: [50, 25, 15]/' \
     -e 's/length_m: 200000/length_m: 1500/' "$tmp/big.yaml" >"$tmp/every3.yaml"
 if run "$tmp/every3.yaml" -o "$tmp/every3.h5" --set output.trajectory_interval_s=0.1 --set time.duration_s=120; then
-  check physical_three_lanes_every_step $CHECK physical "$tmp/every3.h5"
+  check physical_three_lanes_every_step $CHECK physical "$tmp/every3.h5" 10,20
 else ko physical_three_lanes_every_step "run failed"; fi
+
+# ------------------------------------------------------------------ h. every decision against MOBIL recomputed
+# All-IDM rings with the default IDM and MOBIL parameters, frames every step: lanes_check.py recomputes every
+# step's changes from the frames (its own IDM and MOBIL, the engine's documented protocol) and they must agree.
+if [ -f "$tmp/empty.h5" ]; then check mobil_replay_symmetric_empty_lane $CHECK mobil_replay "$tmp/empty.h5" symmetric
+else ko mobil_replay_symmetric_empty_lane "no result"; fi
+cat >"$tmp/idm3.yaml" <<EOF
+name: idm3
+seed: 9
+road: {length_m: 1200, lanes: 3}
+time: {duration_s: 120, dt_s: 0.1, output_interval_s: 1.0}
+fleet:
+  vehicles: 60
+  lane_counts: [30, 20, 10]
+  classes:
+    - {class: midsize_sedan, fraction: 0.7}
+    - {class: class8_tractor, fraction: 0.3}
+  drivers:
+    - {model: idm, fraction: 1.0, noise_mps2: 0.5}
+output: {trajectories: true, trajectory_interval_s: 0.1}
+EOF
+if run "$tmp/idm3.yaml" -o "$tmp/idm3.h5"; then
+  check mobil_replay_symmetric_three_lanes $CHECK mobil_replay "$tmp/idm3.h5" symmetric
+else ko mobil_replay_symmetric_three_lanes "run failed"; fi
+two_lane "$tmp/krE.yaml" keep_right 24 "11, 13" 3000 300 0.1 2
+if run "$tmp/krE.yaml" -o "$tmp/krE.h5"; then
+  check mobil_replay_keep_right $CHECK mobil_replay "$tmp/krE.h5" keep_right
+  # the same changes do not follow the symmetric rule: the replay tells the rules apart
+  if $CHECK mobil_replay "$tmp/krE.h5" symmetric >/dev/null 2>&1; then
+    ko mobil_replay_tells_rules_apart "keep_right changes also pass as symmetric"
+  else ok mobil_replay_tells_rules_apart; fi
+else ko mobil_replay_keep_right "run failed"; fi
 
 # ------------------------------------------------------------------ g. refusals
 S=$tmp/sym.yaml
