@@ -80,8 +80,8 @@ initial: {state: rest${6:-}}
 output: {trajectories: true, trajectory_interval_s: 0.5}
 EOF
 }
-single_ring "$tmp/lane0.yaml" 20 "$(seq_csv 0 2 18)" "$(seq_csv 1 2 19)" \
-  "    - {name: noisy, model: idm, noise_mps2: 0.4, heterogeneity: {spread: {T_s: 0.1, v0_mps: 0.1}}, indices: [$(seq_csv 0 19)]}" \
+NOISY="{name: noisy, model: idm, noise_mps2: 0.4, heterogeneity: {spread: {T_s: 0.1, v0_mps: 0.1}}"
+single_ring "$tmp/lane0.yaml" 20 "$(seq_csv 0 2 18)" "$(seq_csv 1 2 19)" "    - $NOISY, indices: [$(seq_csv 0 19)]}" \
   ", perturbation: {vehicle: 3, dv_mps: 2}"
 single_ring "$tmp/lane1.yaml" 15 "$(seq_csv 1 2 13)" "$(seq_csv 0 2 14)" \
   "    - {name: idm1, model: idm, params: {T_s: 1.4}, indices: [$(seq_csv 0 2 14)]}

@@ -67,10 +67,11 @@ static void test_registry_and_defaults(void)
               err.msg);
     CHECK(m->param_size <= WF_MAX_LC_PARAMS * sizeof(double) && m->param_size <= sizeof(Params), "param_size %zu",
           m->param_size);
-    /* The documented defaults (docs/lanes.md, the brief of commit 5354bc5): p 0.2, Δa_th 0.1, Δa_bias 0.3,
+    /* The defaults the lane-change brief states (commit 5354bc5): p 0.2, Δa_th 0.1, Δa_bias 0.3,
      * b_safe 4, 1 s between changes. */
     static const struct { const char *key; double def; } want[] = {
-        {"politeness", 0.2}, {"threshold_mps2", 0.1}, {"bias_mps2", 0.3}, {"b_safe_mps2", 4.0}, {"min_interval_s", 1.0}};
+        {"politeness", 0.2}, {"threshold_mps2", 0.1}, {"bias_mps2", 0.3}, {"b_safe_mps2", 4.0},
+        {"min_interval_s", 1.0}};
     CHECK(m->n_spec == sizeof want / sizeof want[0], "%zu keys", m->n_spec);
     Params p = lc_defaults(m);
     for (size_t k = 0; k < sizeof want / sizeof want[0]; k++) {
