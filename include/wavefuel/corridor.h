@@ -66,6 +66,7 @@ typedef struct WfCorridorSpec {
     double     insert_decel_mps2;  /* an entry may not make the vehicle's model brake harder than this */
     int64_t    max_arrivals;       /* -1: unlimited */
     int        interleaved;        /* fleet.placement interleaved: shares assigned by deficit, not drawn */
+    double     lane_share[WF_MAX_LANES]; /* each lane's share of the demand (corridor.inflow.lane_shares) */
     /* outflow */
     WfOutflow  outflow;
     WfProfile  leader_speed_mps;   /* the virtual leader's speed profile (leader and speed outflows) */
@@ -128,6 +129,10 @@ static inline size_t wf_corridor_slot(const WfCorridorVehicles *v, size_t k)
     return s >= v->cap ? s - v->cap : s;
 }
 
+/* The lanes of a corridor (road.lanes): lane l's vehicles, as wf_corridor_vehicles gives lane 0's. */
+size_t wf_corridor_n_lanes(const struct WfCorridor *c);
+const WfCorridorVehicles *wf_corridor_lane(const struct WfCorridor *c, size_t l);
+
 /* WfCorridorCounts: the vehicle counts of an open road, in wavefuel/summary.h (part of the summary). */
 
 /* One trip. Unfinished trips (vehicles still on the road at the end) have completed = 0 and t_exit_s = NaN. */
@@ -138,6 +143,8 @@ typedef struct WfTrip {
     double   t_arrival_s, t_entry_s, t_exit_s, v_entry_mps;
     double   fuel_g, dist_m, time_stopped_s;
     uint32_t stops, hard_brakes, infeasible_steps;
+    uint8_t  lane;                            /* multi-lane corridors: the lane at the exit (or at the end) */
+    uint32_t lane_changes;                    /* ... and the lane changes made */
 } WfTrip;
 
 /* Time-series columns of a corridor record (names and units in wf_corridor_columns). Speeds, gaps and their

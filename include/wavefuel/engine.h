@@ -138,9 +138,9 @@ typedef struct WfStateVar {
     size_t      size;   /* bytes */
     size_t      stride; /* bytes per vehicle when the block is a ring's per-vehicle array (in road order); else 0 */
 } WfStateVar;
-/* Room for the blocks of a checkpoint: a ring has at most 25 + WF_MAX_GROUPS, a corridor at most 39, and the
+/* Room for the blocks of a checkpoint: a ring has at most 25 + WF_MAX_GROUPS, a corridor at most 56, and the
  * result writer adds at most 22 (rows of compressed datasets still in memory). */
-#define WF_MAX_STATE_VARS 64
+#define WF_MAX_STATE_VARS 96
 size_t wf_sim_state(WfSim *sim, WfStateVar *vars, size_t max);
 int    wf_sim_restored(WfSim *sim, WfError *err);
 /* Call out->checkpoint every `wall_s` seconds of wall time (0: only when interrupted). */

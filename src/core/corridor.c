@@ -59,19 +59,21 @@ typedef struct CorridorRunState {
     double   cls_trip_fuel[WF_MAX_CLASSES], cls_trip_time[WF_MAX_CLASSES];
     int64_t  trips_done;
     double   sum_trip_time, sum_trip_fuel;
-    /* entrance */
-    size_t   q_head;        /* queue_t index of the queue's head */
-    double   next_target;   /* cumulative demand at which the next arrival happens */
-    size_t   in_seg;
-    int      have_cand;     /* the queue head's class, group and parameters are drawn */
-    uint16_t cand_class, cand_group;
-    double   cand_len;
-    double   cand_params[WF_MAX_MODEL_PARAMS];
-    int64_t  assigned_group[WF_MAX_GROUPS], assigned_class[WF_MAX_CLASSES], n_free_class;
-    /* virtual leader */
-    double   vl_x, vl_v, vl_xref, vl_iref;
-    size_t   vl_seg;
-    /* counters and statistics */
+    /* each lane's entrance and virtual leader */
+    struct CorEntrance {
+        int64_t  arrived, entered, queued; /* this lane's */
+        size_t   q_head;        /* the index of the queue's head in the lane's part of queue_t */
+        double   next_target;   /* this lane's cumulative demand at which its next arrival happens */
+        size_t   in_seg;
+        int      have_cand;     /* the queue head's class, group and parameters are drawn */
+        uint16_t cand_class, cand_group;
+        double   cand_len;
+        double   cand_params[WF_MAX_MODEL_PARAMS];
+        int64_t  assigned_group[WF_MAX_GROUPS], assigned_class[WF_MAX_CLASSES], n_free_class;
+        double   vl_x, vl_v, vl_xref, vl_iref; /* the virtual leader ahead of the lane */
+        size_t   vl_seg;
+    } lane[WF_MAX_LANES];
+    /* counters (the road's: every lane's summed) and statistics */
     WfCorridorCounts counts;
     long     steps_done;
     int64_t  w_entries, w_exits;
@@ -91,6 +93,8 @@ typedef struct CorLane {
     uint8_t  *mode;
     double   *t_arr, *t_ent, *v_ent;
     WfAccum   trip, win;    /* accumulators over the trip and over the statistics window */
+    uint32_t *lane_changes, *cut_ins; /* lane changes made; vehicles that entered the lane right ahead of it */
+    int64_t  *lc_ready;     /* the first step at which the vehicle may change lanes again */
     WfLane    lane;         /* the vehicles as the kernel sees them */
 } CorLane;
 
@@ -139,10 +143,14 @@ struct WfCorridor {
     X("trip_stopped", trip.stopped_s) X("trip_stops", trip.stops) X("trip_hard", trip.hard_brakes)                 \
     X("trip_infeasible", trip.infeasible) X("w_fuel", win.fuel_g) X("w_dist", win.dist_m)                          \
     X("w_stopped", win.stopped_s) X("w_steps", win.steps) X("w_stops", win.stops) X("w_hard", win.hard_brakes)     \
-    X("w_infeasible", win.infeasible)
+    X("w_infeasible", win.infeasible) X("lane_changes", lane_changes) X("cut_ins", cut_ins) X("lc_ready", lc_ready)
 #define STEP_SLOT_ARRAYS(X)                                                                                          \
     X("", veh.a_mps2) X("", veh.gap_m) X("", veh.v_lead_mps) X("", veh.theta_rad) X("", veh.fuel_rate_gps)          \
     X("", veh.flag) X("", xold) X("", cell)
+
+/* A lane's counter-based key of its n-th arrival or entry: lane 0 keys as a single-lane corridor does, lane l from
+ * l 2^40 (trips name vehicles by it: /trips/serial). */
+static inline uint64_t lane_key(size_t l, uint64_t n) { return ((uint64_t)l << 40) + n; }
 
 static void corridor_destroy(void *eng)
 {
@@ -255,7 +263,7 @@ static int alloc_entrance(WfCorridor *c, WfError *err)
     if (qcap > 2e8)
         return wf_err(err, WF_EINPUT, "%s: corridor.inflow brings %.3g vehicles over the run: too many", sc->path, lam);
     c->q_cap = (size_t)qcap;
-    ALLOC(c->queue_t, c->q_cap);
+    ALLOC(c->queue_t, c->n_lanes * c->q_cap); /* each lane its own part */
     return 0;
 }
 
@@ -311,18 +319,21 @@ static void init_boundary(WfCorridor *c)
         tot += c->free_share[k];
     }
     for (size_t k = 0; k < sc->n_classes; k++) c->free_share[k] = tot > 0.0 ? c->free_share[k] / tot : 0.0;
-    c->st.next_target = 1.0;
-    if (cs->arrivals == WF_ARRIVALS_POISSON) {
-        double u[2];
-        wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ARRIVAL, 0, 0, u);
-        c->st.next_target = -log(u[0]);
-    }
     c->has_vl = cs->outflow != WF_OUTFLOW_FREE;
-    if (c->has_vl) {
-        c->st.vl_xref = c->L + cs->leader_offset_m;
-        c->st.vl_iref = 0.0;
-        c->st.vl_x = c->st.vl_xref;
-        c->st.vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &c->st.vl_seg);
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        struct CorEntrance *en = &c->st.lane[l];
+        en->next_target = 1.0;
+        if (cs->arrivals == WF_ARRIVALS_POISSON) {
+            double u[2];
+            wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ARRIVAL, lane_key(l, 0), 0, u);
+            en->next_target = -log(u[0]);
+        }
+        if (c->has_vl) {
+            en->vl_xref = c->L + cs->leader_offset_m;
+            en->vl_iref = 0.0;
+            en->vl_x = en->vl_xref;
+            en->vl_v = wf_profile_value(&cs->leader_speed_mps, 0.0, &en->vl_seg);
+        }
     }
 }
 
@@ -341,7 +352,12 @@ static int corridor_create(WfSim *sim, WfError *err)
     c->cs = sc->corridor;
     c->L = sc->road.length_m;
     c->fault_slot = -1;
-    c->n_lanes = 1;
+    c->n_lanes = sc->n_lanes > 1 ? (size_t)sc->n_lanes : 1;
+    for (size_t g = 0; c->n_lanes > 1 && g < sc->n_groups; g++)
+        if (sc->groups[g].lc)
+            return wf_err(err, WF_EINPUT,
+                          "%s: fleet.drivers[%zu].lane_change: corridors do not change lanes yet (docs/lanes.md); give "
+                          "every group lane_change: {model: none}", sc->path, g);
     c->n_steps = wf_scenario_n_steps(sc);
     c->out_every = wf_scenario_output_every(sc);
     c->traj_every = wf_scenario_trajectory_every(sc);
@@ -390,31 +406,32 @@ static size_t by_draw(size_t m, const double *share, double u)
 
 /* Class, group and parameters of the vehicle at the head of the queue (serial = entered so far), keyed by
  * (seed, serial) so they do not depend on when it gets in. */
-static int draw_candidate(WfCorridor *c, WfError *err)
+static int draw_candidate(WfCorridor *c, size_t l, WfError *err)
 {
     const WfScenario *sc = c->sc;
-    uint64_t serial = (uint64_t)c->st.counts.entered;
+    struct CorEntrance *en = &c->st.lane[l];
+    uint64_t serial = lane_key(l, (uint64_t)en->entered);
     double gshare[WF_MAX_GROUPS], u[2];
     for (size_t g = 0; g < sc->n_groups; g++) gshare[g] = sc->groups[g].fraction;
     wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_ENTRY, serial, 0, u);
-    size_t g = c->cs->interleaved ? by_deficit(sc->n_groups, gshare, c->st.assigned_group, (int64_t)serial)
+    size_t g = c->cs->interleaved ? by_deficit(sc->n_groups, gshare, en->assigned_group, en->entered)
                                   : by_draw(sc->n_groups, gshare, u[0]);
-    c->st.assigned_group[g]++;
+    en->assigned_group[g]++;
     size_t k;
     if (sc->groups[g].class_index >= 0) {
         k = (size_t)sc->groups[g].class_index;
     } else {
-        k = c->cs->interleaved ? by_deficit(sc->n_classes, c->free_share, c->st.assigned_class, c->st.n_free_class)
+        k = c->cs->interleaved ? by_deficit(sc->n_classes, c->free_share, en->assigned_class, en->n_free_class)
                                : by_draw(sc->n_classes, c->free_share, u[1]);
-        c->st.assigned_class[k]++;
-        c->st.n_free_class++;
+        en->assigned_class[k]++;
+        en->n_free_class++;
     }
-    c->st.cand_group = (uint16_t)g;
-    c->st.cand_class = (uint16_t)k;
-    c->st.cand_len = sc->classes[k].length_m;
-    int rc = wf_fleet_draw_params(sc, g, serial, c->st.cand_params, err);
+    en->cand_group = (uint16_t)g;
+    en->cand_class = (uint16_t)k;
+    en->cand_len = sc->classes[k].length_m;
+    int rc = wf_fleet_draw_params(sc, g, serial, en->cand_params, err);
     if (rc) return rc;
-    c->st.have_cand = 1;
+    en->have_cand = 1;
     return 0;
 }
 
@@ -424,24 +441,28 @@ static int draw_candidate(WfCorridor *c, WfError *err)
 static int arrivals(WfCorridor *c, double t, WfError *err)
 {
     const WfCorridorSpec *cs = c->cs;
-    double lam = wf_profile_integral(&cs->inflow_vph, t, &c->st.in_seg) / 3600.0;
-    /* A deterministic target is an integer that the demand reaches up to round-off in t = k dt. */
-    while (lam + 1e-9 * fmax(1.0, lam) >= c->st.next_target &&
-           (cs->max_arrivals < 0 || c->st.counts.arrived < cs->max_arrivals)) {
-        if ((size_t)c->st.counts.queued >= c->q_cap)
-            return wf_err(err, WF_ESYS, "%s: the entrance queue outgrew its %zu places at t = %.6g s", c->sc->path,
-                          c->q_cap, t);
-        size_t slot = (c->st.q_head + (size_t)c->st.counts.queued) % c->q_cap;
-        c->queue_t[slot] = t;
-        c->st.counts.queued++;
-        c->st.counts.arrived++;
-        if (c->st.counts.queued > c->st.counts.max_queue) c->st.counts.max_queue = c->st.counts.queued;
-        if (cs->arrivals == WF_ARRIVALS_POISSON) {
-            double u[2];
-            wf_rng_uniform2(c->sc->seed, WF_RNG_CORRIDOR_ARRIVAL, (uint64_t)c->st.counts.arrived, 0, u);
-            c->st.next_target += -log(u[0]); /* u in (0, 1): finite and positive */
-        } else {
-            c->st.next_target += 1.0;
+    WfCorridorCounts *n = &c->st.counts;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        struct CorEntrance *en = &c->st.lane[l];
+        /* lane l's demand: its share of the road's (the share of one lane is 1, exactly) */
+        double lam = cs->lane_share[l] * (wf_profile_integral(&cs->inflow_vph, t, &en->in_seg) / 3600.0);
+        /* A deterministic target is an integer that the demand reaches up to round-off in t = k dt. */
+        while (lam + 1e-9 * fmax(1.0, lam) >= en->next_target && (cs->max_arrivals < 0 || n->arrived < cs->max_arrivals)) {
+            if ((size_t)en->queued >= c->q_cap)
+                return wf_err(err, WF_ESYS, "%s: the entrance queue outgrew its %zu places at t = %.6g s", c->sc->path,
+                              c->q_cap, t);
+            size_t slot = (en->q_head + (size_t)en->queued) % c->q_cap;
+            c->queue_t[l * c->q_cap + slot] = t;
+            en->queued++, en->arrived++;
+            n->queued++, n->arrived++;
+            if (n->queued > n->max_queue) n->max_queue = n->queued;
+            if (cs->arrivals == WF_ARRIVALS_POISSON) {
+                double u[2];
+                wf_rng_uniform2(c->sc->seed, WF_RNG_CORRIDOR_ARRIVAL, lane_key(l, (uint64_t)en->arrived), 0, u);
+                en->next_target += -log(u[0]); /* u in (0, 1): finite and positive */
+            } else {
+                en->next_target += 1.0;
+            }
         }
     }
     return 0;
@@ -453,19 +474,21 @@ static int arrivals(WfCorridor *c, double t, WfError *err)
  * corridor.inflow.insert_decel_mps2: the gap is safe for joining the stream at the stream's speed. The own free
  * speed is the model's equilibrium speed at the far gap of an empty road (where the leader's speed is taken to be
  * that too). At most one vehicle enters per step. */
-static int try_insert(WfCorridor *c, CorLane *ln, double t, long step, WfError *err)
+static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err)
 {
-    if (c->st.counts.queued == 0) return 0;
+    CorLane *ln = &c->ln[l];
+    struct CorEntrance *en = &c->st.lane[l];
+    if (en->queued == 0) return 0;
     WfCorridorVehicles *vh = &ln->veh;
     if (vh->n >= vh->cap) return 0; /* cannot happen while gaps stay >= 0 (see corridor_create) */
-    if (!c->st.have_cand) {
-        int rc = draw_candidate(c, err);
+    if (!en->have_cand) {
+        int rc = draw_candidate(c, l, err);
         if (rc) return rc;
     }
     const WfScenario *sc = c->sc;
-    const WfDriverGroup *grp = &sc->groups[c->st.cand_group];
+    const WfDriverGroup *grp = &sc->groups[en->cand_group];
     double buf[WF_MAX_MODEL_PARAMS];
-    const double *p = params_at(ln, c->st.cand_group, c->st.cand_params, 0.0, buf);
+    const double *p = params_at(ln, en->cand_group, en->cand_params, 0.0, buf);
     double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, 0.0));
     double v_hi = isfinite(vcap) ? vcap : 100.0;
     double gap, vl;
@@ -475,8 +498,8 @@ static int try_insert(WfCorridor *c, CorLane *ln, double t, long step, WfError *
         gap = vh->x_m[last] - vh->length_m[last];
         vl = vh->v_mps[last];
     } else if (c->has_vl) {
-        gap = c->st.vl_x;
-        vl = c->st.vl_v;
+        gap = en->vl_x;
+        vl = en->vl_v;
     } else {
         gap = WF_CORRIDOR_FREE_GAP_M;
         vl = INFINITY;
@@ -497,29 +520,41 @@ static int try_insert(WfCorridor *c, CorLane *ln, double t, long step, WfError *
     vh->x_m[s] = 0.0;
     vh->v_mps[s] = vin;
     vh->a_mps2[s] = 0.0;
-    vh->length_m[s] = c->st.cand_len;
-    vh->serial[s] = (uint64_t)c->st.counts.entered;
-    vh->class_id[s] = c->st.cand_class;
-    vh->group_id[s] = c->st.cand_group;
-    memcpy(vh->params + s * c->pstride, c->st.cand_params, grp->model->param_size);
+    vh->length_m[s] = en->cand_len;
+    vh->serial[s] = lane_key(l, (uint64_t)en->entered);
+    vh->class_id[s] = en->cand_class;
+    vh->group_id[s] = en->cand_group;
+    memcpy(vh->params + s * c->pstride, en->cand_params, grp->model->param_size);
     ln->grade_seg[s] = 0;
     ln->mode[s] = vin > sc->v_go_mps ? WF_MODE_MOVING : 0;
-    double ta = c->queue_t[c->st.q_head];
-    c->st.q_head = (c->st.q_head + 1) % c->q_cap;
+    double ta = c->queue_t[l * c->q_cap + en->q_head];
+    en->q_head = (en->q_head + 1) % c->q_cap;
+    en->queued--, en->entered++;
     c->st.counts.queued--;
     c->st.counts.entered++;
     c->st.counts.queue_delay_s += t - ta;
     c->st.counts.delayed += t - ta > 0.5 * sc->dt_s;
-    c->st.cls_entered[c->st.cand_class]++;
+    c->st.cls_entered[en->cand_class]++;
     if (step >= c->warm_steps) c->st.w_entries++;
     ln->t_arr[s] = ta, ln->t_ent[s] = t, ln->v_ent[s] = vin;
     ln->trip.fuel_g[s] = ln->trip.dist_m[s] = ln->trip.stopped_s[s] = 0.0;
     ln->trip.stops[s] = ln->trip.hard_brakes[s] = ln->trip.infeasible[s] = 0;
     ln->win.fuel_g[s] = ln->win.dist_m[s] = ln->win.stopped_s[s] = 0.0;
     ln->win.steps[s] = ln->win.stops[s] = ln->win.hard_brakes[s] = ln->win.infeasible[s] = 0;
+    ln->lane_changes[s] = ln->cut_ins[s] = 0, ln->lc_ready[s] = 0;
     if (grp->model->state_size && grp->model->init_state)
         grp->model->init_state(vh->params + s * c->pstride, vh->state + s * c->sstride, gap, vin, vl);
-    c->st.have_cand = 0;
+    en->have_cand = 0;
+    return 0;
+}
+
+/* Each lane's queue head tries its lane, lane after lane. */
+static int entrance(WfCorridor *c, double t, long step, WfError *err)
+{
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        int rc = try_insert(c, l, t, step, err);
+        if (rc) return rc;
+    }
     return 0;
 }
 
@@ -633,9 +668,10 @@ static void lane_exports(WfCorridor *c, int on)
 }
 
 /* The front vehicle's leader: the virtual leader, or a far one at the vehicle's own speed. */
-static WfLead front_leader(const WfCorridor *c)
+static WfLead front_leader(const WfCorridor *c, size_t l)
 {
-    return c->has_vl ? (WfLead){c->st.vl_x, c->st.vl_v, 0.0} : (WfLead){0.0, 0.0, WF_CORRIDOR_FREE_GAP_M};
+    const struct CorEntrance *en = &c->st.lane[l];
+    return c->has_vl ? (WfLead){en->vl_x, en->vl_v, 0.0} : (WfLead){0.0, 0.0, WF_CORRIDOR_FREE_GAP_M};
 }
 
 /* No gap may be negative: a vehicle that would overlap its leader (or pass the virtual leader) is put at gap 0
@@ -656,7 +692,7 @@ static void phase_overlaps(WfCorridor *c, CorLane *ln, int in_window, size_t upt
             size_t p = wf_corridor_slot(vh, k - 1);
             limit = vh->x_m[p] - vh->length_m[p];
         } else if (c->has_vl) {
-            limit = c->st.vl_x;
+            limit = c->st.lane[ln - c->ln].vl_x;
         } else {
             continue;
         }
@@ -935,7 +971,8 @@ static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_e
                    .completed = (uint8_t)completed, .t_arrival_s = ln->t_arr[s], .t_entry_s = ln->t_ent[s],
                    .t_exit_s = completed ? t_exit : NAN, .v_entry_mps = ln->v_ent[s], .fuel_g = ln->trip.fuel_g[s],
                    .dist_m = ln->trip.dist_m[s], .time_stopped_s = ln->trip.stopped_s[s], .stops = ln->trip.stops[s],
-                   .hard_brakes = ln->trip.hard_brakes[s], .infeasible_steps = ln->trip.infeasible[s]};
+                   .hard_brakes = ln->trip.hard_brakes[s], .infeasible_steps = ln->trip.infeasible[s],
+                   .lane = (uint8_t)(ln - c->ln), .lane_changes = ln->lane_changes[s]};
     return c->n_trips == TRIP_BUF ? flush_trips(c, err) : 0;
 }
 
@@ -948,10 +985,11 @@ static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, 
         size_t s = wf_corridor_slot(vh, 0);
         int rc = finish_vehicle(c, ln, s, t_end, 1, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
-            size_t seg = c->st.vl_seg;
-            c->st.vl_xref = vh->x_m[s] - vh->length_m[s];
-            c->st.vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
-            c->st.vl_x = c->st.vl_xref;
+            struct CorEntrance *en = &c->st.lane[ln - c->ln];
+            size_t seg = en->vl_seg;
+            en->vl_xref = vh->x_m[s] - vh->length_m[s];
+            en->vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
+            en->vl_x = en->vl_xref;
         }
         vh->n--;
         c->st.counts.exited++;
@@ -966,8 +1004,11 @@ static void advance_leader(WfCorridor *c, double t)
 {
     if (!c->has_vl) return;
     const WfProfile *p = &c->cs->leader_speed_mps;
-    c->st.vl_x = c->st.vl_xref + (wf_profile_integral(p, t, &c->st.vl_seg) - c->st.vl_iref);
-    c->st.vl_v = wf_profile_value(p, t, &c->st.vl_seg);
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        struct CorEntrance *en = &c->st.lane[l];
+        en->vl_x = en->vl_xref + (wf_profile_integral(p, t, &en->vl_seg) - en->vl_iref);
+        en->vl_v = wf_profile_value(p, t, &en->vl_seg);
+    }
 }
 
 /* The road's record: sums lane after lane, each lane front first; waves and gaps within each lane. */
@@ -1109,14 +1150,15 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
     int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
     int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
-    if ((rc = arrivals(c, t, err)) || (rc = try_insert(c, &c->ln[0], t, step, err))) return rc;
-    WfLead front = front_leader(c);
+    if ((rc = arrivals(c, t, err)) || (rc = entrance(c, t, step, err))) return rc;
+    WfLead front[WF_MAX_LANES];
+    for (size_t l = 0; l < nl; l++) front[l] = front_leader(c, l);
     int two_pass = records || traj || last;
     lane_exports(c, two_pass);
     if (two_pass) {
         for (size_t l = 0; l < nl; l++) {
             CorLane *ln = &c->ln[l];
-            wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front, step,
+            wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step,
                          WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window, NULL);
             on_road += ln->veh.n;
         }
@@ -1131,13 +1173,13 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
         if (last) return WF_LOOP_END;
         for (size_t l = 0; l < nl; l++) {
             CorLane *ln = &c->ln[l];
-            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front, step, WF_PASS_ADVANCE, in_window,
+            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_ADVANCE, in_window,
                                     NULL);
         }
     } else {
         for (size_t l = 0; l < nl; l++) {
             CorLane *ln = &c->ln[l];
-            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front, step, WF_PASS_FUSED | WF_PASS_COUNT,
+            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_FUSED | WF_PASS_COUNT,
                                     in_window, NULL);
         }
     }
@@ -1188,6 +1230,8 @@ static int corridor_close(void *eng, WfError *err)
 
 const WfCorridor *wf_sim_corridor(const WfSim *sim) { return sim->b == &wf_boundary_open ? sim->eng : NULL; }
 const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->ln[0].veh; }
+size_t wf_corridor_n_lanes(const WfCorridor *c) { return c->n_lanes; }
+const WfCorridorVehicles *wf_corridor_lane(const WfCorridor *c, size_t l) { return &c->ln[l].veh; }
 const WfCorridorCounts *wf_corridor_counts(const WfCorridor *c) { return &c->st.counts; }
 const WfDetectors *wf_corridor_detectors(const WfCorridor *c) { return &c->det; }
 const WfEdie *wf_corridor_edie(const WfCorridor *c) { return &c->edie; }
@@ -1217,7 +1261,7 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
 #undef SAVE_SLOTS
     VAR("params", vh->params, nl * cap * c->pstride);
     if (c->sstride) VAR("controller_state", vh->state, nl * cap * c->sstride);
-    VAR("queue_t", c->queue_t, c->q_cap);
+    VAR("queue_t", c->queue_t, c->n_lanes * c->q_cap);
     if (nd) {
         VAR("det_count", c->det.count, nd);
         VAR("det_sum_v", c->det.sum_v_mps, nd);
@@ -1253,9 +1297,13 @@ static int corridor_restored(void *eng, WfError *err)
     }
     if (bad) {
     } else if (st->steps_done < 0 || st->steps_done > c->n_steps) bad = "step";
-    else if (st->q_head >= c->q_cap || n->queued < 0 || (uint64_t)n->queued > c->q_cap) bad = "entrance queue";
     else if (n->arrived != n->entered + n->queued || n->entered != n->exited + on_road) bad = "counters";
-    else if (st->have_cand && (st->cand_class >= sc->n_classes || st->cand_group >= sc->n_groups)) bad = "candidate";
+    for (size_t l = 0; !bad && l < c->n_lanes; l++) {
+        const struct CorEntrance *en = &st->lane[l];
+        if (en->q_head >= c->q_cap || en->queued < 0 || (uint64_t)en->queued > c->q_cap) bad = "entrance queue";
+        else if (en->arrived != en->entered + en->queued) bad = "counters";
+        else if (en->have_cand && (en->cand_class >= sc->n_classes || en->cand_group >= sc->n_groups)) bad = "candidate";
+    }
     if (bad)
         return wf_err(err, WF_EINPUT, "%s: the restored state does not fit this corridor (%s at step %ld)", sc->path,
                       bad, st->steps_done);
@@ -1271,10 +1319,10 @@ static int corridor_restored(void *eng, WfError *err)
 static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 {
     WfCorridor *c = eng;
-    WfLead front = front_leader(c);
     size_t k = 0;
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
+        WfLead front = front_leader(c, l);
         const WfCorridorVehicles *vh = &ln->veh;
         const double *x = vh->x_m, *v = vh->v_mps, *len = ln->lane.class_length_m;
         for (size_t r = 0; r < vh->n; r++) {

@@ -23,11 +23,11 @@ static const WfH5Cursor cursors[N_CUR] = {
 /* Trips and trajectories, appended and compressed. */
 static size_t corridor_series(const WfH5Run *r, WfCkptSeries *sp)
 {
-    size_t n = 0;
-    for (size_t k = 0; k < WF_TRIP_N_COLS; k++)
+    size_t n = 0, lanes = wf_corridor_n_lanes(wf_sim_corridor(r->sim)) > 1;
+    for (size_t k = 0; k < (lanes ? WF_TRIP_N_COLS : WF_TRIP_N_SINGLE); k++)
         sp[n++] = (WfCkptSeries){.col = &wf_trip_columns[k], .chunk_rows = TRIP_CHUNK, .compress = 1,
                                  .cursor = CUR_TRIPS};
-    for (size_t k = 0; r->sc->trajectories && k < WF_CORRIDOR_TRAJ_N_COLS; k++)
+    for (size_t k = 0; r->sc->trajectories && k < (lanes ? WF_CORRIDOR_TRAJ_N_COLS : WF_CORRIDOR_TRAJ_SINGLE); k++)
         sp[n++] = (WfCkptSeries){.col = &wf_corridor_traj_columns[k], .chunk_rows = TRAJ_CHUNK, .compress = 1,
                                  .cursor = CUR_TRAJ};
     return n;
@@ -182,15 +182,25 @@ static int corridor_results(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError 
                : 0;
 }
 
+/* Room for every lane's buffer in each column. */
+static size_t frame_cap(const WfH5Run *r)
+{
+    const WfCorridor *c = wf_sim_corridor(r->sim);
+    return wf_corridor_n_lanes(c) * wf_corridor_vehicles(c)->cap;
+}
+
 static size_t corridor_frame_len(const WfH5Run *r)
 {
-    return r->sc->trajectories ? WF_CORRIDOR_TRAJ_N_COLS * wf_corridor_vehicles(wf_sim_corridor(r->sim))->cap : 0;
+    return r->sc->trajectories ? WF_CORRIDOR_TRAJ_N_COLS * frame_cap(r) : 0;
 }
 
 static size_t corridor_frame(const WfH5Run *r, const double *t_s, double *scratch, const double **cols)
 {
-    const WfCorridorVehicles *vh = wf_corridor_vehicles(wf_sim_corridor(r->sim));
-    return wf_corridor_traj_frame(vh, *t_s, scratch, vh->cap, cols);
+    const WfCorridor *c = wf_sim_corridor(r->sim);
+    const WfCorridorVehicles *lanes[WF_MAX_LANES];
+    size_t nl = wf_corridor_n_lanes(c);
+    for (size_t l = 0; l < nl; l++) lanes[l] = wf_corridor_lane(c, l);
+    return wf_corridor_traj_frame(lanes, nl, *t_s, scratch, frame_cap(r), cols);
 }
 
 /* Trips, a row at a time, into their chunk; complete chunks are written, then counted. */
@@ -199,6 +209,7 @@ static int corridor_trips(WfH5Result *w, const WfTrip *tr, size_t n, WfError *er
     for (size_t i = 0; i < n; i++) {
         double row[WF_TRIP_N_COLS];
         const double *cols[WF_TRIP_N_COLS];
+        /* the columns past WF_TRIP_N_SINGLE, when the series have them, are read only on multi-lane roads */
         for (size_t k = 0; k < WF_TRIP_N_COLS; k++) row[k] = wf_trip_value(&tr[i], k), cols[k] = &row[k];
         if (wf_h5r_append(w, CUR_TRIPS, 1, cols, err)) return WF_ESYS;
     }

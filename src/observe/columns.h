@@ -57,23 +57,24 @@ extern const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS];
 void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out);
 
 /* ---- /trips (corridor): one row per trip, float64 (integers are exact below 2^53) */
-enum { WF_TRIP_N_COLS = 16 };
+enum { WF_TRIP_N_COLS = 18, WF_TRIP_N_SINGLE = 16 }; /* the columns from WF_TRIP_N_SINGLE on: multi-lane roads */
 extern const WfColumn wf_trip_columns[WF_TRIP_N_COLS];
 double wf_trip_value(const WfTrip *t, size_t col);
 
 /* ---- /trajectories: ring frames [time x vehicle] (the arrays, then the frame times); corridor points, one row
  * per vehicle on the road per frame */
-enum { WF_RING_TRAJ_N_COLS = 6, WF_CORRIDOR_TRAJ_N_COLS = 6 };
+enum { WF_RING_TRAJ_N_COLS = 6, WF_CORRIDOR_TRAJ_N_COLS = 7, WF_CORRIDOR_TRAJ_SINGLE = 6 };
 enum { WF_RING_TRAJ_LANE = 5 }; /* the ring's lane column: multi-lane rings only */
 extern const WfColumn wf_ring_traj_columns[WF_RING_TRAJ_N_COLS];
 extern const WfColumn wf_corridor_traj_columns[WF_CORRIDOR_TRAJ_N_COLS];
 /* The ring's frame at time t: the columns' arrays (the fleet's, borrowed; &t for the time). A multi-lane ring's
  * vehicles move between slots: its columns are gathered vehicle by vehicle into frame (5 n doubles). */
 void wf_ring_traj_frame(const WfFleet *f, const double *t_s, double *frame, const double **cols);
-/* The corridor's frame at time t_s in road order (front first) into frame (WF_CORRIDOR_TRAJ_N_COLS columns of
- * cap values each; cap >= the vehicles on the road); cols receives the columns' starts. Returns the points. */
-size_t wf_corridor_traj_frame(const WfCorridorVehicles *vh, double t_s, double *frame, size_t cap,
-                              const double **cols);
+/* The corridor's frame at time t_s, lane after lane, each in road order (front first), into frame
+ * (WF_CORRIDOR_TRAJ_N_COLS columns of cap values each; cap >= the vehicles on the road); cols receives the columns'
+ * starts (the lane column: multi-lane roads). Returns the points. */
+size_t wf_corridor_traj_frame(const WfCorridorVehicles *const *lanes, size_t n_lanes, double t_s, double *frame,
+                              size_t cap, const double **cols);
 
 /* ---- /detectors (corridor) */
 enum { WF_DET_N_COLS = 8 };

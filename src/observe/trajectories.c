@@ -23,6 +23,7 @@ const WfColumn wf_corridor_traj_columns[WF_CORRIDOR_TRAJ_N_COLS] = {
     {"v", "m/s", "speed"},
     {"a", "m/s^2", "acceleration applied from this instant"},
     {"fuel_rate", "g/s", "fuel rate"},
+    {"lane", "1", "lane (0: the rightmost); multi-lane corridors only"},
 };
 
 void wf_ring_traj_frame(const WfFleet *f, const double *t_s, double *frame, const double **cols)
@@ -39,15 +40,19 @@ void wf_ring_traj_frame(const WfFleet *f, const double *t_s, double *frame, cons
     cols[0] = c[0], cols[1] = c[1], cols[2] = c[2], cols[3] = c[3], cols[WF_RING_TRAJ_LANE] = c[4];
 }
 
-size_t wf_corridor_traj_frame(const WfCorridorVehicles *vh, double t_s, double *frame, size_t cap,
-                              const double **cols)
+size_t wf_corridor_traj_frame(const WfCorridorVehicles *const *lanes, size_t n_lanes, double t_s, double *frame,
+                              size_t cap, const double **cols)
 {
     double *col[WF_CORRIDOR_TRAJ_N_COLS];
     for (size_t k = 0; k < WF_CORRIDOR_TRAJ_N_COLS; k++) cols[k] = col[k] = frame + k * cap;
-    for (size_t k = 0; k < vh->n; k++) {
-        size_t s = wf_corridor_slot(vh, k);
-        col[0][k] = t_s, col[1][k] = (double)vh->serial[s], col[2][k] = vh->x_m[s], col[3][k] = vh->v_mps[s];
-        col[4][k] = vh->a_mps2[s], col[5][k] = vh->fuel_rate_gps[s];
+    size_t j = 0;
+    for (size_t l = 0; l < n_lanes; l++) {
+        const WfCorridorVehicles *vh = lanes[l];
+        for (size_t k = 0; k < vh->n; k++, j++) {
+            size_t s = wf_corridor_slot(vh, k);
+            col[0][j] = t_s, col[1][j] = (double)vh->serial[s], col[2][j] = vh->x_m[s], col[3][j] = vh->v_mps[s];
+            col[4][j] = vh->a_mps2[s], col[5][j] = vh->fuel_rate_gps[s], col[6][j] = (double)l;
+        }
     }
-    return vh->n;
+    return j;
 }

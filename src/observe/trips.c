@@ -2,9 +2,10 @@
 #include "observe/columns.h"
 
 enum { TR_SERIAL, TR_CLASS, TR_GROUP, TR_COMPLETED, TR_ARRIVAL, TR_ENTRY, TR_EXIT, TR_TRAVEL, TR_DELAY, TR_VENTRY,
-       TR_FUEL, TR_DIST, TR_STOPS, TR_STOPPED, TR_HARD, TR_INFEAS };
+       TR_FUEL, TR_DIST, TR_STOPS, TR_STOPPED, TR_HARD, TR_INFEAS, TR_LANE, TR_CHANGES };
 
 const WfColumn wf_trip_columns[WF_TRIP_N_COLS] = {
+    /* on lane l of a multi-lane corridor: l 2^40 + the lane's arrival number (docs/lanes.md) */
     {"serial", "1", "arrival number of the vehicle (0, 1, ...): the key of its random draws"},
     {"class_id", "1", "index into /classes"},
     {"group_id", "1", "index into /drivers"},
@@ -21,6 +22,9 @@ const WfColumn wf_trip_columns[WF_TRIP_N_COLS] = {
     {"time_stopped", "s", "time slower than statistics.v_stop_mps during the trip"},
     {"hard_brakes", "1", "hard-braking events during the trip"},
     {"infeasible_steps", "1", "steps whose requested acceleration exceeded the class a_max"},
+    /* multi-lane corridors only (from WF_TRIP_N_SINGLE on) */
+    {"lane", "1", "lane at the exit, or at the end when not completed (0: the rightmost)"},
+    {"lane_changes", "1", "lane changes during the trip"},
 };
 
 double wf_trip_value(const WfTrip *t, size_t col)
@@ -41,6 +45,8 @@ double wf_trip_value(const WfTrip *t, size_t col)
     case TR_STOPS: return t->stops;
     case TR_STOPPED: return t->time_stopped_s;
     case TR_HARD: return t->hard_brakes;
+    case TR_LANE: return t->lane;
+    case TR_CHANGES: return t->lane_changes;
     default: return t->infeasible_steps;
     }
 }

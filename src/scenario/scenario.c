@@ -212,13 +212,12 @@ static const WfKeySpec road_rows[] = {
      .offset = offsetof(WfScenario, road.speed_limit_mps), .def = INFINITY, .min = 0.1, .max = 100, .unit = "m/s",
      .doc = "no vehicle accelerates past it (the acceleration is capped at (limit − v)/dt); corridor: the limit "
             "everywhere (zones may lower it)"},
-    {.key = "lanes", .type = WF_KEY_INTEGER, .on = WF_ON_RING, .offset = offsetof(WfScenario, n_lanes),
+    {.key = "lanes", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, n_lanes),
      .size = sizeof(int), .def = 1, .imin = 1, .imax = WF_MAX_LANES, .doc_range = "1, 2, …, 8",
-     .off_msg = "road.lanes applies to rings: corridors have one lane",
-     .doc = "lanes of the ring, numbered from 0 (the rightmost); vehicles change lanes by their group's "
+     .doc = "lanes of the road, numbered from 0 (the rightmost); vehicles change lanes by their group's "
             "`lane_change` model ([lanes.md](lanes.md))"},
-    {.key = "lane_rule", .type = WF_KEY_CHOICE, .on = WF_ON_RING, .offset = offsetof(WfScenario, lane_rule),
-     .choices = lane_rules, .off_msg = "road.lane_rule applies to multi-lane rings",
+    {.key = "lane_rule", .type = WF_KEY_CHOICE, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, lane_rule),
+     .choices = lane_rules,
      .doc = "passing rule of the lane-change models: `symmetric` (pass on either side), `keep_right` (MOBIL's "
             "European rules: a bias to the right lane, no regard for the new follower on a change to the right)"},
     {.key = "lane_speed_limits_mps", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .hook = load_lane_limits,

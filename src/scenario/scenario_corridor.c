@@ -409,6 +409,31 @@ static int check_edie(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *
     return 0;
 }
 
+/* corridor.inflow.lane_shares: each lane's share of the demand, summing to 1 (road.lanes is read before it);
+ * absent: equal shares. */
+static int load_lane_shares(WfCfgNode *in, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfCorridorSpec *cs = t;
+    int nl = env->sc->n_lanes > 1 ? env->sc->n_lanes : 1;
+    WfCfgNode *seq = NULL;
+    char w[1024];
+    for (int l = 0; l < nl; l++) cs->lane_share[l] = 1.0 / nl;
+    if (wf_cfg_seq_opt(in, row->key, &seq, err)) return WF_EINPUT;
+    if (!seq) return 0;
+    if (seq->n_child != (size_t)nl)
+        return wf_err(err, WF_EINPUT, "%s: corridor.inflow.lane_shares lists %zu lanes but road.lanes is %d",
+                      wf_scenario_where(seq, w, sizeof w), seq->n_child, nl);
+    double sum = 0.0;
+    for (int l = 0; l < nl; l++) {
+        if (wf_cfg_node_double(seq->child[l], row->min, row->max, row->unit, &cs->lane_share[l], err)) return WF_EINPUT;
+        sum += cs->lane_share[l];
+    }
+    if (fabs(sum - 1.0) > 1e-9)
+        return wf_err(err, WF_EINPUT, "%s: corridor.inflow.lane_shares sum to %s, expected 1",
+                      wf_scenario_where(seq, w, sizeof w), WF_NUM(sum));
+    return 0;
+}
+
 static const char *const arrivals[] = {"deterministic", "poisson", NULL};
 static const char *const outflows[] = {"free", "leader", "speed", NULL};
 
@@ -429,6 +454,11 @@ static const WfKeySpec inflow_rows[] = {
     {.key = "insert_decel_mps2", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
      .offset = offsetof(WfCorridorSpec, insert_decel_mps2), .def = 0.3, .min = 0.01, .max = 20, .unit = "m/s^2",
      .doc = "b of the insertion rule"},
+    {.key = "lane_shares", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .hook = load_lane_shares, .min = 0, .max = 1,
+     .unit = "(share of the demand)", .doc_type = "list of shares", .doc_default = "equal shares",
+     .doc_range = "one per lane, summing to 1",
+     .doc = "each lane's share of the demand: every lane has its own arrivals and queue, and its vehicles enter it "
+            "([lanes.md](lanes.md))"},
     {.key = "vehicles", .type = WF_KEY_INTEGER, .on = WF_ON_CORRIDOR, .offset = offsetof(WfCorridorSpec, max_arrivals),
      .size = sizeof(int64_t), .def = -1, .imin = 0, .imax = 1000000000L, .doc_default = "unlimited",
      .doc_range = "≥ 0", .doc = "stop the arrivals after this many vehicles (a platoon)"},

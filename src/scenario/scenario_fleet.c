@@ -463,10 +463,9 @@ static const WfKeySpec driver_rows[] = {
      .doc_default = "none", .doc_range = "`kind`: `gipps`, `ttc`; keys per kind",
      .doc = "a safety filter after the controller: an upper bound on the acceleration, its interventions counted "
             "([controllers.md](controllers.md#safety-filters))"},
-    {.key = "lane_change", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .hook = load_group_lane_change,
+    {.key = "lane_change", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_group_lane_change,
      .doc_type = "map", .doc_default = "`model: mobil`", .doc_range = "`model`: `mobil`, `none`; keys per model",
-     .off_msg = "lane_change applies to multi-lane rings: corridors have one lane",
-     .doc = "how the group's vehicles change lanes on a multi-lane ring; `none`: never ([lanes.md](lanes.md))"},
+     .doc = "how the group's vehicles change lanes on a multi-lane road; `none`: never ([lanes.md](lanes.md))"},
     {.key = "fraction", .type = WF_KEY_NUMBER, .on = WF_ON_BOTH, .offset = offsetof(WfDriverGroup, fraction),
      .def = NAN, .min = 0, .max = 1, .unit = "(share of vehicles)", .doc_type = "1", .doc_default = "",
      .doc = "as for classes"},
