@@ -256,7 +256,7 @@ static int c_trips(void *ctx, const WfSim *c, const WfTrip *t, size_t n, WfError
         memset(d, 0, sizeof *d);
         *d = (WfTrip){t[k].serial, t[k].class_id, t[k].group_id, t[k].completed, t[k].t_arrival_s, t[k].t_entry_s,
                       t[k].t_exit_s, t[k].v_entry_mps, t[k].fuel_g, t[k].dist_m, t[k].time_stopped_s, t[k].stops,
-                      t[k].hard_brakes, t[k].infeasible_steps};
+                      t[k].hard_brakes, t[k].infeasible_steps, t[k].lane, t[k].lane_changes};
     }
     return 0;
 }

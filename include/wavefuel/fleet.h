@@ -52,6 +52,9 @@ typedef struct WfFleet {
     uint32_t *id, *pos;
     int64_t  *lc_ready_step; /* per slot: the first step at which the vehicle may change lanes again */
     uint32_t *lane_changes, *cut_ins; /* per slot: changes made; vehicles that entered the lane right ahead of it */
+    /* per slot: whole laps the vehicle's x_m was moved by to fit a new lane's order; x_m + lap_m is its position
+     * continuous in time (what /trajectories/x and /vehicles/final_x report) */
+    double   *lap_m;
 } WfFleet;
 
 enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };

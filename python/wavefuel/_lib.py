@@ -142,7 +142,8 @@ class WfFleet(C.Structure):
                 ("sum_a2", _dp), ("stopped_steps", _u32p), ("stops", _u32p), ("hard_brakes", _u32p),
                 ("infeasible_steps", _u32p), ("mode", _u8p), ("v_init_mps", C.c_double),
                 ("n_lanes", C.c_size_t), ("lane_n", C.c_size_t * WF_MAX_LANES), ("lane", _u8p), ("id", _u32p),
-                ("pos", _u32p), ("lc_ready_step", C.POINTER(C.c_int64)), ("lane_changes", _u32p), ("cut_ins", _u32p)]
+                ("pos", _u32p), ("lc_ready_step", C.POINTER(C.c_int64)), ("lane_changes", _u32p), ("cut_ins", _u32p),
+                ("lap_m", _dp)]
 
 
 class WfCorridorVehicles(C.Structure):

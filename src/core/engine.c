@@ -465,13 +465,16 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
  * state moving with its vehicle. */
 static void lane_changes(WfRing *s, long step)
 {
+    if (!s->lcs.active) return;
+    WfLcRoad r;
+    wf_lanes_ring_road(&s->lcs, s->sc, s->f, &r);
+    if (!wf_lanes_decide(&s->lcs, &r, step, s->nthreads)) return;
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
-    int64_t cut0 = s->lk.total.cut_ins;
-    long changes = wf_lanes_change(&s->lcs, s->sc, s->f, step, vars, nv, s->nthreads, &s->lk.total);
-    if (!changes) return;
+    int64_t cut0 = s->lk.total.cut_ins, ch0 = s->lk.total.changes;
+    wf_lanes_apply_ring(&s->lcs, &r, s->f, step, vars, nv, &s->lk.total);
     lane_views(s);
-    s->lk.rec_changes += changes, s->lk.rec_cut_ins += s->lk.total.cut_ins - cut0;
+    s->lk.rec_changes += s->lk.total.changes - ch0, s->lk.rec_cut_ins += s->lk.total.cut_ins - cut0;
 }
 
 /* A multi-lane ring's lanes at a record (/lanes): each lane's record from its own blocks. */
@@ -658,6 +661,7 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
         VEH("lc_ready_step", f->lc_ready_step);
         VEH("lane_changes", f->lane_changes);
         VEH("cut_ins", f->cut_ins);
+        VEH("lap", f->lap_m);
     }
     if (s->lane.safe) VAR("safety", &s->lane.safety, sizeof s->lane.safety); /* absent without a safety filter */
     static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",

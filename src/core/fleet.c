@@ -17,7 +17,7 @@ void wf_fleet_destroy(WfFleet **pf)
                       f->flag, f->grade_seg, f->class_id, f->group_id, f->slot, f->x_start_m, f->fuel_g,
                       f->stopped_steps, f->sum_v, f->sum_v2, f->sum_a, f->sum_a2, f->stops, f->hard_brakes,
                       f->infeasible_steps, f->mode, f->lane, f->id, f->pos, f->lc_ready_step, f->lane_changes,
-                      f->cut_ins};
+                      f->cut_ins, f->lap_m};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
         free(f->group_params[g]);
@@ -213,7 +213,7 @@ static int fleet_alloc(const WfScenario *sc, WfFleet *f, WfError *err)
     for (size_t l = 0; f->n_lanes > 1 && l < f->n_lanes; l++) f->lane_n[l] = (size_t)sc->lane_counts[l];
     if (f->n_lanes > 1) {
         ALLOC(f->lane, n); ALLOC(f->id, n); ALLOC(f->pos, n); ALLOC(f->lc_ready_step, n); ALLOC(f->lane_changes, n);
-        ALLOC(f->cut_ins, n);
+        ALLOC(f->cut_ins, n); ALLOC(f->lap_m, n);
         for (size_t l = 0, i = 0; l < f->n_lanes; l++)
             for (size_t k = 0; k < f->lane_n[l]; k++, i++) f->lane[i] = (uint8_t)l;
         for (size_t i = 0; i < n; i++) f->id[i] = f->pos[i] = (uint32_t)i;

@@ -1,4 +1,4 @@
-/* Lane changes on a multi-lane ring (lanes.h). */
+/* Lane changes of a multi-lane road (lanes.h). */
 #include "core/lanes.h"
 
 #include <math.h>
@@ -28,8 +28,9 @@ int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_
     lc->shift_m = malloc(n * sizeof *lc->shift_m);
     lc->scratch = malloc(n * sizeof(double));
     lc->blk = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blk);
+    lc->blkl = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blkl);
     if (!lc->p_m || !lc->tgt[0] || !lc->tgt[1] || !lc->dir || !lc->adv_mps2 || !lc->claim || !lc->perm ||
-        !lc->shift_m || !lc->scratch || !lc->blk)
+        !lc->shift_m || !lc->scratch || !lc->blk || !lc->blkl)
         return wf_err(err, WF_ESYS, "out of memory for the lane changes of %zu vehicles", n);
     return 0;
 }
@@ -46,60 +47,51 @@ void wf_lanes_destroy(WfLaneChanges *lc)
     free(lc->shift_m);
     free(lc->scratch);
     free(lc->blk);
+    free(lc->blkl);
     *lc = (WfLaneChanges){0};
 }
 
-/* The road as the decisions see it. */
-typedef struct Road {
-    const WfScenario *sc;
-    const WfFleet    *f;
-    const double     *p;                     /* positions around the ring */
-    double            L;
-    size_t            first[WF_MAX_LANES];   /* each lane's first slot */
-} Road;
+/* ------------------------------------------------------------------------------------------- the decisions */
 
-/* From position a forward to position b around the ring, in [0, L). */
+/* From position a forward to position b (around the ring: in [0, L); on an open road b >= a here). */
 static inline double fwd(double a, double b, double L)
 {
     double d = b - a;
     return d < 0.0 ? d + L : d;
 }
 
-static inline double len_of(const Road *r, size_t i) { return r->f->class_length_m[r->f->class_id[i]]; }
+static inline double len_of(const WfLcRoad *r, size_t i) { return r->class_length_m[r->class_id[i]]; }
 
 /* Vehicle i's car-following acceleration behind a leader at bumper-to-bumper gap gap_m driving at vl_mps: its own
  * model or controller, with its own parameters and memory, before noise and limits. */
-static double accel_of(const Road *r, size_t i, double gap_m, double v_mps, double vl_mps)
+static double accel_of(const WfLcRoad *r, size_t i, double gap_m, double v_mps, double vl_mps)
 {
-    const WfFleet *f = r->f;
-    size_t g = f->group_id[i];
-    const WfCfModel *m = r->sc->groups[g].model;
-    const void *st = m->state_size ? f->group_state[g] + wf_fleet_slot(f, i) * m->state_size : NULL;
-    return m->accel(wf_fleet_params(f, r->sc, i), st, gap_m, v_mps, vl_mps);
+    const WfCfModel *m = r->sc->groups[r->group_id[i]].model;
+    const void *st = m->state_size && r->state ? r->state(r, i) : NULL;
+    return m->accel(r->params(r, i), st, gap_m, v_mps, vl_mps);
 }
 
-/* For each vehicle of lane l, the index in lane m of its leader there (the first vehicle at or ahead of its position
- * around the ring): one walk of both lanes in the order of positions. rot: each lane's index of its rearmost
- * position (a lane's slots are its positions in order, rotated). */
-static void neighbours(WfLaneChanges *lc, const Road *r, const size_t *rot, size_t l, size_t m, int d)
+/* For each vehicle of lane l, the index in lane m of its leader there (the first vehicle at or ahead of its position;
+ * on a ring around it, on an open road count[m] when none is ahead): one walk of both lanes in the order of
+ * positions (a lane's indices are its positions in order, rotated by rot on a ring). */
+static void neighbours(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t m, int d)
 {
-    const WfFleet *f = r->f;
-    size_t nl = f->lane_n[l], nm = f->lane_n[m], fl = r->first[l], fm = r->first[m];
+    size_t nl = r->count[l], nm = r->count[m], fl = r->first[l], fm = r->first[m];
     uint32_t *tgt = lc->tgt[d];
-    const double *p = r->p;
+    const double *p = r->p_m;
     if (!nm) {
-        for (size_t k = 0; k < nl; k++) tgt[fl + k] = UINT32_MAX;
+        for (size_t k = 0; k < nl; k++) tgt[fl + k] = 0;
         return;
     }
-    /* q walks lane l from its rearmost vehicle (slot index kl), j counts lane m's vehicles behind it (index km) */
-    size_t kl = rot[l], km = rot[m], j = 0;
+    /* q walks lane l from its rearmost vehicle (index kl), j counts lane m's vehicles behind it (index km) */
+    size_t kl = r->rot[l], km = r->rot[m], j = 0;
     for (size_t q = 0; q < nl; q++) {
         double pi = p[fl + kl];
         while (j < nm && p[fm + km] < pi) {
             j++;
             km = km + 1 < nm ? km + 1 : 0;
         }
-        tgt[fl + kl] = (uint32_t)(j == nm ? rot[m] : km);
+        tgt[fl + kl] = (uint32_t)(j < nm ? km : r->periodic ? r->rot[m] : nm);
         kl = kl + 1 < nl ? kl + 1 : 0;
     }
 }
@@ -119,23 +111,22 @@ typedef struct Batch {
 /* Car-following accelerations a[j] of vehicles who[j] (their own model or controller, parameters and memory, before
  * noise and limits): group by group, through the model's block form when the group shares one parameter set and
  * keeps no memory (the same arithmetic as accel(), so the same bits), else accel() per vehicle. */
-static void eval(const Road *r, Batch *bt, int e, size_t cnt)
+static void eval(const WfLcRoad *r, Batch *bt, int e, size_t cnt)
 {
-    const WfFleet *f = r->f;
     const WfScenario *sc = r->sc;
     const uint32_t *who = bt->who[e];
     for (size_t g = 0; g < sc->n_groups; g++) {
         const WfCfModel *m = sc->groups[g].model;
         size_t c = 0;
         for (size_t j = 0; j < cnt; j++)
-            if (f->group_id[who[j]] == g) bt->idx[c++] = (uint32_t)j;
+            if (r->group_id[who[j]] == g) bt->idx[c++] = (uint32_t)j;
         if (!c) continue;
-        if (m->accel_block && !m->state_size && !f->group_param_stride[g]) {
+        if (m->accel_block && !m->state_size && r->group_params[g]) {
             for (size_t q = 0; q < c; q++) {
                 size_t j = bt->idx[q];
                 bt->gg[q] = bt->gap[e][j], bt->gv[q] = bt->v[e][j], bt->gl[q] = bt->vl[e][j];
             }
-            m->accel_block(f->group_params[g], 0, c, bt->gg, bt->gv, bt->gl, bt->ga);
+            m->accel_block(r->group_params[g], 0, c, bt->gg, bt->gv, bt->gl, bt->ga);
             for (size_t q = 0; q < c; q++) bt->a[e][bt->idx[q]] = bt->ga[q];
             continue;
         }
@@ -151,60 +142,100 @@ static inline void put(Batch *bt, int e, size_t c, size_t who, double gap, doubl
     bt->who[e][c] = (uint32_t)who, bt->gap[e][c] = gap, bt->v[e][c] = v, bt->vl[e][c] = vl;
 }
 
-/* The decisions of the m vehicles of lane l from slot i0: each one's side with the larger positive advantage (the
- * right one at a tie), or none. */
-static void decide_block(WfLaneChanges *lc, const Road *r, size_t l, size_t i0, size_t m, long step, Batch *bt)
+/* Vehicle i's (index k of its lane, first fl, count nl) leader inside its lane as an acceleration's inputs: its gap
+ * and the leader's speed; the lane's last follows its first one lap ahead on a ring, the lane's front leader on an
+ * open road. */
+static void lane_lead(const WfLcRoad *r, size_t l, size_t i, double *gap, double *vl)
 {
-    const WfFleet *f = r->f;
+    size_t fl = r->first[l], nl = r->count[l], kl = i - fl + 1 < nl ? i - fl + 1 : 0, ld = fl + kl;
+    const double *x = r->x_m;
+    if (kl || r->periodic) {
+        *gap = x[ld] + (kl ? 0.0 : r->L) - len_of(r, ld) - x[i], *vl = r->v_mps[ld];
+    } else if (r->front[l].free_gap_m > 0.0) {
+        *gap = r->front[l].free_gap_m, *vl = r->v_mps[i];
+    } else {
+        *gap = r->front[l].rear_m - x[i], *vl = r->front[l].v_mps;
+    }
+}
+
+/* Vehicle i's gap and leader's speed behind the front leader of lane m (an open road's lane it would lead). */
+static void front_lead(const WfLcRoad *r, size_t m, size_t i, double *gap, double *vl)
+{
+    if (r->front[m].free_gap_m > 0.0) *gap = r->front[m].free_gap_m, *vl = r->v_mps[i];
+    else *gap = r->front[m].rear_m - r->x_m[i], *vl = r->front[m].v_mps;
+}
+
+/* Vehicle i's case for a change into lane m in direction d, as the c-th of the batch; 0: no room (unsafe). */
+static int put_case(const WfLaneChanges *lc, const WfLcRoad *r, Batch *bt, size_t c, size_t i, size_t l, size_t m,
+                    int d)
+{
+    const double *x = r->x_m, *v = r->v_mps, *p = r->p_m, L = r->L;
+    size_t nm = r->count[m], fm = r->first[m], nl = r->count[l], fl = r->first[l], ki = i - fl, tg = lc->tgt[d][i];
+    double len_i = len_of(r, i), gap, vl;
+    bt->has_new[c] = 0, bt->has_old[c] = 0;
+    put(bt, EV_NEW_NOW, c, i, 1.0, 0.0, 0.0), put(bt, EV_NEW_NEW, c, i, 1.0, 0.0, 0.0);
+    put(bt, EV_OLD_NOW, c, i, 1.0, 0.0, 0.0), put(bt, EV_OLD_NEW, c, i, 1.0, 0.0, 0.0);
+    if (!nm && r->periodic) {
+        put(bt, EV_OWN_NEW, c, i, L - len_i, v[i], v[i]); /* alone in the lane: it follows itself */
+    } else if (tg == nm) {
+        front_lead(r, m, i, &gap, &vl); /* ahead of the lane's front (or an empty lane) */
+        if (!(gap > 0.0)) return 0;
+        put(bt, EV_OWN_NEW, c, i, gap, v[i], vl);
+    } else {
+        size_t g = fm + tg;
+        double gap_new = fwd(p[i], p[g], L) - len_of(r, g);
+        if (!(gap_new > 0.0)) return 0;
+        put(bt, EV_OWN_NEW, c, i, gap_new, v[i], v[g]);
+    }
+    if (nm && (tg || r->periodic)) { /* the new follower: the one behind that gap */
+        size_t fo = fm + (tg ? tg - 1 : nm - 1);
+        double gap_fo_new = fwd(p[fo], p[i], L) - len_i;
+        if (!(gap_fo_new > 0.0)) return 0;
+        lane_lead(r, m, fo, &gap, &vl);
+        bt->has_new[c] = 1;
+        put(bt, EV_NEW_NOW, c, fo, gap, v[fo], vl);
+        put(bt, EV_NEW_NEW, c, fo, gap_fo_new, v[fo], v[i]);
+    }
+    if (nl >= 2 && (ki || r->periodic)) { /* the old follower: behind it now, behind its leader after */
+        size_t ko = ki ? ki - 1 : nl - 1, o = fl + ko, kl = ki + 1 < nl ? ki + 1 : 0, ld = fl + kl;
+        bt->has_old[c] = 1;
+        put(bt, EV_OLD_NOW, c, o, x[i] + (ki ? 0.0 : L) - len_i - x[o], v[o], v[i]);
+        if (r->periodic && nl == 2) put(bt, EV_OLD_NEW, c, o, L - len_of(r, o), v[o], v[o]);
+        else if (kl || r->periodic) put(bt, EV_OLD_NEW, c, o, fwd(p[o], p[ld], L) - len_of(r, ld), v[o], v[ld]);
+        else front_lead(r, l, o, &gap, &vl), put(bt, EV_OLD_NEW, c, o, gap, v[o], vl);
+    }
+    return 1;
+}
+
+/* The decisions of the m vehicles of lane l from index i0: each one's side with the larger positive advantage (the
+ * right one at a tie), or none. */
+static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t i0, size_t m, long step, Batch *bt)
+{
     const WfScenario *sc = r->sc;
-    const double *x = f->x_m, *v = f->v_mps, *p = r->p, L = r->L;
-    size_t fl = r->first[l], nl = f->lane_n[l];
     for (size_t k = 0; k < m; k++) {
-        size_t i = i0 + k, kl = i - fl + 1 < nl ? i - fl + 1 : 0, ld = fl + kl;
+        size_t i = i0 + k;
+        double gap, vl;
         lc->dir[i] = 0, lc->adv_mps2[i] = 0.0;
-        put(bt, EV_OWN_NOW, k, i, x[ld] + (kl ? 0.0 : L) - len_of(r, ld) - x[i], v[i], v[ld]);
+        lane_lead(r, l, i, &gap, &vl);
+        put(bt, EV_OWN_NOW, k, i, gap, r->v_mps[i], vl);
     }
     eval(r, bt, EV_OWN_NOW, m);
     double own_now[WF_BLOCK];
     memcpy(own_now, bt->a[EV_OWN_NOW], m * sizeof *own_now);
     for (int d = 0; d < 2; d++) {
-        if ((d == 0 && l == 0) || (d == 1 && l + 1 == f->n_lanes)) continue;
-        size_t tl = d ? l + 1 : l - 1, nm = f->lane_n[tl], fm = r->first[tl], c = 0;
+        if ((d == 0 && l == 0) || (d == 1 && l + 1 == r->n_lanes)) continue;
+        size_t tl = d ? l + 1 : l - 1, c = 0;
         for (size_t k = 0; k < m; k++) {
-            size_t i = i0 + k, ki = i - fl;
-            const WfDriverGroup *grp = &sc->groups[f->group_id[i]];
-            if (!grp->lc || step < f->lc_ready_step[i]) continue;
-            double len_i = len_of(r, i);
+            size_t i = i0 + k;
+            if (!sc->groups[r->group_id[i]].lc || step < r->ready_step[i]) continue;
             bt->cand[c] = (uint32_t)k;
-            bt->has_new[c] = nm > 0, bt->has_old[c] = nl >= 2;
-            if (!nm) {
-                put(bt, EV_OWN_NEW, c, i, L - len_i, v[i], v[i]); /* alone in the lane: it follows itself */
-                put(bt, EV_NEW_NOW, c, i, 1.0, 0.0, 0.0), put(bt, EV_NEW_NEW, c, i, 1.0, 0.0, 0.0);
-            } else {
-                size_t tg = lc->tgt[d][i], g = fm + tg, fo = fm + (tg ? tg - 1 : nm - 1);
-                double gap_new = fwd(p[i], p[g], L) - len_of(r, g), gap_fo_new = fwd(p[fo], p[i], L) - len_i;
-                if (!(gap_new > 0.0) || !(gap_fo_new > 0.0)) continue; /* no room: unsafe */
-                put(bt, EV_OWN_NEW, c, i, gap_new, v[i], v[g]);
-                /* the new follower's gap now, as the kernel takes it: its leader is the next slot (a lap ahead at the
-                 * lane's wrap) */
-                put(bt, EV_NEW_NOW, c, fo, x[g] + (tg ? 0.0 : L) - len_of(r, g) - x[fo], v[fo], v[g]);
-                put(bt, EV_NEW_NEW, c, fo, gap_fo_new, v[fo], v[i]);
-            }
-            if (nl >= 2) {
-                size_t ko = ki ? ki - 1 : nl - 1, o = fl + ko, kl = ki + 1 < nl ? ki + 1 : 0, ld = fl + kl;
-                put(bt, EV_OLD_NOW, c, o, x[i] + (ki ? 0.0 : L) - len_i - x[o], v[o], v[i]);
-                if (nl == 2) put(bt, EV_OLD_NEW, c, o, L - len_of(r, o), v[o], v[o]);
-                else put(bt, EV_OLD_NEW, c, o, fwd(p[o], p[ld], L) - len_of(r, ld), v[o], v[ld]);
-            } else {
-                put(bt, EV_OLD_NOW, c, i, 1.0, 0.0, 0.0), put(bt, EV_OLD_NEW, c, i, 1.0, 0.0, 0.0);
-            }
-            c++;
+            c += (size_t)put_case(lc, r, bt, c, i, l, tl, d);
         }
         if (!c) continue;
         for (int e = EV_OWN_NEW; e < EV_N; e++) eval(r, bt, e, c);
         for (size_t q = 0; q < c; q++) {
             size_t k = bt->cand[q], i = i0 + k;
-            const WfDriverGroup *grp = &sc->groups[f->group_id[i]];
+            const WfDriverGroup *grp = &sc->groups[r->group_id[i]];
             WfLcCase cs = {own_now[k], bt->a[EV_OWN_NEW][q], bt->a[EV_NEW_NOW][q], bt->a[EV_NEW_NEW][q],
                            bt->a[EV_OLD_NOW][q], bt->a[EV_OLD_NEW][q], bt->has_new[q], bt->has_old[q]};
             double adv = grp->lc->advantage(grp->lc_params, d ? WF_LANE_LEFT : WF_LANE_RIGHT, sc->lane_rule, &cs);
@@ -214,47 +245,100 @@ static void decide_block(WfLaneChanges *lc, const Road *r, size_t l, size_t i0, 
 }
 
 /* The decisions of the blocks lc->blk[0 .. nblk), shared among the threads of the team that calls it (if any). */
-static void decide_all(WfLaneChanges *lc, const Road *r, long step, size_t nblk)
+static void decide_all(WfLaneChanges *lc, const WfLcRoad *r, long step, size_t nblk, const uint8_t *lane_of_blk)
 {
-    const WfFleet *f = r->f;
     Batch bt;
 #pragma omp for schedule(static)
     for (size_t b = 0; b < nblk; b++) {
-        size_t i0 = lc->blk[b], l = f->lane[i0], end = r->first[l] + f->lane_n[l];
+        size_t i0 = lc->blk[b], l = lane_of_blk[b], end = r->first[l] + r->count[l];
         decide_block(lc, r, l, i0, end - i0 < WF_BLOCK ? end - i0 : WF_BLOCK, step, &bt);
     }
 }
 
-/* One gap per step takes one vehicle: a claim beats another only with a larger advantage (slot order breaks ties). */
-static long resolve(WfLaneChanges *lc, const Road *r)
+/* One gap per step takes one vehicle: a claim beats another only with a larger advantage (index order breaks
+ * ties). */
+static long resolve(WfLaneChanges *lc, const WfLcRoad *r)
 {
-    const WfFleet *f = r->f;
     long changes = 0;
-    memset(lc->claim, 0, (lc->n + lc->n_lanes) * sizeof *lc->claim);
-    for (size_t i = 0; i < lc->n; i++) {
-        if (!lc->dir[i]) continue;
-        size_t m = (size_t)((long)f->lane[i] + lc->dir[i]), key = r->first[m] + m;
-        if (f->lane_n[m]) key += lc->tgt[lc->dir[i] > 0][i];
-        uint32_t c = lc->claim[key];
-        if (c && !(lc->adv_mps2[i] > lc->adv_mps2[c - 1])) {
-            lc->dir[i] = 0;
-            continue;
+    memset(lc->claim, 0, (r->n + r->n_lanes) * sizeof *lc->claim);
+    for (size_t l = 0; l < r->n_lanes; l++)
+        for (size_t i = r->first[l]; i < r->first[l] + r->count[l]; i++) {
+            if (!lc->dir[i]) continue;
+            size_t m = (size_t)((long)l + lc->dir[i]), key = r->first[m] + m + lc->tgt[lc->dir[i] > 0][i];
+            uint32_t c = lc->claim[key];
+            if (c && !(lc->adv_mps2[i] > lc->adv_mps2[c - 1])) {
+                lc->dir[i] = 0;
+                continue;
+            }
+            if (c) lc->dir[c - 1] = 0, changes--;
+            lc->claim[key] = (uint32_t)(i + 1);
+            changes++;
         }
-        if (c) lc->dir[c - 1] = 0, changes--;
-        lc->claim[key] = (uint32_t)(i + 1);
-        changes++;
-    }
     return changes;
 }
 
-/* Lane m's new order into perm from slot j on (its vehicles that stay, each newcomer right behind the leader it
+long wf_lanes_decide(WfLaneChanges *lc, const WfLcRoad *r, long step, int nthreads)
+{
+    if (!lc->active) return 0;
+    size_t nlanes = r->n_lanes, nblk = 0;
+    for (size_t l = 0; l < nlanes; l++) {
+        if (l > 0) neighbours(lc, r, l, l - 1, 0);
+        if (l + 1 < nlanes) neighbours(lc, r, l, l + 1, 1);
+    }
+    /* the decisions, block by block of each lane (blocks of WF_BLOCK vehicles from each lane's first) */
+    for (size_t l = 0; l < nlanes; l++)
+        for (size_t k = 0; k < r->count[l]; k += WF_BLOCK)
+            lc->blk[nblk] = (uint32_t)(r->first[l] + k), lc->blkl[nblk++] = (uint8_t)l;
+    int nth = wf_lane_threads(r->n, nthreads);
+    if (nth > 1) {
+#pragma omp parallel num_threads(nth) default(none) shared(lc, r, step, nblk)
+        decide_all(lc, r, step, nblk, lc->blkl);
+    } else {
+        decide_all(lc, r, step, nblk, lc->blkl);
+    }
+    return resolve(lc, r);
+}
+
+/* ------------------------------------------------------------------------------------------------ the ring */
+
+/* A ring vehicle's parameters and controller memory (the road's ctx is the fleet). */
+static const void *ring_params(const WfLcRoad *r, size_t i) { return wf_fleet_params(r->ctx, r->sc, i); }
+static const void *ring_state(const WfLcRoad *r, size_t i)
+{
+    const WfFleet *f = r->ctx;
+    size_t g = f->group_id[i];
+    return f->group_state[g] + wf_fleet_slot(f, i) * r->sc->groups[g].model->state_size;
+}
+
+void wf_lanes_ring_road(WfLaneChanges *lc, const WfScenario *sc, const WfFleet *f, WfLcRoad *r)
+{
+    size_t n = f->n;
+    double L = sc->road.length_m;
+    *r = (WfLcRoad){.sc = sc, .periodic = 1, .L = L, .n = n, .n_lanes = f->n_lanes, .x_m = f->x_m, .p_m = lc->p_m,
+                    .v_mps = f->v_mps, .class_id = f->class_id, .group_id = f->group_id,
+                    .ready_step = f->lc_ready_step, .class_length_m = f->class_length_m, .params = ring_params,
+                    .state = ring_state, .ctx = f};
+    for (size_t g = 0; g < f->n_groups; g++) r->group_params[g] = f->group_param_stride[g] ? NULL : f->group_params[g];
+    for (size_t l = 0, first = 0; l < f->n_lanes; first += f->lane_n[l++]) r->first[l] = first, r->count[l] = f->lane_n[l];
+    for (size_t i = 0; i < n; i++) {
+        double q = f->x_m[i] - L * (double)wf_lap_index(f->x_m[i] / L);
+        lc->p_m[i] = q >= L ? q - L : q < 0.0 ? q + L : q;
+    }
+    for (size_t l = 0; l < f->n_lanes; l++)
+        for (size_t k = 1; k < f->lane_n[l]; k++)
+            if (lc->p_m[r->first[l] + k] < lc->p_m[r->first[l] + k - 1]) {
+                r->rot[l] = k;
+                break;
+            }
+}
+
+/* Ring lane m's new order into perm from slot j on (its vehicles that stay, each newcomer right behind the leader it
  * chose; behind the lane's first vehicle is after its last), and the laps each newcomer's position moves by so that
  * positions increase along the lane within one lap. Returns the lane's new count. */
-static size_t new_order(WfLaneChanges *lc, const Road *r, size_t m, size_t j)
+static size_t new_order(WfLaneChanges *lc, const WfLcRoad *r, size_t m, size_t j)
 {
-    const WfFleet *f = r->f;
-    const double *x = f->x_m, L = r->L;
-    size_t nm = f->lane_n[m], fm = r->first[m], start = j;
+    const double *x = r->x_m, L = r->L;
+    size_t nm = r->count[m], fm = r->first[m], start = j;
     const uint32_t *claim = lc->claim + fm + m;
     if (nm && !lc->dir[fm]) lc->perm[j++] = (uint32_t)fm;
     for (size_t k = 1; k < nm; k++) {
@@ -298,43 +382,11 @@ static void permute(WfLaneChanges *lc, const WfStateVar *vars, size_t nv)
     }
 }
 
-long wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long step, const WfStateVar *vars,
-                     size_t nv, int nthreads, WfLaneCounts *cnt)
+void wf_lanes_apply_ring(WfLaneChanges *lc, const WfLcRoad *r, WfFleet *f, long step, const WfStateVar *vars,
+                         size_t nv, WfLaneCounts *cnt)
 {
-    if (!lc->active) return 0;
-    size_t n = f->n, nlanes = f->n_lanes, rot[WF_MAX_LANES] = {0};
-    double L = sc->road.length_m;
-    Road r = {sc, f, lc->p_m, L, {0}};
-    for (size_t l = 1; l < nlanes; l++) r.first[l] = r.first[l - 1] + f->lane_n[l - 1];
-    for (size_t i = 0; i < n; i++) {
-        double q = f->x_m[i] - L * (double)wf_lap_index(f->x_m[i] / L);
-        lc->p_m[i] = q >= L ? q - L : q < 0.0 ? q + L : q;
-    }
-    for (size_t l = 0; l < nlanes; l++)
-        for (size_t k = 1; k < f->lane_n[l]; k++)
-            if (lc->p_m[r.first[l] + k] < lc->p_m[r.first[l] + k - 1]) {
-                rot[l] = k;
-                break;
-            }
-    for (size_t l = 0; l < nlanes; l++) {
-        if (l > 0) neighbours(lc, &r, rot, l, l - 1, 0);
-        if (l + 1 < nlanes) neighbours(lc, &r, rot, l, l + 1, 1);
-    }
-    /* the decisions, block by block of each lane (blocks of WF_BLOCK slots from each lane's first) */
-    size_t nblk = 0;
-    for (size_t l = 0; l < nlanes; l++)
-        for (size_t k = 0; k < f->lane_n[l]; k += WF_BLOCK) lc->blk[nblk++] = (uint32_t)(r.first[l] + k);
-    int nth = wf_lane_threads(n, nthreads);
-    if (nth > 1) {
-#pragma omp parallel num_threads(nth) default(none) shared(lc, r, step, nblk)
-        decide_all(lc, &r, step, nblk);
-    } else {
-        decide_all(lc, &r, step, nblk);
-    }
-    long changes = resolve(lc, &r);
-    if (!changes) return 0;
-    size_t newn[WF_MAX_LANES];
-    for (size_t m = 0, j = 0; m < nlanes; m++) j += newn[m] = new_order(lc, &r, m, j);
+    size_t nlanes = f->n_lanes, newn[WF_MAX_LANES];
+    for (size_t m = 0, j = 0; m < nlanes; m++) j += newn[m] = new_order(lc, r, m, j);
     permute(lc, vars, nv);
     for (size_t l = 0, j = 0; l < nlanes; l++) {
         f->lane_n[l] = newn[l];
@@ -345,6 +397,7 @@ long wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long s
             if (!d) continue;
             f->x_m[j] -= lc->shift_m[j];
             f->x_start_m[j] -= lc->shift_m[j];
+            f->lap_m[j] += lc->shift_m[j];
             f->lc_ready_step[j] = step + lc->interval_steps[f->group_id[j]];
             f->lane_changes[j]++;
             cnt->changes++;
@@ -355,5 +408,4 @@ long wf_lanes_change(WfLaneChanges *lc, const WfScenario *sc, WfFleet *f, long s
             cnt->lane_cut_ins[l]++;
         }
     }
-    return changes;
 }

@@ -34,7 +34,8 @@ void wf_ring_traj_frame(const WfFleet *f, const double *t_s, double *frame, cons
     double *c[5] = {frame, frame + n, frame + 2 * n, frame + 3 * n, frame + 4 * n};
     for (size_t id = 0; id < n; id++) {
         size_t s = f->pos[id];
-        c[0][id] = f->x_m[s], c[1][id] = f->v_mps[s], c[2][id] = f->a_mps2[s], c[3][id] = f->fuel_rate_gps[s];
+        c[0][id] = f->x_m[s] + f->lap_m[s], c[1][id] = f->v_mps[s], c[2][id] = f->a_mps2[s];
+        c[3][id] = f->fuel_rate_gps[s];
         c[4][id] = f->lane[s];
     }
     cols[0] = c[0], cols[1] = c[1], cols[2] = c[2], cols[3] = c[3], cols[WF_RING_TRAJ_LANE] = c[4];

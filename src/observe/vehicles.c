@@ -58,7 +58,7 @@ double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t id)
     case V_VAR_A: return time_var(f->sum_a[i], f->sum_a2[i], win_steps);
     case V_HARD: return f->hard_brakes[i];
     case V_INFEAS: return f->infeasible_steps[i];
-    case V_X: return f->x_m[i];
+    case V_X: return f->lap_m ? f->x_m[i] + f->lap_m[i] : f->x_m[i];
     case V_LANE: return f->lane[i];
     case V_CHANGES: return f->lane_changes[i];
     case V_CUT_INS: return f->cut_ins[i];
