@@ -238,5 +238,8 @@ bad lane_counts_wrong_sum "fleet.lane_counts" "$tmp/lc_sum.yaml"
 sed 's/lane_counts: .*/lane_counts: [44.5, 15.5]/' "$S" >"$tmp/lc_frac.yaml"
 bad lane_counts_not_integer "lane_counts" "$tmp/lc_frac.yaml"
 bad lane_change_model_unknown "lane_change" "$S" "fleet.drivers[0].lane_change.model=lmrs"
-bad lanes_on_corridor "road.lanes" tests/data/tiny_corridor.yaml road.lanes=2
+# a corridor of several lanes takes its lanes' shares of the demand: one per lane, summing to 1
+sed 's/^  inflow: {flow_vph: 1500,/  inflow: {lane_shares: [0.7, 0.2], flow_vph: 1500,/' tests/data/tiny_corridor.yaml >"$tmp/shares_sum.yaml"
+bad corridor_lane_shares_sum "corridor.inflow.lane_shares" "$tmp/shares_sum.yaml" road.lanes=2
+bad corridor_lane_shares_length "corridor.inflow.lane_shares" "$tmp/shares_sum.yaml" road.lanes=3
 bad cvode_with_lanes "time.integrator" "$S" time.integrator=cvode

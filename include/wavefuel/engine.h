@@ -150,14 +150,17 @@ int               wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st);
 /* Time-blocked stepping so far (time.block_steps): the windows stepped and those undone and redone one step at a
  * time (an overlap or a fault in them). Returns the steps per window, or 0 when the run steps one at a time. */
 int               wf_sim_window_stats(const WfSim *sim, long *windows, long *redone);
-/* A multi-lane ring's lane observers (borrowed, valid until the next step): per record kept (n_rows of them, row_len
+/* A multi-lane road's lane observers (borrowed, valid until the next step): per record kept (n_rows of them, row_len
  * doubles each): t, the lane changes and cut-ins since the previous record, then lane after lane the columns of
- * /lanes (src/observe/lanes.c); and the run's counts from lane i to lane j (pair, row-major WF_MAX_LANES x
- * WF_MAX_LANES) and of cut-ins into each lane. Returns 0 (nothing set) unless the run is a ring of several lanes. */
+ * /lanes (src/observe/lanes.c); the run's counts from lane i to lane j (pair, row-major WF_MAX_LANES x
+ * WF_MAX_LANES), of cut-ins into each lane, of changes made and cut-ins suffered by each driver group's vehicles, and
+ * the time each group's vehicles spent on the road (s, summed over vehicles). Returns 0 (nothing set) unless the
+ * road has several lanes. */
 typedef struct WfLaneObs {
     size_t         n_lanes, n_rows, row_len;
     const double  *rows;
-    const int64_t *pair, *lane_cut_ins;
+    const int64_t *pair, *lane_cut_ins, *group_changes, *group_cut_ins;
+    double         group_vehicle_s[WF_MAX_GROUPS];
 } WfLaneObs;
 int               wf_sim_lanes(const WfSim *sim, WfLaneObs *out);
 

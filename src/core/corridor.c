@@ -19,6 +19,8 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
 #include "core/block.h"
+#include "core/lanes.h"
+#include "observe/columns.h"
 #include "core/par.h"
 #include "core/sim.h"
 #include "core/simd.h"
@@ -132,6 +134,23 @@ struct WfCorridor {
     WfChunkOut *chunks;
     int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
     WfSafetyCount safety;   /* the lanes' safety counts summed (safety_total) */
+    /* lane changes (several lanes, some group with a lane-change model): the decisions' scratch, the road as they
+     * see it (its arrays: every lane's vehicles back to front, and each one's global slot), what they did */
+    WfLaneChanges lcs;
+    struct {
+        double   *x_m, *v_mps;
+        uint16_t *class_id, *group_id;
+        int64_t  *ready;
+        uint32_t *slot;     /* lane l cap + the slot */
+        unsigned char *buf; /* one per-slot array in the new order while vehicles move */
+    } snap;
+    struct {
+        WfLaneCounts total;
+        int64_t  rec_changes, rec_cut_ins, n_rows; /* since the last record; records kept */
+        double   group_vehicle_s[WF_MAX_GROUPS];  /* time on the road of each group's vehicles that left */
+    } lk;
+    double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
+    size_t   lane_row_len, lane_rows_max;
 };
 
 /* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names; the others
@@ -162,6 +181,10 @@ static void corridor_destroy(void *eng)
                       c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g, c->edie.grade_mean_rad,
                       c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunks};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
+    wf_lanes_destroy(&c->lcs);
+    void *snap[] = {c->snap.x_m, c->snap.v_mps, c->snap.class_id, c->snap.group_id, c->snap.ready, c->snap.slot,
+                    c->snap.buf, c->lane_rows};
+    for (size_t i = 0; i < sizeof snap / sizeof snap[0]; i++) free(snap[i]);
     free(c);
 }
 
@@ -338,6 +361,8 @@ static void init_boundary(WfCorridor *c)
 }
 
 static int lane_init(WfCorridor *c, WfError *err);
+static int lanes_init(WfCorridor *c, WfError *err);
+static WfLead front_leader(const WfCorridor *c, size_t l);
 
 static int corridor_create(WfSim *sim, WfError *err)
 {
@@ -353,11 +378,6 @@ static int corridor_create(WfSim *sim, WfError *err)
     c->L = sc->road.length_m;
     c->fault_slot = -1;
     c->n_lanes = sc->n_lanes > 1 ? (size_t)sc->n_lanes : 1;
-    for (size_t g = 0; c->n_lanes > 1 && g < sc->n_groups; g++)
-        if (sc->groups[g].lc)
-            return wf_err(err, WF_EINPUT,
-                          "%s: fleet.drivers[%zu].lane_change: corridors do not change lanes yet (docs/lanes.md); give "
-                          "every group lane_change: {model: none}", sc->path, g);
     c->n_steps = wf_scenario_n_steps(sc);
     c->out_every = wf_scenario_output_every(sc);
     c->traj_every = wf_scenario_trajectory_every(sc);
@@ -371,6 +391,7 @@ static int corridor_create(WfSim *sim, WfError *err)
     if (!rc) rc = alloc_measure(c, err);
     if (!rc) init_boundary(c);
     if (!rc) rc = lane_init(c, err);
+    if (!rc) rc = lanes_init(c, err);
     return rc;
 }
 
@@ -653,6 +674,124 @@ static int lane_init(WfCorridor *c, WfError *err)
         wf_lane_safety_init(ln);
     }
     return 0;
+}
+
+/* Lane changes: the decisions' scratch for every slot of every lane, and the road's description. */
+static int lanes_init(WfCorridor *c, WfError *err)
+{
+    size_t n = c->n_lanes * c->ln[0].veh.cap, unit = c->pstride * sizeof(double);
+    if (c->n_lanes > 1) {
+        c->lane_row_len = 3 + c->n_lanes * WF_LANE_N_COLS;
+        c->lane_rows_max = (size_t)wf_scenario_records(c->sc, c->out_every);
+        ALLOC(c->lane_rows, c->lane_rows_max * c->lane_row_len);
+    }
+    int rc = wf_lanes_create(&c->lcs, c->sc, n, c->n_lanes, err);
+    if (rc || !c->lcs.active) return rc;
+    if (c->sstride > unit) unit = c->sstride;
+    ALLOC(c->snap.x_m, n); ALLOC(c->snap.v_mps, n); ALLOC(c->snap.class_id, n); ALLOC(c->snap.group_id, n);
+    ALLOC(c->snap.ready, n); ALLOC(c->snap.slot, n); ALLOC(c->snap.buf, n * unit);
+    return 0;
+}
+
+/* A corridor vehicle's parameters and controller memory (the road's ctx is the corridor; index i of the road). */
+static const void *road_params(const WfLcRoad *r, size_t i)
+{
+    const WfCorridor *c = r->ctx;
+    return c->ln[0].veh.params + (size_t)c->snap.slot[i] * c->pstride;
+}
+static const void *road_state(const WfLcRoad *r, size_t i)
+{
+    const WfCorridor *c = r->ctx;
+    return c->ln[0].veh.state + (size_t)c->snap.slot[i] * c->sstride;
+}
+
+/* The corridor as the lane changes see it at the step's start: each lane's vehicles back to front. */
+static void lanes_road(WfCorridor *c, WfLcRoad *r)
+{
+    const WfScenario *sc = c->sc;
+    size_t cap = c->ln[0].veh.cap, i = 0;
+    *r = (WfLcRoad){.sc = sc, .L = c->L, .n_lanes = c->n_lanes, .x_m = c->snap.x_m, .p_m = c->snap.x_m,
+                    .v_mps = c->snap.v_mps, .class_id = c->snap.class_id, .group_id = c->snap.group_id,
+                    .ready_step = c->snap.ready, .class_length_m = c->ln[0].lane.class_length_m,
+                    .params = road_params, .state = road_state, .ctx = c};
+    for (size_t g = 0; g < sc->n_groups; g++)
+        r->group_params[g] = c->ln[0].lane.pstride[g] ? NULL : c->ln[0].lane.params[g];
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const CorLane *ln = &c->ln[l];
+        const WfCorridorVehicles *vh = &ln->veh;
+        r->first[l] = i, r->count[l] = vh->n, r->front[l] = front_leader(c, l);
+        for (size_t j = 0; j < vh->n; j++, i++) {
+            size_t s = vh->first + j < cap ? vh->first + j : vh->first + j - cap; /* back to front */
+            c->snap.x_m[i] = vh->x_m[s], c->snap.v_mps[i] = vh->v_mps[s], c->snap.class_id[i] = vh->class_id[s];
+            c->snap.group_id[i] = vh->group_id[s], c->snap.ready[i] = ln->lc_ready[s];
+            c->snap.slot[i] = (uint32_t)(l * cap + s);
+        }
+    }
+    r->n = i;
+}
+
+/* Every per-slot array of the lanes, moved: the k-th vehicle of the new order comes from global slot src[k] and goes
+ * to global slot dst[k] (one gather into the scratch, then one scatter). */
+static void lanes_move(WfCorridor *c, const uint32_t *src, const uint32_t *dst, size_t n)
+{
+    unsigned char *buf = c->snap.buf;
+    CorLane *l0 = &c->ln[0];
+#define MOVE_ARRAY(base, unit)                                                                               do {                                                                                                         unsigned char *a_ = (unsigned char *)(base);                                                             size_t u_ = (unit);                                                                                      for (size_t k = 0; k < n; k++) memcpy(buf + k * u_, a_ + (size_t)src[k] * u_, u_);                      for (size_t k = 0; k < n; k++) memcpy(a_ + (size_t)dst[k] * u_, buf + k * u_, u_);                  } while (0)
+#define MOVE(nm, field) MOVE_ARRAY(l0->field, sizeof *l0->field);
+    SAVED_SLOT_ARRAYS(MOVE)
+#undef MOVE
+    MOVE_ARRAY(l0->veh.params, c->pstride * sizeof(double));
+    if (c->sstride) MOVE_ARRAY(l0->veh.state, c->sstride);
+#undef MOVE_ARRAY
+}
+
+/* The lane changes at the start of a step (src/core/lanes.h): decisions from the state, then each lane rebuilt back to
+ * front from the vehicles that stay and, in each gap, the one that entered it (a gap behind vehicle k of the old
+ * order, or ahead of the lane's front). A lane's back keeps its slot. */
+static void lane_changes(WfCorridor *c, long step)
+{
+    if (!c->lcs.active) return;
+    WfLcRoad r;
+    lanes_road(c, &r);
+    if (!wf_lanes_decide(&c->lcs, &r, step, c->nthreads)) return;
+    const WfLaneChanges *lc = &c->lcs;
+    size_t cap = c->ln[0].veh.cap, j = 0, newn[WF_MAX_LANES];
+    uint32_t *src = c->lcs.perm, *dst = (uint32_t *)c->lcs.scratch;
+    for (size_t m = 0; m < c->n_lanes; m++) {
+        size_t fm = r.first[m], nm = r.count[m], start = j, first = c->ln[m].veh.first;
+        const uint32_t *claim = lc->claim + fm + m;
+        for (size_t q = 0; q <= nm; q++) {
+            if (claim[q]) src[j++] = claim[q] - 1;
+            if (q < nm && !lc->dir[fm + q]) src[j++] = (uint32_t)(fm + q);
+        }
+        newn[m] = j - start;
+        for (size_t k = start; k < j; k++) {
+            size_t s = first + (k - start) < cap ? first + (k - start) : first + (k - start) - cap;
+            dst[k] = (uint32_t)(m * cap + s);
+        }
+    }
+    /* snapshot indices -> global slots, then the move */
+    for (size_t k = 0; k < j; k++) src[k] = c->snap.slot[src[k]];
+    lanes_move(c, src, dst, j);
+    for (size_t m = 0, k = 0; m < c->n_lanes; m++) {
+        CorLane *ln = &c->ln[m];
+        ln->veh.n = newn[m];
+        for (size_t q = 0; q < newn[m]; q++, k++) {
+            size_t s = dst[k] - m * cap, from = src[k] / cap;
+            if (from == m) continue;
+            ln->lc_ready[s] = step + lc->interval_steps[ln->veh.group_id[s]];
+            ln->lane_changes[s]++;
+            c->lk.total.changes++, c->lk.rec_changes++;
+            c->lk.total.pair[from][m]++;
+            c->lk.total.group_changes[ln->veh.group_id[s]]++;
+            if (!q) continue;
+            size_t behind = dst[k - 1] - m * cap; /* the vehicle behind it now */
+            ln->cut_ins[behind]++;
+            c->lk.total.cut_ins++, c->lk.rec_cut_ins++;
+            c->lk.total.lane_cut_ins[m]++;
+            c->lk.total.group_cut_ins[ln->veh.group_id[behind]]++;
+        }
+    }
 }
 
 /* The step's values go to the per-slot arrays (steps with a record or trajectory, which read them before the
@@ -949,6 +1088,9 @@ static int flush_trips(void *eng, WfError *err)
 /* A vehicle's window totals join its class's; its trip joins the buffer. */
 static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit, int completed, WfError *err)
 {
+    if (c->n_lanes > 1)
+        c->lk.group_vehicle_s[ln->veh.group_id[s]] +=
+            (completed ? t_exit : (double)c->st.steps_done * c->sc->dt_s) - ln->t_ent[s];
     const WfCorridorVehicles *vh = &ln->veh;
     size_t cl = vh->class_id[s];
     c->st.cls_fuel[cl] += ln->win.fuel_g[s];
@@ -1009,6 +1151,53 @@ static void advance_leader(WfCorridor *c, double t)
         en->vl_x = en->vl_xref + (wf_profile_integral(p, t, &en->vl_seg) - en->vl_iref);
         en->vl_v = wf_profile_value(p, t, &en->vl_seg);
     }
+}
+
+/* A multi-lane corridor's lanes at a record (/lanes, src/observe/lanes.c): each lane's vehicles, density, flow,
+ * speeds, waves, fuel rate and gaps, as the road's record takes them (front first). */
+static void lanes_observe(WfCorridor *c, double t)
+{
+    const WfScenario *sc = c->sc;
+    if (c->n_lanes < 2 || c->lk.n_rows >= (int64_t)c->lane_rows_max) return;
+    double *row = c->lane_rows + (size_t)c->lk.n_rows++ * c->lane_row_len;
+    row[0] = t, row[1] = (double)c->lk.rec_changes, row[2] = (double)c->lk.rec_cut_ins;
+    c->lk.rec_changes = c->lk.rec_cut_ins = 0;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const WfCorridorVehicles *vh = &c->ln[l].veh;
+        double *o = row + 3 + l * WF_LANE_N_COLS, n = (double)vh->n, sv = 0, sg = 0, fuel = 0, waves = 0, m2 = 0;
+        int prev_slow = 0;
+        for (size_t k = 0; k < vh->n; k++) {
+            size_t s = wf_corridor_slot(vh, k);
+            int slow = vh->v_mps[s] < sc->wave_speed_mps;
+            sv += vh->v_mps[s], fuel += vh->fuel_rate_gps[s], waves += slow && !prev_slow, prev_slow = slow;
+            if (k > 0) sg += vh->gap_m[s];
+        }
+        double mean = vh->n ? sv / n : 0.0;
+        for (size_t k = 0; k < vh->n; k++) {
+            double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
+            m2 += d * d;
+        }
+        o[WF_LANE_VEHICLES] = n;
+        o[WF_LANE_DENSITY] = n / (c->L / 1000.0);
+        o[WF_LANE_FLOW] = o[WF_LANE_DENSITY] * mean * 3.6;
+        o[WF_LANE_MEAN_V] = mean;
+        o[WF_LANE_SD_V] = vh->n ? sqrt(m2 / n) : 0.0;
+        o[WF_LANE_WAVES] = waves;
+        o[WF_LANE_FUEL_RATE] = fuel;
+        o[WF_LANE_MEAN_GAP] = vh->n > 1 ? sg / (n - 1.0) : 0.0;
+    }
+}
+
+/* The lane observers (wf_sim_lanes). */
+static int corridor_lanes(const void *eng, WfLaneObs *out)
+{
+    const WfCorridor *c = eng;
+    if (c->n_lanes < 2) return 0;
+    *out = (WfLaneObs){.n_lanes = c->n_lanes, .n_rows = (size_t)c->lk.n_rows, .row_len = c->lane_row_len,
+                       .rows = c->lane_rows, .pair = &c->lk.total.pair[0][0], .lane_cut_ins = c->lk.total.lane_cut_ins,
+                       .group_changes = c->lk.total.group_changes, .group_cut_ins = c->lk.total.group_cut_ins};
+    memcpy(out->group_vehicle_s, c->lk.group_vehicle_s, sizeof out->group_vehicle_s);
+    return 1;
 }
 
 /* The road's record: sums lane after lane, each lane front first; waves and gaps within each lane. */
@@ -1150,6 +1339,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
     int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
     int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
+    if (nl > 1 && step > 0 && !last) lane_changes(c, step);
     if ((rc = arrivals(c, t, err)) || (rc = entrance(c, t, step, err))) return rc;
     WfLead front[WF_MAX_LANES];
     for (size_t l = 0; l < nl; l++) front[l] = front_leader(c, l);
@@ -1165,6 +1355,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
         if (records) {
             WfCorridorRow row;
             record(c, t, &row);
+            lanes_observe(c, t);
             if (in_window && on_road) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
             WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
             if (out && out->record && (rc = out->record(out->ctx, c->sim, &rec, err))) return rc;
@@ -1222,6 +1413,7 @@ static int corridor_close(void *eng, WfError *err)
     }
     if (!rc) rc = flush_trips(c, err);
     summarize(c);
+    c->sim->summary.lane_changes = c->lk.total.changes, c->sim->summary.cut_ins = c->lk.total.cut_ins;
     WfLane all = c->ln[0].lane;
     all.safety = *safety_total(c, 0);
     wf_lane_safety_summary(&all, &c->sim->summary);
@@ -1274,6 +1466,10 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
     VAR("edie_class_dist", c->edie.class_dist_m, ncx);
     VAR("edie_class_fuel", c->edie.class_fuel_g, ncx);
     if (c->ln[0].lane.safe) VAR("safety", safety_total(c, 0), 1); /* absent without a safety filter */
+    if (nl > 1) {
+        VAR("lanes", &c->lk, 1);
+        VAR("lane_rows", c->lane_rows, c->lane_rows_max * c->lane_row_len);
+    }
 #undef VAR
     return k;
 }
@@ -1347,4 +1543,4 @@ static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,
                                      .step = corridor_step, .flush = flush_trips, .close = corridor_close,
                                      .state = corridor_state, .restored = corridor_restored,
-                                     .group = corridor_group};
+                                     .group = corridor_group, .lanes = corridor_lanes};

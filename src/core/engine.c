@@ -591,12 +591,16 @@ int wf_sim_window_stats(const WfSim *sim, long *windows, long *redone)
     return s ? s->win.k_max : 0;
 }
 
-int wf_sim_lanes(const WfSim *sim, WfLaneObs *out)
+/* The lane observers (wf_sim_lanes); every vehicle was on the ring the whole time run so far. */
+static int ring_lanes(const void *eng, WfLaneObs *out)
 {
-    const WfRing *s = sim->b == &wf_boundary_periodic ? sim->eng : NULL;
-    if (!s || s->f->n_lanes < 2) return 0;
+    const WfRing *s = eng;
+    if (s->f->n_lanes < 2) return 0;
     *out = (WfLaneObs){.n_lanes = s->f->n_lanes, .n_rows = (size_t)s->lk.n_rows, .row_len = s->lane_row_len,
-                       .rows = s->lane_rows, .pair = &s->lk.total.pair[0][0], .lane_cut_ins = s->lk.total.lane_cut_ins};
+                       .rows = s->lane_rows, .pair = &s->lk.total.pair[0][0], .lane_cut_ins = s->lk.total.lane_cut_ins,
+                       .group_changes = s->lk.total.group_changes, .group_cut_ins = s->lk.total.group_cut_ins};
+    for (size_t g = 0; g < s->f->n_groups; g++)
+        out->group_vehicle_s[g] = (double)s->f->group_n[g] * ((double)s->steps_done * s->sc->dt_s);
     return 1;
 }
 
@@ -728,4 +732,4 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
                                          .step = ring_step, .close = ring_close, .state = ring_state,
-                                         .restored = ring_restored, .group = ring_group};
+                                         .restored = ring_restored, .group = ring_group, .lanes = ring_lanes};

@@ -402,10 +402,13 @@ void wf_lanes_apply_ring(WfLaneChanges *lc, const WfLcRoad *r, WfFleet *f, long 
             f->lane_changes[j]++;
             cnt->changes++;
             cnt->pair[l - (size_t)(long)d][l]++;
+            cnt->group_changes[f->group_id[j]]++;
             if (newn[l] < 2) continue;
-            f->cut_ins[k ? j - 1 : j + newn[l] - 1]++; /* the vehicle it now leads */
+            size_t behind = k ? j - 1 : j + newn[l] - 1; /* the vehicle it now leads */
+            f->cut_ins[behind]++;
             cnt->cut_ins++;
             cnt->lane_cut_ins[l]++;
+            cnt->group_cut_ins[f->group_id[behind]]++;
         }
     }
 }

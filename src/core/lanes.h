@@ -70,6 +70,8 @@ typedef struct WfLaneCounts {
     int64_t changes, cut_ins;                         /* cut-ins: changes into a gap that had a follower */
     int64_t pair[WF_MAX_LANES][WF_MAX_LANES];         /* changes from lane i to lane j */
     int64_t lane_cut_ins[WF_MAX_LANES];               /* cut-ins into each lane */
+    int64_t group_changes[WF_MAX_GROUPS];             /* changes made by each driver group's vehicles */
+    int64_t group_cut_ins[WF_MAX_GROUPS];             /* cut-ins suffered by each driver group's vehicles */
 } WfLaneCounts;
 
 /* The decisions of step `step` on road r (lc->dir, lc->tgt and lc->claim: who takes each gap); returns the number of

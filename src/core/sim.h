@@ -31,6 +31,8 @@ typedef struct WfBoundary {
      * the next step (own speed, leader speed, bumper-to-bumper gap, as the kernel computes them); fn may be NULL.
      * Returns their number. */
     size_t (*group)(void *eng, size_t g, WfGroupVisit fn, void *ctx);
+    /* The lane observers of a road of several lanes (wf_sim_lanes); NULL, or 0 returned: one lane. */
+    int    (*lanes)(const void *eng, WfLaneObs *out);
 } WfBoundary;
 
 extern const WfBoundary wf_boundary_periodic, wf_boundary_open;

@@ -177,7 +177,7 @@ static int write_edie(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 static int corridor_results(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
     return (pass == WF_H5_ALLOCATE && write_road(fid, r->sc, err)) || write_detectors(fid, r, pass, err) ||
-                   write_edie(fid, r, pass, err)
+                   write_edie(fid, r, pass, err) || wf_h5_write_lanes(fid, r->sim, pass, err)
                ? WF_ESYS
                : 0;
 }

@@ -20,6 +20,9 @@
 int wf_h5_put_columns(hid_t g, const WfObsColumn *cols, const WfObsData *data, size_t n, WfH5Pass pass,
                       WfError *err);
 
+/* /lanes of a road of several lanes (src/io/h5lanes.c): nothing on one lane. */
+int wf_h5_write_lanes(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err);
+
 /* What the writer reads of the run at a callback (everything borrowed). */
 typedef struct WfH5Run {
     const WfSim      *sim;

@@ -71,10 +71,12 @@ const WfSummaryField wf_summary_fields[] = {
      {"1: the run repaired overlaps (collisions: a follower put at gap 0 and stopped), its results include them; 0: none",
       "1: the run repaired overlaps (collisions: a follower put at gap 0 and stopped), its results include them; 0: none"},
      I64, S(collisions_repaired), 0, NOPRINT, 0, 0, 0, WF_SUMMARY_IF_SAFETY},
-    {"lane_changes", "1", {"lane changes, whole run (docs/lanes.md)", NULL}, I64, S(lane_changes), 0,
-     {{"lane changes", "%lld", ""}, {NULL, NULL, NULL}}, 0, 0, 0, WF_SUMMARY_IF_LANES},
-    {"cut_ins", "1", {"lane changes into a gap with a follower (cut-ins), whole run", NULL}, I64, S(cut_ins), 0,
-     {{"cut-ins", "%lld", ""}, {NULL, NULL, NULL}}, 0, 0, 0, WF_SUMMARY_IF_LANES},
+    {"lane_changes", "1", {"lane changes, whole run (docs/lanes.md)", "lane changes, whole run (docs/lanes.md)"}, I64,
+     S(lane_changes), 0, {{"lane changes", "%lld", ""}, {"lane changes", "%lld", ""}}, 0, 0, 0, WF_SUMMARY_IF_LANES},
+    {"cut_ins", "1",
+     {"lane changes into a gap with a follower (cut-ins), whole run",
+      "lane changes into a gap with a follower (cut-ins), whole run"},
+     I64, S(cut_ins), 0, {{"cut-ins", "%lld", ""}, {"cut-ins", "%lld", ""}}, 0, 0, 0, WF_SUMMARY_IF_LANES},
 };
 const size_t wf_summary_n_fields = sizeof wf_summary_fields / sizeof wf_summary_fields[0];
 
