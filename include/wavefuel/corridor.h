@@ -66,7 +66,14 @@ typedef struct WfCorridorSpec {
     double     insert_decel_mps2;  /* an entry may not make the vehicle's model brake harder than this */
     int64_t    max_arrivals;       /* -1: unlimited */
     int        interleaved;        /* fleet.placement interleaved: shares assigned by deficit, not drawn */
-    double     lane_share[WF_MAX_LANES]; /* each lane's share of the demand (corridor.inflow.lane_shares) */
+    double     lane_share[WF_MAX_LANES]; /* each main lane's share of the demand (corridor.inflow.lane_shares) */
+    /* an on-ramp (corridor.on_ramp): a merge lane from ramp_from_m to ramp_to_m, its own demand; it is lane 0 and the
+     * road's lanes follow as 1, 2, ... */
+    int        has_ramp;
+    double     ramp_from_m, ramp_to_m;
+    WfProfile  ramp_vph;
+    /* where each lane ends (corridor.lane_drops; lanes numbered with the merge lane): +inf for the exit */
+    double     lane_end_m[WF_MAX_LANES];
     /* outflow */
     WfOutflow  outflow;
     WfProfile  leader_speed_mps;   /* the virtual leader's speed profile (leader and speed outflows) */

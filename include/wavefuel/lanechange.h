@@ -13,8 +13,9 @@
 
 #define WF_MAX_LC_PARAMS 8 /* doubles in one model's parameter struct */
 
-/* Passing rules of a road (road.lane_rule). Lane 0 is the rightmost lane. */
-enum { WF_LANE_RULE_SYMMETRIC = 0, WF_LANE_RULE_KEEP_RIGHT = 1 };
+/* Passing rules of a road (road.lane_rule). Lane 0 is the rightmost lane. A change out of a lane that ends (a merge
+ * lane, a lane drop) is mandatory: it is judged by WF_LANE_RULE_MANDATORY whatever the road's rule. */
+enum { WF_LANE_RULE_SYMMETRIC = 0, WF_LANE_RULE_KEEP_RIGHT = 1, WF_LANE_RULE_MANDATORY = 2 };
 /* Directions of a change. */
 enum { WF_LANE_RIGHT = -1, WF_LANE_LEFT = 1 };
 

@@ -98,6 +98,10 @@ typedef struct CorLane {
     uint32_t *lane_changes, *cut_ins; /* lane changes made; vehicles that entered the lane right ahead of it */
     int64_t  *lc_ready;     /* the first step at which the vehicle may change lanes again */
     WfLane    lane;         /* the vehicles as the kernel sees them */
+    /* the lane's demand (a share of a profile), where its vehicles enter and where it ends (+inf: the exit; else a
+     * merge lane's end or a lane drop: a standing obstacle there leads its front vehicle) */
+    const WfProfile *demand;
+    double    share, start_m, end_m;
 } CorLane;
 
 struct WfCorridor {
@@ -281,6 +285,10 @@ static int alloc_entrance(WfCorridor *c, WfError *err)
     const WfCorridorSpec *cs = c->cs;
     size_t seg = 0;
     double lam = wf_profile_integral(&cs->inflow_vph, sc->duration_s, &seg) / 3600.0;
+    if (cs->has_ramp) { /* each lane's queue has room for the larger demand */
+        size_t rseg = 0;
+        lam = fmax(lam, wf_profile_integral(&cs->ramp_vph, sc->duration_s, &rseg) / 3600.0);
+    }
     double qcap = cs->arrivals == WF_ARRIVALS_POISSON ? lam + 12.0 * sqrt(lam) + 32.0 : floor(lam) + 2.0;
     if (cs->max_arrivals >= 0 && (double)cs->max_arrivals + 1.0 < qcap) qcap = (double)cs->max_arrivals + 1.0;
     if (qcap > 2e8)
@@ -377,7 +385,15 @@ static int corridor_create(WfSim *sim, WfError *err)
     c->cs = sc->corridor;
     c->L = sc->road.length_m;
     c->fault_slot = -1;
-    c->n_lanes = sc->n_lanes > 1 ? (size_t)sc->n_lanes : 1;
+    c->n_lanes = (sc->n_lanes > 1 ? (size_t)sc->n_lanes : 1) + (size_t)c->cs->has_ramp;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        CorLane *ln = &c->ln[l];
+        int ramp = c->cs->has_ramp && l == 0;
+        ln->demand = ramp ? &c->cs->ramp_vph : &c->cs->inflow_vph;
+        ln->share = ramp ? 1.0 : c->cs->lane_share[l - (size_t)c->cs->has_ramp];
+        ln->start_m = ramp ? c->cs->ramp_from_m : 0.0;
+        ln->end_m = c->n_lanes > 1 ? c->cs->lane_end_m[l] : INFINITY;
+    }
     c->n_steps = wf_scenario_n_steps(sc);
     c->out_every = wf_scenario_output_every(sc);
     c->traj_every = wf_scenario_trajectory_every(sc);
@@ -466,7 +482,7 @@ static int arrivals(WfCorridor *c, double t, WfError *err)
     for (size_t l = 0; l < c->n_lanes; l++) {
         struct CorEntrance *en = &c->st.lane[l];
         /* lane l's demand: its share of the road's (the share of one lane is 1, exactly) */
-        double lam = cs->lane_share[l] * (wf_profile_integral(&cs->inflow_vph, t, &en->in_seg) / 3600.0);
+        double lam = c->ln[l].share * (wf_profile_integral(c->ln[l].demand, t, &en->in_seg) / 3600.0);
         /* A deterministic target is an integer that the demand reaches up to round-off in t = k dt. */
         while (lam + 1e-9 * fmax(1.0, lam) >= en->next_target && (cs->max_arrivals < 0 || n->arrived < cs->max_arrivals)) {
             if ((size_t)en->queued >= c->q_cap)
@@ -509,15 +525,18 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
     const WfScenario *sc = c->sc;
     const WfDriverGroup *grp = &sc->groups[en->cand_group];
     double buf[WF_MAX_MODEL_PARAMS];
-    const double *p = params_at(ln, en->cand_group, en->cand_params, 0.0, buf);
-    double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, 0.0));
+    double x0 = ln->start_m;
+    const double *p = params_at(ln, en->cand_group, en->cand_params, x0, buf);
+    double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, x0));
     double v_hi = isfinite(vcap) ? vcap : 100.0;
     double gap, vl;
-    int free_road = 0;
+    int free_road = 0, obstacle = 0;
     if (vh->n > 0) {
         size_t last = wf_corridor_slot(vh, vh->n - 1);
-        gap = vh->x_m[last] - vh->length_m[last];
+        gap = vh->x_m[last] - vh->length_m[last] - x0;
         vl = vh->v_mps[last];
+    } else if (isfinite(ln->end_m)) {
+        gap = ln->end_m - x0, vl = 0.0, obstacle = 1; /* an empty merge lane: its end ahead */
     } else if (c->has_vl) {
         gap = en->vl_x;
         vl = en->vl_v;
@@ -530,15 +549,26 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
     /* Never faster than the vehicle's own free speed (its model's equilibrium speed at the far gap), or a driver
      * slower than the stream could never join it; on an empty road the far leader drives at that speed. */
     double vfree = wf_cf_equilibrium_speed(grp->model, p, WF_CORRIDOR_FREE_GAP_M, v_hi);
-    double vin = fmin(fmin(vcap, vl), vfree);
+    double vin = fmin(obstacle ? vcap : fmin(vcap, vl), vfree), b = c->cs->insert_decel_mps2;
     if (free_road) vl = vin;
-    if (!(grp->model->accel(p, NULL, gap, vin, vl) >= -c->cs->insert_decel_mps2)) return 0;
+    if (obstacle && !(grp->model->accel(p, NULL, gap, vin, vl) >= -b)) {
+        /* toward a lane's end the entry speed is the highest the rule admits (the models brake harder the faster
+         * they approach a standing leader): bisection to 1e-9 of it */
+        double lo = 0.0, hi = vin;
+        for (int it = 0; it < 64 && hi - lo > 1e-9 * vin; it++) {
+            double mid = 0.5 * (lo + hi);
+            if (grp->model->accel(p, NULL, gap, mid, vl) >= -b) lo = mid;
+            else hi = mid;
+        }
+        vin = lo;
+    }
+    if (!(grp->model->accel(p, NULL, gap, vin, vl) >= -b)) return 0;
 
     /* The new back vehicle: the slot behind the back one. */
     vh->first = vh->first ? vh->first - 1 : vh->cap - 1;
     vh->n++;
     size_t s = vh->first;
-    vh->x_m[s] = 0.0;
+    vh->x_m[s] = x0;
     vh->v_mps[s] = vin;
     vh->a_mps2[s] = 0.0;
     vh->length_m[s] = en->cand_len;
@@ -719,7 +749,7 @@ static void lanes_road(WfCorridor *c, WfLcRoad *r)
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
         const WfCorridorVehicles *vh = &ln->veh;
-        r->first[l] = i, r->count[l] = vh->n, r->front[l] = front_leader(c, l);
+        r->first[l] = i, r->count[l] = vh->n, r->front[l] = front_leader(c, l), r->end_m[l] = ln->end_m;
         for (size_t j = 0; j < vh->n; j++, i++) {
             size_t s = vh->first + j < cap ? vh->first + j : vh->first + j - cap; /* back to front */
             c->snap.x_m[i] = vh->x_m[s], c->snap.v_mps[i] = vh->v_mps[s], c->snap.class_id[i] = vh->class_id[s];
@@ -810,6 +840,7 @@ static void lane_exports(WfCorridor *c, int on)
 static WfLead front_leader(const WfCorridor *c, size_t l)
 {
     const struct CorEntrance *en = &c->st.lane[l];
+    if (isfinite(c->ln[l].end_m)) return (WfLead){c->ln[l].end_m, 0.0, 0.0}; /* the lane's end, standing */
     return c->has_vl ? (WfLead){en->vl_x, en->vl_v, 0.0} : (WfLead){0.0, 0.0, WF_CORRIDOR_FREE_GAP_M};
 }
 
@@ -830,6 +861,8 @@ static void phase_overlaps(WfCorridor *c, CorLane *ln, int in_window, size_t upt
         if (k > 0) {
             size_t p = wf_corridor_slot(vh, k - 1);
             limit = vh->x_m[p] - vh->length_m[p];
+        } else if (isfinite(ln->end_m)) {
+            limit = ln->end_m;
         } else if (c->has_vl) {
             limit = c->st.lane[ln - c->ln].vl_x;
         } else {

@@ -225,6 +225,8 @@ static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t 
     for (int d = 0; d < 2; d++) {
         if ((d == 0 && l == 0) || (d == 1 && l + 1 == r->n_lanes)) continue;
         size_t tl = d ? l + 1 : l - 1, c = 0;
+        if (isfinite(r->end_m[tl])) continue; /* a lane that ends takes nobody */
+        int rule = isfinite(r->end_m[l]) ? WF_LANE_RULE_MANDATORY : sc->lane_rule;
         for (size_t k = 0; k < m; k++) {
             size_t i = i0 + k;
             if (!sc->groups[r->group_id[i]].lc || step < r->ready_step[i]) continue;
@@ -238,7 +240,7 @@ static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t 
             const WfDriverGroup *grp = &sc->groups[r->group_id[i]];
             WfLcCase cs = {own_now[k], bt->a[EV_OWN_NEW][q], bt->a[EV_NEW_NOW][q], bt->a[EV_NEW_NEW][q],
                            bt->a[EV_OLD_NOW][q], bt->a[EV_OLD_NEW][q], bt->has_new[q], bt->has_old[q]};
-            double adv = grp->lc->advantage(grp->lc_params, d ? WF_LANE_LEFT : WF_LANE_RIGHT, sc->lane_rule, &cs);
+            double adv = grp->lc->advantage(grp->lc_params, d ? WF_LANE_LEFT : WF_LANE_RIGHT, rule, &cs);
             if (adv > lc->adv_mps2[i]) lc->adv_mps2[i] = adv, lc->dir[i] = (int8_t)(d ? WF_LANE_LEFT : WF_LANE_RIGHT);
         }
     }
@@ -319,6 +321,7 @@ void wf_lanes_ring_road(WfLaneChanges *lc, const WfScenario *sc, const WfFleet *
                     .ready_step = f->lc_ready_step, .class_length_m = f->class_length_m, .params = ring_params,
                     .state = ring_state, .ctx = f};
     for (size_t g = 0; g < f->n_groups; g++) r->group_params[g] = f->group_param_stride[g] ? NULL : f->group_params[g];
+    for (size_t l = 0; l < WF_MAX_LANES; l++) r->end_m[l] = INFINITY;
     for (size_t l = 0, first = 0; l < f->n_lanes; first += f->lane_n[l++]) r->first[l] = first, r->count[l] = f->lane_n[l];
     for (size_t i = 0; i < n; i++) {
         double q = f->x_m[i] - L * (double)wf_lap_index(f->x_m[i] / L);

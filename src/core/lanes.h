@@ -30,6 +30,9 @@ typedef struct WfLcRoad {
     double            L;                        /* ring length (periodic) */
     size_t            n, n_lanes, first[WF_MAX_LANES], count[WF_MAX_LANES], rot[WF_MAX_LANES];
     WfLead            front[WF_MAX_LANES];
+    /* where each lane ends (+inf: it runs on; a merge lane or a dropped lane otherwise): nobody changes into a lane
+     * that ends, and a vehicle in one leaves it by WF_LANE_RULE_MANDATORY */
+    double            end_m[WF_MAX_LANES];
     const double     *x_m, *p_m, *v_mps;
     const uint16_t   *class_id, *group_id;
     const int64_t    *ready_step;               /* the first step at which each vehicle may change lanes again */

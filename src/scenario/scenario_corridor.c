@@ -35,6 +35,7 @@ void wf_corridor_spec_destroy(WfCorridorSpec **ps)
     free(s->elev_z_m);
     profile_free(&s->inflow_vph);
     profile_free(&s->leader_speed_mps);
+    profile_free(&s->ramp_vph);
     free(s);
     *ps = NULL;
 }
@@ -351,6 +352,68 @@ static int load_inflow(WfCfgNode *in, const WfKeySpec *row, void *t, WfKeyEnv *e
 
 static const WfKeyTable outflow_keys;
 
+/* corridor.on_ramp's demand (read only when the section is there). */
+static int load_ramp_flow(WfCfgNode *ramp, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    if (!ramp) return 0;
+    return profile_row(ramp, row, env, &((WfCorridorSpec *)t)->ramp_vph, err);
+}
+
+/* corridor.on_ramp: a merge lane inside the road, lane 0 beside lanes 1 .. road.lanes (at most WF_MAX_LANES in all). */
+static int check_ramp(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfCorridorSpec *cs = t;
+    WfCfgNode *ramp = wf_cfg_child(corr, row->key);
+    char w[1024];
+    if (!ramp) return 0;
+    double L = env->sc->road.length_m;
+    cs->has_ramp = 1;
+    if (!(cs->ramp_from_m >= 0.0 && cs->ramp_from_m < cs->ramp_to_m && cs->ramp_to_m < L))
+        return wf_err(err, WF_EINPUT, "%s: corridor.on_ramp: the merge lane [%s, %s] m must lie inside the road "
+                      "[0, %s) m with from_m < to_m", wf_scenario_where(ramp, w, sizeof w), WF_NUM(cs->ramp_from_m),
+                      WF_NUM(cs->ramp_to_m), WF_NUM(L));
+    if (env->sc->n_lanes + 1 > WF_MAX_LANES)
+        return wf_err(err, WF_EINPUT, "%s: corridor.on_ramp adds lane 0 to road.lanes = %d: at most %d lanes in all",
+                      wf_scenario_where(ramp, w, sizeof w), env->sc->n_lanes, WF_MAX_LANES);
+    return 0;
+}
+
+/* corridor.lane_drops: [{lane: K, at_m: X}, ...]: lane K (numbered with the merge lane, when there is one) ends at X;
+ * some lane must reach the exit, and the merge lane ends where the ramp says. */
+static int load_lane_drops(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfCorridorSpec *cs = t;
+    WfCfgNode *seq = NULL;
+    char w[1024];
+    int nl = (env->sc->n_lanes > 1 ? env->sc->n_lanes : 1) + cs->has_ramp, through = 0;
+    double L = env->sc->road.length_m;
+    for (int l = 0; l < WF_MAX_LANES; l++) cs->lane_end_m[l] = INFINITY;
+    if (cs->has_ramp) cs->lane_end_m[0] = cs->ramp_to_m;
+    if (wf_cfg_seq_opt(corr, row->key, &seq, err)) return WF_EINPUT;
+    for (size_t k = 0; seq && k < seq->n_child; k++) {
+        WfCfgNode *e = seq->child[k];
+        double lane, at;
+        e->used = 1;
+        if (e->kind != WF_CFG_MAP)
+            return wf_err(err, WF_EINPUT, "%s: expected a map {lane: K, at_m: X}", wf_scenario_where(e, w, sizeof w));
+        if (wf_cfg_double(e, "lane", cs->has_ramp, nl - 1, "(lane)", &lane, err) ||
+            wf_cfg_double(e, "at_m", 1e-3, L, "m", &at, err))
+            return WF_EINPUT;
+        if (lane != floor(lane))
+            return wf_err(err, WF_EINPUT, "%s: corridor.lane_drops[%zu].lane: expected a whole lane number (got %s)",
+                          wf_scenario_where(e, w, sizeof w), k, WF_NUM(lane));
+        if (isfinite(cs->lane_end_m[(int)lane]))
+            return wf_err(err, WF_EINPUT, "%s: corridor.lane_drops[%zu]: lane %d already ends", wf_scenario_where(e, w, sizeof w),
+                          k, (int)lane);
+        cs->lane_end_m[(int)lane] = at;
+    }
+    for (int l = 0; l < nl; l++) through += !isfinite(cs->lane_end_m[l]);
+    if (!through)
+        return wf_err(err, WF_EINPUT, "%s: corridor.lane_drops: every lane ends before the exit: at least one must reach "
+                      "x = L", seq ? wf_scenario_where(seq, w, sizeof w) : env->sc->path);
+    return 0;
+}
+
 /* The virtual leader's speed and start: only for the leader and speed outflows. */
 static int load_outflow_speed(WfCfgNode *outf, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
@@ -502,10 +565,33 @@ static const WfKeySpec edie_rows[] = {
 };
 static const WfKeyTable edie_keys = {"corridor.edie", edie_rows, 2};
 
+static const WfKeySpec ramp_rows[] = {
+    {.key = "from_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfCorridorSpec, ramp_from_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
+     .doc = "where the merge lane starts: its vehicles enter here"},
+    {.key = "to_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfCorridorSpec, ramp_to_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
+     .doc = "where it ends: its vehicles must merge before (the end stops them)"},
+    {.key = "flow_vph", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .hook = load_ramp_flow, .max = 36000,
+     .unit = "veh/h", .doc_type = "veh/h", .doc_default = "required (or `csv`/`points`)", .doc_range = "[0, 36000]",
+     .doc = "the ramp's demand, with the arrivals of `corridor.inflow`"},
+    {.key = "csv", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "CSV `time_s,flow_vph`", .doc = "time-varying ramp demand"},
+    {.key = "points", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .flags = WF_KEY_NOREAD,
+     .doc_type = "list of `[t, q]`", .doc = "the same as a list"},
+};
+static const WfKeyTable ramp_keys = {"corridor.on_ramp", ramp_rows, sizeof ramp_rows / sizeof *ramp_rows};
+
 static const WfKeySpec corridor_rows[] = {
     {.key = "inflow", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED | WF_KEY_FLAT,
      .sub = &inflow_keys, .need = "a map {flow_vph: Q}"},
     {.key = "outflow", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_FLAT, .sub = &outflow_keys},
+    {.key = "on_ramp", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_FLAT, .sub = &ramp_keys,
+     .hook = check_ramp},
+    {.key = "lane_drops", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .hook = load_lane_drops,
+     .doc_type = "list of `{lane, at_m}`", .doc_default = "none", .doc_range = "a lane of the road, (0, L]",
+     .doc = "lane `lane` ends at `at_m`: its vehicles must change lanes before (the end stops them); lanes are "
+            "numbered with the merge lane (`on_ramp`) as lane 0 when there is one ([lanes.md](lanes.md))"},
     {.key = "zone_decel_mps2", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
      .offset = offsetof(WfCorridorSpec, zone_decel_mps2), .def = 1.0, .min = 0.1, .max = 10, .unit = "m/s^2",
      .doc = "braking with which drivers meet a lower zone limit ahead"},

@@ -1,7 +1,8 @@
 /* MOBIL, "minimizing overall braking induced by lane changes" (Kesting, Treiber & Helbing 2007, Transp. Res. Rec.
  * 1999, 86-94), with the accelerations of each driver's own car-following model (wavefuel/lanechange.h: WfLcCase;
  * a tilde is the value after the change, c the changer, n the new follower, o the old follower):
- *   safety:     ã_c >= -b_safe and ã_n >= -b_safe
+ *   safety:     ã_c >= -b_safe and ã_n >= -b_safe (b_mandatory for a mandatory change, judged by the symmetric
+ *               incentive)
  *   symmetric:  ã_c - a_c + p [(ã_n - a_n) + (ã_o - a_o)] > Δa_th
  *   keep right: to the left:  ã_c - a_c + p (ã_n - a_n) > Δa_th + Δa_bias
  *               to the right: ã_c - a_c + p (ã_o - a_o) > Δa_th - Δa_bias
@@ -18,6 +19,7 @@ typedef struct Mobil {
     double bias_mps2;      /* Δa_bias: keep_right only */
     double b_safe_mps2;    /* b_safe (magnitude) */
     double min_interval_s; /* least time between two changes of a vehicle */
+    double b_mandatory_mps2; /* b_safe of a mandatory change */
 } Mobil;
 
 static const WfParamSpec mobil_spec[] = {
@@ -32,15 +34,19 @@ static const WfParamSpec mobil_spec[] = {
      "b_safe: the hardest braking a change may impose on the new follower or the changer (magnitude)"},
     {"min_interval_s", offsetof(Mobil, min_interval_s), 1.0, 0.0, 3600.0, "s", 0,
      "least time between two changes of a vehicle"},
+    {"b_mandatory_mps2", offsetof(Mobil, b_mandatory_mps2), 8.0, 0.1, 20.0, "m/s^2", 0,
+     "b_safe of a mandatory change (out of a merge lane or a lane that ends): merging drivers accept harder braking "
+     "behind them; the incentive is the symmetric rule's"},
 };
 
 static double mobil_advantage(const void *params, int dir, int rule, const WfLcCase *c)
 {
     const Mobil *p = params;
-    if (c->own_new < -p->b_safe_mps2 || (c->has_new && c->new_new < -p->b_safe_mps2)) return -INFINITY;
+    double b = rule == WF_LANE_RULE_MANDATORY ? p->b_mandatory_mps2 : p->b_safe_mps2;
+    if (c->own_new < -b || (c->has_new && c->new_new < -b)) return -INFINITY;
     double own = c->own_new - c->own_now;
     double dn = c->has_new ? c->new_new - c->new_now : 0.0, d_o = c->has_old ? c->old_new - c->old_now : 0.0;
-    if (rule == WF_LANE_RULE_SYMMETRIC) return own + p->politeness * (dn + d_o) - p->threshold_mps2;
+    if (rule != WF_LANE_RULE_KEEP_RIGHT) return own + p->politeness * (dn + d_o) - p->threshold_mps2;
     if (dir == WF_LANE_LEFT) return own + p->politeness * dn - (p->threshold_mps2 + p->bias_mps2);
     return own + p->politeness * d_o - (p->threshold_mps2 - p->bias_mps2);
 }
