@@ -67,11 +67,11 @@ static void test_registry_and_defaults(void)
               err.msg);
     CHECK(m->param_size <= WF_MAX_LC_PARAMS * sizeof(double) && m->param_size <= sizeof(Params), "param_size %zu",
           m->param_size);
-    /* The defaults the lane-change brief states (commit 5354bc5): p 0.2, Δa_th 0.1, Δa_bias 0.3,
-     * b_safe 4, 1 s between changes. */
+    /* The defaults docs/lanes.md states: p 0.2, Δa_th 0.1, Δa_bias 0.3, b_safe 4, 1 s between changes, and
+     * b_safe 8 for mandatory changes. */
     static const struct { const char *key; double def; } want[] = {
         {"politeness", 0.2}, {"threshold_mps2", 0.1}, {"bias_mps2", 0.3}, {"b_safe_mps2", 4.0},
-        {"min_interval_s", 1.0}};
+        {"min_interval_s", 1.0}, {"b_mandatory_mps2", 8.0}};
     CHECK(m->n_spec == sizeof want / sizeof want[0], "%zu keys", m->n_spec);
     Params p = lc_defaults(m);
     for (size_t k = 0; k < sizeof want / sizeof want[0]; k++) {
@@ -143,6 +143,23 @@ static void test_safety(void)
     lc_set(m, &p, "b_safe_mps2", 5.0);
     WfLcCase c = lc_case(-6.0, 2.0, 0.0, -4.5, 0.0, 0.0);
     CHECK_ABS(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_SYMMETRIC, c), 7.0, 1e-12);
+}
+
+/* A mandatory change (out of a lane that ends) is judged with b_mandatory (default 8) and the symmetric incentive,
+ * both directions alike: the new follower braking at 6 blocks an ordinary change (b_safe 4) but not a mandatory
+ * one, whose advantage is then 2 - (-6) + 0.2 (-6 - 0 + 0 - 0) - 0.1 = 6.7 to either side; beyond -8 it is unsafe
+ * too. */
+static void test_mandatory(void)
+{
+    const WfLaneChangeModel *m = mobil();
+    if (!m) return;
+    Params p = lc_defaults(m);
+    WfLcCase c = lc_case(-6.0, 2.0, 0.0, -6.0, 0.0, 0.0);
+    CHECK(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_SYMMETRIC, c) == -INFINITY, "ordinary change admitted");
+    CHECK_ABS(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_MANDATORY, c), 6.7, 1e-12);
+    CHECK_ABS(adv(m, &p, WF_LANE_RIGHT, WF_LANE_RULE_MANDATORY, c), 6.7, 1e-12);
+    c = lc_case(-6.0, 2.0, 0.0, -8.5, 0.0, 0.0);
+    CHECK(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_MANDATORY, c) == -INFINITY, "beyond b_mandatory admitted");
 }
 
 /* ---------------------------------------------------------------- politeness */
@@ -306,6 +323,7 @@ int main(void)
     RUN(test_incentive_above_threshold);
     RUN(test_incentive_below_threshold);
     RUN(test_safety);
+    RUN(test_mandatory);
     RUN(test_politeness_flips);
     RUN(test_keep_right_bias);
     RUN(test_missing_followers);
