@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Units against the docs: every dataset of a ring result (with trajectories), a ring result of a SUNDIALS integrator
-# (/solver), a multi-lane ring result (/lanes and its per-vehicle columns) and a corridor result (trips, detectors, Edie, trajectories) must be listed in docs/output.md's tables
+# (/solver), multi-lane ring and corridor results (/lanes and their per-vehicle columns) and a corridor result (trips, detectors, Edie, trajectories) must be listed in docs/output.md's tables
 # ("Every dataset", "Every dataset of a corridor result", "/solver") with exactly the `units` attribute the file
 # has (exact string: `g` is not `kg`), and every row of those tables must exist in the file of its kind. A sweep
 # table's /metrics/NAME and /class_metrics/NAME carry the units of /summary/NAME (docs/sweeps.md: "as in a run file").
@@ -17,7 +17,8 @@ SF="--set fleet.drivers[0].safety.kind=ttc"
 if ! run tests/data/tiny_ring.yaml -o "$tmp/ring.h5" --set time.duration_s=6 $SF ||
    ! run tests/data/tiny_ring.yaml -o "$tmp/cvode.h5" --set time.duration_s=1 --set time.warmup_s=0 --set time.integrator=cvode ||
    ! run tests/data/tiny_corridor.yaml -o "$tmp/corridor.h5" --set time.duration_s=60 $SF ||
-   ! run scenarios/ring_lanes.yaml -o "$tmp/lanes.h5" --set time.duration_s=20 --set time.warmup_s=5 $SF; then
+   ! run scenarios/ring_lanes.yaml -o "$tmp/lanes.h5" --set time.duration_s=20 --set time.warmup_s=5 $SF ||
+   ! run scenarios/corridor_bottleneck_lanes.yaml -o "$tmp/clanes.h5" --set time.duration_s=120 --set time.warmup_s=10 $SF; then
   echo "FAIL units_runs"; exit 1
 fi
 cat >"$tmp/sweep.yaml" <<EOF
@@ -84,6 +85,11 @@ compare("units_lanes_vs_docs", {d: u for d, u in datasets(tmp + "/lanes.h5").ite
                                 if d in ring or not d.startswith("/vehicles/param_")}, {**ring, **lanes}, False)
 missing = [d for d in lanes if d not in datasets(tmp + "/lanes.h5")]
 print(("FAIL" if missing else "PASS") + " units_lanes_table_exists" + (": " + ", ".join(missing) if missing else ""))
+clanes = table("Every dataset a multi-lane corridor adds")
+lane_sets = {d: u for d, u in lanes.items() if d.startswith(("/lanes/", "/summary/"))}
+compare("units_corridor_lanes_vs_docs", datasets(tmp + "/clanes.h5"), {**corridor, **lane_sets, **clanes}, False)
+missing = [d for d in {**lane_sets, **clanes} if d not in datasets(tmp + "/clanes.h5")]
+print(("FAIL" if missing else "PASS") + " units_corridor_lanes_table_exists" + (": " + ", ".join(missing) if missing else ""))
 sw = datasets(tmp + "/sweep.h5")
 want = {d: ring.get("/summary/" + d.split("/")[-1]) for d in sw if d.startswith(("/metrics/", "/class_metrics/"))}
 want["/class_metrics/class_count"] = "1"  # a sweep-only column: vehicles of the class

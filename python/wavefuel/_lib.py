@@ -245,6 +245,8 @@ _SIGNATURES = {
     "wf_rl_batch_prev_accel": (C.POINTER(C.c_double), [_vp]),
     "wf_rl_batch_step": (C.c_int, [_vp, _vp, C.c_int, _vp, _vp, _vp, _vp]),
     "wf_corridor_vehicles": (C.POINTER(WfCorridorVehicles), [_vp]),
+    "wf_corridor_n_lanes": (C.c_size_t, [_vp]),
+    "wf_corridor_lane": (C.POINTER(WfCorridorVehicles), [_vp, C.c_size_t]),
     "wf_corridor_counts": (C.POINTER(WfCorridorCounts), [_vp]),
     "wf_h5out_create": (C.c_int, [_vp, C.c_char_p, C.c_int, C.POINTER(_vp), C.POINTER(WfOutput), _err]),
     "wf_h5out_destroy": (None, [C.POINTER(_vp)]),

@@ -196,22 +196,31 @@ class Simulation:
         theta_rad, fuel_rate_gps, flag, length_m, serial (arrival number), class_id, group_id. Vehicles live in a
         circular buffer of slots: the arrays are views (reversed slices) while the vehicles occupy one contiguous
         run of slots, and copies when that run wraps around the buffer's end. Either way they describe the
-        vehicles present when state() was called: call it again after stepping."""
+        vehicles present when state() was called: call it again after stepping. A corridor of several lanes gives
+        its lanes one after the other (lane 0 first, each in road order) as copies, with `lane` (docs/lanes.md)."""
         self._alive()
         if self._ring_state is not None:
             return dict(self._ring_state)
-        vh = lib.wf_corridor_vehicles(lib.wf_sim_corridor(self._ptr)).contents
+        corr = lib.wf_sim_corridor(self._ptr)
         names = ("x_m", "v_mps", "a_mps2", "gap_m", "v_lead_mps", "theta_rad", "fuel_rate_gps", "flag", "length_m",
                  "serial", "class_id", "group_id")
-        first, n, cap = vh.first, vh.n, vh.cap
-        out = {}
-        for k in names:
-            buf = _view(getattr(vh, k), cap, self._run)
-            if first + n <= cap:  # one contiguous run: slots first .. first + n - 1, back to front
-                out[k] = buf[first:first + n][::-1]
-            else:
-                out[k] = np.concatenate((buf[:first + n - cap][::-1], buf[first:][::-1]))
-        return out
+        lanes = []
+        for lane in range(lib.wf_corridor_n_lanes(corr)):
+            vh = lib.wf_corridor_lane(corr, lane).contents
+            first, n, cap = vh.first, vh.n, vh.cap
+            out = {}
+            for k in names:
+                buf = _view(getattr(vh, k), cap, self._run)
+                if first + n <= cap:  # one contiguous run: slots first .. first + n - 1, back to front
+                    out[k] = buf[first:first + n][::-1]
+                else:
+                    out[k] = np.concatenate((buf[:first + n - cap][::-1], buf[first:][::-1]))
+            out["lane"] = np.full(n, lane, dtype=np.uint8)
+            lanes.append(out)
+        if len(lanes) == 1:
+            del lanes[0]["lane"]
+            return lanes[0]
+        return {k: np.concatenate([ln[k] for ln in lanes]) for k in lanes[0]}
 
     @property
     def n_vehicles(self):
