@@ -57,7 +57,8 @@ def datasets(path):
     def visit(name, obj):
         if isinstance(obj, h5py.Dataset) and not name.startswith("classes/params/"):
             u = obj.attrs.get("units")
-            out["/" + name] = u.decode() if isinstance(u, bytes) else u
+            # one row of the docs stands for every lane's Edie group (/lanes/edie/laneL/...)
+            out["/" + re.sub(r"^lanes/edie/lane[0-9]+/", "lanes/edie/laneL/", name)] = u.decode() if isinstance(u, bytes) else u
     h5py.File(path).visititems(visit)
     return out
 

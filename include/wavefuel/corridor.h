@@ -185,6 +185,8 @@ typedef struct WfDetectors {
 typedef struct WfEdie {
     size_t  nx, nt;
     double  dx_m, dt_s;
+    /* [lane x t x x]: each lane's cell sums (n_lanes planes of nt x nx; the road's field is their sum) */
+    size_t  n_lanes;
     double *dist_m, *time_s, *fuel_g;
     double *grade_mean_rad;           /* [nx] cell mean of theta */
     double *class_dist_m, *class_fuel_g;
@@ -197,5 +199,8 @@ const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c);
 const WfCorridorCounts   *wf_corridor_counts(const WfCorridor *c);
 const WfDetectors        *wf_corridor_detectors(const WfCorridor *c);
 const WfEdie             *wf_corridor_edie(const WfCorridor *c);
+/* Lane l's Edie cell sums as a WfEdie of one plane (lane < 0: the road's, every lane's summed in lane order into
+ * scratch, 3 nt nx doubles, when there are several; borrowed otherwise). */
+WfEdie wf_corridor_edie_lane(const WfEdie *e, int lane, double *scratch);
 
 #endif

@@ -318,7 +318,9 @@ static int alloc_measure(WfCorridor *c, WfError *err)
     e->nt = (size_t)((c->n_steps + c->edie_every - 1) / c->edie_every);
     if (e->nx < 1) e->nx = 1;
     if (e->nt < 1) e->nt = 1;
-    ALLOC(e->dist_m, e->nx * e->nt); ALLOC(e->time_s, e->nx * e->nt); ALLOC(e->fuel_g, e->nx * e->nt);
+    e->n_lanes = c->n_lanes;
+    size_t ne = c->n_lanes * e->nx * e->nt; /* a plane per lane */
+    ALLOC(e->dist_m, ne); ALLOC(e->time_s, ne); ALLOC(e->fuel_g, ne);
     ALLOC(e->grade_mean_rad, e->nx); ALLOC(e->class_dist_m, e->nx * sc->n_classes);
     ALLOC(e->class_fuel_g, e->nx * sc->n_classes);
     for (size_t i = 0; i < e->nx; i++) {
@@ -1018,7 +1020,9 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
 {
     const WfCorridorVehicles *vh = &ln->veh;
     WfEdie *e = &c->edie;
-    size_t j = (size_t)(step / c->edie_every), jd = c->det.n_det ? (size_t)(step / c->det_every) : 0, nx = e->nx;
+    /* row j of the lane's plane */
+    size_t j = (size_t)(ln - c->ln) * e->nt + (size_t)(step / c->edie_every), nx = e->nx;
+    size_t jd = c->det.n_det ? (size_t)(step / c->det_every) : 0;
     size_t nc = c->sc->n_classes, held = SIZE_MAX; /* the cell whose sums are in registers */
     double dt = c->sc->dt_s, *row_d = e->dist_m + j * nx, *row_t = e->time_s + j * nx, *row_f = e->fuel_g + j * nx;
     double *cdist = e->class_dist_m, *cfuel = e->class_fuel_g;
@@ -1461,11 +1465,31 @@ const WfCorridorCounts *wf_corridor_counts(const WfCorridor *c) { return &c->st.
 const WfDetectors *wf_corridor_detectors(const WfCorridor *c) { return &c->det; }
 const WfEdie *wf_corridor_edie(const WfCorridor *c) { return &c->edie; }
 
+WfEdie wf_corridor_edie_lane(const WfEdie *e, int lane, double *scratch)
+{
+    WfEdie v = *e;
+    size_t n = e->nx * e->nt;
+    v.n_lanes = 1;
+    if (lane >= 0) {
+        v.dist_m += (size_t)lane * n, v.time_s += (size_t)lane * n, v.fuel_g += (size_t)lane * n;
+        return v;
+    }
+    if (e->n_lanes == 1) return v;
+    v.dist_m = scratch, v.time_s = scratch + n, v.fuel_g = scratch + 2 * n;
+    for (size_t a = 0; a < n; a++) {
+        double d = 0, t = 0, f = 0;
+        for (size_t l = 0; l < e->n_lanes; l++) d += e->dist_m[l * n + a], t += e->time_s[l * n + a], f += e->fuel_g[l * n + a];
+        v.dist_m[a] = d, v.time_s[a] = t, v.fuel_g[a] = f;
+    }
+    return v;
+}
+
 static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
 {
     WfCorridor *c = eng;
     WfCorridorVehicles *vh = &c->ln[0].veh;
-    size_t cap = vh->cap, nl = c->n_lanes, k = 0, nd = c->det.n_int * c->det.n_det, ne = c->edie.nx * c->edie.nt;
+    size_t cap = vh->cap, nl = c->n_lanes, k = 0, nd = c->det.n_int * c->det.n_det;
+    size_t ne = nl * c->edie.nx * c->edie.nt;
     size_t ncx = c->edie.nx * c->sc->n_classes;
 #define VAR(nm, ptr, count)                                                                     \
     do {                                                                                        \

@@ -152,13 +152,46 @@ static int write_detectors(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *
 }
 
 /* /edie, its grid and the axes of its fields said in attributes when the file is created. */
+/* Edie's fields of a lane (in lanes/edie/laneL: the fields only; the grid and class profiles are the road's). */
+static int write_edie_lane(hid_t fid, const WfEdie *lane, size_t l, const WfScenario *sc, WfH5Pass pass, WfError *err)
+{
+    char name[64];
+    snprintf(name, sizeof name, "lanes/edie/lane%zu", l);
+    hid_t g = wf_h5_group_pass(fid, name, pass, err);
+    if (g < 0) return WF_ESYS;
+    double *buf = malloc(wf_edie_scratch(lane, sc->n_classes) * sizeof *buf);
+    WfObsData data[WF_EDIE_N_COLS];
+    int rc = !buf ? wf_err(err, WF_ESYS, "out of memory") : 0;
+    if (!rc) wf_edie_fields(lane, sc, buf, data);
+    for (size_t k = 0; !rc && k < WF_EDIE_N_COLS; k++)
+        if (wf_edie_is_field(k)) rc = wf_h5_put_columns(g, &wf_edie_columns[k], &data[k], 1, pass, err);
+    free(buf);
+    H5Gclose(g);
+    return rc ? WF_ESYS : 0;
+}
+
 static int write_edie(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
-    const WfEdie *e = wf_corridor_edie(wf_sim_corridor(r->sim));
+    const WfEdie *all = wf_corridor_edie(wf_sim_corridor(r->sim));
     const WfScenario *sc = r->sc;
-    if (write_grid(fid, "edie", wf_edie_columns, WF_EDIE_N_COLS, wf_edie_scratch(e, sc->n_classes), edie_fields, e,
-                   sc, pass, err))
-        return WF_ESYS;
+    /* the road's fields: every lane's cell sums added in lane order (the lane's own on one lane) */
+    double *sum = all->n_lanes > 1 ? malloc(3 * all->nx * all->nt * sizeof *sum) : NULL;
+    if (all->n_lanes > 1 && !sum) return wf_err(err, WF_ESYS, "out of memory");
+    WfEdie road = wf_corridor_edie_lane(all, -1, sum);
+    const WfEdie *e = &road;
+    int bad = write_grid(fid, "edie", wf_edie_columns, WF_EDIE_N_COLS, wf_edie_scratch(e, sc->n_classes), edie_fields,
+                         e, sc, pass, err);
+    if (!bad && all->n_lanes > 1) { /* /lanes exists (wf_h5_write_lanes runs first) */
+        hid_t g = wf_h5_group_pass(fid, "lanes/edie", pass, err);
+        bad = g < 0;
+        if (g >= 0) H5Gclose(g);
+    }
+    for (size_t l = 0; !bad && all->n_lanes > 1 && l < all->n_lanes; l++) {
+        WfEdie lane = wf_corridor_edie_lane(all, (int)l, NULL);
+        bad = write_edie_lane(fid, &lane, l, sc, pass, err);
+    }
+    free(sum);
+    if (bad) return WF_ESYS;
     if (pass == WF_H5_FILL) return 0;
     hid_t g = H5Gopen2(fid, "edie", H5P_DEFAULT);
     int rc = g < 0 ? wf_err(err, WF_ESYS, "HDF5: cannot reopen /edie")
@@ -177,7 +210,7 @@ static int write_edie(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 static int corridor_results(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
     return (pass == WF_H5_ALLOCATE && write_road(fid, r->sc, err)) || write_detectors(fid, r, pass, err) ||
-                   write_edie(fid, r, pass, err) || wf_h5_write_lanes(fid, r->sim, pass, err)
+                   wf_h5_write_lanes(fid, r->sim, pass, err) || write_edie(fid, r, pass, err)
                ? WF_ESYS
                : 0;
 }
