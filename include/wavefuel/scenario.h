@@ -116,6 +116,9 @@ int wf_scenario_load_text(const char *path, const char *text, const char *const 
                           WfScenario **out, WfError *err);
 void wf_scenario_destroy(WfScenario **sc);
 
+/* Lanes of the road: road.lanes, and a corridor's merge lane (corridor.on_ramp) when it has one. */
+int wf_scenario_lanes(const WfScenario *sc);
+
 /* Number of steps and output records implied by the time section. */
 long wf_scenario_n_steps(const WfScenario *sc);
 long wf_scenario_output_every(const WfScenario *sc); /* steps between output records */

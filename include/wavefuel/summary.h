@@ -128,7 +128,8 @@ double wf_summary_value(const void *base, const WfSummaryField *f);
 
 /* The summary table `wavefuel run` prints: the class table with its fleet row, then the line of fleet values.
  * names[k]: class k's name. */
-void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const char *const *names, size_t n_classes);
+void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const char *const *names, size_t n_classes,
+                      const WfScenario *sc);
 /* The lines after it: each safety-filtered group's counts (group fields printed), then, when the run repaired
  * overlaps, a warning that its results include repaired collisions. Prints nothing for a run with neither. */
 void wf_summary_print_safety(FILE *out, const WfSummary *s, WfSummaryBoundary b, const WfScenario *sc);

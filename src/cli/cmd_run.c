@@ -75,7 +75,7 @@ static void print_summary(const WfSim *sim, const char *path)
     const char *names[WF_MAX_CLASSES];
     for (size_t c = 0; c < sc->n_classes; c++) names[c] = sc->classes[c].vc.name;
     WfSummaryBoundary b = wf_sim_corridor(sim) ? WF_SUMMARY_CORRIDOR : WF_SUMMARY_RING;
-    wf_summary_print(stdout, s, b, names, sc->n_classes);
+    wf_summary_print(stdout, s, b, names, sc->n_classes, sc);
     wf_summary_print_safety(stdout, s, b, sc);
     printf("result: %s\n", path);
 }

@@ -387,7 +387,7 @@ static int corridor_create(WfSim *sim, WfError *err)
     c->cs = sc->corridor;
     c->L = sc->road.length_m;
     c->fault_slot = -1;
-    c->n_lanes = (sc->n_lanes > 1 ? (size_t)sc->n_lanes : 1) + (size_t)c->cs->has_ramp;
+    c->n_lanes = (size_t)wf_scenario_lanes(sc);
     for (size_t l = 0; l < c->n_lanes; l++) {
         CorLane *ln = &c->ln[l];
         int ramp = c->cs->has_ramp && l == 0;

@@ -143,7 +143,7 @@ int wf_scenario_has_safety(const WfScenario *sc)
 
 int wf_summary_field_on(const WfSummaryField *f, const WfScenario *sc)
 {
-    if (f->when == WF_SUMMARY_IF_LANES) return sc->n_lanes > 1;
+    if (f->when == WF_SUMMARY_IF_LANES) return wf_scenario_lanes(sc) > 1;
     return f->when == WF_SUMMARY_ALWAYS || wf_scenario_has_safety(sc);
 }
 
@@ -218,7 +218,8 @@ static void print_row(FILE *out, const char *name, const void *base, int fleet, 
     fprintf(out, "%s\n", line);
 }
 
-void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const char *const *names, size_t n_classes)
+void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const char *const *names, size_t n_classes,
+                      const WfScenario *sc)
 {
     fprintf(out, "%-16s", "class");
     for (size_t k = 0; k < wf_summary_n_class_fields; k++) {
@@ -233,7 +234,7 @@ void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const 
     for (size_t k = 0; k < wf_summary_n_fields; k++) {
         const WfSummaryField *f = &wf_summary_fields[k];
         const WfSummaryPrint *p = &f->print[b];
-        if (!p->label) continue;
+        if (!p->label || !wf_summary_field_on(f, sc)) continue;
         char val[64];
         print_value(val, sizeof val, f, p->format, wf_summary_value(s, f));
         fprintf(out, "%s%s %s%s%s", sep, p->label, val, p->suffix[0] ? " " : "", p->suffix);

@@ -53,6 +53,11 @@ void wf_scenario_destroy(WfScenario **psc)
     *psc = NULL;
 }
 
+int wf_scenario_lanes(const WfScenario *sc)
+{
+    return (sc->n_lanes > 1 ? sc->n_lanes : 1) + (sc->corridor && sc->corridor->has_ramp);
+}
+
 long wf_scenario_n_steps(const WfScenario *sc) { return lround(sc->duration_s / sc->dt_s); }
 long wf_scenario_output_every(const WfScenario *sc) { return lround(sc->output_interval_s / sc->dt_s); }
 long wf_scenario_trajectory_every(const WfScenario *sc)
