@@ -8,9 +8,11 @@ with the reason on failure and prints a one-line account of what it measured on 
   identical A.h5 B.h5 MIN_LANE_N        every dataset and attribute equal bit for bit (meta wall times, threads left
                                         out), with lane changes and more than MIN_LANE_N vehicles in some lane
   physical FILE.h5 STEPS,...            frames written every step: order and positive gaps in each lane, vehicles
-                                        conserved against /trips, every lane change seen between frames counted in
-                                        /trips and in /lanes, min_interval_s of each group, the ballistic update
-                                        across changes (STEPS: each group's min_interval_s in steps)
+                                        conserved against /trips, every lane change and cut-in seen between frames
+                                        counted in /trips and in /lanes (per record, pair, lane, group), the records'
+                                        lanes from the frames, detector counts and Edie's distance from /trips and
+                                        the last frame, min_interval_s of each group (STEPS: in steps, per group),
+                                        the ballistic update across changes
   redistribute FILE.h5 X0 T0 OP SHARE   lane 0's share of the lanes' mean density over x >= X0, t >= T0 (from the
                                         frames), compared (lt/gt) with SHARE: its distance from an even split
   lanes_sums FILE.h5 [RUN_LOG]          /lanes against /timeseries, /summary, /trips and the printed summary line
@@ -212,6 +214,55 @@ def physical(path, min_steps):
     lk = step_of(f["lanes/t"][()], dt)
     per = np.array([np.sum((when > lo) & (when <= hi)) for lo, hi in zip(np.concatenate([[-1], lk[:-1]]), lk)])
     assert np.array_equal(per, f["lanes/lane_changes"][()]), "/lanes/lane_changes differ from the frames"
+    # cut-ins: a changer with a vehicle right behind it in its new lane's frame (not one that entered in that step:
+    # entries come after the changes) cut in front of that vehicle
+    at_pt = o[1:][chg]                                    # the changer's point in the frame of its change
+    nxt = np.minimum(at_pt + 1, len(x) - 1)
+    behind = (at_pt + 1 < len(x)) & (key[nxt] == key[at_pt])
+    behind &= ent[row[nxt]] != k[at_pt]
+    fol = row[nxt][behind]
+    cut_when, cut_lane = k[at_pt][behind], lane[at_pt][behind]
+    per_cut = np.array([np.sum((cut_when > lo) & (cut_when <= hi))
+                        for lo, hi in zip(np.concatenate([[-1], lk[:-1]]), lk)])
+    la = f["lanes"]
+    assert np.array_equal(per_cut, la["cut_ins"][()]), "/lanes/cut_ins differ from the frames"
+    n_lanes = la["vehicles"].shape[1]
+    assert np.array_equal(np.bincount(cut_lane, minlength=n_lanes), la["lane_cut_ins"][()]), "lane_cut_ins"
+    n_groups = len(la["group_cut_ins"][()])
+    gid_all = tp["group_id"][()].astype(np.int64)
+    assert np.array_equal(np.bincount(gid_all[fol], minlength=n_groups), la["group_cut_ins"][()]), "group_cut_ins"
+    assert np.array_equal(np.bincount(gid_all[who], minlength=n_groups), la["group_lane_changes"][()]), \
+        "group_lane_changes"
+    old_l = lane[o][:-1][chg]
+    pair = np.zeros((n_lanes, n_lanes), dtype=np.int64)
+    np.add.at(pair, (old_l, lane[at_pt]), 1)
+    assert np.array_equal(pair, la["pair_changes"][()]), "pair_changes differ from the frames"
+    # each record's lanes from the frame at its instant: vehicles, mean speed, mean gap
+    for j, s in enumerate(lk):
+        jf = at.get(int(s))
+        for l in range(n_lanes):
+            sel = np.arange(bounds[jf], bounds[jf + 1]) if jf is not None else np.zeros(0, dtype=np.int64)
+            sel = sel[lane[sel] == l]
+            assert la["vehicles"][j, l] == len(sel), f"t = {s * dt:g} s lane {l}: vehicles"
+            if len(sel):
+                assert abs(la["mean_speed"][j, l] - v[sel].mean()) <= 1e-12 * max(1.0, v[sel].mean()), "mean_speed"
+            if len(sel) > 1:
+                g = gap[sel[:-1]].mean()
+                assert abs(la["mean_gap"][j, l] - g) <= 1e-9 * max(1.0, g), f"t = {s * dt:g} s lane {l}: mean_gap"
+    # detectors and Edie over all lanes: every completed trip passed each detector and drove L inside the road, an
+    # unfinished one passed the detectors behind its last position and drove up to it (all enter at x = 0)
+    fin = tp["completed"][()] == 1
+    last_x = np.full(len(ent), np.nan)
+    final = np.arange(bounds[-2], bounds[-1]) if steps[-1] == n_steps else np.zeros(0, dtype=np.int64)
+    last_x[row[final]] = x[final]
+    assert np.all(np.isfinite(last_x[~fin])), "an unfinished trip missing from the last frame"
+    det = f["detectors"]
+    for j, xd in enumerate(det["x"][()]):
+        want = int(fin.sum() + np.sum(last_x[~fin] > xd))
+        assert int(det["count"][()][:, j].sum()) == want, f"detector at {xd:g} m counts {det['count'][()][:, j].sum()}"
+    d_edie = float(f["edie/distance"][()].sum())
+    d_want = fin.sum() * L + float(np.sum(last_x[~fin]))
+    assert abs(d_edie - d_want) <= 1e-9 * d_want, f"Edie distance {d_edie} m, the trips drove {d_want} m on the road"
     # min_interval_s of each group, in steps
     want = {g: int(w) for g, w in enumerate(min_steps.split(","))}
     worst = {}
@@ -232,7 +283,7 @@ def physical(path, min_steps):
     assert int(f["summary/overlaps"][()]) == 0, "overlaps repaired"
     assert ex_x.max() < 1e-9 * L and ex_v.max() < 1e-9, (ex_x.max(), ex_v.max())
     print(f"{n_steps + 1} steps, {len(x)} points: least gap {gap[same].min():.3f} m, up to {on.max()} on the road, "
-          f"{len(who)} lane changes seen and counted (by {len(np.unique(who))} vehicles), least steps between a "
+          f"{len(who)} lane changes and {len(fol)} cut-ins seen and counted (by {len(np.unique(who))} vehicles), least steps between a "
           f"vehicle's changes per group {worst} (least allowed {want})")
 
 
