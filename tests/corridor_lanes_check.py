@@ -283,8 +283,8 @@ def physical(path, min_steps):
     assert int(f["summary/overlaps"][()]) == 0, "overlaps repaired"
     assert ex_x.max() < 1e-9 * L and ex_v.max() < 1e-9, (ex_x.max(), ex_v.max())
     print(f"{n_steps + 1} steps, {len(x)} points: least gap {gap[same].min():.3f} m, up to {on.max()} on the road, "
-          f"{len(who)} lane changes and {len(fol)} cut-ins seen and counted (by {len(np.unique(who))} vehicles), least steps between a "
-          f"vehicle's changes per group {worst} (least allowed {want})")
+          f"{len(who)} lane changes and {len(fol)} cut-ins seen and counted (by {len(np.unique(who))} vehicles), "
+          f"least steps between a vehicle's changes per group {worst} (least allowed {want})")
 
 
 def redistribute(path, x0, t0, op, share):

@@ -4,7 +4,8 @@
 # tests/corridor_lanes_check.py against something computed apart from it:
 # a. lane changes off (every group `lane_change: {model: none}`): lane 0 of a 3-lane corridor equals, bit for bit, a
 #    single-lane corridor with lane 0's share of the demand (Poisson arrivals, two classes, two groups,
-#    heterogeneity, noise, grade and zones): every trip, every trajectory point, the lane's records; without any
+#    heterogeneity, noise, grade and zones; random and interleaved placement): every trip, every trajectory point,
+#    the lane's records; without any
 #    randomness (deterministic arrivals, one class, one group) every lane l equals the single-lane corridor of its
 #    share s_l q, serials l 2^40 + n; and two lanes with the same demand and noise do not drive the same trips;
 # b. 1 thread and 2 threads give the same bytes on a corridor with lane changes and more than 4096 vehicles in a
@@ -12,8 +13,9 @@
 # c. interrupted by SIGTERM (2 threads) after lane changes and resumed (1 thread): the bytes of the uninterrupted run;
 # d. frames written every step: each lane ordered front first with positive gaps, the vehicles on the road those
 #    /trips says entered and not exited, every lane change seen between frames counted in /trips and in the
-#    record's /lanes/lane_changes, no vehicle changing sooner than its group's min_interval_s, the ballistic
-#    update across changes;
+#    record's /lanes/lane_changes, the cut-ins, pairs and records' lanes from the frames, detectors and Edie's
+#    distance, no vehicle changing sooner than its group's min_interval_s, the ballistic update across changes; on
+#    two lanes, three behind a slow downstream boundary, and three whose side lanes get no demand;
 # e. unequal lane shares ([0.8, 0.2]) under the symmetric rule even out the lanes' densities downstream; with lane
 #    changes off they do not;
 # f. /lanes against /timeseries, /summary, /trips and the printed summary line;
@@ -76,6 +78,12 @@ corridor "$tmp/rich0.yaml" "" "flow_vph: 1800, arrivals: poisson" "$RICH" "$MIX"
 if run "$tmp/rich3.yaml" -o "$tmp/rich3.h5" && run "$tmp/rich0.yaml" -o "$tmp/rich0.h5"; then
   check lanes_off_lane0_equals_single_corridor $CHECK same_lane "$tmp/rich3.h5" "$tmp/rich0.h5" 0
 else ko lanes_off_lane0_equals_single_corridor "a run failed"; fi
+# The same with interleaved placement (each lane its own deficit counters) and a leader outflow inside the road.
+IL="--set fleet.placement=interleaved --set corridor.outflow.type=leader --set corridor.outflow.speed_mps=10
+    --set corridor.outflow.offset_m=-1500"
+if run "$tmp/rich3.yaml" -o "$tmp/rich3i.h5" $IL && run "$tmp/rich0.yaml" -o "$tmp/rich0i.h5" $IL; then
+  check lanes_off_lane0_interleaved_leader $CHECK same_lane "$tmp/rich3i.h5" "$tmp/rich0i.h5" 0
+else ko lanes_off_lane0_interleaved_leader "a run failed"; fi
 # No randomness: deterministic arrivals, tractors only, one IDM group without noise or heterogeneity. The shares'
 # products with q are written as decimals (1500, 900, 600); the engine multiplies the share by the cumulative demand.
 PLAIN="    - {model: idm, fraction: 1.0, $OFF}"
@@ -171,6 +179,13 @@ if run "$tmp/every3.yaml" -o "$tmp/every3.h5" --set output.trajectory_interval_s
   check physical_three_lanes_queue_every_step $CHECK physical "$tmp/every3.h5" 10,15
 else ko physical_three_lanes_queue_every_step "run failed"; fi
 
+# All the demand in the middle lane of three (lane_shares [0, 1, 0]): the side lanes fill only by lane changes, the
+# first ones into an empty lane, then ahead of its front or behind its back.
+corridor "$tmp/middle.yaml" "lanes: 3" "flow_vph: 2500, arrivals: poisson, lane_shares: [0, 1, 0]" "$TWO" "$MIX" 240
+if run "$tmp/middle.yaml" -o "$tmp/middle.h5" --set output.trajectory_interval_s=0.1; then
+  check physical_side_lanes_fill_every_step $CHECK physical "$tmp/middle.h5" 10,20
+else ko physical_side_lanes_fill_every_step "run failed"; fi
+
 # ------------------------------------------------------------------ e. unequal shares even out
 # 1600 veh/h of sedans on 6 km, 80 % entering lane 0 (1280 veh/h: no queue at either entrance, at most 5 waiting):
 # over the second half of the road and the last 600 s, MOBIL (symmetric) brings lane 0's share of the density from
@@ -187,7 +202,7 @@ if run "$tmp/even6.yaml" -o "$tmp/even.h5" && run "$tmp/even6_off.yaml" -o "$tmp
 else ko unequal_shares_even_out "run failed"; fi
 
 # ------------------------------------------------------------------ f. /lanes adds up
-for r in every2 every3 big1; do
+for r in every2 every3 middle big1; do
   if [ -f "$tmp/$r.h5" ]; then
     log=""; [ -f "$tmp/$r.log" ] && log="$tmp/$r.log"
     check "lanes_sums_$r" $CHECK lanes_sums "$tmp/$r.h5" $log
