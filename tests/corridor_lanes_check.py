@@ -100,18 +100,20 @@ def same_lane(multi, single, lane):
 def noise_apart(path):
     f = h5py.File(path, "r")
     t = f["trips"]
-    lane, serial, fuel = t["lane"][()], t["serial"][()], t["fuel"][()]
+    lane, serial = t["lane"][()], t["serial"][()]
     by = []
     for l in (0, 1):
         m = lane == l
         o = np.argsort(serial[m])
-        by.append((serial[m][o] - l * LANE_KEY, fuel[m][o], t["entry_time"][()][m][o]))
+        by.append((t["entry_time"][()][m][o], t["fuel"][()][m][o]))
     n = min(len(by[0][0]), len(by[1][0]))
-    assert n > 20 and np.array_equal(by[0][2][:n], by[1][2][:n]), "the lanes' entries differ: no like-for-like"
-    same = int(np.sum(by[0][1][:n] == by[1][1][:n]))
-    assert same < n // 10, (f"{same} of {n} vehicles burn the same fuel to the bit as their twin in the other lane: "
-                            f"the lanes draw the same acceleration noise")
-    print(f"{n} pairs of twins entering both lanes at the same instants, {same} with equal fuel")
+    # twins: the n-th vehicles of both lanes, entered at the same instant
+    twins = by[0][0][:n] == by[1][0][:n]
+    assert twins.sum() > 20, f"only {twins.sum()} of {n} pairs entered together: no like-for-like"
+    same = int(np.sum((by[0][1][:n] == by[1][1][:n])[twins]))
+    assert same < twins.sum() // 10, (f"{same} of {twins.sum()} twins burn the same fuel to the bit: the lanes draw "
+                                      f"the same acceleration noise")
+    print(f"{twins.sum()} twins (the n-th vehicles of both lanes, entered at the same instant), {same} with equal fuel")
 
 
 def identical(pa, pb, min_lane_n):

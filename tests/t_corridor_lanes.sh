@@ -100,10 +100,10 @@ if [ $det_ok = 1 ]; then
   check lanes_off_deterministic_lane1 $CHECK same_lane "$tmp/det3.h5" "$tmp/det_900.h5" 1
   check lanes_off_deterministic_lane2 $CHECK same_lane "$tmp/det3.h5" "$tmp/det_600.h5" 2
 else ko lanes_off_deterministic "a run failed"; fi
-# Two lanes with the same deterministic demand, one class, one noisy group: the k-th vehicles of both lanes enter
-# together and meet the same road, so only the acceleration noise sets them apart; if both lanes drew the same noise
-# (the ring keys lane l's noise from l 2^32 blocks so that they do not: docs/lanes.md) every pair would burn the same
-# fuel to the bit.
+# Two lanes with the same deterministic demand, one class, one noisy group: the n-th vehicles of both lanes that
+# entered at the same instant meet the same road, so only the acceleration noise sets them apart; if both lanes drew
+# the same noise (the ring keys lane l's noise from l 2^32 blocks so that they do not: docs/lanes.md) every such
+# pair would burn the same fuel to the bit.
 NOISY="    - {model: idm, fraction: 1.0, noise_mps2: 0.3, $OFF}"
 corridor "$tmp/twins.yaml" "lanes: 2" "flow_vph: 3000, lane_shares: [0.5, 0.5]" "$NOISY" "$TRUCKS"
 if run "$tmp/twins.yaml" -o "$tmp/twins.h5"; then check lanes_draw_their_own_noise $CHECK noise_apart "$tmp/twins.h5"
