@@ -687,7 +687,8 @@ static int lane_init(WfCorridor *c, WfError *err)
         *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = cl, .cap = vh->cap, .x_m = vh->x_m,
                        .v_mps = vh->v_mps, .class_id = vh->class_id, .group_id = vh->group_id,
                        .grade_seg = cl->grade_seg, .mode = cl->mode, .x_old_m = cl->xold, .nthreads = c->nthreads,
-                       .bound_x = c->bound_x, .bound_v = c->bound_v, .chunks = c->chunks};
+                       .bound_x = c->bound_x, .bound_v = c->bound_v, .chunks = c->chunks,
+                       .key0 = l << 40}; /* lane l's noise from blocks l 2^32: no two lanes share draws */
         for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
         for (size_t g = 0; g < sc->n_groups; g++) {
             const WfDriverGroup *grp = &sc->groups[g];
@@ -1209,19 +1210,19 @@ static void lanes_observe(WfCorridor *c, double t)
             sv += vh->v_mps[s], fuel += vh->fuel_rate_gps[s], waves += slow && !prev_slow, prev_slow = slow;
             if (k > 0) sg += vh->gap_m[s];
         }
-        double mean = vh->n ? sv / n : 0.0;
+        double mean = vh->n ? sv / n : NAN;
         for (size_t k = 0; k < vh->n; k++) {
             double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
             m2 += d * d;
         }
         o[WF_LANE_VEHICLES] = n;
         o[WF_LANE_DENSITY] = n / (c->L / 1000.0);
-        o[WF_LANE_FLOW] = o[WF_LANE_DENSITY] * mean * 3.6;
+        o[WF_LANE_FLOW] = vh->n ? o[WF_LANE_DENSITY] * mean * 3.6 : 0.0;
         o[WF_LANE_MEAN_V] = mean;
-        o[WF_LANE_SD_V] = vh->n ? sqrt(m2 / n) : 0.0;
+        o[WF_LANE_SD_V] = vh->n ? sqrt(m2 / n) : NAN;
         o[WF_LANE_WAVES] = waves;
         o[WF_LANE_FUEL_RATE] = fuel;
-        o[WF_LANE_MEAN_GAP] = vh->n > 1 ? sg / (n - 1.0) : 0.0;
+        o[WF_LANE_MEAN_GAP] = vh->n > 1 ? sg / (n - 1.0) : NAN;
     }
 }
 

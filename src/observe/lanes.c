@@ -1,5 +1,7 @@
 /* The lanes of a multi-lane ring (/lanes, docs/output.md): each lane's record at every output instant, the lane
  * changes and cut-ins between records, and the run's counts per lane pair, lane and driver group. */
+#include <math.h>
+
 #include "observe/columns.h"
 
 const WfObsColumn wf_lane_columns[WF_LANE_N_COLS] = {
@@ -33,13 +35,13 @@ const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS] = {
 
 void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out)
 {
-    double k = n / (length_m / 1000.0), v = n > 0 ? row->v[WF_TS_MEAN_V] : 0.0;
+    double k = n / (length_m / 1000.0), v = n > 0 ? row->v[WF_TS_MEAN_V] : NAN; /* an empty lane: NaN, as /timeseries */
     out[WF_LANE_VEHICLES] = n;
     out[WF_LANE_DENSITY] = k;
-    out[WF_LANE_FLOW] = k * v * 3.6;
+    out[WF_LANE_FLOW] = n > 0 ? k * v * 3.6 : 0.0;
     out[WF_LANE_MEAN_V] = v;
-    out[WF_LANE_SD_V] = n > 0 ? row->v[WF_TS_SD_V] : 0.0;
+    out[WF_LANE_SD_V] = n > 0 ? row->v[WF_TS_SD_V] : NAN;
     out[WF_LANE_WAVES] = n > 0 ? row->v[WF_TS_WAVES] : 0.0;
     out[WF_LANE_FUEL_RATE] = n > 0 ? row->v[WF_TS_FUEL_RATE] : 0.0;
-    out[WF_LANE_MEAN_GAP] = n > 0 ? row->v[WF_TS_MEAN_GAP] : 0.0;
+    out[WF_LANE_MEAN_GAP] = n > 0 ? row->v[WF_TS_MEAN_GAP] : NAN;
 }

@@ -370,7 +370,7 @@ static int check_ramp(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *
     cs->has_ramp = 1;
     if (!(cs->ramp_from_m >= 0.0 && cs->ramp_from_m < cs->ramp_to_m && cs->ramp_to_m < L))
         return wf_err(err, WF_EINPUT, "%s: corridor.on_ramp: the merge lane [%s, %s] m must lie inside the road "
-                      "[0, %s) m with from_m < to_m", wf_scenario_where(ramp, w, sizeof w), WF_NUM(cs->ramp_from_m),
+                      "[0, %s) m with start_m < end_m", wf_scenario_where(ramp, w, sizeof w), WF_NUM(cs->ramp_from_m),
                       WF_NUM(cs->ramp_to_m), WF_NUM(L));
     if (env->sc->n_lanes + 1 > WF_MAX_LANES)
         return wf_err(err, WF_EINPUT, "%s: corridor.on_ramp adds lane 0 to road.lanes = %d: at most %d lanes in all",
@@ -566,10 +566,10 @@ static const WfKeySpec edie_rows[] = {
 static const WfKeyTable edie_keys = {"corridor.edie", edie_rows, 2};
 
 static const WfKeySpec ramp_rows[] = {
-    {.key = "from_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+    {.key = "start_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
      .offset = offsetof(WfCorridorSpec, ramp_from_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
      .doc = "where the merge lane starts: its vehicles enter here"},
-    {.key = "to_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+    {.key = "end_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
      .offset = offsetof(WfCorridorSpec, ramp_to_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
      .doc = "where it ends: its vehicles must merge before (the end stops them)"},
     {.key = "flow_vph", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .hook = load_ramp_flow, .max = 36000,
