@@ -1,5 +1,6 @@
-/* Open corridors: a single-lane road of length L that vehicles enter at x = 0 (an inflow in veh/h, queued when
- * the gap does not allow them in) and leave at x = L, with a non-periodic grade profile, speed-limit and
+/* Open corridors: a road of length L, of one lane or several (docs/lanes.md), that vehicles enter at x = 0 (an
+ * inflow in veh/h, queued when the gap does not allow them in) and leave at x = L, with a non-periodic grade
+ * profile, speed-limit and
  * time-headway zones, a free or prescribed-speed downstream boundary, and the measurements traffic engineers
  * read: per-trip results, virtual detectors and Edie's generalized flow, density and speed on a space-time grid.
  * The corridor is the open boundary of the engine's block kernel (src/core/block.c), which the ring shares:
