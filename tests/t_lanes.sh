@@ -242,4 +242,14 @@ bad lane_change_model_unknown "lane_change" "$S" "fleet.drivers[0].lane_change.m
 sed 's/^  inflow: {flow_vph: 1500,/  inflow: {lane_shares: [0.7, 0.2], flow_vph: 1500,/' tests/data/tiny_corridor.yaml >"$tmp/shares_sum.yaml"
 bad corridor_lane_shares_sum "corridor.inflow.lane_shares" "$tmp/shares_sum.yaml" road.lanes=2
 bad corridor_lane_shares_length "corridor.inflow.lane_shares" "$tmp/shares_sum.yaml" road.lanes=3
+# an on-ramp and lane drops: the ramp inside the road, a lane that exists, some lane reaching the exit
+B=scenarios/corridor_bottleneck_lanes.yaml
+bad ramp_outside_road "corridor.on_ramp" "$B" corridor.on_ramp.end_m=7000
+bad ramp_backwards "corridor.on_ramp" "$B" corridor.on_ramp.start_m=2400
+bad ramp_too_many_lanes "corridor.on_ramp" "$B" road.lanes=8
+bad drop_lane_out_of_range "corridor.lane_drops" "$B" "corridor.lane_drops[0].lane=4"
+bad drop_merge_lane "corridor.lane_drops" "$B" "corridor.lane_drops[0].lane=0"
+bad drop_outside_road "corridor.lane_drops" "$B" "corridor.lane_drops[0].at_m=6500"
+sed 's/^  lane_drops: .*/  lane_drops: [{lane: 1, at_m: 4000}, {lane: 2, at_m: 4500}, {lane: 3, at_m: 5000}]/' "$B" >"$tmp/no_lane.yaml"
+bad drop_leaves_no_lane "every lane ends before the exit" "$tmp/no_lane.yaml"
 bad cvode_with_lanes "time.integrator" "$S" time.integrator=cvode
