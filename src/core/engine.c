@@ -48,6 +48,9 @@ typedef struct WfRing {
      * lane changes' scratch and what they did (totals, and since the last record) */
     WfLane   lanes[WF_MAX_LANES];
     size_t   lane_nb[WF_MAX_LANES];
+    /* each lane is stepped by one thread, the lanes side by side (a lane's chunk report and bounds are its own) */
+    WfChunkOut lane_chunk[WF_MAX_LANES];
+    double   lane_bx[WF_MAX_LANES], lane_bv[WF_MAX_LANES];
     WfLaneChanges lcs;
     struct RingLaneCtx {           /* what the road's hooks see of each lane (WfLane.ctx) */
         const struct WfRing *s;
@@ -160,6 +163,7 @@ static void lane_views(WfRing *s)
                             OFF(o->fuel_rate_gps), OFF(o->flag)};
         v->key0 = (size_t)l << 40;
         v->ctx = &s->lane_ctx[l];
+        v->nthreads = 1, v->chunks = &s->lane_chunk[l], v->bound_x = &s->lane_bx[l], v->bound_v = &s->lane_bv[l];
         v->safety = keep;
     }
 #undef OFF
@@ -184,13 +188,20 @@ static int lanes_step(WfRing *s, long step, int pass, int in_window, WfStatsBloc
         return wf_lane_step(&s->lane, 0, f->n, NULL, step, pass, in_window, rec);
     }
     int flags = 0;
-    for (size_t l = 0; l < f->n_lanes; l++) {
-        WfLane *v = &s->lanes[l];
-        s->lane_nb[l] = v->cap ? wf_lane_blocks(0, v->cap) : 0;
-        if (!v->cap) continue;
-        flags |= wf_lane_step(v, 0, v->cap, NULL, step, pass, in_window, rec);
-        if (rec) rec += s->lane_nb[l];
+    size_t nl = f->n_lanes, off[WF_MAX_LANES];
+    for (size_t l = 0, o = 0; l < nl; o += s->lane_nb[l++]) {
+        s->lane_nb[l] = s->lanes[l].cap ? wf_lane_blocks(0, s->lanes[l].cap) : 0;
+        off[l] = o;
     }
+    /* the lanes side by side, each on one thread: the same bits as one after the other (a lane's step does not
+     * depend on the threads) */
+    int nth = wf_lane_threads(f->n, s->nthreads);
+    if ((size_t)nth > nl) nth = (int)nl;
+    WF_PAR_FOR(nth > 1, "omp parallel for schedule(dynamic, 1) num_threads(nth) default(none) shared(s, nl, off, step, pass, in_window, rec) reduction(| : flags)",
+    for (size_t l = 0; l < nl; l++) {
+        WfLane *v = &s->lanes[l];
+        if (v->cap) flags |= wf_lane_step(v, 0, v->cap, NULL, step, pass, in_window, rec ? rec + off[l] : NULL);
+    });
     return flags;
 }
 

@@ -6,6 +6,7 @@
 #include <string.h>
 
 #include "core/block.h"
+#include "core/par.h"
 #include "wavefuel/lanechange.h"
 
 int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_lanes, WfError *err)
@@ -282,11 +283,16 @@ static long resolve(WfLaneChanges *lc, const WfLcRoad *r)
 long wf_lanes_decide(WfLaneChanges *lc, const WfLcRoad *r, long step, int nthreads)
 {
     if (!lc->active) return 0;
-    size_t nlanes = r->n_lanes, nblk = 0;
-    for (size_t l = 0; l < nlanes; l++) {
-        if (l > 0) neighbours(lc, r, l, l - 1, 0);
-        if (l + 1 < nlanes) neighbours(lc, r, l, l + 1, 1);
-    }
+    size_t nlanes = r->n_lanes, nblk = 0, npair = 2 * nlanes;
+    /* each lane's walk beside the lane to its right (d 0) and to its left (d 1): independent of one another */
+    int nthp = wf_lane_threads(r->n, nthreads);
+    WF_PAR_FOR(nthp > 1, "omp parallel for schedule(dynamic, 1) num_threads(nthp) default(none) shared(lc, r, nlanes, npair)",
+    for (size_t q = 0; q < npair; q++) {
+        size_t l = q / 2;
+        int d = (int)(q % 2);
+        if (d == 0 && l > 0) neighbours(lc, r, l, l - 1, 0);
+        if (d == 1 && l + 1 < nlanes) neighbours(lc, r, l, l + 1, 1);
+    });
     /* the decisions, block by block of each lane (blocks of WF_BLOCK vehicles from each lane's first) */
     for (size_t l = 0; l < nlanes; l++)
         for (size_t k = 0; k < r->count[l]; k += WF_BLOCK)
@@ -323,10 +329,13 @@ void wf_lanes_ring_road(WfLaneChanges *lc, const WfScenario *sc, const WfFleet *
     for (size_t g = 0; g < f->n_groups; g++) r->group_params[g] = f->group_param_stride[g] ? NULL : f->group_params[g];
     for (size_t l = 0; l < WF_MAX_LANES; l++) r->end_m[l] = INFINITY;
     for (size_t l = 0, first = 0; l < f->n_lanes; first += f->lane_n[l++]) r->first[l] = first, r->count[l] = f->lane_n[l];
+    const double *x = f->x_m;
+    double *p = lc->p_m;
+    WF_PAR_FOR(n >= WF_PAR_MIN, "omp parallel for schedule(static) default(none) shared(n, x, p, L)",
     for (size_t i = 0; i < n; i++) {
-        double q = f->x_m[i] - L * (double)wf_lap_index(f->x_m[i] / L);
-        lc->p_m[i] = q >= L ? q - L : q < 0.0 ? q + L : q;
-    }
+        double q = x[i] - L * (double)wf_lap_index(x[i] / L);
+        p[i] = q >= L ? q - L : q < 0.0 ? q + L : q;
+    });
     for (size_t l = 0; l < f->n_lanes; l++)
         for (size_t k = 1; k < f->lane_n[l]; k++)
             if (lc->p_m[r->first[l] + k] < lc->p_m[r->first[l] + k - 1]) {
