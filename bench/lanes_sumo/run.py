@@ -37,8 +37,8 @@ RAMP_KEY = 2 ** 40  # a corridor vehicle's /trips/serial is lane * 2^40 + its co
 
 
 def sumo_one(args):
-    seed, depart_speed = args
-    r = sc.run(seed, None, dict(sc.SCEN, depart_speed=depart_speed))
+    seed, depart_speed, demand = args
+    r = sc.run(seed, None, dict(sc.SCEN, depart_speed=depart_speed, **demand))
     r.pop("netconvert_messages", None)
     return r
 
@@ -54,14 +54,14 @@ def wavefuel_available(binary):
     return None
 
 
-def wavefuel_one(binary, seed, rule):
+def wavefuel_one(binary, seed, rule, extra=()):
     import h5py
     import numpy as np
     w0 = sc.SCEN["warmup_s"]
     with tempfile.TemporaryDirectory() as d:
         out = os.path.join(d, "run.h5")
         cmd = [binary, "run", SCENARIO, "-q", "-o", out, "--set", f"seed={seed}", "--set", f"road.lane_rule={rule}",
-               "--threads", "1"]
+               "--threads", "1"] + [x for kv in extra for x in ("--set", kv)]
         t0 = time.perf_counter()
         subprocess.run(cmd, check=True, capture_output=True, text=True, cwd=ROOT)
         wall = time.perf_counter() - t0
@@ -92,6 +92,8 @@ def summarise(runs, key):
 
 
 def table(res):
+    if not res["sumo"]:
+        return "(no SUMO runs)"
     ref = res["sumo"].get("last") or next(iter(res["sumo"].values()))
     ref_q, ref_t = summarise(ref, "throughput_vph")[0], summarise(ref, "tt_mean_s")[0]
     rows = [(f"SUMO IDM + LC2013, departSpeed {k}", v) for k, v in res["sumo"].items()]
@@ -122,23 +124,28 @@ def main():
     ap.add_argument("--depart-speeds", default="last,max")
     ap.add_argument("--rules", default="keep_right,symmetric")
     ap.add_argument("--bin", default=os.path.join(ROOT, "bin", "wavefuel"))
-    ap.add_argument("--table", action="store_true", help="print the table of results.json again")
+    ap.add_argument("--main-vph", type=float, default=sc.SCEN["main_vph"], help="main demand, both sides")
+    ap.add_argument("--ramp-vph", type=float, default=sc.SCEN["ramp_vph"], help="ramp demand, both sides")
+    ap.add_argument("--out", default=RESULTS, help="results file (default bench/lanes_sumo/results.json)")
+    ap.add_argument("--table", action="store_true", help="print the table of the results file again")
     a = ap.parse_args()
     if a.table:
-        with open(RESULTS) as f:
+        with open(a.out) as f:
             print(table(json.load(f)))
         return 0
     seeds = [int(s) for s in a.seeds.split(",")]
+    demand = dict(main_vph=a.main_vph, ramp_vph=a.ramp_vph)
     res = dict(seeds=seeds, date=datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC"),
-               load_before=os.getloadavg()[0], scenario=sc.SCEN, sumo={}, wavefuel={})
+               load_before=os.getloadavg()[0], scenario=dict(sc.SCEN, **demand), sumo={}, wavefuel={})
+    wf_demand = [f"corridor.inflow.flow_vph={a.main_vph:g}", f"corridor.on_ramp.flow_vph={a.ramp_vph:g}"]
     why = sc.available()
     if why:
         print(f"SUMO: not run: {why}")
     else:
         res["sumo_version"] = sc.sumo_version()
-        jobs = [(s, ds) for ds in a.depart_speeds.split(",") for s in seeds]
+        jobs = [(s, ds, demand) for ds in a.depart_speeds.split(",") for s in seeds]
         with cf.ProcessPoolExecutor(a.jobs) as ex:
-            for (s, ds), r in zip(jobs, ex.map(sumo_one, jobs)):
+            for (s, ds, _), r in zip(jobs, ex.map(sumo_one, jobs)):
                 res["sumo"].setdefault(ds, []).append(r)
                 print(f"SUMO departSpeed {ds} seed {s}: {r['throughput_vph']:.0f} veh/h, {r['tt_mean_s']:.1f} s, "
                       f"backlog {r['backlog_end']}, wall {r['wall_s']:.0f} s", flush=True)
@@ -151,12 +158,12 @@ def main():
                                                 capture_output=True, text=True).stdout.strip()
         for rule in a.rules.split(","):
             for s in seeds:
-                r = wavefuel_one(a.bin, s, rule)
+                r = wavefuel_one(a.bin, s, rule, wf_demand)
                 res["wavefuel"].setdefault(rule, []).append(r)
                 print(f"wavefuel {rule} seed {s}: {r['throughput_vph']:.0f} veh/h, {r['tt_mean_s']:.1f} s, "
                       f"ramp entered {r['ramp_entered']}, backlog {r['backlog_end']}", flush=True)
     res["load_after"] = os.getloadavg()[0]
-    with open(RESULTS, "w") as f:
+    with open(a.out, "w") as f:
         json.dump(res, f, indent=1)
     if res["sumo"]:
         print(table(res))

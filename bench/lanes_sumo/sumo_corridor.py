@@ -57,7 +57,7 @@ SCEN = dict(
     ramp_from_m=2000.0, ramp_to_m=2300.0, drop_at_m=4500.0,
     main_vph=4200.0, ramp_vph=700.0,
     duration_s=3600.0, warmup_s=600.0, dt_s=0.1,
-    depart_speed="max",
+    depart_speed="last", lc_params="",
     car_m=4.9, v0=30.0, T=1.2, s0=2.0, a=1.0, b=1.5, delta=4.0, emergency_decel=9.0,
 )
 EDGES = (  # id, from x, to x, lanes
@@ -134,7 +134,7 @@ def write_routes(d, sc=SCEN):
         f.write(f'  <vType id="car" carFollowModel="IDM" accel="{sc["a"]!r}" decel="{sc["b"]!r}" '
                 f'emergencyDecel="{sc["emergency_decel"]!r}" tau="{sc["T"]!r}" minGap="{sc["s0"]!r}" '
                 f'delta="{sc["delta"]!r}" maxSpeed="{sc["v0"]!r}" length="{sc["car_m"]!r}" sigma="0" '
-                'speedFactor="1" speedDev="0" laneChangeModel="LC2013"/>\n')
+                f'speedFactor="1" speedDev="0" laneChangeModel="LC2013"{(" " + sc["lc_params"]) if sc["lc_params"] else ""}/>\n')
         f.write('  <route id="main" edges="up merge mid down"/>\n')
         f.write('  <route id="ramp" edges="merge mid down"/>\n')
         end = sc["duration_s"]
@@ -235,13 +235,15 @@ def main():
     ap.add_argument("--keep", help="directory for the net, routes and outputs (kept)")
     ap.add_argument("--json", action="store_true", help="print the result as JSON")
     ap.add_argument("--depart-speed", default=SCEN["depart_speed"],
-                    help="SUMO's departSpeed of every flow (max, desired, last, avg, speedLimit, a number)")
+                    help="SUMO's departSpeed of every flow (last, max, desired, avg, speedLimit, a number)")
+    ap.add_argument("--lc-params", default="",
+                    help='extra vType attributes, e.g. \'lcCooperative="0"\' (a diagnostic: LC2013 without cooperation)')
     a = ap.parse_args()
     why = available()
     if why:
         print(f"SUMO corridor: not run: {why}")
         return 1
-    r = run(a.seed, a.keep, dict(SCEN, depart_speed=a.depart_speed))
+    r = run(a.seed, a.keep, dict(SCEN, depart_speed=a.depart_speed, lc_params=a.lc_params))
     if a.json:
         print(json.dumps(r, indent=1))
     else:
