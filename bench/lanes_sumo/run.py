@@ -37,8 +37,8 @@ RAMP_KEY = 2 ** 40  # a corridor vehicle's /trips/serial is lane * 2^40 + its co
 
 
 def sumo_one(args):
-    seed, depart_speed, demand = args
-    r = sc.run(seed, None, dict(sc.SCEN, depart_speed=depart_speed, **demand))
+    seed, depart_speed, demand, lc_params = args
+    r = sc.run(seed, None, dict(sc.SCEN, depart_speed=depart_speed, lc_params=lc_params, **demand))
     r.pop("netconvert_messages", None)
     return r
 
@@ -94,7 +94,7 @@ def summarise(runs, key):
 def table(res):
     if not res["sumo"]:
         return "(no SUMO runs)"
-    ref = res["sumo"].get("last") or next(iter(res["sumo"].values()))
+    ref = res["sumo"].get("last") or next(iter(res["sumo"].values()))  # else the first configuration
     ref_q, ref_t = summarise(ref, "throughput_vph")[0], summarise(ref, "tt_mean_s")[0]
     rows = [(f"SUMO IDM + LC2013, departSpeed {k}", v) for k, v in res["sumo"].items()]
     rows += [(f"wavefuel IDM + MOBIL, {k}", v) for k, v in res.get("wavefuel", {}).items()]
@@ -126,6 +126,8 @@ def main():
     ap.add_argument("--bin", default=os.path.join(ROOT, "bin", "wavefuel"))
     ap.add_argument("--main-vph", type=float, default=sc.SCEN["main_vph"], help="main demand, both sides")
     ap.add_argument("--ramp-vph", type=float, default=sc.SCEN["ramp_vph"], help="ramp demand, both sides")
+    ap.add_argument("--lc-params", default="",
+                    help='extra SUMO vType attributes, e.g. \'lcCooperative="0"\' (diagnostics)')
     ap.add_argument("--out", default=RESULTS, help="results file (default bench/lanes_sumo/results.json)")
     ap.add_argument("--table", action="store_true", help="print the table of the results file again")
     a = ap.parse_args()
@@ -143,13 +145,13 @@ def main():
         print(f"SUMO: not run: {why}")
     else:
         res["sumo_version"] = sc.sumo_version()
-        jobs = [(s, ds, demand) for ds in a.depart_speeds.split(",") for s in seeds]
+        jobs = [(s, ds, demand, a.lc_params) for ds in a.depart_speeds.split(",") for s in seeds]
         with cf.ProcessPoolExecutor(a.jobs) as ex:
-            for (s, ds, _), r in zip(jobs, ex.map(sumo_one, jobs)):
-                res["sumo"].setdefault(ds, []).append(r)
+            for (s, ds, _, _), r in zip(jobs, ex.map(sumo_one, jobs)):
+                res["sumo"].setdefault(ds + (f", {a.lc_params}" if a.lc_params else ""), []).append(r)
                 print(f"SUMO departSpeed {ds} seed {s}: {r['throughput_vph']:.0f} veh/h, {r['tt_mean_s']:.1f} s, "
                       f"backlog {r['backlog_end']}, wall {r['wall_s']:.0f} s", flush=True)
-    why = wavefuel_available(a.bin)
+    why = wavefuel_available(a.bin) if a.rules else "not asked for (--rules '')"
     if why:
         print(f"wavefuel: not run: {why}")
         res["wavefuel_not_run"] = why
