@@ -128,6 +128,8 @@ def main():
     ap.add_argument("--ramp-vph", type=float, default=sc.SCEN["ramp_vph"], help="ramp demand, both sides")
     ap.add_argument("--lc-params", default="",
                     help='extra SUMO vType attributes, e.g. \'lcCooperative="0"\' (diagnostics)')
+    ap.add_argument("--wf-set", action="append", default=[],
+                    help="extra --set KEY=VALUE for wavefuel (diagnostics), repeatable")
     ap.add_argument("--out", default=RESULTS, help="results file (default bench/lanes_sumo/results.json)")
     ap.add_argument("--table", action="store_true", help="print the table of the results file again")
     a = ap.parse_args()
@@ -140,7 +142,7 @@ def main():
     res = dict(seeds=seeds, date=datetime.datetime.utcnow().strftime("%Y-%m-%d %H:%M UTC"),
                load_before=os.getloadavg()[0], scenario=dict(sc.SCEN, **demand), sumo={}, wavefuel={})
     wf_demand = [f"corridor.inflow.flow_vph={a.main_vph:g}", f"corridor.on_ramp.flow_vph={a.ramp_vph:g}"]
-    why = sc.available()
+    why = sc.available() if a.depart_speeds else "not asked for (--depart-speeds '')"
     if why:
         print(f"SUMO: not run: {why}")
     else:
@@ -160,8 +162,8 @@ def main():
                                                 capture_output=True, text=True).stdout.strip()
         for rule in a.rules.split(","):
             for s in seeds:
-                r = wavefuel_one(a.bin, s, rule, wf_demand)
-                res["wavefuel"].setdefault(rule, []).append(r)
+                r = wavefuel_one(a.bin, s, rule, wf_demand + a.wf_set)
+                res["wavefuel"].setdefault(rule + "".join(f", {x}" for x in a.wf_set), []).append(r)
                 print(f"wavefuel {rule} seed {s}: {r['throughput_vph']:.0f} veh/h, {r['tt_mean_s']:.1f} s, "
                       f"ramp entered {r['ramp_entered']}, backlog {r['backlog_end']}", flush=True)
     res["load_after"] = os.getloadavg()[0]
