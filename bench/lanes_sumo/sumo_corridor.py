@@ -20,10 +20,11 @@ change count at points). check_net() reads the built net back and verifies lane 
 
 Demand: one flow per main lane on `up` (departLane 0, 1, 2), 4200/3 veh/h each, and one ramp flow of 700 veh/h
 departing on lane 0 of `merge` at its start (the ramp vehicles enter the merge lane at x = 2000 m, as in
-wavefuel); every flow Poisson: `period="exp(q/3600)"` (exponential headways of rate q/3600 1/s; SUMO >= 1.11's
-flow attribute, checked by count in the output), each with its own random stream (SUMO seeds the flows' RNG from
---seed). departSpeed "max" (the highest speed SUMO's model deems safe behind the leader at insertion, capped at
-the desired speed), departPos "base" (the vehicle's rear at the start of the lane), --eager-insert (each lane's
+wavefuel); every flow Poisson: `period="exp(q/3600)"` (exponential headways of rate q/3600 1/s; accepted by SUMO
+1.15, the loaded counts match the demand), the flows' draws seeded by --seed. departSpeed "last" by default (the
+speed of the last vehicle on the lane: the nearest to wavefuel's rule, which inserts at the leader's speed;
+--depart-speed max: the highest speed SUMO deems safe, which at this demand collapses to 0 m/s at the entrance, see
+README.md), departPos "base" (the vehicle's rear at the start of the lane), --eager-insert (each lane's
 flow is tried on its own every step: a blocked lane does not hold back the others, as wavefuel's per-lane
 queues). Vehicles that cannot be inserted wait (--max-depart-delay -1): the insertion backlog, read from the
 summary output's "waiting" at the last step.
@@ -41,7 +42,8 @@ Measures (window: after the warm-up, to the end):
   delay (tripinfo departDelay);
 - the insertion backlog at the end (vehicles loaded but not yet inserted), lane changes (tripinfo has none:
   counted with --lanechange-output), collisions, teleports.
-Usage: /usr/bin/python3 bench/lanes_sumo/sumo_corridor.py [--seed 1] [--keep DIR] [--json]"""
+Usage: /usr/bin/python3 bench/lanes_sumo/sumo_corridor.py [--seed 1] [--keep DIR] [--json] [--depart-speed last]
+                                                         [--lc-params 'lcCooperative="0"']"""
 import argparse
 import json
 import os
