@@ -6,7 +6,7 @@ the speed of the last vehicle on its lane, SUMO's nearest to wavefuel's insertio
 speed; "max": the highest speed SUMO deems safe, SUMO's usual choice for saturated entrances). wavefuel:
 `bin/wavefuel run bench/lanes_sumo/corridor.yaml --set seed=S --set road.lane_rule=R` for each rule in --rules
 (keep_right: MOBIL's European rules, the nearer to LC2013's keepRight; symmetric: MOBIL's default rule), when the
-binary exists and accepts the scenario (corridor.on_ramp and corridor.lane_drops, on main since f3f1d81).
+binary exists and accepts the scenario (corridor.on_ramp with start_m/end_m and corridor.lane_drops: main 5d89e00).
 
 Per run: throughput (exits at x = 6000 m per hour over 600-3600 s), mean travel time of the completed trips inserted
 after the warm-up (all, main, ramp; from insertion, so the wait at the entrance is not in it: it is reported apart as
@@ -16,7 +16,10 @@ The table gives each configuration's mean over the seeds (min-max in brackets fo
 ratio to SUMO's "last" configuration against issue 18's bounds (throughput within 15 %, travel time within 20 %).
 Writes bench/lanes_sumo/results.json; --table prints the table of an existing results.json again.
 Usage: /usr/bin/python3 bench/lanes_sumo/run.py [--seeds 1,2,3] [--jobs 2] [--depart-speeds last,max]
-                                                [--rules keep_right,symmetric] [--bin bin/wavefuel] [--table]"""
+                                                [--rules keep_right,symmetric] [--bin bin/wavefuel]
+                                                [--main-vph 4200] [--ramp-vph 700] [--lc-params ATTRS]
+                                                [--wf-set KEY=VALUE]... [--reuse-sumo] [--out FILE] [--table]
+(--depart-speeds '' or --rules '' leave a side out; README.md lists the commands of every results file.)"""
 import argparse
 import concurrent.futures as cf
 import datetime
@@ -131,6 +134,8 @@ def main():
     ap.add_argument("--wf-set", action="append", default=[],
                     help="extra --set KEY=VALUE for wavefuel (diagnostics), repeatable")
     ap.add_argument("--out", default=RESULTS, help="results file (default bench/lanes_sumo/results.json)")
+    ap.add_argument("--reuse-sumo", action="store_true",
+                    help="keep the SUMO runs already in the results file (same demand), rerun only wavefuel")
     ap.add_argument("--table", action="store_true", help="print the table of the results file again")
     a = ap.parse_args()
     if a.table:
@@ -143,6 +148,16 @@ def main():
                load_before=os.getloadavg()[0], scenario=dict(sc.SCEN, **demand), sumo={}, wavefuel={})
     wf_demand = [f"corridor.inflow.flow_vph={a.main_vph:g}", f"corridor.on_ramp.flow_vph={a.ramp_vph:g}"]
     why = sc.available() if a.depart_speeds else "not asked for (--depart-speeds '')"
+    if a.reuse_sumo:
+        with open(a.out) as f:
+            old = json.load(f)
+        if (old["scenario"]["main_vph"], old["scenario"]["ramp_vph"]) != (a.main_vph, a.ramp_vph):
+            raise SystemExit(f"{a.out}: another demand than --main-vph/--ramp-vph")
+        for k in ("sumo", "sumo_version"):
+            if k in old:
+                res[k] = old[k]
+        res["sumo_date"] = old.get("sumo_date", old["date"])
+        why = f"reused from {a.out} ({res['sumo_date']})"
     if why:
         print(f"SUMO: not run: {why}")
     else:
