@@ -136,15 +136,18 @@ def write_routes(d, sc=SCEN):
         f.write(f'  <vType id="car" carFollowModel="IDM" accel="{sc["a"]!r}" decel="{sc["b"]!r}" '
                 f'emergencyDecel="{sc["emergency_decel"]!r}" tau="{sc["T"]!r}" minGap="{sc["s0"]!r}" '
                 f'delta="{sc["delta"]!r}" maxSpeed="{sc["v0"]!r}" length="{sc["car_m"]!r}" sigma="0" '
-                f'speedFactor="1" speedDev="0" laneChangeModel="LC2013"{(" " + sc["lc_params"]) if sc["lc_params"] else ""}/>\n')
+                'speedFactor="1" speedDev="0" laneChangeModel="LC2013"'
+                + (" " + sc["lc_params"] if sc["lc_params"] else "") + '/>\n')
         f.write('  <route id="main" edges="up merge mid down"/>\n')
         f.write('  <route id="ramp" edges="merge mid down"/>\n')
         end = sc["duration_s"]
         for lane in range(sc["lanes"]):
             f.write(f'  <flow id="main{lane}" type="car" route="main" begin="0" end="{end!r}" '
-                    f'period="exp({per_lane / 3600.0!r})" departLane="{lane}" departSpeed="{sc["depart_speed"]}" departPos="base"/>\n')
+                    f'period="exp({per_lane / 3600.0!r})" departLane="{lane}" departSpeed="{sc["depart_speed"]}" '
+                    'departPos="base"/>\n')
         f.write(f'  <flow id="ramp" type="car" route="ramp" begin="0" end="{end!r}" '
-                f'period="exp({sc["ramp_vph"] / 3600.0!r})" departLane="0" departSpeed="{sc["depart_speed"]}" departPos="base"/>\n')
+                f'period="exp({sc["ramp_vph"] / 3600.0!r})" departLane="0" departSpeed="{sc["depart_speed"]}" '
+                'departPos="base"/>\n')
         f.write("</routes>\n")
 
 
@@ -239,7 +242,7 @@ def main():
     ap.add_argument("--depart-speed", default=SCEN["depart_speed"],
                     help="SUMO's departSpeed of every flow (last, max, desired, avg, speedLimit, a number)")
     ap.add_argument("--lc-params", default="",
-                    help='extra vType attributes, e.g. \'lcCooperative="0"\' (a diagnostic: LC2013 without cooperation)')
+                    help='extra vType attributes, e.g. \'lcCooperative="0"\' (diagnostic: LC2013 without cooperation)')
     a = ap.parse_args()
     why = available()
     if why:
