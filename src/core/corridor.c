@@ -1191,38 +1191,28 @@ static void advance_leader(WfCorridor *c, double t)
     }
 }
 
-/* A multi-lane corridor's lanes at a record (/lanes, src/observe/lanes.c): each lane's vehicles, density, flow,
- * speeds, waves, fuel rate and gaps, as the road's record takes them (front first). */
+static void record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row);
+
+/* A multi-lane corridor's lanes at a record (/lanes, src/observe/lanes.c): each lane's record (the road's rule over
+ * that lane alone), as its columns. */
 static void lanes_observe(WfCorridor *c, double t)
 {
-    const WfScenario *sc = c->sc;
     if (c->n_lanes < 2 || c->lk.n_rows >= (int64_t)c->lane_rows_max) return;
     double *row = c->lane_rows + (size_t)c->lk.n_rows++ * c->lane_row_len;
     row[0] = t, row[1] = (double)c->lk.rec_changes, row[2] = (double)c->lk.rec_cut_ins;
     c->lk.rec_changes = c->lk.rec_cut_ins = 0;
     for (size_t l = 0; l < c->n_lanes; l++) {
-        const WfCorridorVehicles *vh = &c->ln[l].veh;
-        double *o = row + 3 + l * WF_LANE_N_COLS, n = (double)vh->n, sv = 0, sg = 0, fuel = 0, waves = 0, m2 = 0;
-        int prev_slow = 0;
-        for (size_t k = 0; k < vh->n; k++) {
-            size_t s = wf_corridor_slot(vh, k);
-            int slow = vh->v_mps[s] < sc->wave_speed_mps;
-            sv += vh->v_mps[s], fuel += vh->fuel_rate_gps[s], waves += slow && !prev_slow, prev_slow = slow;
-            if (k > 0) sg += vh->gap_m[s];
-        }
-        double mean = vh->n ? sv / n : NAN;
-        for (size_t k = 0; k < vh->n; k++) {
-            double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
-            m2 += d * d;
-        }
+        WfCorridorRow r;
+        record(c, l, l + 1, t, &r);
+        double *o = row + 3 + l * WF_LANE_N_COLS, n = r.v[WF_CTS_VEHICLES];
         o[WF_LANE_VEHICLES] = n;
         o[WF_LANE_DENSITY] = n / (c->L / 1000.0);
-        o[WF_LANE_FLOW] = vh->n ? o[WF_LANE_DENSITY] * mean * 3.6 : 0.0;
-        o[WF_LANE_MEAN_V] = mean;
-        o[WF_LANE_SD_V] = vh->n ? sqrt(m2 / n) : NAN;
-        o[WF_LANE_WAVES] = waves;
-        o[WF_LANE_FUEL_RATE] = fuel;
-        o[WF_LANE_MEAN_GAP] = vh->n > 1 ? sg / (n - 1.0) : NAN;
+        o[WF_LANE_FLOW] = n > 0 ? o[WF_LANE_DENSITY] * r.v[WF_CTS_MEAN_V] * 3.6 : 0.0;
+        o[WF_LANE_MEAN_V] = r.v[WF_CTS_MEAN_V];
+        o[WF_LANE_SD_V] = r.v[WF_CTS_SD_V];
+        o[WF_LANE_WAVES] = r.v[WF_CTS_WAVES];
+        o[WF_LANE_FUEL_RATE] = r.v[WF_CTS_FUEL_RATE];
+        o[WF_LANE_MEAN_GAP] = r.v[WF_CTS_MEAN_GAP];
     }
 }
 
@@ -1238,14 +1228,15 @@ static int corridor_lanes(const void *eng, WfLaneObs *out)
     return 1;
 }
 
-/* The road's record: sums lane after lane, each lane front first; waves and gaps within each lane. */
-static void record(const WfCorridor *c, double t, WfCorridorRow *row)
+/* The record of lanes [l0, l1) (the road's: all of them): sums lane after lane, each lane front first; waves and gaps
+ * within each lane. */
+static void record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row)
 {
     const WfScenario *sc = c->sc;
     size_t n = 0, ngap = 0;
     memset(row, 0, sizeof *row);
     double sv = 0, sg = 0, stopped = 0, waves = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY, fuel = 0;
-    for (size_t l = 0; l < c->n_lanes; l++) {
+    for (size_t l = l0; l < l1; l++) {
         const WfCorridorVehicles *vh = &c->ln[l].veh;
         int prev_slow = 0;
         for (size_t k = 0; k < vh->n; k++) {
@@ -1263,7 +1254,7 @@ static void record(const WfCorridor *c, double t, WfCorridorRow *row)
         n += vh->n, ngap += vh->n ? vh->n - 1 : 0;
     }
     double mean = n ? sv / (double)n : NAN, m2 = 0.0;
-    for (size_t l = 0; l < c->n_lanes; l++) {
+    for (size_t l = l0; l < l1; l++) {
         const WfCorridorVehicles *vh = &c->ln[l].veh;
         for (size_t k = 0; k < vh->n; k++) {
             double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
@@ -1392,7 +1383,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
         }
         if (records) {
             WfCorridorRow row;
-            record(c, t, &row);
+            record(c, 0, c->n_lanes, t, &row);
             lanes_observe(c, t);
             if (in_window && on_road) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
             WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
