@@ -145,10 +145,11 @@ static void test_safety(void)
     CHECK_ABS(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_SYMMETRIC, c), 7.0, 1e-12);
 }
 
-/* A mandatory change (out of a lane that ends) is judged with b_mandatory (default 8) and the symmetric incentive,
- * both directions alike: the new follower braking at 6 blocks an ordinary change (b_safe 4) but not a mandatory
- * one, whose advantage is then 2 - (-6) + 0.2 (-6 - 0 + 0 - 0) - 0.1 = 6.7 to either side; beyond -8 it is unsafe
- * too. */
+/* A mandatory change (out of a lane that ends, within the merge range) takes any gap that is safe under
+ * b_mandatory (default 8); the advantage is b_mandatory + ã_c, so that between two sides the one letting the changer
+ * go faster wins. The new follower braking at 6 blocks an ordinary change (b_safe 4) but not a mandatory one, whose
+ * advantage is then 8 + 2 = 10 to either side, whatever the politeness; with ã_c = -7.5 still 8 - 7.5 = 0.5 > 0;
+ * beyond -8 (the follower's or the changer's) it is unsafe. */
 static void test_mandatory(void)
 {
     const WfLaneChangeModel *m = mobil();
@@ -156,10 +157,33 @@ static void test_mandatory(void)
     Params p = lc_defaults(m);
     WfLcCase c = lc_case(-6.0, 2.0, 0.0, -6.0, 0.0, 0.0);
     CHECK(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_SYMMETRIC, c) == -INFINITY, "ordinary change admitted");
-    CHECK_ABS(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_MANDATORY, c), 6.7, 1e-12);
-    CHECK_ABS(adv(m, &p, WF_LANE_RIGHT, WF_LANE_RULE_MANDATORY, c), 6.7, 1e-12);
+    CHECK_ABS(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_MANDATORY, c), 10.0, 1e-12);
+    CHECK_ABS(adv(m, &p, WF_LANE_RIGHT, WF_LANE_RULE_MANDATORY, c), 10.0, 1e-12);
+    lc_set(m, &p, "politeness", 1.0);
+    CHECK_ABS(adv(m, &p, WF_LANE_RIGHT, WF_LANE_RULE_MANDATORY, c), 10.0, 1e-12);
+    c = lc_case(0.0, -7.5, 0.0, -1.0, 0.0, 0.0);
+    CHECK_ABS(adv(m, &p, WF_LANE_RIGHT, WF_LANE_RULE_MANDATORY, c), 0.5, 1e-12);
     c = lc_case(-6.0, 2.0, 0.0, -8.5, 0.0, 0.0);
     CHECK(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_MANDATORY, c) == -INFINITY, "beyond b_mandatory admitted");
+    c = lc_case(-6.0, -8.5, 0.0, 0.0, 0.0, 0.0);
+    CHECK(adv(m, &p, WF_LANE_LEFT, WF_LANE_RULE_MANDATORY, c) == -INFINITY, "changer beyond b_mandatory admitted");
+}
+
+/* Cooperation: the keys reach the model's answer (defaults 1.5 m/s^2 and 300 m; 0 turns yielding off). */
+static void test_cooperation_keys(void)
+{
+    const WfLaneChangeModel *m = mobil();
+    if (!m) return;
+    Params p = lc_defaults(m);
+    double yield = -1.0, range = -1.0;
+    m->cooperation(&p, &yield, &range);
+    CHECK_ABS(yield, 1.5, 0.0);
+    CHECK_ABS(range, 300.0, 0.0);
+    lc_set(m, &p, "coop_decel_mps2", 0.0);
+    lc_set(m, &p, "merge_range_m", 120.0);
+    m->cooperation(&p, &yield, &range);
+    CHECK_ABS(yield, 0.0, 0.0);
+    CHECK_ABS(range, 120.0, 0.0);
 }
 
 /* ---------------------------------------------------------------- politeness */
@@ -324,6 +348,7 @@ int main(void)
     RUN(test_incentive_below_threshold);
     RUN(test_safety);
     RUN(test_mandatory);
+    RUN(test_cooperation_keys);
     RUN(test_politeness_flips);
     RUN(test_keep_right_bias);
     RUN(test_missing_followers);

@@ -43,6 +43,10 @@ typedef struct WfLaneChangeModel {
     double (*advantage)(const void *params, int dir, int rule, const WfLcCase *c);
     /* The least time between two changes of a vehicle (s). */
     double (*min_interval_s)(const void *params);
+    /* Cooperation at a lane's end (docs/lanes.md, "Cooperation"): the hardest braking (m/s^2, magnitude; 0: never)
+     * a driver accepts to let a vehicle that must leave an ending lane in ahead of it, and how far (m) before its
+     * own lane's end such a driver asks for it. */
+    void (*cooperation)(const void *params, double *yield_decel_mps2, double *request_range_m);
 } WfLaneChangeModel;
 
 /* NULL-terminated registry of every lane-change model. */

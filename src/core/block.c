@@ -287,7 +287,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
         ln->ops->grade(ln->ctx, ln->grade_seg + lo, m, x, b->th);
     else
         memset(b->th, 0, m * sizeof *b->th);
-    int capped = ln->ops->cap && ln->ops->cap(ln->ctx, m, x, v, cap);
+    int capped = ln->ops->cap && ln->ops->cap(ln->ctx, lo, m, x, v, cap);
     accel_block(ln, lo, m, x, v, z, capped ? cap : NULL, b, co);
     if (pass & WF_PASS_ENERGY) {
         energy_block(ln, lo, m, v, b->a, b->th, b->fr, b->fl);

@@ -67,9 +67,9 @@ typedef struct WfRoadOps {
     /* grade angle (rad) of m vehicles at x_m; seg: their grade cache (the segment each was last found in); NULL:
      * flat */
     void (*grade)(const void *ctx, uint32_t *seg, size_t m, const double *x_m, double *theta_rad);
-    /* a cap on each acceleration (m/s^2; the rule: a > cap ? max(cap, -decel_max) : a); returns 0 when there is
-     * none for these vehicles; NULL: never one */
-    int (*cap)(const void *ctx, size_t m, const double *x_m, const double *v_mps, double *cap_mps2);
+    /* a cap on each acceleration (m/s^2; the rule: a > cap ? max(cap, -decel_max) : a) of the m vehicles in slots
+     * [lo, lo + m); returns 0 when there is none for these vehicles; NULL: never one */
+    int (*cap)(const void *ctx, size_t lo, size_t m, const double *x_m, const double *v_mps, double *cap_mps2);
     /* the parameters a vehicle of a zoned group drives with at x (own, or a copy in buf) */
     const double *(*params_at)(const void *ctx, size_t group, const double *own, double x_m, double *buf);
     /* after a block advanced (x_old_m to x_m): the boundary's per-vehicle bookkeeping of the step, on the thread

@@ -151,8 +151,14 @@ struct WfCorridor {
     struct {
         WfLaneCounts total;
         int64_t  rec_changes, rec_cut_ins, n_rows; /* since the last record; records kept */
+        int64_t  coop_yields;                     /* steps in which a driver yielded to a merging vehicle */
         double   group_vehicle_s[WF_MAX_GROUPS];  /* time on the road of each group's vehicles that left */
     } lk;
+    /* cooperation at the lanes' ends (src/core/lanes.h): per global slot the bound of the step (+inf: none), and the
+     * slots that have one */
+    double  *coop_cap_mps2;
+    uint32_t *coop_slot;
+    size_t   n_coop;
     double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
     size_t   lane_row_len, lane_rows_max;
 };
@@ -187,7 +193,7 @@ static void corridor_destroy(void *eng)
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     wf_lanes_destroy(&c->lcs);
     void *snap[] = {c->snap.x_m, c->snap.v_mps, c->snap.class_id, c->snap.group_id, c->snap.ready, c->snap.slot,
-                    c->snap.buf, c->lane_rows};
+                    c->snap.buf, c->lane_rows, c->coop_cap_mps2, c->coop_slot};
     for (size_t i = 0; i < sizeof snap / sizeof snap[0]; i++) free(snap[i]);
     free(c);
 }
@@ -623,7 +629,7 @@ static void corridor_grade(const void *ctx, uint32_t *seg, size_t m, const doubl
 /* The cap of the acceleration at x: never past the speed limit at x within the step, and at least the braking
  * that meets a lower zone limit ahead at the zone's start: once the deceleration needed, (v^2 - v_zone^2) / (2 d),
  * reaches corridor.zone_decel_mps2, the vehicle brakes at least that hard. */
-static int corridor_cap(const void *ctx, size_t m, const double *x, const double *v, double *cap)
+static int corridor_cap(const void *ctx, size_t lo, size_t m, const double *x, const double *v, double *cap)
 {
     const CorLane *ln = ctx;
     const WfCorridor *c = ln->c;
@@ -639,6 +645,10 @@ static int corridor_cap(const void *ctx, size_t m, const double *x, const double
             if (need >= c->cs->zone_decel_mps2 && -need < cp) cp = -need;
         }
         cap[k] = cp;
+    }
+    if (c->coop_cap_mps2) { /* a driver letting a merging vehicle in (lane_cooperation) */
+        const double *cc = c->coop_cap_mps2 + (size_t)(ln - c->ln) * ln->veh.cap + lo;
+        for (size_t k = 0; k < m; k++) cap[k] = cc[k] < cap[k] ? cc[k] : cap[k];
     }
     return 1;
 }
@@ -667,6 +677,20 @@ static void step_cells(const void *ctx, size_t lo, size_t m)
     }
 }
 
+/* Whether drivers may cooperate at a lane's end: several lanes, one of them ending, and a driver who yields. */
+static int coop_possible(const WfCorridor *c)
+{
+    int ends = 0, yields = 0;
+    for (size_t l = 0; c->n_lanes > 1 && l < c->n_lanes; l++) ends |= isfinite(c->ln[l].end_m);
+    for (size_t g = 0; g < c->sc->n_groups; g++) {
+        const WfDriverGroup *grp = &c->sc->groups[g];
+        double yield_mps2 = 0.0, range_m;
+        if (grp->lc) grp->lc->cooperation(grp->lc_params, &yield_mps2, &range_m);
+        yields |= yield_mps2 > 0.0;
+    }
+    return ends && yields;
+}
+
 static int lane_init(WfCorridor *c, WfError *err)
 {
     const WfScenario *sc = c->sc;
@@ -675,7 +699,13 @@ static int lane_init(WfCorridor *c, WfError *err)
     c->bound_v = calloc(nt, sizeof(double));
     c->chunks = calloc(nt, sizeof *c->chunks);
     if (!c->bound_x || !c->bound_v || !c->chunks) return wf_err(err, WF_ESYS, "out of memory");
-    c->has_cap = isfinite(sc->road.speed_limit_mps);
+    if (coop_possible(c)) {
+        size_t n = c->n_lanes * c->ln[0].veh.cap;
+        ALLOC(c->coop_cap_mps2, n);
+        ALLOC(c->coop_slot, n);
+        for (size_t k = 0; k < n; k++) c->coop_cap_mps2[k] = INFINITY;
+    }
+    c->has_cap = isfinite(sc->road.speed_limit_mps) || c->coop_cap_mps2;
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
                          .moved = step_cells,
@@ -778,20 +808,16 @@ static void lanes_move(WfCorridor *c, const uint32_t *src, const uint32_t *dst, 
 #undef MOVE_ARRAY
 }
 
-/* The lane changes at the start of a step (src/core/lanes.h): decisions from the state, then each lane rebuilt back to
- * front from the vehicles that stay and, in each gap, the one that entered it (a gap behind vehicle k of the old
- * order, or ahead of the lane's front). A lane's back keeps its slot. */
-static void lane_changes(WfCorridor *c, long step)
+/* The step's changes decided on r: each lane rebuilt back to front from the vehicles that stay and, in each gap, the
+ * one that entered it (a gap behind vehicle k of the old order, or ahead of the lane's front). A lane's back keeps its
+ * slot. */
+static void lane_moves(WfCorridor *c, const WfLcRoad *r, long step)
 {
-    if (!c->lcs.active) return;
-    WfLcRoad r;
-    lanes_road(c, &r);
-    if (!wf_lanes_decide(&c->lcs, &r, step, c->nthreads)) return;
     const WfLaneChanges *lc = &c->lcs;
     size_t cap = c->ln[0].veh.cap, j = 0, newn[WF_MAX_LANES];
     uint32_t *src = c->lcs.perm, *dst = (uint32_t *)c->lcs.scratch;
     for (size_t m = 0; m < c->n_lanes; m++) {
-        size_t fm = r.first[m], nm = r.count[m], start = j, first = c->ln[m].veh.first;
+        size_t fm = r->first[m], nm = r->count[m], start = j, first = c->ln[m].veh.first;
         const uint32_t *claim = lc->claim + fm + m;
         for (size_t q = 0; q <= nm; q++) {
             if (claim[q]) src[j++] = claim[q] - 1;
@@ -825,6 +851,37 @@ static void lane_changes(WfCorridor *c, long step)
             c->lk.total.group_cut_ins[ln->veh.group_id[behind]]++;
         }
     }
+}
+
+/* The cooperation of the step (wf_lanes_cooperate) on the road after its changes: each yielding driver's bound, by
+ * global slot, for corridor_cap. The previous step's bounds are cleared first (none at the final instant). */
+static void lane_cooperation(WfCorridor *c, const WfLcRoad *r)
+{
+    for (size_t k = 0; k < c->n_coop; k++) c->coop_cap_mps2[c->coop_slot[k]] = INFINITY;
+    c->n_coop = 0;
+    if (!r) return;
+    size_t n = wf_lanes_cooperate(&c->lcs, r);
+    for (size_t k = 0; k < n; k++) {
+        uint32_t s = c->snap.slot[c->lcs.coop_who[k]];
+        double a = c->lcs.coop_cap_mps2[k];
+        if (c->coop_cap_mps2[s] == INFINITY) c->coop_slot[c->n_coop++] = s;
+        if (a < c->coop_cap_mps2[s]) c->coop_cap_mps2[s] = a;
+        c->lk.coop_yields++;
+    }
+}
+
+/* The lane changes at the start of a step (src/core/lanes.h): decisions from the state, the moves, then the
+ * cooperation the new state asks for. */
+static void lane_changes(WfCorridor *c, long step)
+{
+    if (!c->lcs.active) return;
+    WfLcRoad r;
+    lanes_road(c, &r);
+    if (wf_lanes_decide(&c->lcs, &r, step, c->nthreads)) {
+        lane_moves(c, &r, step);
+        if (c->coop_cap_mps2) lanes_road(c, &r);
+    }
+    if (c->coop_cap_mps2) lane_cooperation(c, &r);
 }
 
 /* The step's values go to the per-slot arrays (steps with a record or trajectory, which read them before the
@@ -1368,6 +1425,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
     int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
     int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
+    if (c->coop_cap_mps2) lane_cooperation(c, NULL);
     if (nl > 1 && step > 0 && !last) lane_changes(c, step);
     if ((rc = arrivals(c, t, err)) || (rc = entrance(c, t, step, err))) return rc;
     WfLead front[WF_MAX_LANES];

@@ -96,9 +96,9 @@ static void ring_grade(const void *ctx, uint32_t *seg, size_t m, const double *x
 }
 
 /* The lane's speed limit: never accelerate past it within the step. */
-static int ring_cap(const void *ctx, size_t m, const double *x, const double *v, double *cap)
+static int ring_cap(const void *ctx, size_t lo, size_t m, const double *x, const double *v, double *cap)
 {
-    (void)x;
+    (void)lo, (void)x;
     const struct RingLaneCtx *lc = ctx;
     double vlim = lc->speed_limit_mps, dt = lc->s->sc->dt_s;
     if (!isfinite(vlim)) return 0;

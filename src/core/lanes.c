@@ -17,6 +17,9 @@ int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_
         if (!grp->lc) continue;
         lc->active = 1;
         lc->interval_steps[g] = (int64_t)ceil(grp->lc->min_interval_s(grp->lc_params) / sc->dt_s - 1e-9);
+        double yield_mps2, range_m;
+        grp->lc->cooperation(grp->lc_params, &yield_mps2, &range_m);
+        lc->coop |= yield_mps2 > 0.0;
     }
     if (!lc->active || n_lanes < 2) return lc->active = 0;
     lc->p_m = malloc(n * sizeof *lc->p_m);
@@ -30,7 +33,9 @@ int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_
     lc->scratch = malloc(n * sizeof(double));
     lc->blk = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blk);
     lc->blkl = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blkl);
-    if (!lc->p_m || !lc->tgt[0] || !lc->tgt[1] || !lc->dir || !lc->adv_mps2 || !lc->claim || !lc->perm ||
+    lc->coop_who = malloc(2 * n * sizeof *lc->coop_who);
+    lc->coop_cap_mps2 = malloc(2 * n * sizeof *lc->coop_cap_mps2);
+    if (!lc->coop_who || !lc->coop_cap_mps2 || !lc->p_m || !lc->tgt[0] || !lc->tgt[1] || !lc->dir || !lc->adv_mps2 || !lc->claim || !lc->perm ||
         !lc->shift_m || !lc->scratch || !lc->blk || !lc->blkl)
         return wf_err(err, WF_ESYS, "out of memory for the lane changes of %zu vehicles", n);
     return 0;
@@ -49,6 +54,8 @@ void wf_lanes_destroy(WfLaneChanges *lc)
     free(lc->scratch);
     free(lc->blk);
     free(lc->blkl);
+    free(lc->coop_who);
+    free(lc->coop_cap_mps2);
     *lc = (WfLaneChanges){0};
 }
 
@@ -208,6 +215,17 @@ static int put_case(const WfLaneChanges *lc, const WfLcRoad *r, Batch *bt, size_
     return 1;
 }
 
+/* The rule vehicle i of lane l changes by: mandatory in a lane that ends within its driver's merge range, else the
+ * road's. */
+static int rule_of(const WfLcRoad *r, size_t l, size_t i)
+{
+    const WfDriverGroup *grp = &r->sc->groups[r->group_id[i]];
+    double yield_mps2, range_m;
+    if (!isfinite(r->end_m[l])) return r->sc->lane_rule;
+    grp->lc->cooperation(grp->lc_params, &yield_mps2, &range_m);
+    return r->end_m[l] - r->x_m[i] <= range_m ? WF_LANE_RULE_MANDATORY : r->sc->lane_rule;
+}
+
 /* The decisions of the m vehicles of lane l from index i0: each one's side with the larger positive advantage (the
  * right one at a tie), or none. */
 static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t i0, size_t m, long step, Batch *bt)
@@ -227,7 +245,6 @@ static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t 
         if ((d == 0 && l == 0) || (d == 1 && l + 1 == r->n_lanes)) continue;
         size_t tl = d ? l + 1 : l - 1, c = 0;
         if (isfinite(r->end_m[tl])) continue; /* a lane that ends takes nobody */
-        int rule = isfinite(r->end_m[l]) ? WF_LANE_RULE_MANDATORY : sc->lane_rule;
         for (size_t k = 0; k < m; k++) {
             size_t i = i0 + k;
             if (!sc->groups[r->group_id[i]].lc || step < r->ready_step[i]) continue;
@@ -241,7 +258,7 @@ static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t 
             const WfDriverGroup *grp = &sc->groups[r->group_id[i]];
             WfLcCase cs = {own_now[k], bt->a[EV_OWN_NEW][q], bt->a[EV_NEW_NOW][q], bt->a[EV_NEW_NEW][q],
                            bt->a[EV_OLD_NOW][q], bt->a[EV_OLD_NEW][q], bt->has_new[q], bt->has_old[q]};
-            double adv = grp->lc->advantage(grp->lc_params, d ? WF_LANE_LEFT : WF_LANE_RIGHT, rule, &cs);
+            double adv = grp->lc->advantage(grp->lc_params, d ? WF_LANE_LEFT : WF_LANE_RIGHT, rule_of(r, l, i), &cs);
             if (adv > lc->adv_mps2[i]) lc->adv_mps2[i] = adv, lc->dir[i] = (int8_t)(d ? WF_LANE_LEFT : WF_LANE_RIGHT);
         }
     }
@@ -305,6 +322,48 @@ long wf_lanes_decide(WfLaneChanges *lc, const WfLcRoad *r, long step, int nthrea
         decide_all(lc, r, step, nblk, lc->blkl);
     }
     return resolve(lc, r);
+}
+
+/* ------------------------------------------------------------------------------------------- cooperation */
+
+/* The askers of ending lane l beside lane m: each one's follower there (the last of lane m behind it, one walk of
+ * both lanes in the order of positions), and whether that follower yields. */
+static size_t cooperate_pair(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t m, size_t nc)
+{
+    const WfScenario *sc = r->sc;
+    const double *x = r->x_m, *v = r->v_mps;
+    size_t fm = r->first[m], nm = r->count[m], j = 0;
+    for (size_t i = r->first[l]; i < r->first[l] + r->count[l]; i++) {
+        const WfDriverGroup *gi = &sc->groups[r->group_id[i]];
+        double yield_mps2, range_m;
+        if (!gi->lc) continue;
+        gi->lc->cooperation(gi->lc_params, &yield_mps2, &range_m);
+        if (r->end_m[l] - x[i] > range_m) continue;
+        while (j < nm && x[fm + j] < x[i]) j++;
+        if (!j) continue;
+        size_t f = fm + j - 1;
+        const WfDriverGroup *gf = &sc->groups[r->group_id[f]];
+        if (!gf->lc) continue;
+        gf->lc->cooperation(gf->lc_params, &yield_mps2, &range_m);
+        double gap = x[i] - len_of(r, i) - x[f];
+        if (!(yield_mps2 > 0.0) || !(gap > 0.0)) continue;
+        double a = accel_of(r, f, gap, v[f], v[i]);
+        if (!(a >= -yield_mps2)) continue;
+        lc->coop_who[nc] = (uint32_t)f, lc->coop_cap_mps2[nc++] = a;
+    }
+    return nc;
+}
+
+size_t wf_lanes_cooperate(WfLaneChanges *lc, const WfLcRoad *r)
+{
+    size_t nc = 0;
+    if (!lc->active || !lc->coop) return 0;
+    for (size_t l = 0; l < r->n_lanes; l++) {
+        if (!isfinite(r->end_m[l]) || !r->count[l]) continue;
+        if (l > 0 && !isfinite(r->end_m[l - 1])) nc = cooperate_pair(lc, r, l, l - 1, nc);
+        if (l + 1 < r->n_lanes && !isfinite(r->end_m[l + 1])) nc = cooperate_pair(lc, r, l, l + 1, nc);
+    }
+    return nc;
 }
 
 /* ------------------------------------------------------------------------------------------------ the ring */

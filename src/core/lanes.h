@@ -62,6 +62,9 @@ typedef struct WfLaneChanges {
     uint32_t *blk;           /* the first index of each block of the decisions */
     uint8_t  *blkl;          /* ... and its lane */
     int64_t   interval_steps[WF_MAX_GROUPS]; /* each group's least steps between two changes */
+    int       coop;          /* some group yields to merging vehicles (its coop decel > 0) */
+    uint32_t *coop_who;      /* the cooperation of a step: who yields (road index) ... */
+    double   *coop_cap_mps2; /* ... and the acceleration it keeps to at most */
 } WfLaneChanges;
 
 /* Ownership: lc's arrays are lc's until wf_lanes_destroy. n: the most vehicles the road holds. */
@@ -80,6 +83,13 @@ typedef struct WfLaneCounts {
 /* The decisions of step `step` on road r (lc->dir, lc->tgt and lc->claim: who takes each gap); returns the number of
  * changes. nthreads: the decisions run in parallel (their result does not depend on it). */
 long wf_lanes_decide(WfLaneChanges *lc, const WfLcRoad *r, long step, int nthreads);
+
+/* Cooperation at the lanes' ends (docs/lanes.md), from the state of road r after the step's changes: a vehicle in
+ * a lane that ends, within its driver's request range of the end, asks the vehicle right behind it in each lane it
+ * may enter; that follower yields when its driver cooperates and following the asker as a leader needs no harder
+ * braking than the driver accepts: its acceleration is then at most that. Returns the number of (follower, bound)
+ * pairs in lc->coop_who / lc->coop_cap_mps2 (a follower asked from two sides appears twice: the lower bound holds). */
+size_t wf_lanes_cooperate(WfLaneChanges *lc, const WfLcRoad *r);
 
 /* A ring's changes decided on r (built from f with p in lc->p_m): the vehicles move to their new slots with every
  * per-vehicle array of the ring's state in vars (stride > 0); f's lane counts, lanes, ids and slots of ids follow;
