@@ -50,6 +50,7 @@ typedef struct WfCorridorZone {
     double     from_m, to_m; /* the zone is [from, to) in front-bumper position */
     double     value;        /* speed limit (m/s), or the headway factor (1) */
     char       key[32];      /* headway zones: the driver-model parameter multiplied ("T_s") */
+    unsigned   lane_mask;    /* the lanes it applies to (bit l: lane l); 0: every lane */
 } WfCorridorZone;
 
 /* Everything a corridor scenario adds to WfScenario (owned by it: WfScenario.corridor). */

@@ -88,6 +88,7 @@ typedef struct CorridorRunState {
  * [l cap, (l + 1) cap) of each allocation (held by lane 0's pointers). */
 typedef struct CorLane {
     struct WfCorridor *c;   /* the corridor (the road hooks' context is the lane) */
+    size_t    index;        /* the lane's number */
     WfCorridorVehicles veh;
     double   *xold;
     uint32_t *cell;         /* the Edie cell of the step when it lies inside one cell, else UINT32_MAX */
@@ -200,18 +201,23 @@ static void corridor_destroy(void *eng)
 
 /* ------------------------------------------------------------------------------------------ road */
 
-/* Speed limit at x: the road's, lowered by every speed-limit zone containing x. */
-static double limit_at(const WfCorridor *c, double x)
+/* Whether zone z applies to lane l (road.zones[i].lanes). */
+static inline int zone_on(const WfCorridorZone *zn, size_t l) { return !zn->lane_mask || (zn->lane_mask >> l & 1u); }
+
+/* Speed limit in lane l at x: the lane's (road.lane_speed_limits_mps, else the road's), lowered by every speed-limit
+ * zone of the lane containing x. */
+static double limit_at(const WfCorridor *c, size_t l, double x)
 {
-    double lim = c->sc->road.speed_limit_mps;
+    double lim = c->sc->lane_speed_limit_mps[l];
     for (size_t z = 0; z < c->cs->n_zones; z++) {
         const WfCorridorZone *zn = &c->cs->zones[z];
-        if (zn->type == WF_ZONE_SPEED_LIMIT && x >= zn->from_m && x < zn->to_m && zn->value < lim) lim = zn->value;
+        if (zn->type == WF_ZONE_SPEED_LIMIT && x >= zn->from_m && x < zn->to_m && zn->value < lim && zone_on(zn, l))
+            lim = zn->value;
     }
     return lim;
 }
 
-/* The parameters a vehicle drives with at x: its own, or inside headway zones a copy with the zones' key
+/* The parameters a vehicle drives with at x: its own, or inside its lane's headway zones a copy with the zones' key
  * multiplied (overlapping zones multiply). buf holds WF_MAX_MODEL_PARAMS doubles. */
 static const double *params_at(const void *ctx, size_t group, const double *own, double x, double *buf)
 {
@@ -221,7 +227,8 @@ static const double *params_at(const void *ctx, size_t group, const double *own,
     for (size_t z = 0; z < c->cs->n_zones; z++) {
         const WfCorridorZone *zn = &c->cs->zones[z];
         int off = c->hw_off[group][z];
-        if (zn->type != WF_ZONE_HEADWAY || off < 0 || x < zn->from_m || x >= zn->to_m) continue;
+        if (zn->type != WF_ZONE_HEADWAY || off < 0 || x < zn->from_m || x >= zn->to_m || !zone_on(zn, ln->index))
+            continue;
         if (p == own) {
             memcpy(buf, own, c->sc->groups[group].model->param_size);
             p = buf;
@@ -270,6 +277,7 @@ static int alloc_vehicles(WfCorridor *c, WfError *err)
         CorLane *ln = &c->ln[l];
         size_t o = l * cap;
         ln->c = c;
+        ln->index = l;
 #define VIEW(nm, field) ln->field = l0->field + o;
         if (l) {
             SAVED_SLOT_ARRAYS(VIEW) STEP_SLOT_ARRAYS(VIEW)
@@ -535,7 +543,7 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
     double buf[WF_MAX_MODEL_PARAMS];
     double x0 = ln->start_m;
     const double *p = params_at(ln, en->cand_group, en->cand_params, x0, buf);
-    double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, x0));
+    double vcap = fmin(c->cs->entry_speed_mps, limit_at(c, l, x0));
     double v_hi = isfinite(vcap) ? vcap : 100.0;
     double gap, vl;
     int free_road = 0, obstacle = 0;
@@ -635,11 +643,12 @@ static int corridor_cap(const void *ctx, size_t lo, size_t m, const double *x, c
     const WfCorridor *c = ln->c;
     double dt = c->sc->dt_s;
     for (size_t k = 0; k < m; k++) {
-        double cp = INFINITY, vlim = limit_at(c, x[k]);
+        double cp = INFINITY, vlim = limit_at(c, ln->index, x[k]);
         if (isfinite(vlim)) cp = (vlim - v[k]) / dt;
         for (size_t z = 0; z < c->cs->n_zones; z++) {
             const WfCorridorZone *zn = &c->cs->zones[z];
-            if (zn->type != WF_ZONE_SPEED_LIMIT || zn->from_m <= x[k] || zn->value >= v[k]) continue;
+            if (zn->type != WF_ZONE_SPEED_LIMIT || zn->from_m <= x[k] || zn->value >= v[k] || !zone_on(zn, ln->index))
+                continue;
             /* d > 0 here (from > x), so the division is safe. */
             double need = (v[k] * v[k] - zn->value * zn->value) / (2.0 * (zn->from_m - x[k]));
             if (need >= c->cs->zone_decel_mps2 && -need < cp) cp = -need;
@@ -647,7 +656,7 @@ static int corridor_cap(const void *ctx, size_t lo, size_t m, const double *x, c
         cap[k] = cp;
     }
     if (c->coop_cap_mps2) { /* a driver letting a merging vehicle in (lane_cooperation) */
-        const double *cc = c->coop_cap_mps2 + (size_t)(ln - c->ln) * ln->veh.cap + lo;
+        const double *cc = c->coop_cap_mps2 + ln->index * ln->veh.cap + lo;
         for (size_t k = 0; k < m; k++) cap[k] = cc[k] < cap[k] ? cc[k] : cap[k];
     }
     return 1;
@@ -705,7 +714,8 @@ static int lane_init(WfCorridor *c, WfError *err)
         ALLOC(c->coop_slot, n);
         for (size_t k = 0; k < n; k++) c->coop_cap_mps2[k] = INFINITY;
     }
-    c->has_cap = isfinite(sc->road.speed_limit_mps) || c->coop_cap_mps2;
+    c->has_cap = c->coop_cap_mps2 != NULL;
+    for (size_t l = 0; l < c->n_lanes; l++) c->has_cap |= isfinite(sc->lane_speed_limit_mps[l]);
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
                          .moved = step_cells,

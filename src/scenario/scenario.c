@@ -178,16 +178,21 @@ static int load_road_type(WfCfgNode *road, const WfKeySpec *row, void *t, WfKeyE
 /* road.lane_speed_limits_mps: one limit per lane (road.lanes and road.speed_limit_mps are read before it). */
 static int load_lane_limits(WfCfgNode *road, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
 {
-    (void)env;
     WfScenario *sc = t;
     WfCfgNode *seq = NULL;
     char w[1024];
     for (int l = 0; l < WF_MAX_LANES; l++) sc->lane_speed_limit_mps[l] = sc->road.speed_limit_mps;
     if (wf_cfg_seq_opt(road, row->key, &seq, err)) return WF_EINPUT;
     if (!seq) return 0;
-    if (seq->n_child != (size_t)sc->n_lanes)
+    /* a corridor's lanes include the on-ramp's merge lane, read later: scenario_corridor.c checks the count */
+    if (env->on == WF_ON_RING && seq->n_child != (size_t)sc->n_lanes)
         return wf_err(err, WF_EINPUT, "%s: road.lane_speed_limits_mps lists %zu lanes but road.lanes is %d",
                       where_of(seq, w, sizeof w), seq->n_child, sc->n_lanes);
+    if (seq->n_child > WF_MAX_LANES)
+        return wf_err(err, WF_EINPUT, "%s: road.lane_speed_limits_mps lists %zu lanes: at most %d",
+                      where_of(seq, w, sizeof w), seq->n_child, WF_MAX_LANES);
+    if (env->on == WF_ON_CORRIDOR)
+        for (size_t l = seq->n_child; l < WF_MAX_LANES; l++) sc->lane_speed_limit_mps[l] = NAN;
     for (size_t l = 0; l < seq->n_child; l++)
         if (wf_cfg_node_double(seq->child[l], row->min, row->max, row->unit, &sc->lane_speed_limit_mps[l], err))
             return WF_EINPUT;
@@ -225,11 +230,12 @@ static const WfKeySpec road_rows[] = {
      .choices = lane_rules,
      .doc = "passing rule of the lane-change models: `symmetric` (pass on either side), `keep_right` (MOBIL's "
             "European rules: a bias to the right lane, no regard for the new follower on a change to the right)"},
-    {.key = "lane_speed_limits_mps", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .hook = load_lane_limits,
-     .min = 0.1, .max = 100, .unit = "m/s", .off_msg = "road.lane_speed_limits_mps applies to multi-lane rings",
+    {.key = "lane_speed_limits_mps", .type = WF_KEY_CUSTOM, .on = WF_ON_BOTH, .hook = load_lane_limits,
+     .min = 0.1, .max = 100, .unit = "m/s",
      .doc_type = "list of m/s", .doc_default = "`speed_limit_mps` in every lane", .doc_range = "one per lane, [0.1, 100]",
-     .doc = "a speed limit per lane (lane 0 first), applied as `speed_limit_mps` is; lane-change models do not see "
-            "it (their accelerations are the car-following models')"},
+     .doc = "a speed limit per lane (lane 0 first; on a corridor with an on-ramp, its merge lane is lane 0), applied "
+            "as `speed_limit_mps` is (a corridor's zones may lower it); lane-change models do not see it (their "
+            "accelerations are the car-following models')"},
     {.key = "grade", .type = WF_KEY_CUSTOM, .on = WF_ON_RING, .flags = WF_KEY_FLAT, .hook = load_grade,
      .sub = &ring_grade_keys},
     /* A corridor's grade profile is not periodic and its zones name driver parameters: scenario_corridor.c reads

@@ -211,6 +211,31 @@ int wf_corridor_road_elevation(WfCfgNode *road, const WfKeySpec *row, void *t, W
 
 static const char *const zone_types[] = {"speed_limit", "headway", NULL};
 
+/* road.zones[i].lanes: the lanes a zone applies to (their range is checked with the corridor's lanes, in
+ * load_lane_drops). */
+static int load_zone_lanes(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    (void)env;
+    WfCorridorZone *z = t;
+    WfCfgNode *seq = NULL;
+    char w[1024];
+    z->lane_mask = 0;
+    if (wf_cfg_seq_opt(e, row->key, &seq, err)) return WF_EINPUT;
+    if (!seq) return 0;
+    if (!seq->n_child)
+        return wf_err(err, WF_EINPUT, "%s: road.zones[i].lanes: expected at least one lane (or no `lanes` key: every "
+                      "lane)", wf_scenario_where(seq, w, sizeof w));
+    for (size_t k = 0; k < seq->n_child; k++) {
+        double lane;
+        if (wf_cfg_node_double(seq->child[k], 0, WF_MAX_LANES - 1, "(lane)", &lane, err)) return WF_EINPUT;
+        if (lane != floor(lane) || (z->lane_mask >> (int)lane & 1u))
+            return wf_err(err, WF_EINPUT, "%s: road.zones[i].lanes: expected whole lane numbers, each once (got %s)",
+                          wf_scenario_where(seq->child[k], w, sizeof w), WF_NUM(lane));
+        z->lane_mask |= 1u << (int)lane;
+    }
+    return 0;
+}
+
 static const WfKeySpec zone_rows[] = {
     {.key = "type", .type = WF_KEY_CHOICE, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
      .offset = offsetof(WfCorridorZone, type), .choices = zone_types, .need = "speed_limit or headway",
@@ -233,6 +258,10 @@ static const WfKeySpec zone_rows[] = {
      .doc_range = "a parameter of at least one driver group's model",
      .doc = "the time-headway parameter (IDM, ACC: `T_s`; Gipps: `tau_s`). Groups whose model lacks it are "
             "unaffected; a key no group has is an error"},
+    {.key = "lanes", .type = WF_KEY_CUSTOM, .on = WF_ON_CORRIDOR, .hook = load_zone_lanes,
+     .doc_type = "list of lanes", .doc_default = "every lane", .doc_range = "lane numbers of the road, each once",
+     .doc = "the lanes the zone applies to, numbered as `corridor.lane_drops` numbers them (the on-ramp's merge "
+            "lane 0 when there is one) ([lanes.md](lanes.md))"},
 };
 const WfKeyTable wf_corridor_zone_keys = {"road.zones[i]", zone_rows, sizeof zone_rows / sizeof *zone_rows};
 
@@ -378,6 +407,24 @@ static int check_ramp(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *
     return 0;
 }
 
+/* The road's per-lane keys against the corridor's lanes (known once corridor.on_ramp is read): the zones' lanes
+ * in range, and one speed limit per lane (load_lane_limits leaves NaN after the listed ones). */
+static int check_lane_keys(WfScenario *sc, int nl, WfError *err)
+{
+    const WfCorridorSpec *cs = sc->corridor;
+    for (size_t z = 0; z < cs->n_zones; z++)
+        if (cs->zones[z].lane_mask >> nl)
+            return wf_err(err, WF_EINPUT, "%s: road.zones[%zu].lanes: the road has lanes 0 to %d (the on-ramp's merge "
+                          "lane counts as lane 0)", sc->path, z, nl - 1);
+    int given = 0;
+    while (given < WF_MAX_LANES && !isnan(sc->lane_speed_limit_mps[given])) given++;
+    if (given < WF_MAX_LANES && given != nl)
+        return wf_err(err, WF_EINPUT, "%s: road.lane_speed_limits_mps lists %d lanes but the corridor has %d (road.lanes"
+                      "%s)", sc->path, given, nl, cs->has_ramp ? " and the on-ramp's merge lane 0" : "");
+    for (int l = given; l < WF_MAX_LANES; l++) sc->lane_speed_limit_mps[l] = sc->road.speed_limit_mps;
+    return 0;
+}
+
 /* corridor.lane_drops: [{lane: K, at_m: X}, ...]: lane K (numbered with the merge lane, when there is one) ends at X;
  * some lane must reach the exit, and the merge lane ends where the ramp says. */
 static int load_lane_drops(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
@@ -411,7 +458,7 @@ static int load_lane_drops(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKey
     if (!through)
         return wf_err(err, WF_EINPUT, "%s: corridor.lane_drops: every lane ends before the exit: at least one must reach "
                       "x = L", seq ? wf_scenario_where(seq, w, sizeof w) : env->sc->path);
-    return 0;
+    return check_lane_keys(env->sc, nl, err);
 }
 
 /* The virtual leader's speed and start: only for the leader and speed outflows. */
