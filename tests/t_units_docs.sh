@@ -18,7 +18,8 @@ if ! run tests/data/tiny_ring.yaml -o "$tmp/ring.h5" --set time.duration_s=6 $SF
    ! run tests/data/tiny_ring.yaml -o "$tmp/cvode.h5" --set time.duration_s=1 --set time.warmup_s=0 --set time.integrator=cvode ||
    ! run tests/data/tiny_corridor.yaml -o "$tmp/corridor.h5" --set time.duration_s=60 $SF ||
    ! run scenarios/ring_lanes.yaml -o "$tmp/lanes.h5" --set time.duration_s=20 --set time.warmup_s=5 $SF ||
-   ! run scenarios/corridor_bottleneck_lanes.yaml -o "$tmp/clanes.h5" --set time.duration_s=120 --set time.warmup_s=10 $SF; then
+   ! run scenarios/corridor_bottleneck_lanes.yaml -o "$tmp/clanes.h5" --set time.duration_s=120 --set time.warmup_s=10 $SF \
+       --set corridor.off_ramp.at_m=3000 --set corridor.off_ramp.share=0.2; then
   echo "FAIL units_runs"; exit 1
 fi
 cat >"$tmp/sweep.yaml" <<EOF

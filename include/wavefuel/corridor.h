@@ -21,7 +21,8 @@
 struct WfCfgNode;
 
 /* Random streams of the corridor (rng.h reserves WF_RNG_USER and up for such uses). */
-enum { WF_RNG_CORRIDOR_ENTRY = WF_RNG_USER + 32, WF_RNG_CORRIDOR_ARRIVAL = WF_RNG_USER + 33 };
+enum { WF_RNG_CORRIDOR_ENTRY = WF_RNG_USER + 32, WF_RNG_CORRIDOR_ARRIVAL = WF_RNG_USER + 33,
+       WF_RNG_CORRIDOR_EXIT = WF_RNG_USER + 34 };
 
 /* Class and group shares of a corridor are fractions; the ring loader resolves them against this many
  * vehicles (its counts are not used by the corridor). */
@@ -76,6 +77,11 @@ typedef struct WfCorridorSpec {
     WfProfile  ramp_vph;
     /* where each lane ends (corridor.lane_drops; lanes numbered with the merge lane): +inf for the exit */
     double     lane_end_m[WF_MAX_LANES];
+    /* an off-ramp (corridor.off_ramp): it leaves the rightmost main lane (exit_lane: 1 with an on-ramp, else 0) at
+     * off_at_m; a share of the vehicles that enter upstream of it take it, changing right within off_approach_m */
+    int        has_offramp;
+    double     off_at_m, off_share, off_approach_m;
+    size_t     exit_lane;
     /* outflow */
     WfOutflow  outflow;
     WfProfile  leader_speed_mps;   /* the virtual leader's speed profile (leader and speed outflows) */

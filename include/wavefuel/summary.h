@@ -22,6 +22,8 @@ typedef struct WfCorridorCounts {
     int64_t max_queue;    /* longest queue seen */
     double  queue_delay_s;/* total waiting time of the entered vehicles */
     int64_t overlaps;     /* overlap repairs (docs/metrics.md) */
+    int64_t off_ramp;     /* left by the off-ramp (corridor.off_ramp) */
+    int64_t missed_exits; /* bound for the off-ramp, passed it in another lane (and drove on to x = L) */
 } WfCorridorCounts;
 
 /* Per class. Fields a boundary does not measure stay 0. */
@@ -99,7 +101,7 @@ typedef struct WfSummaryField {
                                  lanes); never in the sweep table */
 } WfSummaryField;
 
-enum { WF_SUMMARY_ALWAYS = 0, WF_SUMMARY_IF_SAFETY = 1, WF_SUMMARY_IF_LANES = 2 };
+enum { WF_SUMMARY_ALWAYS = 0, WF_SUMMARY_IF_SAFETY = 1, WF_SUMMARY_IF_LANES = 2, WF_SUMMARY_IF_OFFRAMP = 3 };
 
 #define WF_SUMMARY_SUM  ((size_t)-1)
 #define WF_SUMMARY_NONE ((size_t)-2)

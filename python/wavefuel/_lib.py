@@ -156,7 +156,7 @@ class WfCorridorVehicles(C.Structure):
 class WfCorridorCounts(C.Structure):
     _fields_ = [("arrived", C.c_int64), ("entered", C.c_int64), ("exited", C.c_int64), ("queued", C.c_int64),
                 ("delayed", C.c_int64), ("max_queue", C.c_int64), ("queue_delay_s", C.c_double),
-                ("overlaps", C.c_int64)]
+                ("overlaps", C.c_int64), ("off_ramp", C.c_int64), ("missed_exits", C.c_int64)]
 
 
 class WfClassSummary(C.Structure):

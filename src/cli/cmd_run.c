@@ -62,7 +62,8 @@ static void print_header(const WfSim *sim)
            sc->road.length_m, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wall);
     printf("vehicles: %lld arrived, %lld entered, %lld exited, %lld on the road, %lld queued at the end; %lld entries "
            "delayed (mean wait %.3g s, longest queue %lld)\n",
-           (long long)n->arrived, (long long)n->entered, (long long)n->exited, (long long)(n->entered - n->exited),
+           (long long)n->arrived, (long long)n->entered, (long long)n->exited,
+           (long long)(n->entered - n->exited - n->off_ramp),
            (long long)n->queued, (long long)n->delayed, s->mean_queue_delay_s, (long long)n->max_queue);
 }
 

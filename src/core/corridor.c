@@ -94,6 +94,7 @@ typedef struct CorLane {
     uint32_t *cell;         /* the Edie cell of the step when it lies inside one cell, else UINT32_MAX */
     uint32_t *grade_seg;
     uint8_t  *mode;
+    uint8_t  *dest;         /* 1: bound for the off-ramp (corridor.off_ramp) */
     double   *t_arr, *t_ent, *v_ent;
     WfAccum   trip, win;    /* accumulators over the trip and over the statistics window */
     uint32_t *lane_changes, *cut_ins; /* lane changes made; vehicles that entered the lane right ahead of it */
@@ -146,6 +147,7 @@ struct WfCorridor {
         double   *x_m, *v_mps;
         uint16_t *class_id, *group_id;
         int64_t  *ready;
+        uint8_t  *exiting;  /* bound for the off-ramp */
         uint32_t *slot;     /* lane l cap + the slot */
         unsigned char *buf; /* one per-slot array in the new order while vehicles move */
     } snap;
@@ -160,6 +162,7 @@ struct WfCorridor {
     double  *coop_cap_mps2;
     uint32_t *coop_slot;
     size_t   n_coop;
+    uint32_t *off_src, *off_dst; /* an off-ramp exit: the global slots of the vehicles that move up behind it */
     double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
     size_t   lane_row_len, lane_rows_max;
 };
@@ -173,7 +176,8 @@ struct WfCorridor {
     X("trip_stopped", trip.stopped_s) X("trip_stops", trip.stops) X("trip_hard", trip.hard_brakes)                 \
     X("trip_infeasible", trip.infeasible) X("w_fuel", win.fuel_g) X("w_dist", win.dist_m)                          \
     X("w_stopped", win.stopped_s) X("w_steps", win.steps) X("w_stops", win.stops) X("w_hard", win.hard_brakes)     \
-    X("w_infeasible", win.infeasible) X("lane_changes", lane_changes) X("cut_ins", cut_ins) X("lc_ready", lc_ready)
+    X("w_infeasible", win.infeasible) X("lane_changes", lane_changes) X("cut_ins", cut_ins) X("lc_ready", lc_ready)  \
+    X("dest", dest)
 #define STEP_SLOT_ARRAYS(X)                                                                                          \
     X("", veh.a_mps2) X("", veh.gap_m) X("", veh.v_lead_mps) X("", veh.theta_rad) X("", veh.fuel_rate_gps)          \
     X("", veh.flag) X("", xold) X("", cell)
@@ -194,7 +198,8 @@ static void corridor_destroy(void *eng)
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     wf_lanes_destroy(&c->lcs);
     void *snap[] = {c->snap.x_m, c->snap.v_mps, c->snap.class_id, c->snap.group_id, c->snap.ready, c->snap.slot,
-                    c->snap.buf, c->lane_rows, c->coop_cap_mps2, c->coop_slot};
+                    c->snap.buf, c->lane_rows, c->coop_cap_mps2, c->coop_slot, c->snap.exiting, c->off_src,
+                    c->off_dst};
     for (size_t i = 0; i < sizeof snap / sizeof snap[0]; i++) free(snap[i]);
     free(c);
 }
@@ -609,6 +614,12 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
     ln->win.fuel_g[s] = ln->win.dist_m[s] = ln->win.stopped_s[s] = 0.0;
     ln->win.steps[s] = ln->win.stops[s] = ln->win.hard_brakes[s] = ln->win.infeasible[s] = 0;
     ln->lane_changes[s] = ln->cut_ins[s] = 0, ln->lc_ready[s] = 0;
+    ln->dest[s] = 0;
+    if (c->cs->has_offramp && x0 < c->cs->off_at_m) {
+        double u[2];
+        wf_rng_uniform2(sc->seed, WF_RNG_CORRIDOR_EXIT, vh->serial[s], 0, u);
+        ln->dest[s] = u[0] < c->cs->off_share;
+    }
     if (grp->model->state_size && grp->model->init_state)
         grp->model->init_state(vh->params + s * c->pstride, vh->state + s * c->sstride, gap, vin, vl);
     en->have_cand = 0;
@@ -686,11 +697,12 @@ static void step_cells(const void *ctx, size_t lo, size_t m)
     }
 }
 
-/* Whether drivers may cooperate at a lane's end: several lanes, one of them ending, and a driver who yields. */
+/* Whether drivers may cooperate: several lanes, one of them ending or an off-ramp, and a driver who yields. */
 static int coop_possible(const WfCorridor *c)
 {
     int ends = 0, yields = 0;
     for (size_t l = 0; c->n_lanes > 1 && l < c->n_lanes; l++) ends |= isfinite(c->ln[l].end_m);
+    ends |= c->n_lanes > 1 && c->cs->has_offramp;
     for (size_t g = 0; g < c->sc->n_groups; g++) {
         const WfDriverGroup *grp = &c->sc->groups[g];
         double yield_mps2 = 0.0, range_m;
@@ -759,10 +771,16 @@ static int lanes_init(WfCorridor *c, WfError *err)
         ALLOC(c->lane_rows, c->lane_rows_max * c->lane_row_len);
     }
     int rc = wf_lanes_create(&c->lcs, c->sc, n, c->n_lanes, err);
-    if (rc || !c->lcs.active) return rc;
+    if (rc) return rc;
     if (c->sstride > unit) unit = c->sstride;
+    if (c->lcs.active || c->cs->has_offramp) ALLOC(c->snap.buf, n * unit);
+    if (c->cs->has_offramp) {
+        ALLOC(c->off_src, c->ln[0].veh.cap);
+        ALLOC(c->off_dst, c->ln[0].veh.cap);
+    }
+    if (!c->lcs.active) return 0;
     ALLOC(c->snap.x_m, n); ALLOC(c->snap.v_mps, n); ALLOC(c->snap.class_id, n); ALLOC(c->snap.group_id, n);
-    ALLOC(c->snap.ready, n); ALLOC(c->snap.slot, n); ALLOC(c->snap.buf, n * unit);
+    ALLOC(c->snap.ready, n); ALLOC(c->snap.slot, n); ALLOC(c->snap.exiting, n);
     return 0;
 }
 
@@ -797,10 +815,15 @@ static void lanes_road(WfCorridor *c, WfLcRoad *r)
             size_t s = vh->first + j < cap ? vh->first + j : vh->first + j - cap; /* back to front */
             c->snap.x_m[i] = vh->x_m[s], c->snap.v_mps[i] = vh->v_mps[s], c->snap.class_id[i] = vh->class_id[s];
             c->snap.group_id[i] = vh->group_id[s], c->snap.ready[i] = ln->lc_ready[s];
+            c->snap.exiting[i] = ln->dest[s];
             c->snap.slot[i] = (uint32_t)(l * cap + s);
         }
     }
     r->n = i;
+    if (c->cs->has_offramp) {
+        r->exiting = c->snap.exiting, r->exit_lane = c->cs->exit_lane;
+        r->exit_at_m = c->cs->off_at_m, r->exit_approach_m = c->cs->off_approach_m;
+    }
 }
 
 /* Every per-slot array of the lanes, moved: the k-th vehicle of the new order comes from global slot src[k] and goes
@@ -1190,7 +1213,8 @@ static int flush_trips(void *eng, WfError *err)
     return rc;
 }
 
-/* A vehicle's window totals join its class's; its trip joins the buffer. */
+/* A vehicle's window totals join its class's; its trip joins the buffer. completed: 1 at x = L, 2 by the off-ramp
+ * (not a trip of the road's length: not in the trips' means), 0 still on the road. */
 static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit, int completed, WfError *err)
 {
     if (c->n_lanes > 1)
@@ -1205,7 +1229,7 @@ static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_e
     c->st.cls_steps[cl] += ln->win.steps[s];
     c->st.tot_hard += ln->win.hard_brakes[s];
     c->st.tot_stopped_s += ln->win.stopped_s[s];
-    if (completed) {
+    if (completed == 1) {
         c->st.trips_done++;
         c->st.sum_trip_time += t_exit - ln->t_ent[s];
         c->st.sum_trip_fuel += ln->trip.fuel_g[s];
@@ -1221,6 +1245,49 @@ static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_e
                    .hard_brakes = ln->trip.hard_brakes[s], .infeasible_steps = ln->trip.infeasible[s],
                    .lane = (uint8_t)(ln - c->ln), .lane_changes = ln->lane_changes[s]};
     return c->n_trips == TRIP_BUF ? flush_trips(c, err) : 0;
+}
+
+/* The vehicle k places behind lane ln's front leaves by the off-ramp: the k ahead of it move one slot back. */
+static int offramp_exit(WfCorridor *c, CorLane *ln, size_t k, double t_end, int in_window, WfError *err)
+{
+    WfCorridorVehicles *vh = &ln->veh;
+    size_t o = ln->index * vh->cap;
+    int rc = finish_vehicle(c, ln, wf_corridor_slot(vh, k), t_end, 2, err);
+    for (size_t j = 0; j < k; j++)
+        c->off_src[j] = (uint32_t)(o + wf_corridor_slot(vh, j)), c->off_dst[j] = (uint32_t)(o + wf_corridor_slot(vh, j + 1));
+    lanes_move(c, c->off_src, c->off_dst, k);
+    vh->n--;
+    c->st.counts.off_ramp++;
+    (void)in_window;
+    return rc;
+}
+
+/* The off-ramp: vehicles bound for it whose front reached it in this step leave by it from the exit lane; in
+ * another lane they miss it and drive on. */
+static int phase_offramp(WfCorridor *c, double t_end, int in_window, WfError *err)
+{
+    double at = c->cs->off_at_m;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        CorLane *ln = &c->ln[l];
+        WfCorridorVehicles *vh = &ln->veh;
+        /* from the front: past the vehicles already beyond it, then those that crossed it in this step */
+        size_t k = 0;
+        while (k < vh->n && ln->xold[wf_corridor_slot(vh, k)] >= at) k++;
+        while (k < vh->n && vh->x_m[wf_corridor_slot(vh, k)] >= at) {
+            size_t s = wf_corridor_slot(vh, k);
+            if (!ln->dest[s]) {
+                k++;
+            } else if (l == c->cs->exit_lane) {
+                int rc = offramp_exit(c, ln, k, t_end, in_window, err);
+                if (rc) return rc;
+            } else {
+                ln->dest[s] = 0;
+                c->st.counts.missed_exits++;
+                k++;
+            }
+        }
+    }
+    return 0;
 }
 
 /* Vehicles whose front has reached L leave (front first); with the speed outflow each one becomes the virtual
@@ -1406,7 +1473,7 @@ static void summarize(WfCorridor *c)
     s->mean_trip_fuel_g = c->st.trips_done ? c->st.sum_trip_fuel / (double)c->st.trips_done : NAN;
     s->mean_queue_delay_s = c->st.counts.entered ? c->st.counts.queue_delay_s / (double)c->st.counts.entered : NAN;
     s->counts = c->st.counts;
-    s->on_road = c->st.counts.entered - c->st.counts.exited;
+    s->on_road = c->st.counts.entered - c->st.counts.exited - c->st.counts.off_ramp;
 }
 
 static int numerical_fault(const WfCorridor *c, long step, WfError *err)
@@ -1478,6 +1545,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
         if (c->fault_slot >= 0) return numerical_fault(c, step, err);
     }
     phase_measure(c, step, in_window);
+    if (c->cs->has_offramp && (rc = phase_offramp(c, t_next, in_window, err))) return rc;
     for (size_t l = 0; l < nl; l++)
         if ((rc = phase_exits(c, &c->ln[l], t_next, in_window, err))) return rc;
     return 0;
@@ -1610,7 +1678,7 @@ static int corridor_restored(void *eng, WfError *err)
     }
     if (bad) {
     } else if (st->steps_done < 0 || st->steps_done > c->n_steps) bad = "step";
-    else if (n->arrived != n->entered + n->queued || n->entered != n->exited + on_road) bad = "counters";
+    else if (n->arrived != n->entered + n->queued || n->entered != n->exited + n->off_ramp + on_road) bad = "counters";
     for (size_t l = 0; !bad && l < c->n_lanes; l++) {
         const struct CorEntrance *en = &st->lane[l];
         if (en->q_head >= c->q_cap || en->queued < 0 || (uint64_t)en->queued > c->q_cap) bad = "entrance queue";

@@ -215,12 +215,19 @@ static int put_case(const WfLaneChanges *lc, const WfLcRoad *r, Batch *bt, size_
     return 1;
 }
 
-/* The rule vehicle i of lane l changes by: mandatory in a lane that ends within its driver's merge range, else the
- * road's. */
+/* Whether vehicle i, bound for the off-ramp, is on its approach (where it keeps to its way there). */
+static inline int approaching(const WfLcRoad *r, size_t i)
+{
+    return r->exiting && r->exiting[i] && r->x_m[i] >= r->exit_at_m - r->exit_approach_m && r->x_m[i] < r->exit_at_m;
+}
+
+/* The rule vehicle i of lane l changes by: mandatory in a lane that ends within its driver's merge range, or on the
+ * off-ramp's approach; else the road's. */
 static int rule_of(const WfLcRoad *r, size_t l, size_t i)
 {
     const WfDriverGroup *grp = &r->sc->groups[r->group_id[i]];
     double yield_mps2, range_m;
+    if (approaching(r, i)) return WF_LANE_RULE_MANDATORY;
     if (!isfinite(r->end_m[l])) return r->sc->lane_rule;
     grp->lc->cooperation(grp->lc_params, &yield_mps2, &range_m);
     return r->end_m[l] - r->x_m[i] <= range_m ? WF_LANE_RULE_MANDATORY : r->sc->lane_rule;
@@ -248,6 +255,7 @@ static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t 
         for (size_t k = 0; k < m; k++) {
             size_t i = i0 + k;
             if (!sc->groups[r->group_id[i]].lc || step < r->ready_step[i]) continue;
+            if (approaching(r, i) && (d == 1 || l <= r->exit_lane)) continue; /* toward the exit lane only */
             bt->cand[c] = (uint32_t)k;
             c += (size_t)put_case(lc, r, bt, c, i, l, tl, d);
         }
@@ -326,23 +334,33 @@ long wf_lanes_decide(WfLaneChanges *lc, const WfLcRoad *r, long step, int nthrea
 
 /* ------------------------------------------------------------------------------------------- cooperation */
 
-/* The askers of ending lane l beside lane m: each one's follower there (the last of lane m behind it, one walk of
- * both lanes in the order of positions), and whether that follower yields. */
+/* Whether vehicle i of lane l asks the vehicles of lane m to let it in: it must leave a lane that ends, within its
+ * driver's merge range of the end, or it is on the off-ramp's approach and m lies toward the exit lane. */
+static int asks(const WfLcRoad *r, size_t l, size_t m, size_t i)
+{
+    const WfDriverGroup *gi = &r->sc->groups[r->group_id[i]];
+    double yield_mps2, range_m;
+    if (!gi->lc) return 0;
+    if (approaching(r, i)) return m < l && l > r->exit_lane;
+    if (!isfinite(r->end_m[l])) return 0;
+    gi->lc->cooperation(gi->lc_params, &yield_mps2, &range_m);
+    return r->end_m[l] - r->x_m[i] <= range_m;
+}
+
+/* The askers of lane l toward lane m: each one's follower there (the last of lane m behind it, one walk of both
+ * lanes in the order of positions), and whether that follower yields. */
 static size_t cooperate_pair(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t m, size_t nc)
 {
     const WfScenario *sc = r->sc;
     const double *x = r->x_m, *v = r->v_mps;
     size_t fm = r->first[m], nm = r->count[m], j = 0;
     for (size_t i = r->first[l]; i < r->first[l] + r->count[l]; i++) {
-        const WfDriverGroup *gi = &sc->groups[r->group_id[i]];
-        double yield_mps2, range_m;
-        if (!gi->lc) continue;
-        gi->lc->cooperation(gi->lc_params, &yield_mps2, &range_m);
-        if (r->end_m[l] - x[i] > range_m) continue;
+        if (!asks(r, l, m, i)) continue;
         while (j < nm && x[fm + j] < x[i]) j++;
         if (!j) continue;
         size_t f = fm + j - 1;
         const WfDriverGroup *gf = &sc->groups[r->group_id[f]];
+        double yield_mps2, range_m;
         if (!gf->lc) continue;
         gf->lc->cooperation(gf->lc_params, &yield_mps2, &range_m);
         double gap = x[i] - len_of(r, i) - x[f];
@@ -359,7 +377,8 @@ size_t wf_lanes_cooperate(WfLaneChanges *lc, const WfLcRoad *r)
     size_t nc = 0;
     if (!lc->active || !lc->coop) return 0;
     for (size_t l = 0; l < r->n_lanes; l++) {
-        if (!isfinite(r->end_m[l]) || !r->count[l]) continue;
+        int ends = isfinite(r->end_m[l]), exits = r->exiting && l > r->exit_lane;
+        if (!r->count[l] || !(ends || exits)) continue;
         if (l > 0 && !isfinite(r->end_m[l - 1])) nc = cooperate_pair(lc, r, l, l - 1, nc);
         if (l + 1 < r->n_lanes && !isfinite(r->end_m[l + 1])) nc = cooperate_pair(lc, r, l, l + 1, nc);
     }

@@ -36,6 +36,11 @@ typedef struct WfLcRoad {
     const double     *x_m, *p_m, *v_mps;
     const uint16_t   *class_id, *group_id;
     const int64_t    *ready_step;               /* the first step at which each vehicle may change lanes again */
+    /* an off-ramp leaving lane exit_lane at exit_at_m: each vehicle bound for it (exiting NULL: none is) must reach
+     * that lane within exit_approach_m before it (docs/lanes.md, "Off-ramps") */
+    const uint8_t    *exiting;
+    size_t            exit_lane;
+    double            exit_at_m, exit_approach_m;
     const double     *class_length_m;
     /* each group's one parameter set, or NULL when its vehicles have their own; every vehicle's parameters and
      * controller memory (NULL: none) */

@@ -4,6 +4,7 @@
 
 #include <string.h>
 
+#include "wavefuel/corridor.h"
 #include "wavefuel/safety.h"
 
 #define R WF_SUMMARY_RING
@@ -77,6 +78,10 @@ const WfSummaryField wf_summary_fields[] = {
      {"lane changes into a gap with a follower (cut-ins), whole run",
       "lane changes into a gap with a follower (cut-ins), whole run"},
      I64, S(cut_ins), 0, {{"cut-ins", "%lld", ""}, {"cut-ins", "%lld", ""}}, 0, 0, 0, WF_SUMMARY_IF_LANES},
+    {"off_ramp_exits", "1", {NULL, "vehicles that left by the off-ramp (docs/lanes.md)"}, I64, S(counts.off_ramp), 0,
+     {{NULL, NULL, NULL}, {"off-ramp exits", "%lld", ""}}, 0, 0, 0, WF_SUMMARY_IF_OFFRAMP},
+    {"missed_exits", "1", {NULL, "vehicles bound for the off-ramp that passed it in another lane (and drove on)"}, I64,
+     S(counts.missed_exits), 0, {{NULL, NULL, NULL}, {"missed exits", "%lld", ""}}, 0, 0, 0, WF_SUMMARY_IF_OFFRAMP},
 };
 const size_t wf_summary_n_fields = sizeof wf_summary_fields / sizeof wf_summary_fields[0];
 
@@ -144,6 +149,7 @@ int wf_scenario_has_safety(const WfScenario *sc)
 int wf_summary_field_on(const WfSummaryField *f, const WfScenario *sc)
 {
     if (f->when == WF_SUMMARY_IF_LANES) return wf_scenario_lanes(sc) > 1;
+    if (f->when == WF_SUMMARY_IF_OFFRAMP) return sc->corridor && sc->corridor->has_offramp;
     return f->when == WF_SUMMARY_ALWAYS || wf_scenario_has_safety(sc);
 }
 

@@ -9,10 +9,11 @@ const WfColumn wf_trip_columns[WF_TRIP_N_COLS] = {
     {"serial", "1", "arrival number of the vehicle (0, 1, ...): the key of its random draws"},
     {"class_id", "1", "index into /classes"},
     {"group_id", "1", "index into /drivers"},
-    {"completed", "1", "1: the vehicle reached x = L; 0: still on the road at the end"},
+    {"completed", "1", "1: the vehicle reached x = L; 2: it left by the off-ramp (corridor.off_ramp); 0: still on the "
+                       "road at the end"},
     {"arrival_time", "s", "time the vehicle reached the entrance (joined the queue)"},
     {"entry_time", "s", "time it was inserted at x = 0"},
-    {"exit_time", "s", "time its front reached x = L (end of that step; NaN when not completed)"},
+    {"exit_time", "s", "time its front reached x = L, or the off-ramp (end of that step; NaN when not completed)"},
     {"travel_time", "s", "exit_time - entry_time (NaN when not completed)"},
     {"queue_delay", "s", "entry_time - arrival_time"},
     {"entry_speed", "m/s", "speed at insertion"},

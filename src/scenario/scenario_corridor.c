@@ -629,6 +629,42 @@ static const WfKeySpec ramp_rows[] = {
 };
 static const WfKeyTable ramp_keys = {"corridor.on_ramp", ramp_rows, sizeof ramp_rows / sizeof *ramp_rows};
 
+/* corridor.off_ramp: where it leaves the rightmost main lane, which must reach it. */
+static int check_offramp(WfCfgNode *corr, const WfKeySpec *row, void *t, WfKeyEnv *env, WfError *err)
+{
+    WfCorridorSpec *cs = t;
+    WfCfgNode *off = wf_cfg_child(corr, row->key);
+    char w[1024];
+    if (!off) return 0;
+    double L = env->sc->road.length_m;
+    cs->has_offramp = 1;
+    cs->exit_lane = (size_t)cs->has_ramp;
+    if (!(cs->off_at_m > 0.0 && cs->off_at_m < L))
+        return wf_err(err, WF_EINPUT, "%s: corridor.off_ramp.at_m %s m must lie inside the road (0, %s) m",
+                      wf_scenario_where(off, w, sizeof w), WF_NUM(cs->off_at_m), WF_NUM(L));
+    if (!(cs->lane_end_m[cs->exit_lane] > cs->off_at_m))
+        return wf_err(err, WF_EINPUT, "%s: corridor.off_ramp leaves lane %zu at %s m, but corridor.lane_drops ends that "
+                      "lane at %s m", wf_scenario_where(off, w, sizeof w), cs->exit_lane, WF_NUM(cs->off_at_m),
+                      WF_NUM(cs->lane_end_m[cs->exit_lane]));
+    return 0;
+}
+
+static const WfKeySpec offramp_rows[] = {
+    {.key = "at_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfCorridorSpec, off_at_m), .min = 0, .max_is = WF_BOUND_LENGTH, .unit = "m",
+     .doc_range = "(0, L)", .doc = "where the off-ramp leaves the rightmost main lane: its vehicles leave the road "
+                                   "when their front reaches it"},
+    {.key = "share", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED,
+     .offset = offsetof(WfCorridorSpec, off_share), .min = 0, .max = 1, .unit = "1",
+     .doc = "the share of the vehicles entering upstream of it that take it (each one's draw is keyed by its serial)"},
+    {.key = "approach_m", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
+     .offset = offsetof(WfCorridorSpec, off_approach_m), .def = 1000, .min = 0, .max = 1e5, .unit = "m",
+     .doc = "within this distance before it, changing toward the rightmost lane is mandatory for its vehicles (any "
+            "gap safe under `b_mandatory_mps2`), they change no other way, ask for cooperation, and once there hold "
+            "their lane; one still in another lane at `at_m` misses it and drives on"},
+};
+static const WfKeyTable offramp_keys = {"corridor.off_ramp", offramp_rows, sizeof offramp_rows / sizeof *offramp_rows};
+
 static const WfKeySpec corridor_rows[] = {
     {.key = "inflow", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_REQUIRED | WF_KEY_FLAT,
      .sub = &inflow_keys, .need = "a map {flow_vph: Q}"},
@@ -639,6 +675,8 @@ static const WfKeySpec corridor_rows[] = {
      .doc_type = "list of `{lane, at_m}`", .doc_default = "none", .doc_range = "a lane of the road, (0, L]",
      .doc = "lane `lane` ends at `at_m`: its vehicles must change lanes before (the end stops them); lanes are "
             "numbered with the merge lane (`on_ramp`) as lane 0 when there is one ([lanes.md](lanes.md))"},
+    {.key = "off_ramp", .type = WF_KEY_SECTION, .on = WF_ON_CORRIDOR, .flags = WF_KEY_FLAT, .sub = &offramp_keys,
+     .hook = check_offramp},
     {.key = "zone_decel_mps2", .type = WF_KEY_NUMBER, .on = WF_ON_CORRIDOR,
      .offset = offsetof(WfCorridorSpec, zone_decel_mps2), .def = 1.0, .min = 0.1, .max = 10, .unit = "m/s^2",
      .doc = "braking with which drivers meet a lower zone limit ahead"},
