@@ -97,6 +97,36 @@ def identical(pa, pb):
     print(f"{len(oa) - len(skip & set(oa))} datasets equal, {changes} lane changes")
 
 
+def v_stop_of(f):
+    """statistics.v_stop_mps of the run (its scenario text, or the default 0.5 m/s)."""
+    import re
+    text = f["meta/scenario_text"][()]
+    text = text.decode() if isinstance(text, bytes) else str(text)
+    m = re.search(r"v_stop_mps:\s*([0-9.eE+-]+)", text)
+    return float(m.group(1)) if m else 0.5
+
+
+def lane_rates(la, lane_of_step, v_of_step, n_lanes, dt, rec_steps, v_stop):
+    """/lanes/lane_cut_in_rate and /lanes/frac_stopped against the frames: each lane's vehicle-seconds over the
+    steps stepped (the vehicles of each step's frame, after that step's changes), and at each record the share of each
+    lane's vehicles slower than v_stop. lane_of_step / v_of_step: per stepped or recorded step, its frame's lanes and
+    speeds. Returns an account."""
+    vs = np.zeros(n_lanes)
+    for l_k in lane_of_step:
+        vs += np.bincount(l_k, minlength=n_lanes) * dt
+    want = np.where(vs > 0, la["lane_cut_ins"][()] / np.where(vs > 0, vs, 1.0) * 3600.0, 0.0)
+    got = la["lane_cut_in_rate"][()]
+    assert np.allclose(got, want, rtol=1e-12, atol=0), f"/lanes/lane_cut_in_rate {got} != {want} from the frames"
+    fs = la["frac_stopped"][()]
+    for j, (l_k, v_k) in enumerate(zip(rec_steps[0], rec_steps[1])):
+        for l in range(n_lanes):
+            m = l_k == l
+            w = np.mean(v_k[m] < v_stop) if m.any() else np.nan
+            assert (np.isnan(w) and np.isnan(fs[j, l])) or abs(fs[j, l] - w) <= 1e-15, \
+                f"record {j} lane {l}: /lanes/frac_stopped {fs[j, l]} != {w} from the frame"
+    return f"lane cut-in rates {np.round(got, 3).tolist()} /h and {fs.size} frac_stopped values match the frames"
+
+
 def physical(path, min_steps=None):
     f = h5py.File(path, "r")
     tr, ve = f["trajectories"], f["vehicles"]
@@ -185,8 +215,14 @@ def physical(path, min_steps=None):
                                 ("mean_gap", frame_gaps[k][1], 1e-12 * scale)):
             got = float(ts[name][j])
             assert abs(got - want) <= tol * max(1.0, abs(want)), f"t = {tj:g}: {name} {got} != {want}"
+    # /lanes/lane_cut_in_rate and /lanes/frac_stopped from the frames (every frame but the final instant is stepped)
+    la = f["lanes"]
+    n_lanes = la["vehicles"].shape[1]
+    rec = [int(np.argmin(np.abs(t - tj))) for tj in la["t"][()]]
+    rates = lane_rates(la, [lane[k] for k in range(n_frames - 1)], None, n_lanes, dt,
+                       ([lane[k] for k in rec], [v[k] for k in rec]), v_stop_of(f))
     print(f"{n_frames} frames x {n} vehicles: least gap {min_gap:.3f} m, {counted} lane changes seen in the frames "
-          f"and counted, {cut} cut-ins, {n_lap_jumps} changes moving x by a lap")
+          f"and counted, {cut} cut-ins, {n_lap_jumps} changes moving x by a lap; {rates}")
 
 
 def idm(gap, v, vl, v0=30.0, T=1.0, s0=2.0, am=1.0, b=1.5):

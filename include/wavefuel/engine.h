@@ -160,6 +160,7 @@ typedef struct WfLaneObs {
     size_t         n_lanes, n_rows, row_len;
     const double  *rows;
     const int64_t *pair, *lane_cut_ins, *group_changes, *group_cut_ins;
+    const double  *lane_vehicle_s; /* vehicle-seconds spent in each lane */
     double         group_vehicle_s[WF_MAX_GROUPS];
 } WfLaneObs;
 int               wf_sim_lanes(const WfSim *sim, WfLaneObs *out);

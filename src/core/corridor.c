@@ -1347,6 +1347,7 @@ static void lanes_observe(WfCorridor *c, double t)
         o[WF_LANE_WAVES] = r.v[WF_CTS_WAVES];
         o[WF_LANE_FUEL_RATE] = r.v[WF_CTS_FUEL_RATE];
         o[WF_LANE_MEAN_GAP] = r.v[WF_CTS_MEAN_GAP];
+        o[WF_LANE_FRAC_STOPPED] = n > 0 ? r.v[WF_CTS_FRAC_STOPPED] : NAN;
     }
 }
 
@@ -1357,7 +1358,8 @@ static int corridor_lanes(const void *eng, WfLaneObs *out)
     if (c->n_lanes < 2) return 0;
     *out = (WfLaneObs){.n_lanes = c->n_lanes, .n_rows = (size_t)c->lk.n_rows, .row_len = c->lane_row_len,
                        .rows = c->lane_rows, .pair = &c->lk.total.pair[0][0], .lane_cut_ins = c->lk.total.lane_cut_ins,
-                       .group_changes = c->lk.total.group_changes, .group_cut_ins = c->lk.total.group_cut_ins};
+                       .group_changes = c->lk.total.group_changes, .group_cut_ins = c->lk.total.group_cut_ins,
+                       .lane_vehicle_s = c->lk.total.lane_vehicle_s};
     memcpy(out->group_vehicle_s, c->lk.group_vehicle_s, sizeof out->group_vehicle_s);
     return 1;
 }
@@ -1538,6 +1540,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
                                     in_window, NULL);
         }
     }
+    for (size_t l = 0; nl > 1 && l < nl; l++) c->lk.total.lane_vehicle_s[l] += (double)c->ln[l].veh.n * sc->dt_s;
     advance_leader(c, t_next);
     for (size_t l = 0; l < nl; l++) {
         CorLane *ln = &c->ln[l];

@@ -547,6 +547,8 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
         lap(s, WF_PHASE_OUTPUT, &tp);
     }
     if (last) return WF_LOOP_END;
+    for (size_t l = 0; s->f->n_lanes > 1 && l < s->f->n_lanes; l++)
+        s->lk.total.lane_vehicle_s[l] += (double)s->f->lane_n[l] * sc->dt_s;
     if (s->ode) {
         if ((rc = advance_ode(s, step, in_window, err))) return rc;
         flags = WF_STEP_OVERLAP; /* the solver's state is checked in full */
@@ -609,7 +611,8 @@ static int ring_lanes(const void *eng, WfLaneObs *out)
     if (s->f->n_lanes < 2) return 0;
     *out = (WfLaneObs){.n_lanes = s->f->n_lanes, .n_rows = (size_t)s->lk.n_rows, .row_len = s->lane_row_len,
                        .rows = s->lane_rows, .pair = &s->lk.total.pair[0][0], .lane_cut_ins = s->lk.total.lane_cut_ins,
-                       .group_changes = s->lk.total.group_changes, .group_cut_ins = s->lk.total.group_cut_ins};
+                       .group_changes = s->lk.total.group_changes, .group_cut_ins = s->lk.total.group_cut_ins,
+                       .lane_vehicle_s = s->lk.total.lane_vehicle_s};
     for (size_t g = 0; g < s->f->n_groups; g++)
         out->group_vehicle_s[g] = (double)s->f->group_n[g] * ((double)s->steps_done * s->sc->dt_s);
     return 1;

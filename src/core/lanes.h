@@ -83,6 +83,7 @@ typedef struct WfLaneCounts {
     int64_t lane_cut_ins[WF_MAX_LANES];               /* cut-ins into each lane */
     int64_t group_changes[WF_MAX_GROUPS];             /* changes made by each driver group's vehicles */
     int64_t group_cut_ins[WF_MAX_GROUPS];             /* cut-ins suffered by each driver group's vehicles */
+    double  lane_vehicle_s[WF_MAX_LANES];             /* vehicle-seconds spent in each lane (steps stepped) */
 } WfLaneCounts;
 
 /* The decisions of step `step` on road r (lc->dir, lc->tgt and lc->claim: who takes each gap); returns the number of

@@ -28,13 +28,15 @@ int wf_h5_write_lanes(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
     }
     /* the run's counts: lane pairs, cut-ins per lane, per driver group, and each group's cut-ins per vehicle-hour */
     int64_t *k = (int64_t *)d;
-    double rate[WF_MAX_GROUPS];
+    double rate[WF_MAX_GROUPS], lrate[WF_MAX_LANES];
     for (size_t q = 0; q < ng; q++)
         rate[q] = lo.group_vehicle_s[q] > 0 ? (double)lo.group_cut_ins[q] / (lo.group_vehicle_s[q] / 3600.0) : 0.0;
+    for (size_t q = 0; q < nl; q++)
+        lrate[q] = lo.lane_vehicle_s[q] > 0 ? (double)lo.lane_cut_ins[q] / (lo.lane_vehicle_s[q] / 3600.0) : 0.0;
     for (size_t i = 0; i < nl; i++)
         for (size_t j = 0; j < nl; j++) k[i * nl + j] = lo.pair[i * WF_MAX_LANES + j];
     WfObsData cnt[WF_LANE_CNT_N_COLS] = {{k, 2, {nl, nl}}, {lo.lane_cut_ins, 1, {nl, 0}}, {lo.group_changes, 1, {ng, 0}},
-                                         {lo.group_cut_ins, 1, {ng, 0}}, {rate, 1, {ng, 0}}};
+                                         {lo.group_cut_ins, 1, {ng, 0}}, {rate, 1, {ng, 0}}, {lrate, 1, {nl, 0}}};
     for (size_t c = 0; !rc && c < WF_LANE_CNT_N_COLS; c++)
         rc = wf_h5_put_columns(g, &wf_lane_count_columns[c], &cnt[c], 1, pass, err);
     free(d);

@@ -48,8 +48,8 @@ double wf_vehicle_value(const WfVehicleView *v, size_t col, size_t id);
 
 /* ---- /lanes (multi-lane rings): per record and lane, per record, and the run's counts (src/observe/lanes.c) */
 enum { WF_LANE_VEHICLES, WF_LANE_DENSITY, WF_LANE_FLOW, WF_LANE_MEAN_V, WF_LANE_SD_V, WF_LANE_WAVES,
-       WF_LANE_FUEL_RATE, WF_LANE_MEAN_GAP, WF_LANE_N_COLS };
-enum { WF_LANE_REC_N_COLS = 3, WF_LANE_CNT_N_COLS = 5 };
+       WF_LANE_FUEL_RATE, WF_LANE_MEAN_GAP, WF_LANE_FRAC_STOPPED, WF_LANE_N_COLS };
+enum { WF_LANE_REC_N_COLS = 3, WF_LANE_CNT_N_COLS = 6 };
 extern const WfObsColumn wf_lane_columns[WF_LANE_N_COLS];
 extern const WfObsColumn wf_lane_record_columns[WF_LANE_REC_N_COLS];
 extern const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS];

@@ -13,6 +13,8 @@ const WfObsColumn wf_lane_columns[WF_LANE_N_COLS] = {
     {{"waves", "1", "stop-and-go waves around the lane (as /timeseries/waves) [time x lane]"}, WF_COL_F64, 0},
     {{"fuel_rate", "g/s", "fuel rate of the lane's vehicles [time x lane]"}, WF_COL_F64, 0},
     {{"mean_gap", "m", "mean bumper-to-bumper gap in the lane [time x lane]"}, WF_COL_F64, 0},
+    {{"frac_stopped", "1", "fraction of the lane's vehicles slower than statistics.v_stop_mps (NaN for an empty lane) "
+                           "[time x lane]"}, WF_COL_F64, 0},
 };
 
 const WfObsColumn wf_lane_record_columns[WF_LANE_REC_N_COLS] = {
@@ -31,6 +33,8 @@ const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS] = {
     {{"group_cut_ins", "1", "cut-ins suffered by each driver group's vehicles over the run [group]"}, WF_COL_I64, 0},
     {{"group_cut_in_rate", "1/h", "cut-ins suffered per vehicle-hour by each driver group over the run [group]"},
      WF_COL_F64, 0},
+    {{"lane_cut_in_rate", "1/h", "cut-ins into each lane per vehicle-hour spent in it over the run [lane]"}, WF_COL_F64,
+     0},
 };
 
 void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out)
@@ -44,4 +48,5 @@ void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out)
     out[WF_LANE_WAVES] = n > 0 ? row->v[WF_TS_WAVES] : 0.0;
     out[WF_LANE_FUEL_RATE] = n > 0 ? row->v[WF_TS_FUEL_RATE] : 0.0;
     out[WF_LANE_MEAN_GAP] = n > 0 ? row->v[WF_TS_MEAN_GAP] : NAN;
+    out[WF_LANE_FRAC_STOPPED] = n > 0 ? row->v[WF_TS_FRAC_STOPPED] : NAN;
 }
