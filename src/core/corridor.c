@@ -154,7 +154,6 @@ struct WfCorridor {
     struct {
         WfLaneCounts total;
         int64_t  rec_changes, rec_cut_ins, n_rows; /* since the last record; records kept */
-        int64_t  coop_yields;                     /* steps in which a driver yielded to a merging vehicle */
         double   group_vehicle_s[WF_MAX_GROUPS];  /* time on the road of each group's vehicles that left */
     } lk;
     /* cooperation at the lanes' ends (src/core/lanes.h): per global slot the bound of the step (+inf: none), and the
@@ -899,7 +898,6 @@ static void lane_cooperation(WfCorridor *c, const WfLcRoad *r)
         double a = c->lcs.coop_cap_mps2[k];
         if (c->coop_cap_mps2[s] == INFINITY) c->coop_slot[c->n_coop++] = s;
         if (a < c->coop_cap_mps2[s]) c->coop_cap_mps2[s] = a;
-        c->lk.coop_yields++;
     }
 }
 
