@@ -43,7 +43,8 @@ Measures (window: after the warm-up, to the end):
 - the insertion backlog at the end (vehicles loaded but not yet inserted), lane changes (tripinfo has none:
   counted with --lanechange-output), collisions, teleports.
 Usage: /usr/bin/python3 bench/lanes_sumo/sumo_corridor.py [--seed 1] [--keep DIR] [--json] [--depart-speed last]
-                                                         [--lc-params 'lcCooperative="0"']"""
+                                                         [--lc-params 'lcCooperative="0"'] [--main-vph 4200]
+                                                         [--ramp-vph 700]"""
 import argparse
 import json
 import os
@@ -243,12 +244,15 @@ def main():
                     help="SUMO's departSpeed of every flow (last, max, desired, avg, speedLimit, a number)")
     ap.add_argument("--lc-params", default="",
                     help='extra vType attributes, e.g. \'lcCooperative="0"\' (diagnostic: LC2013 without cooperation)')
+    ap.add_argument("--main-vph", type=float, default=SCEN["main_vph"], help="main demand (veh/h, all lanes)")
+    ap.add_argument("--ramp-vph", type=float, default=SCEN["ramp_vph"], help="ramp demand (veh/h)")
     a = ap.parse_args()
     why = available()
     if why:
         print(f"SUMO corridor: not run: {why}")
         return 1
-    r = run(a.seed, a.keep, dict(SCEN, depart_speed=a.depart_speed, lc_params=a.lc_params))
+    r = run(a.seed, a.keep, dict(SCEN, depart_speed=a.depart_speed, lc_params=a.lc_params, main_vph=a.main_vph,
+                                 ramp_vph=a.ramp_vph))
     if a.json:
         print(json.dumps(r, indent=1))
     else:
