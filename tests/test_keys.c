@@ -79,13 +79,19 @@ static void expected_text(const WfKeySpec *r, int corridor, char *buf, size_t le
 
 static int n_checked;
 
-/* One bad value at the row's path; `extra` sets what the section needs first (an adaptive integrator for solver). */
+/* One bad value at the row's path; `extra` sets what the section needs first (an adaptive integrator for solver;
+ * several settings separated by ';'). */
 static void reject(const char *path, const WfKeySpec *r, const char *value, int corridor, const char *extra)
 {
-    char set[256], want[600], what[400];
+    char set[256], want[600], what[400], pre[256] = "";
     snprintf(set, sizeof set, "%s=%s", path, value);
-    const char *sets[2] = {extra ? extra : set, set};
-    size_t n = extra ? 2 : 1;
+    const char *sets[4];
+    size_t n = 0;
+    if (extra) {
+        snprintf(pre, sizeof pre, "%s", extra);
+        for (char *tok = strtok(pre, ";"); tok && n < 3; tok = strtok(NULL, ";")) sets[n++] = tok;
+    }
+    sets[n++] = set;
     expected_text(r, corridor, what, sizeof what);
     snprintf(want, sizeof want, "%s: expected %s (got '%s')", path, what, value);
     WfError err;
@@ -104,7 +110,10 @@ static void check_table(const WfKeyTable *t, const char *prefix, const char *ext
         if (r->type == WF_KEY_SECTION) {
             char sub[260];
             snprintf(sub, sizeof sub, "%s.", path);
-            check_table(r->sub, sub, !strcmp(path, "corridor.on_ramp") ? "corridor.on_ramp.start_m=100" : extra);
+            check_table(r->sub, sub,
+                        !strcmp(path, "corridor.on_ramp")    ? "corridor.on_ramp.start_m=100"
+                        : !strcmp(path, "corridor.off_ramp") ? "corridor.off_ramp.at_m=100;corridor.off_ramp.share=0.5"
+                                                             : extra);
             continue;
         }
         if ((r->flags & WF_KEY_NOREAD) || r->type == WF_KEY_CUSTOM || r->type == WF_KEY_TEXT) continue;

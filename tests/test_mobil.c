@@ -68,10 +68,10 @@ static void test_registry_and_defaults(void)
     CHECK(m->param_size <= WF_MAX_LC_PARAMS * sizeof(double) && m->param_size <= sizeof(Params), "param_size %zu",
           m->param_size);
     /* The defaults docs/lanes.md states: p 0.2, Δa_th 0.1, Δa_bias 0.3, b_safe 4, 1 s between changes, and
-     * b_safe 8 for mandatory changes. */
+     * b_safe 8 for mandatory changes, cooperation up to 1.5 m/s^2 within 300 m of a lane's end. */
     static const struct { const char *key; double def; } want[] = {
         {"politeness", 0.2}, {"threshold_mps2", 0.1}, {"bias_mps2", 0.3}, {"b_safe_mps2", 4.0},
-        {"min_interval_s", 1.0}, {"b_mandatory_mps2", 8.0}};
+        {"min_interval_s", 1.0}, {"b_mandatory_mps2", 8.0}, {"coop_decel_mps2", 1.5}, {"merge_range_m", 300.0}};
     CHECK(m->n_spec == sizeof want / sizeof want[0], "%zu keys", m->n_spec);
     Params p = lc_defaults(m);
     for (size_t k = 0; k < sizeof want / sizeof want[0]; k++) {
