@@ -604,35 +604,26 @@ int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long s
         if (count) wf_lane_safety_add(ln, cf, 1);
         return adv ? flags | wf_lane_chunk_edge(ln, first, n, nb, nb) : 0;
     }
-    size_t nch = nb < (size_t)nth * WF_CHUNKS_PER_THREAD ? nb : (size_t)nth * WF_CHUNKS_PER_THREAD;
-#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, nch, bx, bv, front, step, pass, in_window, rec, adv, cf, count)
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bx, bv, front, step, pass, in_window, rec, adv, cf, count)
     {
+        /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
+         * actually running. */
 #ifdef _OPENMP
-        int t = omp_get_thread_num();
+        int t = omp_get_thread_num(), nt = omp_get_num_threads();
 #else
-        int t = 0;
+        int t = 0, nt = 1;
 #endif
-        int fl = 0;
-        /* each chunk's first vehicle, saved before any update (the team may be smaller than asked: the loops share
-         * the chunks among the threads actually running) */
-#pragma omp for schedule(static)
-        for (size_t k = 0; k < nch; k++) {
-            size_t lo_k = 0;
-            block_at(ln, first, n, nb * k / nch, &lo_k);
-            bx[k] = ln->x_m[lo_k];
-            bv[k] = ln->v_mps[lo_k];
-        }
-        /* Leader of a chunk's last vehicle: the next chunk's first, saved (the front's: chunk 0's, saved). */
-#pragma omp for schedule(dynamic, 1)
-        for (size_t k = 0; k < nch; k++) {
-            size_t kn = k + 1 < nch ? k + 1 : 0;
-            fl |= run_chunk(ln, first, n, nb * k / nch, nb * (k + 1) / nch, nb, bx[kn], bv[kn], front, step, pass,
-                            in_window, rec, count ? &cf[t] : NULL);
-        }
-        if (adv) {
-#pragma omp for schedule(static) nowait
-            for (size_t k = 0; k < nch; k++) fl |= wf_lane_chunk_edge(ln, first, n, nb * (k + 1) / nch, nb);
-        }
+        size_t b0 = nb * (size_t)t / (size_t)nt, b1 = nb * (size_t)(t + 1) / (size_t)nt, lo_t = 0;
+        if (b1 > b0) block_at(ln, first, n, b0, &lo_t);
+        bx[t] = ln->x_m[lo_t];
+        bv[t] = ln->v_mps[lo_t];
+#pragma omp barrier
+        /* Leader of this chunk's last vehicle: the next chunk's first, saved (the front's: chunk 0's, saved). */
+        int tn = t + 1 < nt ? t + 1 : 0;
+        int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, bx[tn], bv[tn], front, step, pass, in_window, rec,
+                                     count ? &cf[t] : NULL) : 0;
+#pragma omp barrier
+        if (adv && b1 > b0) fl |= wf_lane_chunk_edge(ln, first, n, b1, nb);
         cf[t].flags = fl;
     }
     for (int t = 0; t < nth; t++) flags |= cf[t].flags;

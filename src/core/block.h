@@ -25,11 +25,6 @@
 #define WF_PAR_MIN 4096 /* vehicles below which a step runs on one thread (OpenMP overhead dominates) */
 /* The threads a step of n vehicles asks for, of the run's nthreads. */
 static inline int wf_lane_threads(size_t n, int nthreads) { return n >= WF_PAR_MIN ? nthreads : 1; }
-/* A step on several threads cuts the road into up to WF_CHUNKS_PER_THREAD chunks per thread, taken by whichever
- * thread is free (vehicles differ in cost: an open road's free-flowing front against its queued back); a lane's
- * bound_x / bound_v hold wf_lane_bounds(nthreads) entries. */
-#define WF_CHUNKS_PER_THREAD 16
-static inline size_t wf_lane_bounds(int nthreads) { return (size_t)nthreads * WF_CHUNKS_PER_THREAD + 1; }
 
 /* Parts of a step (wf_lane_step's pass): inputs and acceleration, fuel rate, and the advance (controller memory,
  * statistics, integration). All three in one pass is the fused step; the first two alone export the step's values

@@ -715,8 +715,8 @@ static int lane_init(WfCorridor *c, WfError *err)
 {
     const WfScenario *sc = c->sc;
     size_t nt = (size_t)c->nthreads + 1;
-    c->bound_x = calloc(wf_lane_bounds(c->nthreads), sizeof(double));
-    c->bound_v = calloc(wf_lane_bounds(c->nthreads), sizeof(double));
+    c->bound_x = calloc(nt, sizeof(double));
+    c->bound_v = calloc(nt, sizeof(double));
     c->chunks = calloc(nt, sizeof *c->chunks);
     if (!c->bound_x || !c->bound_v || !c->chunks) return wf_err(err, WF_ESYS, "out of memory");
     if (coop_possible(c)) {

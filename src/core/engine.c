@@ -273,8 +273,8 @@ static int ring_create(WfSim *sim, WfError *err)
     s->stat_blocks = malloc((wf_lane_blocks(0, s->f->n) + s->f->n_lanes + 1) * sizeof *s->stat_blocks);
     for (size_t g = 0; g < sc->n_groups; g++) s->noisy |= sc->groups[g].noise_mps2 > 0.0;
     for (size_t g = 0; g < sc->n_groups; g++) s->stateful |= sc->groups[g].model->state_size > 0;
-    s->bound_x = malloc(wf_lane_bounds(s->nthreads) * sizeof(double));
-    s->bound_v = malloc(wf_lane_bounds(s->nthreads) * sizeof(double));
+    s->bound_x = malloc(((size_t)s->nthreads + 1) * sizeof(double));
+    s->bound_v = malloc(((size_t)s->nthreads + 1) * sizeof(double));
     s->chunks = calloc((size_t)s->nthreads + 1, sizeof *s->chunks);
     if (!s->stat_blocks || !s->bound_x || !s->bound_v || !s->chunks)
         rc = wf_err(err, WF_ESYS, "out of memory");
