@@ -193,19 +193,9 @@ static int lanes_step(WfRing *s, long step, int pass, int in_window, WfStatsBloc
         s->lane_nb[l] = s->lanes[l].cap ? wf_lane_blocks(0, s->lanes[l].cap) : 0;
         off[l] = o;
     }
-    /* Lanes long enough for the kernel's threads: one after the other, each on every thread (balanced whatever the
-     * lanes' counts); else side by side, each on one thread. The same bits either way: a lane's step does not
-     * depend on the threads. */
-    int nth = wf_lane_threads(f->n, s->nthreads), each = nth > 1;
-    for (size_t l = 0; l < nl; l++) each &= !s->lanes[l].cap || s->lanes[l].cap >= WF_PAR_MIN;
-    if (each) {
-        for (size_t l = 0; l < nl; l++) {
-            WfLane *v = &s->lanes[l];
-            v->nthreads = s->nthreads, v->chunks = s->chunks, v->bound_x = s->bound_x, v->bound_v = s->bound_v;
-            if (v->cap) flags |= wf_lane_step(v, 0, v->cap, NULL, step, pass, in_window, rec ? rec + off[l] : NULL);
-        }
-        return flags;
-    }
+    /* the lanes side by side, each on one thread: the same bits as one after the other (a lane's step does not
+     * depend on the threads) */
+    int nth = wf_lane_threads(f->n, s->nthreads);
     if ((size_t)nth > nl) nth = (int)nl;
     WF_PAR_FOR(nth > 1, "omp parallel for schedule(dynamic, 1) num_threads(nth) default(none) shared(s, nl, off, step, pass, in_window, rec) reduction(| : flags)",
     for (size_t l = 0; l < nl; l++) {
