@@ -1245,24 +1245,25 @@ static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_e
     return c->n_trips == TRIP_BUF ? flush_trips(c, err) : 0;
 }
 
-/* The vehicle k places behind lane ln's front leaves by the off-ramp: the k ahead of it move one slot back. */
-static int offramp_exit(WfCorridor *c, CorLane *ln, size_t k, double t_end, int in_window, WfError *err)
+/* The vehicle k places behind lane ln's front leaves by the off-ramp: the vehicles behind it move one slot up (the
+ * lane's back with them), so those ahead, which it no longer affects, keep their slots and their noise draws. */
+static int offramp_exit(WfCorridor *c, CorLane *ln, size_t k, double t_end, WfError *err)
 {
     WfCorridorVehicles *vh = &ln->veh;
-    size_t o = ln->index * vh->cap;
+    size_t o = ln->index * vh->cap, m = 0;
     int rc = finish_vehicle(c, ln, wf_corridor_slot(vh, k), t_end, 2, err);
-    for (size_t j = 0; j < k; j++)
-        c->off_src[j] = (uint32_t)(o + wf_corridor_slot(vh, j)), c->off_dst[j] = (uint32_t)(o + wf_corridor_slot(vh, j + 1));
-    lanes_move(c, c->off_src, c->off_dst, k);
+    for (size_t j = k + 1; j < vh->n; j++, m++)
+        c->off_src[m] = (uint32_t)(o + wf_corridor_slot(vh, j)), c->off_dst[m] = (uint32_t)(o + wf_corridor_slot(vh, j - 1));
+    lanes_move(c, c->off_src, c->off_dst, m);
+    vh->first = vh->first + 1 < vh->cap ? vh->first + 1 : 0;
     vh->n--;
     c->st.counts.off_ramp++;
-    (void)in_window;
     return rc;
 }
 
 /* The off-ramp: vehicles bound for it whose front reached it in this step leave by it from the exit lane; in
  * another lane they miss it and drive on. */
-static int phase_offramp(WfCorridor *c, double t_end, int in_window, WfError *err)
+static int phase_offramp(WfCorridor *c, double t_end, WfError *err)
 {
     double at = c->cs->off_at_m;
     for (size_t l = 0; l < c->n_lanes; l++) {
@@ -1276,7 +1277,7 @@ static int phase_offramp(WfCorridor *c, double t_end, int in_window, WfError *er
             if (!ln->dest[s]) {
                 k++;
             } else if (l == c->cs->exit_lane) {
-                int rc = offramp_exit(c, ln, k, t_end, in_window, err);
+                int rc = offramp_exit(c, ln, k, t_end, err);
                 if (rc) return rc;
             } else {
                 ln->dest[s] = 0;
@@ -1546,7 +1547,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
         if (c->fault_slot >= 0) return numerical_fault(c, step, err);
     }
     phase_measure(c, step, in_window);
-    if (c->cs->has_offramp && (rc = phase_offramp(c, t_next, in_window, err))) return rc;
+    if (c->cs->has_offramp && (rc = phase_offramp(c, t_next, err))) return rc;
     for (size_t l = 0; l < nl; l++)
         if ((rc = phase_exits(c, &c->ln[l], t_next, in_window, err))) return rc;
     return 0;

@@ -255,7 +255,8 @@ static void decide_block(WfLaneChanges *lc, const WfLcRoad *r, size_t l, size_t 
         for (size_t k = 0; k < m; k++) {
             size_t i = i0 + k;
             if (!sc->groups[r->group_id[i]].lc || step < r->ready_step[i]) continue;
-            if (approaching(r, i) && (d == 1 || l <= r->exit_lane)) continue; /* toward the exit lane only */
+            /* on the approach: toward the exit lane only (from above it or from a merge lane below), then hold it */
+            if (approaching(r, i) && (l == r->exit_lane || (l > r->exit_lane) != (d == 0))) continue;
             bt->cand[c] = (uint32_t)k;
             c += (size_t)put_case(lc, r, bt, c, i, l, tl, d);
         }
@@ -334,14 +335,14 @@ long wf_lanes_decide(WfLaneChanges *lc, const WfLcRoad *r, long step, int nthrea
 
 /* ------------------------------------------------------------------------------------------- cooperation */
 
-/* Whether vehicle i of lane l asks the vehicles of lane m to let it in: it must leave a lane that ends, within its
- * driver's merge range of the end, or it is on the off-ramp's approach and m lies toward the exit lane. */
+/* Whether vehicle i of lane l asks the vehicles of lane m to let it in: it is on the off-ramp's approach and m lies
+ * toward the exit lane, or it must leave a lane that ends, within its driver's merge range of the end. */
 static int asks(const WfLcRoad *r, size_t l, size_t m, size_t i)
 {
     const WfDriverGroup *gi = &r->sc->groups[r->group_id[i]];
     double yield_mps2, range_m;
     if (!gi->lc) return 0;
-    if (approaching(r, i)) return m < l && l > r->exit_lane;
+    if (approaching(r, i)) return l > r->exit_lane ? m < l : l < r->exit_lane && m > l;
     if (!isfinite(r->end_m[l])) return 0;
     gi->lc->cooperation(gi->lc_params, &yield_mps2, &range_m);
     return r->end_m[l] - r->x_m[i] <= range_m;
@@ -377,7 +378,7 @@ size_t wf_lanes_cooperate(WfLaneChanges *lc, const WfLcRoad *r)
     size_t nc = 0;
     if (!lc->active || !lc->coop) return 0;
     for (size_t l = 0; l < r->n_lanes; l++) {
-        int ends = isfinite(r->end_m[l]), exits = r->exiting && l > r->exit_lane;
+        int ends = isfinite(r->end_m[l]), exits = r->exiting && l != r->exit_lane;
         if (!r->count[l] || !(ends || exits)) continue;
         if (l > 0 && !isfinite(r->end_m[l - 1])) nc = cooperate_pair(lc, r, l, l - 1, nc);
         if (l + 1 < r->n_lanes && !isfinite(r->end_m[l + 1])) nc = cooperate_pair(lc, r, l, l + 1, nc);
