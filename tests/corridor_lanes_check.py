@@ -23,6 +23,8 @@ import sys
 import h5py
 import numpy as np
 
+from lanes_check import lane_rates, v_stop_of  # the same /lanes checks as the ring's
+
 LANE_KEY = 2 ** 40  # lane l's vehicles are numbered from l 2^40 (src/core/corridor.c, lane_key)
 
 
@@ -145,36 +147,6 @@ def identical(pa, pb, min_lane_n):
           f"{a['trips/serial'].shape[0]} trips")
 
 
-def v_stop_of(f):
-    """statistics.v_stop_mps of the run (its scenario text, or the default 0.5 m/s)."""
-    import re
-    text = f["meta/scenario_text"][()]
-    text = text.decode() if isinstance(text, bytes) else str(text)
-    m = re.search(r"v_stop_mps:\s*([0-9.eE+-]+)", text)
-    return float(m.group(1)) if m else 0.5
-
-
-def lane_rates(la, lane_of_step, v_of_step, n_lanes, dt, rec_steps, v_stop):
-    """/lanes/lane_cut_in_rate and /lanes/frac_stopped against the frames: each lane's vehicle-seconds over the
-    steps stepped (the vehicles of each step's frame, after that step's changes), and at each record the share of each
-    lane's vehicles slower than v_stop. lane_of_step / v_of_step: per stepped or recorded step, its frame's lanes and
-    speeds. Returns an account."""
-    vs = np.zeros(n_lanes)
-    for l_k in lane_of_step:
-        vs += np.bincount(l_k, minlength=n_lanes) * dt
-    want = np.where(vs > 0, la["lane_cut_ins"][()] / np.where(vs > 0, vs, 1.0) * 3600.0, 0.0)
-    got = la["lane_cut_in_rate"][()]
-    assert np.allclose(got, want, rtol=1e-12, atol=0), f"/lanes/lane_cut_in_rate {got} != {want} from the frames"
-    fs = la["frac_stopped"][()]
-    for j, (l_k, v_k) in enumerate(zip(rec_steps[0], rec_steps[1])):
-        for l in range(n_lanes):
-            m = l_k == l
-            w = np.mean(v_k[m] < v_stop) if m.any() else np.nan
-            assert (np.isnan(w) and np.isnan(fs[j, l])) or abs(fs[j, l] - w) <= 1e-15, \
-                f"record {j} lane {l}: /lanes/frac_stopped {fs[j, l]} != {w} from the frame"
-    return f"lane cut-in rates {np.round(got, 3).tolist()} /h and {fs.size} frac_stopped values match the frames"
-
-
 def frames(f):
     """The trajectory points with each point's step, lane, the vehicle's row in /trips, and the frames' bounds."""
     dt = float(f["meta/dt"][()])
@@ -264,7 +236,7 @@ def physical(path, min_steps):
                 for j in range(len(bounds) - 1)}
     empty = (np.zeros(0, dtype=np.int64), np.zeros(0))
     rec = [per_step.get(int(s), empty) for s in lk]
-    rates = lane_rates(la, [per_step.get(s, empty)[0] for s in range(n_steps)], None, n_lanes, dt,
+    rates = lane_rates(la, [per_step.get(s, empty)[0] for s in range(n_steps)], n_lanes, dt,
                        ([r[0] for r in rec], [r[1] for r in rec]), v_stop_of(f))
     n_groups = len(la["group_cut_ins"][()])
     gid_all = tp["group_id"][()].astype(np.int64)

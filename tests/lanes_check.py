@@ -106,11 +106,11 @@ def v_stop_of(f):
     return float(m.group(1)) if m else 0.5
 
 
-def lane_rates(la, lane_of_step, v_of_step, n_lanes, dt, rec_steps, v_stop):
+def lane_rates(la, lane_of_step, n_lanes, dt, rec_steps, v_stop):
     """/lanes/lane_cut_in_rate and /lanes/frac_stopped against the frames: each lane's vehicle-seconds over the
     steps stepped (the vehicles of each step's frame, after that step's changes), and at each record the share of each
-    lane's vehicles slower than v_stop. lane_of_step / v_of_step: per stepped or recorded step, its frame's lanes and
-    speeds. Returns an account."""
+    lane's vehicles slower than v_stop. lane_of_step: per stepped step, its frame's lanes; rec_steps: per record, its
+    frame's lanes and speeds. Returns an account."""
     vs = np.zeros(n_lanes)
     for l_k in lane_of_step:
         vs += np.bincount(l_k, minlength=n_lanes) * dt
@@ -219,7 +219,7 @@ def physical(path, min_steps=None):
     la = f["lanes"]
     n_lanes = la["vehicles"].shape[1]
     rec = [int(np.argmin(np.abs(t - tj))) for tj in la["t"][()]]
-    rates = lane_rates(la, [lane[k] for k in range(n_frames - 1)], None, n_lanes, dt,
+    rates = lane_rates(la, [lane[k] for k in range(n_frames - 1)], n_lanes, dt,
                        ([lane[k] for k in rec], [v[k] for k in rec]), v_stop_of(f))
     print(f"{n_frames} frames x {n} vehicles: least gap {min_gap:.3f} m, {counted} lane changes seen in the frames "
           f"and counted, {cut} cut-ins, {n_lap_jumps} changes moving x by a lap; {rates}")
