@@ -13,10 +13,7 @@ set -u
 cd "$(dirname "$0")/.." || exit 1
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 PY=/usr/bin/python3
-tmp=$(mktemp -d)
-trap 'rm -rf "$tmp"' EXIT
-ok() { echo "PASS $1"; }
-ko() { echo "FAIL $1: $2"; }
+. tests/scaffold.sh
 
 SPEED_ZONE="    - {type: speed_limit, from_m: 1500, to_m: 2500, speed_limit_mps: 12"
 HEADWAY_ZONE="    - {type: headway, from_m: 3000, to_m: 3500, factor: 2.0"
@@ -61,7 +58,6 @@ for s in two lane0 lane1; do
   fi
 done
 
-check() { local name=$1 msg; shift; if msg=$("$@" 2>&1); then ok "$name ($msg)"; else ko "$name" "$msg"; fi; }
 
 check lanes_equal_single_lane_roads $PY - "$tmp" <<'EOF'
 import sys, h5py, numpy as np

@@ -20,18 +20,7 @@ cd "$(dirname "$0")/.." || exit 1
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 PY=/usr/bin/python3
 CHECK="$PY tests/lanes_check.py"
-tmp=$(mktemp -d)
-pids=()
-trap 'for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null; done; rm -rf "$tmp"' EXIT
-. tests/interrupt.sh
-ok() { echo "PASS $1"; }
-ko() { echo "FAIL $1: $2"; }
-# check NAME CMD...: PASS with the command's account, or FAIL with its reason.
-check() {
-  local name=$1 msg; shift
-  if msg=$("$@" 2>&1); then ok "$name ($msg)"; else ko "$name" "$msg"; fi
-}
-run() { $BIN run "$@" -q --force; }
+. tests/scaffold.sh
 
 # ------------------------------------------------------------------ a. lanes off = independent single-lane rings
 # Lane 0: vehicles 0-19, IDM with noise, heterogeneity and vehicle 3 perturbed; lane 1: 20-34, IDM and OVM

@@ -59,18 +59,7 @@ CHECK="$PY tests/merge_check.py"
 # Threads that sleep while they wait: on a loaded machine spinning threads can take many times longer (results
 # do not depend on it).
 export OMP_WAIT_POLICY=passive
-tmp=$(mktemp -d)
-pids=()
-trap 'for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null; done; rm -rf "$tmp"' EXIT
-. tests/interrupt.sh
-ok() { echo "PASS $1"; }
-ko() { echo "FAIL $1: $2"; }
-# check NAME CMD...: PASS with the command's account, or FAIL with its reason.
-check() {
-  local name=$1 msg; shift
-  if msg=$("$@" 2>&1); then ok "$name ($msg)"; else ko "$name" "$msg"; fi
-}
-run() { $BIN run "$@" -q --force; }
+. tests/scaffold.sh
 
 # ------------------------------------------------------------------ a. waves upstream at high demand only
 # merge FILE MAIN_VPH RAMP_VPH [LANE_CHANGE]: check a's corridor; LANE_CHANGE: the group's lane_change entry.

@@ -30,18 +30,7 @@ PY=/usr/bin/python3
 CHECK="$PY tests/offramp_check.py"
 # Threads that sleep while they wait (results do not depend on it).
 export OMP_WAIT_POLICY=passive
-tmp=$(mktemp -d)
-pids=()
-trap 'for p in "${pids[@]}"; do kill -KILL "$p" 2>/dev/null; done; rm -rf "$tmp"' EXIT
-. tests/interrupt.sh
-ok() { echo "PASS $1"; }
-ko() { echo "FAIL $1: $2"; }
-# check NAME CMD...: PASS with the command's account, or FAIL with its reason.
-check() {
-  local name=$1 msg; shift
-  if msg=$("$@" 2>&1); then ok "$name ($msg)"; else ko "$name" "$msg"; fi
-}
-run() { $BIN run "$@" -q --force; }
+. tests/scaffold.sh
 
 # ------------------------------------------------------------------ scenarios
 # three FILE OFF-RAMP [EXTRA]: 3 km, three lanes of 4500 veh/h (Poisson, unequal shares), sedans and tractors, a noisy

@@ -35,7 +35,8 @@ int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_
     lc->blkl = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blkl);
     lc->coop_who = malloc(2 * n * sizeof *lc->coop_who);
     lc->coop_cap_mps2 = malloc(2 * n * sizeof *lc->coop_cap_mps2);
-    if (!lc->coop_who || !lc->coop_cap_mps2 || !lc->p_m || !lc->tgt[0] || !lc->tgt[1] || !lc->dir || !lc->adv_mps2 || !lc->claim || !lc->perm ||
+    if (!lc->coop_who || !lc->coop_cap_mps2 ||
+        !lc->p_m || !lc->tgt[0] || !lc->tgt[1] || !lc->dir || !lc->adv_mps2 || !lc->claim || !lc->perm ||
         !lc->shift_m || !lc->scratch || !lc->blk || !lc->blkl)
         return wf_err(err, WF_ESYS, "out of memory for the lane changes of %zu vehicles", n);
     return 0;
@@ -221,16 +222,22 @@ static inline int approaching(const WfLcRoad *r, size_t i)
     return r->exiting && r->exiting[i] && r->x_m[i] >= r->exit_at_m - r->exit_approach_m && r->x_m[i] < r->exit_at_m;
 }
 
-/* The rule vehicle i of lane l changes by: mandatory in a lane that ends within its driver's merge range, or on the
- * off-ramp's approach; else the road's. */
-static int rule_of(const WfLcRoad *r, size_t l, size_t i)
+/* Whether vehicle i (of a group with a lane-change model) must leave lane l: the lane ends within its driver's merge
+ * range. */
+static int must_leave(const WfLcRoad *r, size_t l, size_t i)
 {
     const WfDriverGroup *grp = &r->sc->groups[r->group_id[i]];
     double yield_mps2, range_m;
-    if (approaching(r, i)) return WF_LANE_RULE_MANDATORY;
-    if (!isfinite(r->end_m[l])) return r->sc->lane_rule;
+    if (!isfinite(r->end_m[l])) return 0;
     grp->lc->cooperation(grp->lc_params, &yield_mps2, &range_m);
-    return r->end_m[l] - r->x_m[i] <= range_m ? WF_LANE_RULE_MANDATORY : r->sc->lane_rule;
+    return r->end_m[l] - r->x_m[i] <= range_m;
+}
+
+/* The rule vehicle i of lane l changes by: mandatory when it must leave its lane or is on the off-ramp's approach;
+ * else the road's. */
+static int rule_of(const WfLcRoad *r, size_t l, size_t i)
+{
+    return approaching(r, i) || must_leave(r, l, i) ? WF_LANE_RULE_MANDATORY : r->sc->lane_rule;
 }
 
 /* The decisions of the m vehicles of lane l from index i0: each one's side with the larger positive advantage (the
@@ -339,13 +346,9 @@ long wf_lanes_decide(WfLaneChanges *lc, const WfLcRoad *r, long step, int nthrea
  * toward the exit lane, or it must leave a lane that ends, within its driver's merge range of the end. */
 static int asks(const WfLcRoad *r, size_t l, size_t m, size_t i)
 {
-    const WfDriverGroup *gi = &r->sc->groups[r->group_id[i]];
-    double yield_mps2, range_m;
-    if (!gi->lc) return 0;
+    if (!r->sc->groups[r->group_id[i]].lc) return 0;
     if (approaching(r, i)) return l > r->exit_lane ? m < l : l < r->exit_lane && m > l;
-    if (!isfinite(r->end_m[l])) return 0;
-    gi->lc->cooperation(gi->lc_params, &yield_mps2, &range_m);
-    return r->end_m[l] - r->x_m[i] <= range_m;
+    return must_leave(r, l, i);
 }
 
 /* The askers of lane l toward lane m: each one's follower there (the last of lane m behind it, one walk of both
