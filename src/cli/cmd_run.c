@@ -28,6 +28,13 @@
 
 static void help(FILE *out)
 {
+#ifdef WF_MPI
+    fprintf(out, "mpirun -n R wavefuel-mpi run: `wavefuel run` with one ring split across the R processes, each\n"
+                 "stepping a contiguous share of its vehicles; rank 0 writes the same result file as one process\n"
+                 "would, bit for bit (docs/mpi.md). Rings of one lane with fixed-step integrators, without\n"
+                 "trajectories and without groups commanded from outside; a checkpoint is saved when a signal\n"
+                 "stops the run (--checkpoint-every is not offered); --resume takes any number of processes.\n\n");
+#endif
     fprintf(out,
             "usage: wavefuel run SCENARIO.yaml [-o FILE.h5] [--set key.path=value]... [--threads N] [--force] [-q]\n"
             "                    [--checkpoint-every SECONDS]\n"
@@ -258,7 +265,8 @@ int wf_cmd_run(int argc, char **argv)
     volatile sig_atomic_t *stop = &wf_cli_stop;
 #ifdef WF_MPI
     static WfPartition part; /* outlives the run, whose loop reads part.stop_all */
-    if ((rank = wf_mpi_rank()) != 0 && (other_stderr = dup(STDERR_FILENO)) >= 0 && !freopen("/dev/null", "w", stderr))
+    if ((rank = wf_mpi_rank()) != 0 && (other_stderr = dup(STDERR_FILENO)) >= 0 &&
+        (!freopen("/dev/null", "w", stderr) || !freopen("/dev/null", "w", stdout)))
         return 1; /* rank 0 says what every rank would */
 #endif
     int status = parse_args(argc, argv, &a);
