@@ -229,6 +229,7 @@ typedef struct COut {
     size_t state_size;
     double max_on_road;
     int64_t safety; /* the safety filter's interventions */
+    long probes, switches; /* the thread governor's */
 } COut;
 
 static int c_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
@@ -261,7 +262,8 @@ static int c_trips(void *ctx, const WfSim *c, const WfTrip *t, size_t n, WfError
     return 0;
 }
 
-static int run_corridor(const char *path, int threads, COut *o)
+/* check_steps: time.thread_check_steps (1: probes as often as the governor allows; 0: all threads always). */
+static int run_corridor(const char *path, int threads, long check_steps, COut *o)
 {
     WfError err = {0};
     WfScenario *sc = NULL;
@@ -271,13 +273,17 @@ static int run_corridor(const char *path, int threads, COut *o)
 #else
     (void)threads;
 #endif
-    int rc = wf_scenario_load(path, NULL, 0, &sc, &err);
+    char set[64];
+    const char *sets[] = {set};
+    snprintf(set, sizeof set, "time.thread_check_steps=%ld", check_steps);
+    int rc = wf_scenario_load(path, sets, 1, &sc, &err);
     if (!rc) rc = wf_sim_create(sc, &c, &err);
     WfOutput out = {.record = c_row, .trips = c_trips, .ctx = o};
     if (!rc) rc = wf_sim_run(c, &out, NULL, NULL, NULL, &err);
     if (rc) printf("  %s\n", err.msg);
     if (!rc) {
         o->safety = wf_sim_summary(c)->safety_interventions;
+        wf_sim_thread_stats(c, &o->probes, &o->switches);
         o->state = wf_test_state_copy(c, &o->state_size);
     }
     wf_sim_destroy(&c);
@@ -293,8 +299,8 @@ static void test_corridor_threads(void)
     FILE *f = fopen(path, "w");
     fputs(corridor_yaml, f);
     fclose(f);
-    static COut a, b;
-    CHECK(run_corridor(path, 1, &a) == 0 && run_corridor(path, 2, &b) == 0, "corridor runs failed");
+    static COut a, b, sw;
+    CHECK(run_corridor(path, 1, 1024, &a) == 0 && run_corridor(path, 2, 0, &b) == 0, "corridor runs failed");
     printf("  corridor: up to %.0f vehicles on the road, %zu trips, %zu records, %lld safety interventions\n",
            a.max_on_road, a.n_trips, a.n_rows, (long long)a.safety);
     CHECK(a.safety > 0 && a.safety == b.safety, "safety interventions %lld and %lld", (long long)a.safety,
@@ -308,7 +314,19 @@ static void test_corridor_threads(void)
           "trips differ (%zu and %zu)", a.n_trips, b.n_trips);
     CHECK(a.state && b.state && a.state_size == b.state_size && !memcmp(a.state, b.state, a.state_size),
           "the checkpoint state (vehicles, accumulators, Edie and detector sums) differs");
-    free(a.trips), free(b.trips), free(a.state), free(b.state);
+    /* the thread governor probing as often as it can (every step, then backing off to every 64): each probe and
+     * each switch changes the threads between two steps; the same bits */
+    CHECK(run_corridor(path, 2, 1, &sw) == 0, "corridor run with the governor switching failed");
+    printf("  the governor probing as often as it can: %ld probes, %ld switches\n", sw.probes, sw.switches);
+    /* the interval never exceeds 64 steps here: at least one probe per 64 steps of more than 4096 vehicles */
+    CHECK(sw.probes >= 30, "only %ld probes: the threads hardly changed", sw.probes);
+    CHECK(sw.n_rows == a.n_rows && !memcmp(sw.rows, a.rows, a.n_rows * sizeof *a.rows),
+          "threads switched by the governor: the records differ");
+    CHECK(sw.n_trips == a.n_trips && !memcmp(sw.trips, a.trips, a.n_trips * sizeof *a.trips),
+          "threads switched by the governor: the trips differ");
+    CHECK(sw.state && sw.state_size == a.state_size && !memcmp(sw.state, a.state, a.state_size),
+          "threads switched by the governor: the checkpoint state differs");
+    free(a.trips), free(b.trips), free(a.state), free(b.state), free(sw.trips), free(sw.state);
     unlink(path);
     rmdir(dir);
 }

@@ -74,6 +74,7 @@ typedef struct WfScenario {
     int     fused_step;           /* 1: steps that record nothing run in one fused pass (same results, faster) */
     int     block_steps;          /* ring: steps per time-blocked window (0: the default, 1: one step at a time) */
     long    tile_vehicles;        /* ring: vehicles per tile of a window (0: from the cache size) */
+    long    thread_check_steps;   /* corridor: steps between timings of the other thread count (0: never) */
     uint64_t seed;
     long    n_vehicles;
     /* lanes (road.lanes, 1 to WF_MAX_LANES), their passing rule (WF_LANE_RULE_*) and each lane's vehicles at the

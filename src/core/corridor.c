@@ -19,6 +19,7 @@
 #include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
 #include "core/block.h"
+#include "core/governor.h"
 #include "core/lanes.h"
 #include "observe/columns.h"
 #include "core/par.h"
@@ -132,7 +133,8 @@ struct WfCorridor {
     long     det_every, edie_every;
     /* run */
     long     n_steps, out_every, traj_every, warm_steps;
-    int      nthreads;
+    int      nthreads;      /* the run's threads */
+    WfGovernor gov;         /* the threads each step takes (governor.h): at most nthreads */
     long     fault_slot;    /* the slot of a vehicle with a non-finite state in lane fault_lane, or -1 */
     size_t   fault_lane;
     WfRoadOps ops;
@@ -401,6 +403,7 @@ static int corridor_create(WfSim *sim, WfError *err)
     sim->steps_done = &c->st.steps_done;
     c->sim = sim;
     c->nthreads = sim->nthreads;
+    wf_governor_init(&c->gov, c->nthreads, sc->thread_check_steps);
     c->sc = sc;
     c->cs = sc->corridor;
     c->L = sc->road.length_m;
@@ -908,7 +911,7 @@ static void lane_changes(WfCorridor *c, long step)
     if (!c->lcs.active) return;
     WfLcRoad r;
     lanes_road(c, &r);
-    if (wf_lanes_decide(&c->lcs, &r, step, c->nthreads)) {
+    if (wf_lanes_decide(&c->lcs, &r, step, wf_governor_threads(&c->gov))) {
         lane_moves(c, &r, step);
         if (c->coop_cap_mps2) lanes_road(c, &r);
     }
@@ -1183,7 +1186,7 @@ static void phase_measure(WfCorridor *c, long step, int in_window)
     /* lane after lane: each cell's sums run lane by lane, each lane in road order */
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
-        int nth = wf_lane_threads(ln->veh.n, c->nthreads);
+        int nth = wf_lane_threads(ln->veh.n, wf_governor_threads(&c->gov));
         if (nth <= 1) {
             measure_range(c, ln, step, in_window, 0, nx, 0, nd);
             continue;
@@ -1492,11 +1495,8 @@ static int numerical_fault(const WfCorridor *c, long step, WfError *err)
 /* One step: the kernel's pass that computes the step's values (fused with the advance unless a record or a
  * trajectory must see them first), then the open boundary: the virtual leader, overlap repair, Edie and detectors,
  * exits. Returns WF_LOOP_END after the final instant (recorded without a step), 0 after a step, or an error code. */
-static int corridor_step(void *eng, long step, long max_steps, long *steps, WfError *err)
+static int step_once(WfCorridor *c, long step, WfError *err)
 {
-    (void)max_steps;
-    *steps = 1;
-    WfCorridor *c = eng;
     const WfOutput *out = c->sim->out;
     const WfScenario *sc = c->sc;
     size_t nl = c->n_lanes, on_road = 0;
@@ -1553,6 +1553,25 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     return 0;
 }
 
+/* One step on the threads the governor chooses (time.thread_check_steps), timed for it. */
+static int corridor_step(void *eng, long step, long max_steps, long *steps, WfError *err)
+{
+    (void)max_steps;
+    *steps = 1;
+    WfCorridor *c = eng;
+    int nt = wf_governor_threads(&c->gov), parallel = 0;
+    size_t on_road = 0;
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        c->ln[l].lane.nthreads = nt, on_road += c->ln[l].veh.n;
+        parallel |= wf_lane_threads(c->ln[l].veh.n, c->nthreads) > 1;
+    }
+    /* only steps that threads could share are timed: a short road steps on one thread whatever the count */
+    double t0 = parallel ? wf_wall_now() : 0.0;
+    int rc = step_once(c, step, err);
+    if (parallel) wf_governor_done(&c->gov, wf_wall_now() - t0, (double)on_road);
+    return rc;
+}
+
 /* The safety counts of every lane, summed (what the summary and a checkpoint hold); restored, they stay with lane 0. */
 static WfSafetyCount *safety_total(WfCorridor *c, int restore)
 {
@@ -1588,6 +1607,13 @@ static int corridor_close(void *eng, WfError *err)
 }
 
 const WfCorridor *wf_sim_corridor(const WfSim *sim) { return sim->b == &wf_boundary_open ? sim->eng : NULL; }
+
+int wf_sim_thread_stats(const WfSim *sim, long *probes, long *switches)
+{
+    const WfCorridor *c = wf_sim_corridor(sim);
+    *probes = c ? c->gov.probes : 0, *switches = c ? c->gov.switches : 0;
+    return c != NULL;
+}
 const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->ln[0].veh; }
 size_t wf_corridor_n_lanes(const WfCorridor *c) { return c->n_lanes; }
 const WfCorridorVehicles *wf_corridor_lane(const WfCorridor *c, size_t l) { return &c->ln[l].veh; }

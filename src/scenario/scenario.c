@@ -337,6 +337,16 @@ static const WfKeySpec time_rows[] = {
      .off_msg = "time.tile_vehicles applies to rings: a corridor steps one step at a time",
      .doc = "ring: vehicles per tile of a time-blocked window, rounded up to blocks of 256; 0: half the L2 cache of a "
             "core over the bytes of state per vehicle. Results do not depend on it"},
+    {.key = "thread_check_steps", .type = WF_KEY_INTEGER, .on = WF_ON_CORRIDOR,
+     .offset = offsetof(WfScenario, thread_check_steps), .size = sizeof(long), .def = 1024, .imin = 0,
+     .imax = 1000000000L, .doc_range = "0, 1, …",
+     .off_msg = "time.thread_check_steps applies to corridors: a ring's threads meet once per time-blocked window",
+     .doc = "corridor on more than one thread: every `thread_check_steps` steps that threads can share (a lane of "
+            "at least 4096 vehicles) the run times 1/16 of them (at least one) on the other thread count (one thread, or all of them) and keeps whichever steps more vehicles per "
+            "second of wall time; a probe that loses doubles the interval (up to 64 times), a switch sets it back. "
+            "On a machine whose cores other processes also use, a step whose threads meet at a barrier waits for "
+            "whichever thread was descheduled, and two threads can be several times slower than one. Results do "
+            "not depend on it (a step gives the same bits on any number of threads). 0: always all threads"},
 };
 static const WfKeyTable time_keys = {"time", time_rows, sizeof time_rows / sizeof *time_rows};
 

@@ -1,0 +1,102 @@
+#!/usr/bin/python3
+"""Corridor threads on a quiet and on a loaded machine (time.thread_check_steps, docs/corridors.md).
+
+The corridor of bench/corridor_vs_ring (IDM, noise, two classes, Edie fields, fed above capacity; about 5000
+vehicles on 150 km once full) is run for --duration-s simulated seconds on one thread, on two threads always
+(time.thread_check_steps=0) and on two threads with the governor (the default, 1024), first on the machine as it is,
+then beside two CPU-bound processes (busy loops that stop themselves after --load-timeout seconds and are killed at
+the end). Cases alternate within each repeat; the table gives each case's best wall time of --repeats (whole
+processes). Results are the same bits in every case (checked on the runs of the machine as it is: every dataset
+outside /meta, with h5py).
+
+usage: run.py [--bin bin/wavefuel] [--duration-s 6000] [--repeats 2] [--load-timeout 600] [--json FILE]
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+import h5py
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+SCENARIO = os.path.join(ROOT, "bench", "corridor_vs_ring", "corridor.yaml")
+CASES = [("1 thread", 1, 1024), ("2 threads, always", 2, 0), ("2 threads, governor", 2, 1024)]
+
+
+def one_run(binary, args, threads, check, out):
+    cmd = [binary, "run", SCENARIO, "-q", "--force", "-o", out, "--threads", str(threads),
+           "--set", "road.length_m=150000", "--set", "time.duration_s=%g" % args.duration_s,
+           "--set", "time.thread_check_steps=%d" % check]
+    t0 = time.perf_counter()
+    subprocess.run(cmd, check=True)
+    return time.perf_counter() - t0
+
+
+def datasets(path):
+    """Every dataset outside /meta as bytes (text as its values)."""
+    out = {}
+
+    def keep(name, obj):
+        if isinstance(obj, h5py.Dataset) and not name.startswith("meta/"):
+            a = np.asarray(obj[()])
+            out[name] = repr(a.tolist()) if a.dtype.kind == "O" else a.tobytes()
+    with h5py.File(path, "r") as f:
+        f.visititems(keep)
+    return out
+
+
+
+def start_load(seconds):
+    busy = "import time\nt = time.time() + %g\nwhile time.time() < t: pass\n" % seconds
+    return [subprocess.Popen(["/usr/bin/python3", "-c", busy]) for _ in range(2)]
+
+
+def measure(binary, args, tmp, label):
+    best = {}
+    for _ in range(args.repeats):
+        for name, threads, check in CASES:
+            out = os.path.join(tmp, "%s_%d_%d.h5" % (label, threads, check))
+            w = one_run(binary, args, threads, check, out)
+            best[name] = min(best.get(name, w), w)
+    return best
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", default=os.path.join(ROOT, "bin", "wavefuel"))
+    ap.add_argument("--duration-s", type=float, default=6000.0)
+    ap.add_argument("--repeats", type=int, default=2)
+    ap.add_argument("--load-timeout", type=float, default=600.0)
+    ap.add_argument("--json")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory() as tmp:
+        quiet = measure(args.bin, args, tmp, "quiet")
+        ref = datasets(os.path.join(tmp, "quiet_1_1024.h5"))
+        for _, threads, check in CASES[1:]:
+            if datasets(os.path.join(tmp, "quiet_%d_%d.h5" % (threads, check))) != ref:
+                sys.exit("run.py: results differ between thread settings")
+        load = start_load(args.load_timeout)
+        try:
+            loaded = measure(args.bin, args, tmp, "load")
+        finally:
+            for p in load:
+                p.kill()
+        with open("/proc/loadavg") as f:
+            loadavg = f.read().split()[0]
+    print("| case | wall s, machine as it is | wall s, beside 2 busy processes |")
+    print("|---|---|---|")
+    for name, _, _ in CASES:
+        print("| %s | %.2f | %.2f |" % (name, quiet[name], loaded[name]))
+    print("(same bits in every case; load average at the end %s)" % loadavg)
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"duration_s": args.duration_s, "quiet": quiet, "loaded": loaded}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

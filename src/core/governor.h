@@ -1,0 +1,29 @@
+/* How many threads a run's steps take, chosen by timing them (time.thread_check_steps, docs/corridors.md). Results
+ * never depend on it: a step gives the same bits on any number of threads. What it guards against: on a machine
+ * whose cores other processes also use, a step that meets its threads at a barrier waits for whichever thread the
+ * system has descheduled, and two threads can be several times slower than one.
+ *
+ * The run steps on its chosen count (at first all its threads); every `interval` steps it times `probe` steps
+ * (interval / 16, at least one) on the other count (one thread, or all of them) and keeps whichever did more
+ * vehicle-steps per second of wall time. A probe that loses doubles the interval (up to 64 times `every`), so a
+ * steady machine pays for few probes; a switch sets it back to `every`. */
+#ifndef WAVEFUEL_CORE_GOVERNOR_H
+#define WAVEFUEL_CORE_GOVERNOR_H
+
+typedef struct WfGovernor {
+    int    n_max, now;          /* the run's threads; the threads of the next step */
+    long   every, interval;     /* steps between probes: the base (0: never probe) and the current */
+    long   left;                /* steps left in this stretch (the chosen count's, or the probe's) */
+    int    probing;             /* the stretch is a probe */
+    double wall_s[2], work[2];  /* wall time and vehicle-steps of the chosen count's stretch [0] and the probe [1] */
+    long   probes, switches;    /* what it did (tests, benchmarks) */
+} WfGovernor;
+
+/* n_max threads; every: time.thread_check_steps (0: always n_max). */
+void wf_governor_init(WfGovernor *g, int n_max, long every);
+/* The threads the next step takes. */
+int  wf_governor_threads(const WfGovernor *g);
+/* After the step: its wall time (s) and its work (vehicles stepped). */
+void wf_governor_done(WfGovernor *g, double wall_s, double work);
+
+#endif

@@ -1,0 +1,60 @@
+/* The thread governor of corridors (src/core/governor.h, time.thread_check_steps) fed with made-up step times: it
+ * starts on all threads, probes one thread after `every - every/16` steps for every/16 steps, switches when the probe
+ * did more work per second, backs off (doubling the interval, up to 64 times) while probes lose, and never probes
+ * with one thread or every = 0. tests/test_engine_paths.c checks that switching threads every step keeps the bits. */
+#include <stdio.h>
+
+#include "core/governor.h"
+#include "wf_test.h"
+
+/* Steps of the governor where a step on n threads takes cost(n) seconds; returns the steps taken on one thread. */
+static long drive(WfGovernor *g, long steps, double one_thread_s, double all_threads_s)
+{
+    long on_one = 0;
+    for (long s = 0; s < steps; s++) {
+        int n = wf_governor_threads(g);
+        on_one += n == 1;
+        wf_governor_done(g, n == 1 ? one_thread_s : all_threads_s, 1000.0);
+    }
+    return on_one;
+}
+
+static void test_keeps_the_faster(void)
+{
+    WfGovernor g;
+    wf_governor_init(&g, 2, 64);
+    CHECK(wf_governor_threads(&g) == 2, "starts on %d threads, not all", wf_governor_threads(&g));
+    /* two threads faster: the first probe (steps 60..63 on one thread) loses, the interval doubles */
+    long one = drive(&g, 64, 2e-3, 1e-3);
+    CHECK(one == 4 && g.probes == 1 && g.switches == 0 && g.interval == 128,
+          "%ld steps on one thread, %ld probes, %ld switches, interval %ld", one, g.probes, g.switches, g.interval);
+    /* a loaded machine: two threads now 8 times slower; the next probe (after 128 - 8 steps) wins */
+    one = drive(&g, 128, 2e-3, 16e-3);
+    CHECK(g.switches == 1 && wf_governor_threads(&g) == 1 && g.interval == 64,
+          "after the load: %ld switches, %d threads, interval %ld", g.switches, wf_governor_threads(&g), g.interval);
+    /* still loaded: probes of two threads lose, and come ever more rarely */
+    long probes0 = g.probes;
+    drive(&g, 64 * 64 * 8, 2e-3, 16e-3);
+    CHECK(g.interval == 64 * 64 && g.probes - probes0 == 13, /* 6 while the interval doubles, then one every 4096 */
+          "interval %ld (64 x 64 expected), %ld probes in %d steps", g.interval, g.probes - probes0, 64 * 64 * 8);
+    /* the load goes: the next probe of two threads wins and the run goes back to them */
+    drive(&g, 64 * 64 * 2, 2e-3, 1e-3);
+    CHECK((wf_governor_threads(&g) == 2 || g.probing) && g.switches == 2, "%d threads, %ld switches after the load went",
+          wf_governor_threads(&g), g.switches);
+}
+
+static void test_never_probes(void)
+{
+    WfGovernor g;
+    wf_governor_init(&g, 2, 0);
+    CHECK(drive(&g, 10000, 1e-3, 9e-3) == 0 && g.probes == 0, "every = 0 probed (%ld)", g.probes);
+    wf_governor_init(&g, 1, 64);
+    CHECK(drive(&g, 10000, 1e-3, 9e-3) == 10000 && g.probes == 0, "one thread probed (%ld)", g.probes);
+}
+
+int main(void)
+{
+    RUN(test_keeps_the_faster);
+    RUN(test_never_probes);
+    TEST_EXIT();
+}
