@@ -163,11 +163,11 @@ valgrind:
 	@$(MAKE) --no-print-directory tests
 	@./tools/valgrind-tests.sh
 
-# MPI sweep driver (docs/sweeps.md): bin/wavefuel-mpi = src/mpi/*.c + src/cli/cmd_sweep.c built with -DWF_MPI by
+# MPI driver (docs/sweeps.md, docs/mpi.md): bin/wavefuel-mpi = src/mpi/*.c + src/cli/cmd_{sweep,run}.c built with -DWF_MPI by
 # mpicc in $(BUILD)/mpi, linked with the library. Optional: needs `tools/install-deps.sh mpi`; `make` never does.
 MPICC    ?= mpicc
-MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c) $(BUILD)/src/cli/fail.o $(BUILD)/src/cli/process.o \
-            $(BUILD)/src/cli/options.o
+MPI_OBJ  := $(patsubst %.c,$(BUILD)/mpi/%.o,$(sort $(wildcard src/mpi/*.c)) src/cli/cmd_sweep.c src/cli/cmd_run.c) \
+            $(patsubst %,$(BUILD)/src/cli/%.o,fail process options run_output resume_target progress)
 .PHONY: mpi
 mpi: bin/wavefuel-mpi
 $(BUILD)/mpi/%.o: %.c Makefile

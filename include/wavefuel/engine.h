@@ -62,6 +62,11 @@ typedef void (*WfProgressFn)(void *ctx, double t_s, double duration_s, long step
  * Ownership: sc is borrowed and must outlive the run; *out is the caller's until wf_sim_destroy(); NULL on failure
  * (nothing to free). */
 int  wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err);
+/* The same for this rank's part of a ring split across processes (wavefuel/partition.h, docs/mpi.md; part borrowed,
+ * outliving the run; NULL: wf_sim_create). Every rank creates it from the same scenario; a corridor, several lanes,
+ * a SUNDIALS integrator, trajectories, two-pass steps and groups commanded from outside are refused (WF_EINPUT). */
+struct WfPartition;
+int  wf_sim_create_part(const WfScenario *sc, struct WfPartition *part, WfSim **out, WfError *err);
 void wf_sim_destroy(WfSim **sim);
 
 /* Run to the end (from the restored step after wf_sim_restored). Checks *stop (may be NULL) once per step and, when

@@ -34,6 +34,9 @@ const char *wf_h5out_counters(const WfH5Out *w, char *buf, size_t len);
  * WF_ESYS when setting it back fails (a write error). Ownership and lifetime of *out and *ops as for
  * wf_h5out_create. */
 int  wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err);
+/* The checkpoint's state alone into `sim` (checked as by wf_h5out_resume), no file opened for writing: the ranks of
+ * a ring split across processes other than the one that writes the result (docs/mpi.md). */
+int  wf_h5out_restore(const char *result, WfSim *sim, WfError *err);
 /* `wavefuel info`: print a result file's /meta status and every /summary value with its units. Works on
  * .partial files too. WF_EINPUT if the file is not a wavefuel result. */
 int wf_h5out_info(const char *path, FILE *out, WfError *err);

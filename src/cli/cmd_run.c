@@ -17,9 +17,24 @@
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
 #include "wavefuel/scenario.h"
+#include "wavefuel/partition.h"
+#ifdef WF_MPI
+#include "mpi/partition_mpi.h"
+#include "mpi/sweep_mpi.h"
+#define PART_FREE(p) wf_mpi_partition_free(p)
+#else
+#define PART_FREE(p) ((void)(p))
+#endif
 
 static void help(FILE *out)
 {
+#ifdef WF_MPI
+    fprintf(out, "mpirun -n R wavefuel-mpi run: `wavefuel run` with one ring split across the R processes, each\n"
+                 "stepping a contiguous share of its vehicles; rank 0 writes the same result file as one process\n"
+                 "would, bit for bit (docs/mpi.md). Rings of one lane with fixed-step integrators, without\n"
+                 "trajectories and without groups commanded from outside; a checkpoint is saved when a signal\n"
+                 "stops the run (--checkpoint-every is not offered); --resume takes any number of processes.\n\n");
+#endif
     fprintf(out,
             "usage: wavefuel run SCENARIO.yaml [-o FILE.h5] [--set key.path=value]... [--threads N] [--force] [-q]\n"
             "                    [--checkpoint-every SECONDS]\n"
@@ -42,6 +57,9 @@ static void help(FILE *out)
             "                      the same run\n");
 }
 
+/* The processes a ring is split across (wavefuel-mpi run, docs/mpi.md); 0 in wavefuel run. */
+static int run_ranks;
+
 /* The run's first line: what was simulated and how fast; a corridor adds its vehicle counts. */
 static void print_header(const WfSim *sim)
 {
@@ -50,9 +68,10 @@ static void print_header(const WfSim *sim)
     double wall = wf_sim_wall_s(sim);
     if (!c) {
         size_t n = wf_sim_fleet(sim)->n;
-        printf("wavefuel run: %s  (%zu vehicles, %.6g s simulated, %s dt = %.6g s, %d threads, wall %.3f s, %.3g "
-               "vehicle-steps/s)\n",
-               sc->name, n, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wall,
+        printf("wavefuel run: %s  (%zu vehicles, %.6g s simulated, %s dt = %.6g s, %d threads", sc->name, n,
+               sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim));
+        if (run_ranks) printf(" x %d processes", run_ranks);
+        printf(", wall %.3f s, %.3g vehicle-steps/s)\n", wall,
                wall > 0 ? (double)n * (double)wf_sim_steps_done(sim) / wall : 0.0);
         return;
     }
@@ -169,15 +188,101 @@ static int load_scenario(RunArgs *a, WfScenario **sc, WfError *err)
     return rc;
 }
 
+#ifdef WF_MPI
+/* wavefuel-mpi run (docs/mpi.md): every rank loads the scenario and builds the ring; rank 0 alone writes the result
+ * and prints. A setup step that fails on some rank stops every rank before the run; an error of rank 0's writer
+ * during the run stops every rank at once (the others would wait for rank 0 at the next exchange). */
+static WfOutput writer_ops;   /* rank 0's writer */
+static WfH5Out **writer_h5;
+static int other_stderr = -1; /* ranks other than 0: their own stderr, for errors of their own */
+
+static int begin_or_abort(void *ctx, const WfSim *sim, WfError *err)
+{
+    int rc = writer_ops.begin(ctx, sim, err);
+    if (rc) {
+        int st = wf_cli_fail(err);
+        wf_h5out_destroy(writer_h5); /* nothing was written: no file is left */
+        wf_mpi_abort(st);
+    }
+    return 0;
+}
+
+static int record_or_abort(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
+{
+    int rc = writer_ops.record(ctx, sim, rec, err);
+    if (rc) wf_mpi_abort(wf_cli_fail(err)); /* the partial file keeps the rows written before */
+    return 0;
+}
+
+/* The other ranks save nothing: their state is gathered onto rank 0 before it saves a checkpoint. */
+static int no_checkpoint(void *ctx, const WfSim *sim, WfError *err)
+{
+    (void)ctx, (void)sim, (void)err;
+    return 0;
+}
+
+/* Every rank's status agreed; an error that rank 0 did not have is printed by the rank that had it. */
+static int agree(int rank, int rc, const WfError *err)
+{
+    int all = wf_mpi_agree_status(rc), first = wf_mpi_agree_status(rank == 0 ? rc : 0);
+    if (rc && rank && !first) dprintf(other_stderr, "wavefuel-mpi (rank %d): %s\n", rank, err->msg);
+    return all;
+}
+#endif
+
+/* The result writer of this run: created, reopened at the checkpoint (--resume) or, on a rank of a split ring other
+ * than 0, none (its state restored from the checkpoint). */
+static int open_output(const RunArgs *a, WfScenario *sc, WfSim *sim, int rank, WfH5Out **h5, WfOutput *ops,
+                       WfError *err)
+{
+    int rc;
+#ifdef WF_MPI
+    if (rank) {
+        *ops = (WfOutput){.checkpoint = no_checkpoint};
+        return a->resume ? wf_h5out_restore(a->resume, sim, err) : 0;
+    }
+#else
+    (void)rank;
+#endif
+    rc = a->resume ? wf_h5out_resume(a->resume, sim, h5, ops, err)
+                   : wf_h5out_create(sim, sc->output_path, a->force, h5, ops, err);
+#ifdef WF_MPI
+    if (!rc) {
+        writer_ops = *ops, writer_h5 = h5;
+        ops->begin = ops->begin ? begin_or_abort : NULL;
+        ops->record = ops->record ? record_or_abort : NULL;
+    }
+#endif
+    return rc;
+}
+
 int wf_cmd_run(int argc, char **argv)
 {
     RunArgs a;
     WfError err = {0};
+    int rank = 0;
+    WfPartition *pp = NULL;
+    volatile sig_atomic_t *stop = &wf_cli_stop;
+#ifdef WF_MPI
+    static WfPartition part; /* outlives the run, whose loop reads part.stop_all */
+    if ((rank = wf_mpi_rank()) != 0 && (other_stderr = dup(STDERR_FILENO)) >= 0 &&
+        (!freopen("/dev/null", "w", stderr) || !freopen("/dev/null", "w", stdout)))
+        return 1; /* rank 0 says what every rank would */
+#endif
     int status = parse_args(argc, argv, &a);
     if (status) {
         free(a.sets);
         return status < 0 ? 0 : status;
     }
+#ifdef WF_MPI
+    if (a.ckpt_s > 0) {
+        fprintf(stderr, "wavefuel-mpi run: --checkpoint-every: a ring split across processes saves a checkpoint only "
+                        "when a signal stops it (docs/mpi.md)\n");
+        free(a.sets);
+        return 2;
+    }
+    run_ranks = wf_mpi_size();
+#endif
 #ifdef _OPENMP
     if (a.threads) omp_set_num_threads((int)a.threads);
 #endif
@@ -192,38 +297,48 @@ int wf_cmd_run(int argc, char **argv)
     WfH5Out *h5 = NULL;
     WfOutput ops;
     int rc = load_scenario(&a, &sc, &err);
-    if (!rc && !a.resume) rc = wf_cli_run_output(sc, a.outpath, &err);
-    free(a.sets);
-    const char *resume = a.resume;
-    double ckpt_s = a.ckpt_s;
-    int force = a.force, quiet = a.quiet;
+    if (!rc && !a.resume && !rank) rc = wf_cli_run_output(sc, a.outpath, &err);
+#ifdef WF_MPI
+    if (!rc && (rc = wf_mpi_partition_init(&part, &wf_cli_stop, &err)) == 0) pp = &part, stop = &part.stop_all;
+#endif
     /* Scenario and fleet errors come before the result file exists: nothing is left behind. A resumed run
      * continues the checkpoint's state in the partial file it reopens. */
-    if (!rc) rc = wf_sim_create(sc, &sim, &err);
-    if (!rc) rc = resume ? wf_h5out_resume(resume, sim, &h5, &ops, &err)
-                         : wf_h5out_create(sim, sc->output_path, force, &h5, &ops, &err);
-    if (!rc && ckpt_s > 0) wf_sim_set_checkpoint_interval(sim, ckpt_s);
+    if (!rc) rc = wf_sim_create_part(sc, pp, &sim, &err);
+#ifdef WF_MPI
+    /* the other ranks read the checkpoint before rank 0 reopens its partial file for writing */
+    rc = agree(rank, rc, &err);
+    if (!rc) rc = agree(rank, rank ? open_output(&a, sc, sim, rank, &h5, &ops, &err) : 0, &err);
+    if (!rc) rc = agree(rank, rank ? 0 : open_output(&a, sc, sim, rank, &h5, &ops, &err), &err);
+    if (rc && !err.code) wf_err(&err, rc, "another process of the run failed (its message is above)");
+#else
+    if (!rc) rc = open_output(&a, sc, sim, rank, &h5, &ops, &err);
+#endif
+    free(a.sets);
+    if (!rc && a.ckpt_s > 0) wf_sim_set_checkpoint_interval(sim, a.ckpt_s);
     if (rc) {
+        wf_h5out_destroy(&h5);
         wf_sim_destroy(&sim);
         wf_scenario_destroy(&sc);
+        if (pp) PART_FREE(pp);
         return wf_cli_fail(&err);
     }
     wf_cli_catch_stop();
     double t0 = wf_wall_now();
-    int tty = isatty(STDERR_FILENO);
-    rc = wf_sim_run(sim, &ops, (!quiet && tty) ? wf_cli_run_progress : NULL, &t0, &wf_cli_stop, &err);
-    if (!quiet && tty) fprintf(stderr, "\n");
+    int tty = isatty(STDERR_FILENO) && !rank;
+    rc = wf_sim_run(sim, &ops, (!a.quiet && tty) ? wf_cli_run_progress : NULL, &t0, stop, &err);
+    if (!a.quiet && tty) fprintf(stderr, "\n");
     status = 0;
     if (rc) {
         status = wf_cli_fail(&err);
         char counters[200];
-        if (wf_h5out_path(h5)[0])
+        if (h5 && wf_h5out_path(h5)[0])
             wf_cli_note_partial(wf_h5out_path(h5), sc->output_path, wf_h5out_counters(h5, counters, sizeof counters));
-    } else if (!quiet) {
+    } else if (!a.quiet && !rank) {
         print_summary(sim, wf_h5out_path(h5));
     }
     wf_h5out_destroy(&h5);
     wf_sim_destroy(&sim);
     wf_scenario_destroy(&sc);
+    if (pp) PART_FREE(pp);
     return status;
 }

@@ -582,29 +582,34 @@ void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
 
 /* Positions and speeds are updated in place. Race-free and order-free because every vehicle reads only its
  * leader's values from the step's start: within a chunk, vehicle i's leader i + 1 is updated after i; the leader
- * of a chunk's last vehicle is the next chunk's first (or the periodic back vehicle), saved before any update. */
-int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long step, int pass, int in_window,
-                 WfStatsBlock *rec)
+ * of a chunk's last vehicle is the next chunk's first (or the periodic back vehicle), saved before any update. A
+ * part's last leader (block bb1 % nb's first vehicle) is not stepped here: the caller keeps it as it is at the
+ * step's start, and checks the part's front edge once it has moved. */
+int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1, const WfLead *front, long step,
+                      int pass, int in_window, WfStatsBlock *rec)
 {
     if (!n) return 0;
-    size_t nb = wf_lane_blocks(first, n);
+    size_t nb = wf_lane_blocks(first, n), lo_f;
+    int part = bb0 > 0 || bb1 < nb;
     int nth = wf_lane_threads(n, ln->nthreads);
-    if ((size_t)nth > nb) nth = (int)nb;
+    if ((size_t)nth > bb1 - bb0) nth = (int)(bb1 - bb0);
     int adv = (pass & WF_PASS_ADVANCE) != 0, count = (pass & WF_PASS_COUNT) && ln->safe, flags = 0;
     WfChunkOut *cf = ln->chunks;
     double *bx = ln->bound_x, *bv = ln->bound_v;
+    block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
     for (int t = 0; t < nth; t++) {
         cf[t].flags = 0;
         if (count) memset(cf[t].safety_steps, 0, sizeof cf[t].safety_steps), memset(cf[t].safety_hits, 0, sizeof cf[t].safety_hits);
     }
     if (nth <= 1) {
         /* Small roads: no OpenMP region at all (even a one-thread region costs runtime calls every step). */
-        flags = run_chunk(ln, first, n, 0, nb, nb, ln->x_m[first], ln->v_mps[first], front, step, pass, in_window, rec,
-                          count ? cf : NULL);
+        flags = run_chunk(ln, first, n, bb0, bb1, nb, ln->x_m[lo_f], ln->v_mps[lo_f], front, step, pass, in_window,
+                          rec, count ? cf : NULL);
         if (count) wf_lane_safety_add(ln, cf, 1);
-        return adv ? flags | wf_lane_chunk_edge(ln, first, n, nb, nb) : 0;
+        return adv && !part ? flags | wf_lane_chunk_edge(ln, first, n, nb, nb) : adv ? flags : 0;
     }
-#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bx, bv, front, step, pass, in_window, rec, adv, cf, count)
+    double xf = ln->x_m[lo_f], vf = ln->v_mps[lo_f];
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count)
     {
         /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
          * actually running. */
@@ -613,20 +618,28 @@ int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long s
 #else
         int t = 0, nt = 1;
 #endif
-        size_t b0 = nb * (size_t)t / (size_t)nt, b1 = nb * (size_t)(t + 1) / (size_t)nt, lo_t = 0;
+        size_t span = bb1 - bb0, b0 = bb0 + span * (size_t)t / (size_t)nt, b1 = bb0 + span * (size_t)(t + 1) / (size_t)nt;
+        size_t lo_t = 0;
         if (b1 > b0) block_at(ln, first, n, b0, &lo_t);
         bx[t] = ln->x_m[lo_t];
         bv[t] = ln->v_mps[lo_t];
 #pragma omp barrier
-        /* Leader of this chunk's last vehicle: the next chunk's first, saved (the front's: chunk 0's, saved). */
-        int tn = t + 1 < nt ? t + 1 : 0;
-        int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, bx[tn], bv[tn], front, step, pass, in_window, rec,
+        /* Leader of this chunk's last vehicle: the next chunk's first, saved (the front chunk's: the part's leader,
+         * saved before the team started). */
+        double xs = t + 1 < nt ? bx[t + 1] : xf, vs = t + 1 < nt ? bv[t + 1] : vf;
+        int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, xs, vs, front, step, pass, in_window, rec,
                                      count ? &cf[t] : NULL) : 0;
 #pragma omp barrier
-        if (adv && b1 > b0) fl |= wf_lane_chunk_edge(ln, first, n, b1, nb);
+        if (adv && b1 > b0 && !(part && b1 == bb1)) fl |= wf_lane_chunk_edge(ln, first, n, b1, nb);
         cf[t].flags = fl;
     }
     for (int t = 0; t < nth; t++) flags |= cf[t].flags;
     if (count) wf_lane_safety_add(ln, cf, nth);
     return adv ? flags : 0;
+}
+
+int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long step, int pass, int in_window,
+                 WfStatsBlock *rec)
+{
+    return wf_lane_step_part(ln, first, n, 0, n ? wf_lane_blocks(first, n) : 0, front, step, pass, in_window, rec);
 }

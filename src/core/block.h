@@ -126,6 +126,12 @@ void wf_lane_safety_summary(const WfLane *ln, WfSummary *s);
  * NULL. Returns WF_STEP_* flags of an advancing pass (overlaps between blocks included, the open front excluded). */
 int wf_lane_step(WfLane *ln, size_t first, size_t n, const WfLead *front, long step, int pass, int in_window,
                  WfStatsBlock *rec);
+/* The same over blocks [bb0, bb1) of that range only (a part: one rank's share of a ring split across processes,
+ * include/wavefuel/partition.h). The leader of the part's last vehicle is the vehicle in the first slot of block
+ * bb1 % nb, which the part does not step: the caller holds it at its state at the step's start, and checks the
+ * part's front edge (wf_lane_chunk_edge) once it has moved. The whole range is wf_lane_step. */
+int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1, const WfLead *front, long step,
+                      int pass, int in_window, WfStatsBlock *rec);
 /* k steps from step0 of blocks [b0, b1) of that range, block after block at each step: one step is a chunk of
  * wf_lane_step; more are a tile of a time-blocked window (src/core/window.c). The leader of the last block's last
  * vehicle at the start of step step0 + s is lead[s] (a vehicle when k > 1); tx, tv (NULL: not kept) receive the

@@ -63,6 +63,15 @@ typedef struct WfRing {
     } lk;
     double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
     size_t   lane_row_len, lane_rows_max;
+    /* The blocks stepped here: [0, nb), or this rank's part of a ring split across processes (part non-NULL:
+     * the section "a ring split across processes" below) */
+    size_t   b_lo, b_hi;
+    WfPartition *part;
+    size_t  *off;           /* part: size + 1 byte offsets of a gather */
+    size_t  *group_before;  /* part: [g * (size + 1) + r]: vehicles of group g ahead of rank r's first (slots) */
+    unsigned char *halo_out, *halo_in; /* part: packed vehicles, halo_vbytes each */
+    size_t   halo_vbytes;
+    WfSafetyCount safety_all; /* part: the counts of every rank (what checkpoints save) */
 } WfRing;
 
 static int ode_rhs(void *ctx, double t, const double *x, const double *v, double *xdot, double *vdot, double *fuel);
@@ -84,6 +93,10 @@ static void ring_destroy(void *eng)
     free(s->bound_v);
     free(s->fuel_step);
     free(s->vplus);
+    free(s->off);
+    free(s->group_before);
+    free(s->halo_out);
+    free(s->halo_in);
     free(s);
 }
 
@@ -233,12 +246,203 @@ static int window_init(WfRing *s, WfError *err)
     const WfScenario *sc = s->sc;
     int k = sc->block_steps ? sc->block_steps : WF_WINDOW_STEPS;
     size_t n = s->f->n;
-    if (s->ode || !sc->fused_step || s->f->n_lanes > 1 || !wf_window_fits(n, s->nthreads, k)) return 0;
+    if (s->ode || !sc->fused_step || s->f->n_lanes > 1 || !wf_window_fits(n, s->b_lo, s->b_hi, s->nthreads, k))
+        return 0;
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), bytes = 0;
     for (size_t j = 0; j < nv; j++) bytes += vars[j].size;
     size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(bytes / n);
-    return wf_window_create(&s->win, &s->lane, n, k, tile, s->out_every, bytes, err);
+    return wf_window_create(&s->win, &s->lane, n, s->b_lo, s->b_hi, k, tile, s->out_every, bytes, err);
+}
+
+/* ------------------------------------------------------------------ a ring split across processes */
+
+/* This rank steps the blocks [b_lo, b_hi) of the ring (wavefuel/partition.h, docs/mpi.md): every array is whole on
+ * every rank, but only this part's entries are current. What the part reads of the next part (its first vehicle,
+ * the leader of this part's last; its first k + 1 vehicles, which a window's halo steps again) arrives in messages
+ * and is written into the same arrays; whatever needs the whole ring (a record's block sums, the overlap repair,
+ * the summary, a checkpoint) is gathered. Each step or window ends with one agreement of every rank on its flags and
+ * on a stop, so all ranks repair, redo or stop at the same step. */
+enum { WF_PART_STOP = 1 << 8 };
+
+static void part_range(const WfRing *s, int r, size_t *lo, size_t *hi)
+{
+    size_t n = s->f->n, b0, b1;
+    wf_partition_blocks(wf_lane_blocks(0, n), s->part->size, r, &b0, &b1);
+    *lo = b0 * WF_BLOCK, *hi = b1 * WF_BLOCK < n ? b1 * WF_BLOCK : n;
+}
+
+/* The slot of the next part's first vehicle (the ring's vehicle 0 after the last part). */
+static size_t part_ahead(const WfRing *s)
+{
+    return s->b_hi < wf_lane_blocks(0, s->f->n) ? s->b_hi * WF_BLOCK : 0;
+}
+
+static int part_check(const WfScenario *sc, const WfFleet *f, const WfPartition *p, WfError *err)
+{
+    const char *why = f->n_lanes > 1 ? "road.lanes: a ring of several lanes"
+                    : sc->adaptive ? "time.integrator: a SUNDIALS integrator (fixed-step integrators only)"
+                    : sc->trajectories ? "output.trajectories: trajectories"
+                    : !sc->fused_step ? "time.fused_step false: steps in two passes" : NULL;
+    if (why) return wf_err(err, WF_EINPUT, "%s: %s cannot be split across processes (docs/mpi.md)", sc->path, why);
+    for (size_t g = 0; g < sc->n_groups; g++)
+        if (sc->groups[g].model->external)
+            return wf_err(err, WF_EINPUT, "%s: driver group '%s': model %s takes its commands from outside every step "
+                          "and cannot be split across processes (docs/mpi.md)", sc->path, sc->groups[g].name,
+                          sc->groups[g].mlp ? "mlp" : sc->groups[g].model->name);
+    size_t nb = wf_lane_blocks(0, f->n);
+    if (nb < 2 * (size_t)p->size)
+        return wf_err(err, WF_EINPUT, "%s: fleet.vehicles %zu: %d processes need at least %zu vehicles (two blocks of "
+                      "%d per process)", sc->path, f->n, p->size, (size_t)(2 * p->size - 1) * WF_BLOCK + 1, WF_BLOCK);
+    return 0;
+}
+
+static int part_init(WfRing *s, WfPartition *p, WfError *err)
+{
+    const WfScenario *sc = s->sc;
+    const WfFleet *f = s->f;
+    int rc = part_check(sc, f, p, err);
+    if (rc) return rc;
+    s->part = p;
+    wf_partition_blocks(wf_lane_blocks(0, f->n), p->size, p->rank, &s->b_lo, &s->b_hi);
+    size_t ns = (size_t)p->size + 1, most_state = 0;
+    for (size_t g = 0; g < sc->n_groups; g++)
+        if (sc->groups[g].model->state_size > most_state) most_state = sc->groups[g].model->state_size;
+    /* a packed vehicle: x, v, mode, grade cache, controller memory */
+    s->halo_vbytes = 2 * sizeof(double) + 1 + (f->grade_seg ? sizeof(uint32_t) : 0) + most_state;
+    s->off = malloc(ns * sizeof *s->off);
+    s->group_before = calloc(sc->n_groups * ns, sizeof *s->group_before);
+    s->halo_out = malloc(WF_BLOCK * s->halo_vbytes);
+    s->halo_in = malloc(WF_BLOCK * s->halo_vbytes);
+    if (!s->off || !s->group_before || !s->halo_out || !s->halo_in) return wf_err(err, WF_ESYS, "out of memory");
+    for (int r = 1; r <= p->size; r++) {
+        size_t lo, hi, lo_prev;
+        part_range(s, r - 1, &lo_prev, &hi);
+        lo = r < p->size ? hi : f->n;
+        for (size_t g = 0; g < sc->n_groups; g++) s->group_before[g * ns + (size_t)r] = s->group_before[g * ns + (size_t)r - 1];
+        for (size_t i = lo_prev; i < lo; i++) s->group_before[f->group_id[i] * ns + (size_t)r]++;
+    }
+    return 0;
+}
+
+/* Vehicles [c, c + m) packed (to 0) or unpacked (1), halo_vbytes each. */
+static void part_pack(WfRing *s, size_t c, size_t m, unsigned char *buf, int unpack)
+{
+    WfFleet *f = s->f;
+    for (size_t j = 0; j < m; j++, buf += s->halo_vbytes) {
+        size_t i = c + j, g = f->group_id[i], ssz = s->sc->groups[g].model->state_size;
+        struct { void *p; size_t n; } item[] = {
+            {&f->x_m[i], sizeof(double)}, {&f->v_mps[i], sizeof(double)}, {&f->mode[i], 1},
+            {f->grade_seg ? &f->grade_seg[i] : NULL, sizeof(uint32_t)},
+            {ssz ? f->group_state[g] + wf_fleet_slot(f, i) * ssz : NULL, ssz}};
+        unsigned char *q = buf;
+        for (size_t k = 0; k < sizeof item / sizeof item[0]; k++) {
+            if (!item[k].p) continue;
+            if (unpack)
+                memcpy(item[k].p, q, item[k].n);
+            else
+                memcpy(q, item[k].p, item[k].n);
+            q += item[k].n;
+        }
+    }
+}
+
+/* The next part's first m vehicles, as they are now, into this rank's arrays (m = 1: its first vehicle). */
+static int part_refresh(WfRing *s, size_t m, WfError *err)
+{
+    WfPartition *p = s->part;
+    size_t lo, hi;
+    part_range(s, p->rank, &lo, &hi);
+    part_pack(s, lo, m, s->halo_out, 0);
+    int rc = p->from_next(p->ctx, s->halo_out, s->halo_in, m * s->halo_vbytes, err);
+    if (!rc) part_pack(s, part_ahead(s), m, s->halo_in, 1);
+    return rc;
+}
+
+/* After this part moved: its front edge against the next part's first vehicle (moved too), then every rank's
+ * flags and stop agreed; p->stop_all is what the step loop reads. */
+static int part_agree(WfRing *s, int adv, int *flags, WfError *err)
+{
+    WfPartition *p = s->part;
+    int rc = adv ? part_refresh(s, 1, err) : 0;
+    if (rc) return rc;
+    if (adv) *flags |= wf_lane_chunk_edge(&s->lane, 0, s->f->n, s->b_hi, wf_lane_blocks(0, s->f->n));
+    int x = *flags | (p->stop_own && *p->stop_own ? WF_PART_STOP : 0);
+    if ((rc = p->or_all(p->ctx, &x, err))) return rc;
+    p->stop_all = (x & WF_PART_STOP) != 0;
+    *flags = x & ~WF_PART_STOP;
+    return 0;
+}
+
+/* buf: an array of stride bytes per vehicle (root -1: onto every rank). */
+static int part_gather(WfRing *s, void *buf, size_t stride, int root, WfError *err)
+{
+    WfPartition *p = s->part;
+    for (int r = 0; r < p->size; r++) {
+        size_t lo, hi;
+        part_range(s, r, &lo, &hi);
+        s->off[r] = lo * stride;
+    }
+    s->off[p->size] = s->f->n * stride;
+    return p->gather(p->ctx, buf, s->off, root, err);
+}
+
+/* A record's block sums onto rank 0, which alone combines them. */
+static int part_gather_blocks(WfRing *s, WfStatsBlock *rec, WfError *err)
+{
+    WfPartition *p = s->part;
+    size_t nb = wf_lane_blocks(0, s->f->n), b0, b1;
+    for (int r = 0; r < p->size; r++) {
+        wf_partition_blocks(nb, p->size, r, &b0, &b1);
+        s->off[r] = b0 * sizeof *rec;
+    }
+    s->off[p->size] = nb * sizeof *rec;
+    return p->gather(p->ctx, rec, s->off, 0, err);
+}
+
+/* Before the overlap repair, which sweeps the whole ring: positions, speeds and modes onto every rank. */
+static int part_gather_motion(WfRing *s, WfError *err)
+{
+    WfFleet *f = s->f;
+    int rc = part_gather(s, f->x_m, sizeof *f->x_m, -1, err);
+    if (!rc) rc = part_gather(s, f->v_mps, sizeof *f->v_mps, -1, err);
+    if (!rc) rc = part_gather(s, f->mode, sizeof *f->mode, -1, err);
+    return rc;
+}
+
+/* The whole state onto rank 0 (a checkpoint, the summary): every per-vehicle array, each group's controller
+ * memory (a group's members are numbered in ring order, so a part's are a run of them) and the safety counts of
+ * every rank. */
+static int part_collect(WfRing *s, WfError *err)
+{
+    WfPartition *p = s->part;
+    WfFleet *f = s->f;
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), ns = (size_t)p->size + 1;
+    int rc = 0;
+    for (size_t j = 0; !rc && j < nv; j++)
+        if (vars[j].stride) rc = part_gather(s, vars[j].data, vars[j].stride, 0, err);
+    for (size_t g = 0; !rc && g < f->n_groups; g++) {
+        size_t ssz = s->sc->groups[g].model->state_size;
+        if (!ssz) continue;
+        for (size_t r = 0; r < ns; r++) s->off[r] = s->group_before[g * ns + r] * ssz;
+        rc = p->gather(p->ctx, f->group_state[g], s->off, 0, err);
+    }
+    s->safety_all = s->lane.safety;
+    if (!rc) rc = p->sum_u64(p->ctx, s->safety_all.steps, WF_MAX_GROUPS, err);
+    if (!rc) rc = p->sum_u64(p->ctx, s->safety_all.hits, WF_MAX_GROUPS, err);
+    return rc;
+}
+
+/* One pass of a step over this part (src/core/block.c: wf_lane_step_part), its leader refreshed first; *flags:
+ * every rank's. */
+static int part_step(WfRing *s, long step, int pass, int in_window, WfStatsBlock *rec, int *flags, WfError *err)
+{
+    int rc = part_refresh(s, 1, err);
+    if (rc) return rc;
+    s->lane_nb[0] = wf_lane_blocks(0, s->f->n); /* the record's blocks (lanes_record) */
+    *flags = wf_lane_step_part(&s->lane, 0, s->f->n, s->b_lo, s->b_hi, NULL, step, pass, in_window, rec);
+    return part_agree(s, (pass & WF_PASS_ADVANCE) != 0, flags, err);
 }
 
 static int ring_create(WfSim *sim, WfError *err)
@@ -276,6 +480,8 @@ static int ring_create(WfSim *sim, WfError *err)
         if (!(s->lane_rows = calloc(s->lane_rows_max * s->lane_row_len, sizeof *s->lane_rows)))
             rc = wf_err(err, WF_ESYS, "out of memory for the lane records");
     }
+    s->b_hi = wf_lane_blocks(0, s->f->n);
+    if (!rc && sim->part) rc = part_init(s, sim->part, err);
     if (!rc) lane_init(s);
     if (!rc) lane_views(s);
     if (!rc) rc = window_init(s, err);
@@ -450,7 +656,10 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     lane_exports(s, 0);
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
+    if (s->part && (rc = part_refresh(s, (size_t)k + 1, err))) return rc;
     int flags = wf_window_run(&s->win, &s->lane, s->f->n, step, (int)k, in_window, vars, nv, &rows);
+    if (s->part && (rc = part_agree(s, 1, &flags, err))) return rc;
+    wf_window_settle(&s->win, &s->lane, vars, nv, flags);
     lap(s, WF_PHASE_FUSED, &tp);
     s->windows++;
     if ((*done = !flags) == 0) {
@@ -461,8 +670,13 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     s->repaired = 0;
     for (long q = step; q < step + k && j < rows; q++) {
         if (q % s->out_every) continue;
+        WfStatsBlock *blocks = s->win.rec + nb * j++;
+        if (s->part && ((rc = part_gather_blocks(s, blocks, err)) || s->part->rank)) {
+            if (rc) return rc;
+            continue; /* rank 0 alone records */
+        }
         WfTsRow row;
-        wf_stats_combine(s->win.rec + nb * j++, nb, s->f->n_classes, sc, (double)q * sc->dt_s, s->overlaps, &row);
+        wf_stats_combine(blocks, nb, s->f->n_classes, sc, (double)q * sc->dt_s, s->overlaps, &row);
         if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
         lap(s, WF_PHASE_STATISTICS, &tp);
         WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
@@ -530,9 +744,12 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     lane_exports(s, !fused);
     s->cur_step = step;
     int pass = (fused && !last ? WF_PASS_FUSED : WF_PASS_ACCEL | WF_PASS_ENERGY) | (last ? 0 : WF_PASS_COUNT);
-    int flags = lanes_step(s, step, pass, in_window, records ? s->stat_blocks : NULL);
+    int flags;
+    if (s->part && (rc = part_step(s, step, pass, in_window, records ? s->stat_blocks : NULL, &flags, err))) return rc;
+    if (!s->part) flags = lanes_step(s, step, pass, in_window, records ? s->stat_blocks : NULL);
     lap(s, fused ? WF_PHASE_FUSED : WF_PHASE_CAR_FOLLOWING, &tp);
-    if (records) {
+    if (records && s->part && (rc = part_gather_blocks(s, s->stat_blocks, err))) return rc;
+    if (records && !(s->part && s->part->rank)) { /* split across processes: rank 0 alone records */
         WfTsRow row;
         lanes_record(s, s->stat_blocks, t, &row);
         lanes_observe(s, s->stat_blocks, t);
@@ -555,6 +772,7 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     } else if (!fused) {
         flags = lanes_step(s, step, WF_PASS_ADVANCE, in_window, NULL);
     }
+    if (flags && s->part && (rc = part_gather_motion(s, err))) return rc;
     s->repaired = flags ? phase_overlaps(s) > 0 : 0;
     /* A fused step without an overlap did its integration in its one pass: no clock read (a small ring's step
      * costs a few of them: RL environments step many). */
@@ -579,15 +797,25 @@ static void lanes_safety(WfRing *s, int restore)
             all->steps[g] += s->lanes[l].safety.steps[g], all->hits[g] += s->lanes[l].safety.hits[g];
 }
 
+/* Before a checkpoint of a ring split across processes: the whole state onto rank 0, which saves it. */
+static int ring_flush(void *eng, WfError *err)
+{
+    WfRing *s = eng;
+    return s->part ? part_collect(s, err) : 0;
+}
+
 /* The run's totals (also after an interruption or an error). */
 static int ring_close(void *eng, WfError *err)
 {
-    (void)err;
     WfRing *s = eng;
     lanes_safety(s, 0);
+    int rc = s->part ? part_collect(s, err) : 0;
+    if (rc || (s->part && s->part->rank)) return rc; /* split across processes: rank 0 alone sums */
     long window = s->steps_done - s->warm_steps;
     wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->sim->summary);
-    wf_lane_safety_summary(&s->lane, &s->sim->summary);
+    WfLane all = s->lane;
+    if (s->part) all.safety = s->safety_all;
+    wf_lane_safety_summary(&all, &s->sim->summary);
     s->sim->summary.lane_changes = s->lk.total.changes, s->sim->summary.cut_ins = s->lk.total.cut_ins;
     return 0;
 }
@@ -681,7 +909,8 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
         VEH("cut_ins", f->cut_ins);
         VEH("lap", f->lap_m);
     }
-    if (s->lane.safe) VAR("safety", &s->lane.safety, sizeof s->lane.safety); /* absent without a safety filter */
+    /* absent without a safety filter; split across processes, every rank's (part_collect) */
+    if (s->lane.safe) VAR("safety", s->part ? &s->safety_all : &s->lane.safety, sizeof s->lane.safety);
     static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",
                                                            "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
                                                            "ctrl12", "ctrl13", "ctrl14", "ctrl15"};
@@ -703,6 +932,7 @@ static int ring_restored(void *eng, WfError *err)
     s->repaired = (int)s->ck.repaired;
     s->sd_sum = s->ck.sd_sum;
     s->f->window_open = (int)s->ck.window_open;
+    if (s->part) s->lane.safety = s->part->rank ? (WfSafetyCount){{0}, {0}} : s->safety_all; /* summed at the end */
     WfFleet *f = s->f;
     if (f->n_lanes > 1) {
         size_t total = 0;
@@ -745,5 +975,5 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 }
 
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
-                                         .step = ring_step, .close = ring_close, .state = ring_state,
+                                         .step = ring_step, .flush = ring_flush, .close = ring_close, .state = ring_state,
                                          .restored = ring_restored, .group = ring_group, .lanes = ring_lanes};

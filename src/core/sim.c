@@ -32,10 +32,19 @@ static int mlp_alloc(WfSim *s, WfError *err)
 
 int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 {
+    return wf_sim_create_part(sc, NULL, out, err);
+}
+
+int wf_sim_create_part(const WfScenario *sc, WfPartition *part, WfSim **out, WfError *err)
+{
     *out = NULL;
+    if (part && sc->corridor)
+        return wf_err(err, WF_EINPUT, "%s: road.type corridor: a road split across processes must be a ring "
+                      "(docs/mpi.md)", sc->path);
     WfSim *s = calloc(1, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     s->sc = sc;
+    s->part = part;
     /* The scenario loader has checked the road section of its boundary: an open road holds a corridor spec. */
     s->b = sc->corridor ? &wf_boundary_open : &wf_boundary_periodic;
 #ifdef _OPENMP

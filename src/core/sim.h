@@ -8,6 +8,7 @@
 
 #include "core/block.h"
 #include "wavefuel/engine.h"
+#include "wavefuel/partition.h"
 
 typedef void (*WfGroupVisit)(void *ctx, size_t k, unsigned char *state, double v_mps, double v_lead_mps,
                              double gap_m);
@@ -53,6 +54,9 @@ struct WfSim {
     /* `model: mlp` groups (src/core/sim.c: mlp_command): the observation rows and commands of one group's batch,
      * room for the most vehicles a group can have on the road; NULL when no group is mlp. Owned. */
     double           *mlp_rows, *mlp_cmd;
+    /* A ring split across processes (wavefuel/partition.h): this rank's communicator, borrowed; NULL: the whole
+     * road is stepped here. */
+    WfPartition      *part;
 };
 
 #endif

@@ -30,9 +30,10 @@ size_t wf_window_tile_default(size_t bytes_per_vehicle)
     return v < B ? B : v;
 }
 
-int wf_window_fits(size_t n, int nthreads, int k)
+int wf_window_fits(size_t n, size_t b_lo, size_t b_hi, int nthreads, int k)
 {
-    return k >= 2 && k + 1 < B && n / B >= 2 * (size_t)wf_lane_threads(n, nthreads);
+    size_t m = (b_hi * B < n ? b_hi * B : n) - b_lo * B; /* the vehicles stepped */
+    return k >= 2 && k + 1 < B && m / B >= 2 * (size_t)wf_lane_threads(m, nthreads);
 }
 
 static void halo_free(WfHalo *h)
@@ -67,14 +68,16 @@ void wf_window_destroy(WfWindow *w)
     memset(w, 0, sizeof *w);
 }
 
-int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, int k_max, size_t tile_vehicles, long out_every,
-                     size_t state_bytes, WfError *err)
+int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_t b_hi, int k_max,
+                     size_t tile_vehicles, long out_every, size_t state_bytes, WfError *err)
 {
+    size_t m = (b_hi * B < n ? b_hi * B : n) - b_lo * B;
     *w = (WfWindow){.k_max = k_max, .tile_blocks = (tile_vehicles + B - 1) / B,
-                    .nthreads = wf_lane_threads(n, ln->nthreads), .nb = wf_lane_blocks(0, n), .out_every = out_every};
+                    .nthreads = wf_lane_threads(m, ln->nthreads), .nb = wf_lane_blocks(0, n), .b_lo = b_lo,
+                    .b_hi = b_hi, .n = n, .out_every = out_every};
     if (!w->tile_blocks) w->tile_blocks = 1;
     size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)w->nthreads;
-    w->n_chunks = w->nb / 2 < most ? w->nb / 2 : most;
+    w->n_chunks = (b_hi - b_lo) / 2 < most ? (b_hi - b_lo) / 2 : most;
     w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
     w->halo = calloc(w->n_chunks, sizeof *w->halo);
     w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
@@ -128,19 +131,14 @@ static void leads_of(const WfLane *ln, size_t c, const double *x, const double *
     for (size_t s = 0; s < k; s++) ld[s] = (WfLead){(shift != 0.0 ? x[s] + shift : x[s]) - len, v[s], 0.0};
 }
 
-/* Thread t's share of the state variables that are not per-vehicle arrays (all: every variable), copied (dir 0:
- * into the backup; 1: back). */
-static void backup_share(WfWindow *w, const WfStateVar *vars, size_t n_vars, int t, int nt, int dir, int all)
+/* Thread t's share of the state variables that are not per-vehicle arrays, copied into the backup. */
+static void backup_share(WfWindow *w, const WfStateVar *vars, size_t n_vars, int t, int nt)
 {
     unsigned char *bk = w->backup;
     for (size_t j = 0; j < n_vars; bk += vars[j++].size) {
-        if (vars[j].stride && !all) continue;
+        if (vars[j].stride) continue;
         size_t a = vars[j].size * (size_t)t / (size_t)nt, b = vars[j].size * (size_t)(t + 1) / (size_t)nt;
-        unsigned char *d = vars[j].data;
-        if (dir)
-            memcpy(d + a, bk + a, b - a);
-        else
-            memcpy(bk + a, d + a, b - a);
+        memcpy(bk + a, (unsigned char *)vars[j].data + a, b - a);
     }
 }
 
@@ -158,7 +156,8 @@ static void backup_tile(WfWindow *w, const WfStateVar *vars, size_t n_vars, size
 /* Chunk c: blocks [*b0, *b1). */
 static void chunk_at(const WfWindow *w, size_t c, size_t *b0, size_t *b1)
 {
-    *b0 = w->nb * c / w->n_chunks, *b1 = w->nb * (c + 1) / w->n_chunks;
+    size_t span = w->b_hi - w->b_lo;
+    *b0 = w->b_lo + span * c / w->n_chunks, *b1 = w->b_lo + span * (c + 1) / w->n_chunks;
 }
 
 /* Chunk c for k steps, tile by tile from the front, after its halo was taken (halo_take). */
@@ -191,17 +190,17 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
     size_t rows = 0, nb = w->nb, nc = w->n_chunks;
     for (int s = 0; s < k; s++)
         recs[s] = (step0 + s) % w->out_every == 0 ? w->rec + nb * rows++ : NULL;
-    int nth = w->nthreads, flags = 0;
+    int nth = w->nthreads, flags = 0, part = w->b_lo > 0 || w->b_hi < nb;
     int pass = WF_PASS_FUSED | WF_PASS_COUNT;
 #pragma omp parallel num_threads(nth) if (nth > 1) default(none) \
-    shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass)
+    shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass, part)
     {
 #ifdef _OPENMP
         int t = omp_get_thread_num(), team = omp_get_num_threads();
 #else
         int t = 0, team = 1;
 #endif
-        backup_share(w, vars, n_vars, t, team, 0, 0);
+        backup_share(w, vars, n_vars, t, team);
         /* every chunk's halo before any chunk moves (the loop's end is a barrier, after the backup too) */
 #pragma omp for schedule(static)
         for (size_t c = 0; c < nc; c++) {
@@ -219,16 +218,30 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
         for (size_t c = 0; c < nc; c++) {
             size_t b0, b1;
             chunk_at(w, c, &b0, &b1);
-            w->halo[c].co.flags |= wf_lane_chunk_edge(ln, 0, n, b1, nb);
+            if (!part || b1 < w->b_hi) w->halo[c].co.flags |= wf_lane_chunk_edge(ln, 0, n, b1, nb);
         }
     }
     for (size_t c = 0; c < nc; c++) flags |= w->halo[c].co.flags;
-    if (flags) {
-        backup_share(w, vars, n_vars, 0, 1, 1, 1);
-        return flags;
-    }
-    if (ln->safe)
-        for (size_t c = 0; c < nc; c++) wf_lane_safety_add(ln, &w->halo[c].co, 1);
     *n_rows = rows;
-    return 0;
+    return flags;
+}
+
+void wf_window_settle(WfWindow *w, WfLane *ln, const WfStateVar *vars, size_t n_vars, int flags)
+{
+    if (!flags) {
+        if (ln->safe)
+            for (size_t c = 0; c < w->n_chunks; c++) wf_lane_safety_add(ln, &w->halo[c].co, 1);
+        return;
+    }
+    /* the window's blocks of each per-vehicle array, every other variable whole */
+    size_t lo = w->b_lo * B, hi = w->b_hi * B < w->n ? w->b_hi * B : w->n;
+    unsigned char *bk = w->backup;
+    for (size_t j = 0; j < n_vars; bk += vars[j++].size) {
+        size_t st = vars[j].stride;
+        unsigned char *d = vars[j].data;
+        if (st)
+            memcpy(d + lo * st, bk + lo * st, (hi - lo) * st);
+        else
+            memcpy(d, bk, vars[j].size);
+    }
 }

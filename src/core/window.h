@@ -25,6 +25,8 @@ typedef struct WfWindow {
     size_t        tile_blocks; /* blocks of WF_BLOCK vehicles per tile */
     int           nthreads;    /* threads a window asks for (wf_lane_threads; a team may be smaller) */
     size_t        nb;          /* blocks of the lane */
+    size_t        b_lo, b_hi;  /* the blocks stepped here: [0, nb), or a part's (include/wavefuel/partition.h) */
+    size_t        n;           /* vehicles of the lane */
     size_t        n_chunks;    /* chunks of at least two blocks, stepped by whichever thread is free */
     long          out_every;   /* steps between records */
     WfHalo       *halo;        /* one per chunk */
@@ -38,23 +40,29 @@ typedef struct WfWindow {
 enum { WF_WINDOW_STEPS = 16, WF_WINDOW_CHUNKS = 8 /* per thread */ };
 size_t wf_window_tile_default(size_t bytes_per_vehicle);
 
-/* Whether a periodic lane of n vehicles can step in windows of k steps on nthreads: every chunk at least two blocks
- * and the halo (k + 1 vehicles) inside one block. */
-int wf_window_fits(size_t n, int nthreads, int k);
+/* Whether blocks [b_lo, b_hi) of a periodic lane of n vehicles can step in windows of k steps on nthreads: every
+ * chunk at least two blocks and the halo (k + 1 vehicles) inside one block. */
+int wf_window_fits(size_t n, size_t b_lo, size_t b_hi, int nthreads, int k);
 
-/* The window of lane ln (its n vehicles, threads and groups) for windows of up to k_max steps, tiles of
+/* The window of blocks [b_lo, b_hi) of lane ln (its n vehicles, threads and groups; a part of a ring split across
+ * processes steps only its own blocks) for windows of up to k_max steps, tiles of
  * tile_vehicles (rounded up to blocks), records every out_every steps and a backup of state_bytes. Owns everything
  * it allocates until wf_window_destroy; 0 or WF_ESYS (out of memory, with the size). */
-int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, int k_max, size_t tile_vehicles, long out_every,
-                     size_t state_bytes, WfError *err);
+int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_t b_hi, int k_max,
+                     size_t tile_vehicles, long out_every, size_t state_bytes, WfError *err);
 void wf_window_destroy(WfWindow *w);
 
-/* k fused steps (2 <= k <= k_max) of the periodic lane's n vehicles from step step0, all inside or all outside the
- * statistics window. vars: the run's complete state (what a checkpoint saves), copied at the start. Returns 0 when
- * every step ran clean: the safety counts are added to the lane's, and rows[j] (j < *n_rows) are the partial sums
- * of the j-th step s of the window with (step0 + s) % out_every == 0. Otherwise returns the WF_STEP_* flags, with
- * the state restored as it was at step0 and nothing counted: the caller redoes the steps one at a time. */
+/* k fused steps (2 <= k <= k_max) of the window's blocks of the periodic lane's n vehicles from step step0, all
+ * inside or all outside the statistics window. vars: the run's complete state (what a checkpoint saves), copied at
+ * the start. The k + 1 vehicles after the window's last block are read as they are at step0 (on a part, the
+ * caller's copy of the next part's first vehicles), and a part's front edge is left to the caller. Returns the
+ * WF_STEP_* flags of the window's steps; rows[j] (j < *n_rows) are the partial sums of the blocks stepped at the
+ * j-th step s of the window with (step0 + s) % out_every == 0. Then wf_window_settle. */
 int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_window, const WfStateVar *vars,
                   size_t n_vars, size_t *n_rows);
+/* After wf_window_run, with the flags of every part: 0, the window stands and its safety counts are added to the
+ * lane's; else the state of the window's blocks is restored as it was at step0 and nothing is counted: the caller
+ * redoes the steps one at a time. */
+void wf_window_settle(WfWindow *w, WfLane *ln, const WfStateVar *vars, size_t n_vars, int flags);
 
 #endif

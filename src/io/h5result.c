@@ -426,12 +426,15 @@ static WfOutput ops_of(WfH5Result *w)
                       .trips = w->b->trips ? h5_trips : NULL, .checkpoint = h5_checkpoint, .end = h5_end, .ctx = w};
 }
 
-int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err)
+/* A writer for `result` whose run is set back to its checkpoint (nothing written yet); NULL with err set. */
+static WfH5Result *restored_writer(const char *result, WfSim *sim, WfError *err)
 {
-    *out = NULL;
     const WfH5Boundary *b = boundary_of(sim, err);
     WfH5Result *w = b ? new_writer(b) : NULL;
-    if (!w) return b ? wf_err(err, WF_ESYS, "out of memory") : WF_EINPUT;
+    if (!w) {
+        if (b) wf_err(err, WF_ESYS, "out of memory");
+        return NULL;
+    }
     WfH5Run r = run_of(sim);
     w->resume = 1;
     build_series(w, &r);
@@ -442,8 +445,25 @@ int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops
     /* The checkpoint and the partial file are read and verified completely before the file is changed. */
     int rc = wf_ckpt_restore(result, b->kind, r.sc, cur, b->n_cursors, w->sp, w->ns, vars, nv, err);
     if (!rc) rc = wf_sim_restored(sim, err);
-    r = run_of(sim);
-    if (!rc) rc = wf_ckpt_reopen(result, r.sc, w->sp, w->ns, &w->file, err);
+    if (rc) wf_h5out_destroy(&w);
+    return w;
+}
+
+int wf_h5out_restore(const char *result, WfSim *sim, WfError *err)
+{
+    WfH5Result *w = restored_writer(result, sim, err);
+    if (!w) return err->code ? err->code : WF_EINPUT;
+    wf_h5out_destroy(&w);
+    return 0;
+}
+
+int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops, WfError *err)
+{
+    *out = NULL;
+    WfH5Result *w = restored_writer(result, sim, err);
+    if (!w) return err->code ? err->code : WF_EINPUT;
+    WfH5Run r = run_of(sim);
+    int rc = wf_ckpt_reopen(result, r.sc, w->sp, w->ns, &w->file, err);
     if (!rc) rc = resume_file(w, &r, err);
     if (rc) {
         wf_h5out_destroy(&w);

@@ -1,8 +1,10 @@
 /* wavefuel-mpi: `wavefuel sweep` across MPI ranks (`mpirun -n K bin/wavefuel-mpi SWEEP.yaml [options]`; options as
- * for `wavefuel sweep`, docs/sweeps.md). Only prolog and epilog: MPI is initialised for funneled threads (rank 0's
- * main thread alone calls MPI while its other thread runs simulations). */
+ * for `wavefuel sweep`, docs/sweeps.md), and one ring split across them (`mpirun -n K bin/wavefuel-mpi run
+ * SCENARIO.yaml [options]`; options as for `wavefuel run`, docs/mpi.md). Only prolog and epilog: MPI is initialised
+ * for funneled threads (each rank's main thread alone calls MPI, outside its OpenMP regions). */
 #include <mpi.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "cli/commands.h"
 
@@ -20,7 +22,7 @@ int main(int argc, char **argv)
         fprintf(stderr, "wavefuel-mpi: the MPI library does not support MPI_THREAD_FUNNELED\n");
         status = 1;
     } else {
-        status = wf_cmd_sweep(argc, argv);
+        status = argc > 1 && !strcmp(argv[1], "run") ? wf_cmd_run(argc - 1, argv + 1) : wf_cmd_sweep(argc, argv);
     }
     MPI_Finalize();
     return status;

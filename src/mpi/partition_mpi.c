@@ -1,0 +1,99 @@
+/* The WfPartition calls with MPI (src/mpi/partition_mpi.h). Messages are bytes; a gather's counts and
+ * displacements are kept from creation, so a step allocates nothing. */
+#include "mpi/partition_mpi.h"
+
+#include <limits.h>
+#include <mpi.h>
+#include <stdlib.h>
+
+typedef struct MpiPart {
+    MPI_Comm comm;
+    int     *counts, *displs;
+} MpiPart;
+
+static int mpi_fail(int rc, const char *what, WfError *err)
+{
+    char msg[MPI_MAX_ERROR_STRING];
+    int len = 0;
+    MPI_Error_string(rc, msg, &len);
+    return wf_err(err, WF_ESYS, "MPI: %s failed: %s", what, msg);
+}
+
+static int from_next(void *ctx, const void *send, void *recv, size_t bytes, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rank, size;
+    MPI_Comm_rank(m->comm, &rank);
+    MPI_Comm_size(m->comm, &size);
+    if (bytes > INT_MAX) return wf_err(err, WF_ESYS, "MPI: a halo of %zu bytes is too large", bytes);
+    int rc = MPI_Sendrecv(send, (int)bytes, MPI_BYTE, (rank + size - 1) % size, 1, recv, (int)bytes, MPI_BYTE,
+                          (rank + 1) % size, 1, m->comm, MPI_STATUS_IGNORE);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "the halo exchange", err);
+}
+
+static int or_all(void *ctx, int *flags, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rc = MPI_Allreduce(MPI_IN_PLACE, flags, 1, MPI_INT, MPI_BOR, m->comm);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "the agreement on a step's flags", err);
+}
+
+static int sum_u64(void *ctx, uint64_t *v, size_t n, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rc = MPI_Allreduce(MPI_IN_PLACE, v, (int)n, MPI_UINT64_T, MPI_SUM, m->comm);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "a sum of counts", err);
+}
+
+static int gather(void *ctx, void *buf, const size_t *off, int root, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rank, size;
+    MPI_Comm_rank(m->comm, &rank);
+    MPI_Comm_size(m->comm, &size);
+    if (off[size] > INT_MAX)
+        return wf_err(err, WF_ESYS, "MPI: gathering an array of %zu bytes (more than 2 GiB) is not supported",
+                      off[size]);
+    for (int r = 0; r < size; r++) m->counts[r] = (int)(off[r + 1] - off[r]), m->displs[r] = (int)off[r];
+    unsigned char *b = buf;
+    int rc = root < 0 ? MPI_Allgatherv(MPI_IN_PLACE, 0, MPI_DATATYPE_NULL, b, m->counts, m->displs, MPI_BYTE, m->comm)
+                      : MPI_Gatherv(rank == root ? MPI_IN_PLACE : b + off[rank], m->counts[rank], MPI_BYTE, b,
+                                    m->counts, m->displs, MPI_BYTE, root, m->comm);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "a gather of the state", err);
+}
+
+int wf_mpi_partition_init(WfPartition *p, volatile sig_atomic_t *stop_own, WfError *err)
+{
+    MpiPart *m = calloc(1, sizeof *m);
+    *p = (WfPartition){.ctx = m, .from_next = from_next, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
+                       .stop_own = stop_own};
+    if (!m) return wf_err(err, WF_ESYS, "out of memory");
+    m->comm = MPI_COMM_WORLD;
+    MPI_Comm_rank(m->comm, &p->rank);
+    MPI_Comm_size(m->comm, &p->size);
+    m->counts = malloc((size_t)p->size * sizeof *m->counts);
+    m->displs = malloc((size_t)p->size * sizeof *m->displs);
+    if (m->counts && m->displs) return 0;
+    wf_mpi_partition_free(p);
+    return wf_err(err, WF_ESYS, "out of memory");
+}
+
+void wf_mpi_partition_free(WfPartition *p)
+{
+    MpiPart *m = p->ctx;
+    if (m) free(m->counts), free(m->displs);
+    free(m);
+    p->ctx = NULL;
+}
+
+int wf_mpi_agree_status(int status)
+{
+    int all = status;
+    MPI_Allreduce(&status, &all, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    return all;
+}
+
+void wf_mpi_abort(int status)
+{
+    MPI_Abort(MPI_COMM_WORLD, status);
+}
