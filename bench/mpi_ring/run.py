@@ -95,8 +95,9 @@ def run_one(kind, ranks, n, steps, threads, bins, tmp, keep=None):
         os.unlink(out)
     if res["steps"] != steps:
         raise RuntimeError(f"{kind} R={ranks} N={n}: asked {steps} steps, the file says {res['steps']}")
-    if ranks and f"ranks: {ranks}" not in p.stdout + p.stderr:
-        raise RuntimeError(f"{kind} R={ranks}: the run does not say 'ranks: {ranks}':\n{p.stdout}")
+    if ranks and f"{threads} threads x {ranks} processes," not in header:
+        raise RuntimeError(f"{kind} R={ranks}: the header does not say '{threads} threads x {ranks} processes':\n"
+                           f"{p.stdout}")
     res["vsteps_per_s"] = n * res["steps"] / res["loop_s"]
     res["vsteps_per_s_process"] = n * res["steps"] / proc_s
     print(f"{kind:9s} R={ranks or '-'} N={n:>9d} threads={threads} steps={steps}  loop {res['loop_s']:7.3f} s  "
@@ -139,7 +140,8 @@ def compare(a_path, b_path):
 
 
 def fmt_n(n):
-    m, e = f"{n:.1e}".split("e")
+    """2500000 -> 2.5e6, 1250000 -> 1.25e6."""
+    m, e = f"{n:.2e}".split("e")
     return f"{float(m):g}e{int(e)}"
 
 
