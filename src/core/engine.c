@@ -248,6 +248,12 @@ static int window_init(WfRing *s, WfError *err)
     size_t n = s->f->n;
     if (s->ode || !sc->fused_step || s->f->n_lanes > 1 || !wf_window_fits(n, s->b_lo, s->b_hi, s->nthreads, k))
         return 0;
+    /* split across processes, every rank steps windows or none does (each rank's answer, for the same threads) */
+    for (int r = 0; s->part && r < s->part->size; r++) {
+        size_t b0, b1;
+        wf_partition_blocks(wf_lane_blocks(0, n), s->part->size, r, &b0, &b1);
+        if (!wf_window_fits(n, b0, b1, s->nthreads, k)) return 0;
+    }
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), bytes = 0;
     for (size_t j = 0; j < nv; j++) bytes += vars[j].size;

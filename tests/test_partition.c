@@ -1,0 +1,304 @@
+/* A ring split across processes (include/wavefuel/partition.h, docs/mpi.md) gives the bits of one process, without
+ * MPI: R "ranks" are threads of this program, each with its own run of the same scenario, and the partition's
+ * collective calls are made through shared memory and a barrier. Rank 0's records, its whole state after the run
+ * (every per-vehicle array, controller memory, safety counts: what a checkpoint saves) and its summary equal those of
+ * one process, for 2 and 3 ranks, windows of 16 steps and single steps, on a noisy graded ring with controllers and
+ * a safety filter, and on a ring whose overlaps force repairs and redone windows; a stop requested by one rank stops
+ * every rank at the same step. tests/t_mpi_ring.sh runs the same with MPI where it is installed. */
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "wavefuel/engine.h"
+#include "wavefuel/partition.h"
+#include "wavefuel/scenario.h"
+#include "wf_test.h"
+
+enum { MAX_RANKS = 4, MAX_ROWS = 400 };
+
+/* tests/test_window.c's ring: graded, three classes, speed limit, noisy heterogeneous IDM, PI with saturation under
+ * a safety filter, FollowerStopper (9000 vehicles: 36 blocks, so that two ranks step with two threads each). */
+static const char *ring_yaml =
+    "seed: 11\n"
+    "road:\n  length_m: 180000\n  speed_limit_mps: 24\n"
+    "  grade: {points: [[0, 0.0], [60000, 0.02], [90000, 0.0], [135000, -0.02]]}\n"
+    "time: {duration_s: 12, dt_s: 0.1, output_interval_s: 0.1, warmup_s: 3.3}\n"
+    "fleet:\n  vehicles: 9000\n  placement: random\n"
+    "  classes:\n    - {class: midsize_sedan, fraction: 0.5}\n    - {class: midsize_suv, fraction: 0.3}\n"
+    "    - {class: class8_tractor, fraction: 0.2}\n"
+    "  drivers:\n"
+    "    - {model: idm, fraction: 0.6, noise_mps2: 0.3, feasible_accel: clip,\n"
+    "       heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1}}}\n"
+    "    - {model: follower_stopper, fraction: 0.3}\n"
+    "    - {model: pi_saturation, fraction: 0.1, safety: {kind: gipps, gap_min_m: 6}}\n"
+    "initial: {state: equilibrium, jitter_m: 0.5}\n";
+
+/* Noise far beyond what the brakes absorb: overlaps in many windows (as in tests/test_window.c), and at every edge
+ * between the shares of 2 and 3 ranks (12 blocks: vehicles 1023, 1535 and 2047 are the last of a share; 2999's
+ * leader is vehicle 0 across the ring's wrap) a driver with stronger noise still. */
+static const char *overlap_yaml =
+    "seed: 7\nroad: {length_m: 36000}\ntime: {duration_s: 20, dt_s: 0.1, output_interval_s: 0.5}\n"
+    "fleet:\n  vehicles: 3000\n  classes: [{class: midsize_sedan, fraction: 1}]\n"
+    "  drivers:\n    - {model: idm, count: 2996, noise_mps2: 5, decel_max_mps2: 0.5}\n"
+    "    - {model: idm, noise_mps2: 9, decel_max_mps2: 0.2, placement: explicit,\n"
+    "       indices: [1023, 1535, 2047, 2999]}\n"
+    "initial: {state: equilibrium}\n";
+
+/* What a run leaves: its records, its state after the run (rank 0: gathered), its summary, its steps. */
+typedef struct Out {
+    WfTsRow rows[MAX_ROWS];
+    size_t n_rows;
+    unsigned char *state;
+    size_t state_size;
+    WfSummary summary;
+    long steps, windows, redone;
+    int rc;
+} Out;
+
+static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
+{
+    (void)err;
+    Out *o = ctx;
+    if (o->n_rows < MAX_ROWS) {
+        WfTsRow *row = &o->rows[o->n_rows++];
+        WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(sim)->n_classes);
+    }
+    return 0;
+}
+
+/* ------------------------------------------------------------------ the partition in shared memory */
+
+typedef struct Shared {
+    int size;
+    pthread_barrier_t bar;
+    const void *ptr[MAX_RANKS];
+    int flag[MAX_RANKS];
+    long stop_after[MAX_RANKS]; /* a rank raises its own stop at its n-th exchange (0: never) */
+} Shared;
+
+typedef struct Rank {
+    Shared *sh;
+    int rank;
+    long exchanges;
+    volatile sig_atomic_t own_stop;
+} Rank;
+
+static int from_next(void *ctx, const void *send, void *recv, size_t bytes, WfError *err)
+{
+    (void)err;
+    Rank *r = ctx;
+    if (++r->exchanges == r->sh->stop_after[r->rank]) r->own_stop = 1;
+    r->sh->ptr[r->rank] = send;
+    pthread_barrier_wait(&r->sh->bar);
+    memcpy(recv, r->sh->ptr[(r->rank + 1) % r->sh->size], bytes);
+    pthread_barrier_wait(&r->sh->bar);
+    return 0;
+}
+
+static int or_all(void *ctx, int *flags, WfError *err)
+{
+    (void)err;
+    Rank *r = ctx;
+    r->sh->flag[r->rank] = *flags;
+    pthread_barrier_wait(&r->sh->bar);
+    int all = 0;
+    for (int k = 0; k < r->sh->size; k++) all |= r->sh->flag[k];
+    pthread_barrier_wait(&r->sh->bar);
+    *flags = all;
+    return 0;
+}
+
+static int sum_u64(void *ctx, uint64_t *v, size_t m, WfError *err)
+{
+    (void)err;
+    Rank *r = ctx;
+    uint64_t sum[64] = {0};
+    r->sh->ptr[r->rank] = v;
+    pthread_barrier_wait(&r->sh->bar);
+    for (int k = 0; k < r->sh->size; k++)
+        for (size_t j = 0; j < m && j < 64; j++) sum[j] += ((const uint64_t *)r->sh->ptr[k])[j];
+    pthread_barrier_wait(&r->sh->bar);
+    memcpy(v, sum, m * sizeof *v);
+    return 0;
+}
+
+static int gather(void *ctx, void *buf, const size_t *off, int root, WfError *err)
+{
+    (void)err;
+    Rank *r = ctx;
+    r->sh->ptr[r->rank] = buf;
+    pthread_barrier_wait(&r->sh->bar);
+    if (root < 0 || root == r->rank)
+        for (int k = 0; k < r->sh->size; k++)
+            if (k != r->rank)
+                memcpy((unsigned char *)buf + off[k], (const unsigned char *)r->sh->ptr[k] + off[k], off[k + 1] - off[k]);
+    pthread_barrier_wait(&r->sh->bar);
+    return 0;
+}
+
+/* ------------------------------------------------------------------ runs */
+
+typedef struct Job {
+    const char *path;
+    const char *set[2];
+    size_t n_set;
+    int threads;
+    Shared *sh;   /* NULL: one process */
+    int rank;
+    Out *out;
+} Job;
+
+static void *job_main(void *arg)
+{
+    Job *j = arg;
+    Out *o = j->out;
+    WfError err = {0};
+    WfScenario *sc = NULL;
+    WfSim *sim = NULL;
+#ifdef _OPENMP
+    omp_set_num_threads(j->threads);
+#endif
+    Rank rk = {.sh = j->sh, .rank = j->rank};
+    WfPartition part = {.rank = j->rank, .size = j->sh ? j->sh->size : 1, .ctx = &rk, .from_next = from_next,
+                        .or_all = or_all, .sum_u64 = sum_u64, .gather = gather, .stop_own = &rk.own_stop};
+    WfOutput out = {.record = keep_row, .ctx = o};
+    memset(o, 0, sizeof *o);
+    o->rc = wf_scenario_load(j->path, j->set, j->n_set, &sc, &err);
+    if (!o->rc) o->rc = wf_sim_create_part(sc, j->sh ? &part : NULL, &sim, &err);
+    if (!o->rc) o->rc = wf_sim_run(sim, &out, NULL, NULL, j->sh ? &part.stop_all : NULL, &err);
+    if (o->rc && o->rc != WF_EINTR) printf("  rank %d: %s\n", j->rank, err.msg);
+    if (sim) {
+        o->state = wf_test_state_copy(sim, &o->state_size);
+        o->summary = *wf_sim_summary(sim);
+        o->steps = wf_sim_steps_done(sim);
+        wf_sim_window_stats(sim, &o->windows, &o->redone);
+    }
+    wf_sim_destroy(&sim);
+    wf_scenario_destroy(&sc);
+    return NULL;
+}
+
+/* Ranks 0..size-1 of the split run into out[0..size-1]; rank stop_rank raises its own stop at its stop_after-th
+ * exchange with the next rank. */
+static void run_split(const char *path, const char *const *set, size_t n_set, int size, int threads, int stop_rank,
+                      long stop_after, Out *out)
+{
+    Shared sh = {.size = size};
+    pthread_barrier_init(&sh.bar, NULL, (unsigned)size);
+    Job jobs[MAX_RANKS];
+    pthread_t th[MAX_RANKS];
+    for (int r = 0; r < size; r++) {
+        sh.stop_after[r] = r == stop_rank ? stop_after : 0;
+        jobs[r] = (Job){.path = path, .n_set = n_set, .threads = threads, .sh = &sh, .rank = r, .out = &out[r]};
+        for (size_t k = 0; k < n_set; k++) jobs[r].set[k] = set[k];
+        pthread_create(&th[r], NULL, job_main, &jobs[r]);
+    }
+    for (int r = 0; r < size; r++) pthread_join(th[r], NULL);
+    pthread_barrier_destroy(&sh.bar);
+}
+
+static void run_one(const char *path, const char *const *set, size_t n_set, Out *out)
+{
+    Job j = {.path = path, .n_set = n_set, .threads = 1, .out = out};
+    for (size_t k = 0; k < n_set; k++) j.set[k] = set[k];
+    job_main(&j);
+}
+
+static void out_free(Out *o, int n)
+{
+    for (int k = 0; k < n; k++) free(o[k].state), o[k].state = NULL;
+}
+
+static void compare(const Out *o, const Out *ref, const char *what)
+{
+    CHECK(o->rc == 0 && ref->rc == 0, "%s: a run failed (%d, %d)", what, o->rc, ref->rc);
+    CHECK(o->n_rows == ref->n_rows && o->n_rows > 0, "%s: %zu records, one process %zu", what, o->n_rows, ref->n_rows);
+    for (size_t r = 0; r < o->n_rows && r < ref->n_rows; r++)
+        CHECK(memcmp(&o->rows[r], &ref->rows[r], sizeof o->rows[r]) == 0, "%s: record %zu (t = %g s) differs", what, r,
+              ref->rows[r].v[WF_TS_T]);
+    CHECK(o->state_size == ref->state_size && memcmp(o->state, ref->state, o->state_size) == 0,
+          "%s: the state after the run (accumulators, modes, controller memory, safety counts) differs", what);
+    CHECK(memcmp(&o->summary, &ref->summary, sizeof o->summary) == 0, "%s: the summary differs", what);
+}
+
+static const char *write_yaml(const char *text, char *dir, char *path, size_t size)
+{
+    if (!mkdtemp(dir)) return NULL;
+    snprintf(path, size, "%s/s.yaml", dir);
+    FILE *f = fopen(path, "w");
+    fputs(text, f);
+    fclose(f);
+    return path;
+}
+
+static void remove_yaml(const char *dir, const char *path)
+{
+    unlink(path);
+    rmdir(dir);
+}
+
+/* Every split against one process, windows of 16 and single steps. */
+static void split_equals_one(const char *yaml, const char *name, int need_redone)
+{
+    char dir[] = "/tmp/wf_part_XXXXXX", path[64];
+    if (!write_yaml(yaml, dir, path, sizeof path)) return;
+    static const char *k16[] = {"time.block_steps=16"}, *k1[] = {"time.block_steps=1"};
+    const char *const *sets[] = {k16, k1};
+    Out *ref = calloc(1, sizeof *ref), *out = calloc(MAX_RANKS, sizeof *out);
+    run_one(path, k1, 1, ref);
+    long windows = 0, redone = 0;
+    for (int size = 2; size <= 3; size++)
+        for (int v = 0; v < 2; v++)
+            for (int threads = 1; threads <= (size == 2 && v == 0 ? 2 : 1); threads++) {
+                char what[128];
+                snprintf(what, sizeof what, "%s, %d ranks, %s, %d threads", name, size, sets[v][0], threads);
+                run_split(path, sets[v], 1, size, threads, -1, 0, out);
+                compare(&out[0], ref, what);
+                windows += out[0].windows, redone += out[0].redone;
+                for (int r = 1; r < size; r++)
+                    CHECK(out[r].rc == 0 && out[r].steps == ref->steps && out[r].windows == out[0].windows,
+                          "%s: rank %d took %ld steps and %ld windows, rank 0 %ld and %ld", what, r, out[r].steps,
+                          out[r].windows, out[0].steps, out[0].windows);
+                out_free(out, size);
+            }
+    printf("  %s: %ld windows over the split runs, %ld redone; last record overlaps %.0f\n", name, windows, redone,
+           ref->n_rows ? ref->rows[ref->n_rows - 1].v[WF_TS_OVERLAPS] : -1.0);
+    CHECK(windows > 0, "%s: no split run took a window", name);
+    if (need_redone) CHECK(redone > 0, "%s: no window was redone: the repair path was not exercised", name);
+    out_free(ref, 1);
+    free(ref), free(out);
+    remove_yaml(dir, path);
+}
+
+static void test_noisy_ring_with_controllers(void) { split_equals_one(ring_yaml, "graded ring, controllers", 0); }
+static void test_overlaps_repaired(void) { split_equals_one(overlap_yaml, "overlapping ring", 1); }
+
+/* One rank's stop request (raised in the middle of a window's exchanges) stops every rank after the same step. */
+static void test_stop_on_one_rank(void)
+{
+    char dir[] = "/tmp/wf_part_XXXXXX", path[64];
+    if (!write_yaml(ring_yaml, dir, path, sizeof path)) return;
+    Out *out = calloc(MAX_RANKS, sizeof *out);
+    run_split(path, NULL, 0, 3, 1, 2, 9, out);
+    for (int r = 0; r < 3; r++)
+        CHECK(out[r].rc == WF_EINTR && out[r].steps == out[0].steps && out[r].steps > 0 && out[r].steps < 120,
+              "rank %d: status %d, stopped after %ld steps, rank 0 after %ld (of 120)", r, out[r].rc, out[r].steps,
+              out[0].steps);
+    printf("  a stop raised by rank 2 at its 9th exchange: every rank stopped after %ld steps\n", out[0].steps);
+    out_free(out, 3);
+    free(out);
+    remove_yaml(dir, path);
+}
+
+int main(void)
+{
+    RUN(test_noisy_ring_with_controllers);
+    RUN(test_overlaps_repaired);
+    RUN(test_stop_on_one_rank);
+    TEST_EXIT();
+}
