@@ -4,9 +4,9 @@
 # bit, for 2 and 3 ranks, 1 and 2 threads, time-blocked windows of 16 steps and one step at a time: a graded
 # heterogeneous noisy ring with two classes and a speed limit, controllers with memory under a safety filter, a ring
 # whose overlaps are repaired, a numerical fault on rank 1 (the same exit status, message and partial file); a run
-# stopped by SIGTERM sent to mpirun resumes on another rank count and in one process to the uninterrupted result;
-# what the ranks cannot split is refused with exit status 2, the key named and no file written; uneven shares are
-# refused or give the one-process result.
+# stopped by SIGTERM (to mpirun, or to rank 1 alone) resumes on another rank count and in one process to the
+# uninterrupted result; what the ranks cannot split is refused with exit status 2, the key named and no file
+# written; uneven shares are refused or give the one-process result.
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 MPIBIN=${WAVEFUEL_MPI_BIN:-bin/wavefuel-mpi}
@@ -165,38 +165,61 @@ else
   ko fault_on_rank1 "cannot build the test plugin: $(cat "$tmp/cc.log")"
 fi
 
-# SIGTERM to mpirun once the ranks are stepping (rank 0 writes FILE.h5.partial first; checkpoints under MPI are
-# written on a signal only): FILE.h5.partial and .ckpt in the one-process format; a copy resumed on 3 ranks and one
-# resumed by `wavefuel run --resume` both give the uninterrupted run. Open MPI 4.1's mpirun sends the ranks SIGCONT,
-# SIGTERM odls_base_sigkill_timeout (1 s) later, and SIGKILL 1 s after that: 3000 vehicles are saved well within it.
+# SIGTERM once the ranks are stepping (rank 0 writes FILE.h5.partial before they step; checkpoints under MPI are
+# written on a signal only), sent to mpirun and, in a second run, to rank 1 alone: every rank stops at the same step
+# and rank 0 leaves FILE.h5.partial and .ckpt in the one-process format; the first resumed on 3 ranks, the second by
+# `wavefuel run --resume`, both give the uninterrupted run. Open MPI 4.1's mpirun sends its ranks SIGCONT at once,
+# SIGTERM odls_base_sigkill_timeout (1 s) later and SIGKILL 1 s after that: 3000 vehicles are saved well within it.
 LONG="$tmp/het.yaml --set time.duration_s=6000 --set time.output_interval_s=1"
 run $LONG -o "$tmp/long_ref.h5" --threads 2
-# mpirun itself in the background (not under timeout, which would signal the ranks too), killed if it outlives 120 s.
 alive() { local s; s=$(ps -o stat= -p "$1") && [ "${s:0:1}" != Z ]; } # a child ended but not waited for is a zombie
-mpirun -n 2 --oversubscribe --bind-to none "$MPIBIN" run $LONG -q -o "$tmp/i.h5" --threads 1 >"$tmp/i.log" 2>&1 &
-pid=$!; pids+=($pid)
-for _ in $(seq 600); do [ -e "$tmp/i.h5.partial" ] && break; alive $pid || break; sleep 0.05; done
-sleep 1
-kill -TERM $pid 2>/dev/null
-for _ in $(seq 1200); do alive $pid || break; sleep 0.1; done
-kill -KILL $pid 2>/dev/null; wait $pid; rc=$?
-if [ $rc -ne 0 ] && [ -e "$tmp/i.h5.ckpt" ] && [ -e "$tmp/i.h5.partial" ] && [ ! -e "$tmp/i.h5" ] &&
-   msg=$($PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); s=f['meta/steps_done'][()]; \
-assert f['meta/completed'][()]==0 and 0 < s < 60000, s; print(s)" "$tmp/i.h5.partial" 2>&1); then
-  ok "sigterm_leaves_checkpoint (rc $rc, stopped after $msg steps)"
+# rank_pid MPIRUN_PID R: the process of rank R (Open MPI names it in the environment of each rank).
+rank_pid() {
+  local k
+  for k in $(pgrep -P "$1"); do tr '\0' '\n' <"/proc/$k/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2" && echo "$k"; done
+}
+# interrupted NAME TARGET: runs LONG on 2 ranks into $tmp/NAME.h5 and sends SIGTERM to TARGET (mpirun or rank1) once
+# the ranks step; mpirun itself in the background (not under timeout, which would signal the ranks too), killed if it
+# outlives 120 s. Sets rc to mpirun's exit status.
+interrupted() {
+  local name=$1 target=$2 pid to
+  mpirun -n 2 --oversubscribe --bind-to none "$MPIBIN" run $LONG -q -o "$tmp/$name.h5" --threads 1 >"$tmp/$name.log" 2>&1 &
+  pid=$!; pids+=($pid)
+  for _ in $(seq 600); do [ -e "$tmp/$name.h5.partial" ] && break; alive $pid || break; sleep 0.05; done
+  sleep 1
+  to=$pid; [ "$target" = rank1 ] && to=$(rank_pid $pid 1)
+  kill -TERM ${to:-$pid} 2>/dev/null
+  for _ in $(seq 1200); do alive $pid || break; sleep 0.1; done
+  kill -KILL $pid 2>/dev/null; wait $pid; rc=$?
+}
+# stopped NAME: the partial and checkpoint of an interrupted run (the steps done printed); no result.
+stopped() {
+  [ -e "$tmp/$1.h5.ckpt" ] && [ -e "$tmp/$1.h5.partial" ] && [ ! -e "$tmp/$1.h5" ] ||
+    { echo "files: $(cd "$tmp" && echo "$1".h5*)"; return 1; }
+  $PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); s=f['meta/steps_done'][()]; \
+assert f['meta/completed'][()]==0 and 0 < s < 60000, s; print(s)" "$tmp/$1.h5.partial"
+}
+interrupted i mpirun
+if [ $rc -ne 0 ] && msg=$(stopped i 2>&1); then
+  ok "sigterm_to_mpirun_leaves_checkpoint (rc $rc, stopped after $msg steps)"
   # The reason names the signal, as one process's does.
   reason=$($PY -c "import h5py,sys; print(h5py.File(sys.argv[1])['meta/reason'][()].decode())" "$tmp/i.h5.partial")
   if [ "$reason" = "interrupted by SIGTERM" ] && grep -q "interrupted by SIGTERM at t = " "$tmp/i.log"; then ok sigterm_named
   else ko sigterm_named "/meta/reason '$reason'; $(grep -m1 interrupted "$tmp/i.log")"; fi
-  cp "$tmp/i.h5.partial" "$tmp/j.h5.partial"; cp "$tmp/i.h5.ckpt" "$tmp/j.h5.ckpt"
   mpi 3 run --resume "$tmp/i.h5" -q --threads 1 >"$tmp/ri.log" 2>&1; rc=$?
   if [ $rc -eq 0 ] && msg=$(same "$tmp/long_ref.h5" "$tmp/i.h5" 2>&1); then ok "resume_on_3_ranks ($msg)"
   else ko resume_on_3_ranks "rc $rc: $(tail -3 "$tmp/ri.log") ${msg:-}"; fi
+else
+  ko sigterm_to_mpirun_leaves_checkpoint "rc $rc, ${msg:-}: $(tail -3 "$tmp/i.log")"
+fi
+interrupted j rank1
+if [ $rc -eq 3 ] && msg=$(stopped j 2>&1); then
+  ok "sigterm_to_rank1_stops_all (rc $rc, stopped after $msg steps)"
   $BIN run --resume "$tmp/j.h5" -q --threads 2 >"$tmp/rj.log" 2>&1; rc=$?
   if [ $rc -eq 0 ] && msg=$(same "$tmp/long_ref.h5" "$tmp/j.h5" 2>&1); then ok "resume_in_one_process ($msg)"
   else ko resume_in_one_process "rc $rc: $(tail -3 "$tmp/rj.log") ${msg:-}"; fi
 else
-  ko sigterm_leaves_checkpoint "rc $rc, files: $(cd "$tmp" && echo i.h5*), ${msg:-}: $(tail -3 "$tmp/i.log")"
+  ko sigterm_to_rank1_stops_all "rc $rc (3: interrupted), ${msg:-}: $(tail -3 "$tmp/j.log")"
 fi
 
 # Refusals: exit status 2, the key or option named, no file; each case runs in one process (so it is the ranks that
