@@ -1,0 +1,261 @@
+#!/usr/bin/python3
+"""One ring split across MPI ranks (issue 20, `mpirun -n R bin/wavefuel-mpi run`): weak and strong scaling over
+R = 1, 2, 4 ranks of one thread each, on the ring of bench/scaling/ring.yaml (IDM with noise, two energy classes,
+ballistic dt 0.1 s, a record every second, 25 m of road per vehicle), and the bit-identity check at 1e7 vehicles.
+
+  weak      N = --per-rank vehicles per rank (2.5e6: 1e7 at R = 4), --steps steps;
+  strong    N = 2 x --per-rank (5e6) on R = 1, 2, 4 (R = 2 is the weak run of the same N);
+  one-proc  `bin/wavefuel run` of --per-rank vehicles on one thread (the one-process rate the ranks are measured
+            against) and of the 1e7 ring of the weak R = 4 run on 2 threads: every dataset outside /meta of the two
+            files (and /meta/steps_done, /meta/completed) compared byte for byte.
+
+Figures per run (one run each: the machine is shared, the 1-minute load average before and after is recorded):
+vehicle-steps/s of the step loop (N x /meta/steps_done / /meta/wall_time_s of the file rank 0 writes) and over the
+whole mpirun process (setup, the ranks' start and HDF5 included); peak RSS of every rank (GNU time %M wrapped around
+each rank). With more ranks than cores (this machine has 2) the ranks are oversubscribed (--oversubscribe
+--bind-to none): the R = 4 figures then measure time sharing, not 4 cores.
+
+The binaries are copied once at the start (a rebuild during the runs cannot mix two versions); their SHA-256 and
+/meta/git_hash are recorded. Results: bench/mpi_ring/results.json; the Markdown table is printed at the end, and by
+--table from results.json.
+
+Usage: /usr/bin/python3 bench/mpi_ring/run.py [--per-rank 2500000] [--steps 40] [--ranks 1,2,4] [--no-identity]
+           [--bin bin/wavefuel] [--mpi-bin bin/wavefuel-mpi] [--out bench/mpi_ring/results.json] [--table [JSON]]
+"""
+import argparse
+import datetime
+import glob
+import hashlib
+import json
+import os
+import platform
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+
+import h5py
+import numpy as np
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(os.path.dirname(HERE))
+SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
+SPACING_M = 25.0  # road per vehicle, as in ring.yaml
+DT_S = 0.1
+MPI_ENV = dict(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_btl_vader_single_copy_mechanism="none")
+
+
+def sha256(path):
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for blk in iter(lambda: f.read(1 << 20), b""):
+            h.update(blk)
+    return h.hexdigest()
+
+
+def scenario_args(n, steps):
+    return [SCENARIO, "--set", f"fleet.vehicles={n}", "--set", f"road.length_m={SPACING_M * n:.17g}",
+            "--set", f"time.duration_s={steps * DT_S:.10g}"]
+
+
+def run_one(kind, ranks, n, steps, threads, bins, tmp, keep=None):
+    """One run to completion (ranks = 0: `wavefuel run` in one process); returns its figures. Raises on failure."""
+    out = keep or os.path.join(tmp, "r.h5")
+    rss = os.path.join(tmp, "rss")
+    for f in glob.glob(rss + ".*"):
+        os.unlink(f)
+    args = ["run"] + scenario_args(n, steps) + ["-o", out, "--force", "--threads", str(threads)]
+    # Each process under GNU time, its peak RSS in rss.RANK (Open MPI names the rank in OMPI_COMM_WORLD_RANK).
+    timed = ["/bin/sh", "-c", '/usr/bin/time -f %M -o "$0.${OMPI_COMM_WORLD_RANK:-0}" "$@"', rss]
+    if ranks:
+        cmd = ["mpirun", "-n", str(ranks), "--oversubscribe", "--bind-to", "none"] + timed + [bins["mpi"]] + args
+    else:
+        cmd = timed + [bins["one"]] + args
+    env = dict(os.environ, OMP_NUM_THREADS=str(threads), **MPI_ENV)
+    load0 = os.getloadavg()[0]
+    t0 = time.perf_counter()
+    p = subprocess.run(cmd, env=env, capture_output=True, text=True)
+    proc_s = time.perf_counter() - t0
+    if p.returncode:
+        raise RuntimeError(f"{' '.join(cmd)} exited with {p.returncode}:\n{p.stdout}\n{p.stderr}")
+    rss_kib = []
+    for r in range(max(ranks, 1)):
+        with open(f"{rss}.{r}") as f:
+            rss_kib.append(int(f.read().split()[-1]))
+    header = next((line for line in p.stdout.splitlines() if "vehicle-steps/s" in line), "")
+    with h5py.File(out) as f:
+        m = f["meta"]
+        res = dict(kind=kind, ranks=ranks, n=n, threads=threads, steps=int(m["steps_done"][()]),
+                   loop_s=float(m["wall_time_s"][()]), proc_s=proc_s, rss_kib=rss_kib,
+                   git_hash=m["git_hash"][()].decode(), header=header, load_before=load0,
+                   load_after=os.getloadavg()[0], file_bytes=os.path.getsize(out))
+    if not keep:
+        os.unlink(out)
+    if res["steps"] != steps:
+        raise RuntimeError(f"{kind} R={ranks} N={n}: asked {steps} steps, the file says {res['steps']}")
+    if ranks and f"{threads} threads x {ranks} processes," not in header:
+        raise RuntimeError(f"{kind} R={ranks}: the header does not say '{threads} threads x {ranks} processes':\n"
+                           f"{p.stdout}")
+    res["vsteps_per_s"] = n * res["steps"] / res["loop_s"]
+    res["vsteps_per_s_process"] = n * res["steps"] / proc_s
+    print(f"{kind:9s} R={ranks or '-'} N={n:>9d} threads={threads} steps={steps}  loop {res['loop_s']:7.3f} s  "
+          f"{res['vsteps_per_s']:.3e} veh-steps/s  process {proc_s:6.2f} s  peak RSS per rank "
+          f"{', '.join(f'{k / 1024:.0f}' for k in rss_kib)} MiB  load {load0:.2f}->{res['load_after']:.2f}", flush=True)
+    return res
+
+
+def compare(a_path, b_path):
+    """Every dataset and attribute outside /meta, and /meta/steps_done and /meta/completed, byte for byte.
+    Returns (number of datasets compared, names that differ)."""
+    def raw(x):
+        if isinstance(x, bytes):
+            return x
+        x = np.asarray(x)
+        if x.dtype.kind == "O":
+            return b"\0".join(v if isinstance(v, bytes) else str(v).encode() for v in x.ravel())
+        return x.tobytes()
+
+    with h5py.File(a_path) as a, h5py.File(b_path) as b:
+        def objects(f):
+            out = []
+            f.visititems(lambda n, o: out.append(n) if not n.startswith("meta") else None)
+            return out
+        na, nb = objects(a), objects(b)
+        bad = sorted(set(na) ^ set(nb))
+        count = 0
+        for n in sorted(set(na) & set(nb)):
+            x, y = a[n], b[n]
+            if sorted(x.attrs) != sorted(y.attrs) or any(raw(x.attrs[k]) != raw(y.attrs[k]) for k in x.attrs):
+                bad.append(n + " (attributes)")
+            if isinstance(x, h5py.Dataset):
+                count += 1
+                if x.dtype != y.dtype or x.shape != y.shape or raw(x[()]) != raw(y[()]):
+                    bad.append(n)
+        for n in ("meta/steps_done", "meta/completed"):
+            if raw(a[n][()]) != raw(b[n][()]):
+                bad.append(n)
+    return count, bad
+
+
+def fmt_n(n):
+    """2500000 -> 2.5e6, 1250000 -> 1.25e6."""
+    m, e = f"{n:.2e}".split("e")
+    return f"{float(m):g}e{int(e)}"
+
+
+def table(res):
+    out = []
+    m = res["machine"]
+    out.append(f"Machine: {m['cpu']}, {m['cores']} cores ({m['mpi']}); wavefuel {res['git_hash']}; {res['date']}; "
+               f"one run each; {res['steps']} steps of 0.1 s; 1 thread per rank; ranks beyond {m['cores']} are "
+               "oversubscribed (--oversubscribe --bind-to none): they share the cores.")
+    out.append("")
+    out.append("| scaling | R | N | N per rank | loop s | veh-steps/s (loop) | per rank | efficiency | "
+               "process s | veh-steps/s (process) | peak RSS per rank (MiB) | load |")
+    out.append("|---|---|---|---|---|---|---|---|---|---|---|---|")
+    one = next((c for c in res["runs"] if c["kind"] == "one-proc" and c["threads"] == 1), None)
+    weak1 = next((c for c in res["runs"] if c["kind"] == "weak" and c["ranks"] == 1), None)
+    for c in res["runs"]:
+        per = c["n"] // max(c["ranks"], 1)
+        if c["kind"] == "weak" and weak1:
+            eff = f"{100 * weak1['loop_s'] / c['loop_s']:.0f} %"  # T(1 rank, N) / T(R ranks, R N)
+        elif c["kind"] == "strong":
+            s1 = next((d for d in res["runs"] if d["n"] == c["n"] and d["ranks"] == 1), None)
+            eff = f"{100 * s1['loop_s'] / (c['ranks'] * c['loop_s']):.0f} %" if s1 else "—"
+        else:
+            eff = "—"
+        who = str(c["ranks"]) if c["ranks"] else f"1 process, {c['threads']} thr"
+        out.append(f"| {c['kind']} | {who} | "
+                   f"{fmt_n(c['n'])} | {fmt_n(per)} | {c['loop_s']:.2f} | {c['vsteps_per_s']:.3g} | "
+                   f"{c['vsteps_per_s'] / max(c['ranks'], 1):.3g} | {eff} | {c['proc_s']:.1f} | "
+                   f"{c['vsteps_per_s_process']:.3g} | {', '.join(f'{k / 1024:.0f}' for k in c['rss_kib'])} | "
+                   f"{c['load_before']:.1f}–{c['load_after']:.1f} |")
+    out.append("")
+    out.append("Efficiency: weak = loop time of 1 rank / loop time of R ranks (R times the vehicles); strong = "
+               "loop time of 1 rank / (R x loop time of R ranks) at the same N. Per rank = veh-steps/s / R.")
+    if one:
+        out.append(f"One process (`bin/wavefuel run`, 1 thread) at N = {fmt_n(one['n'])}: "
+                   f"{one['vsteps_per_s']:.3g} veh-steps/s.")
+    ident = res.get("identity")
+    if ident:
+        out.append("")
+        out.append(f"Bit identity at N = {fmt_n(ident['n'])}: `mpirun -n {ident['ranks']} wavefuel-mpi run` against "
+                   f"`wavefuel run` (one process, {ident['threads']} threads): {ident['datasets']} datasets outside "
+                   f"/meta (and /meta/steps_done, /meta/completed) compared byte for byte: "
+                   + ("**identical**." if not ident["differ"] else f"**differ**: {', '.join(ident['differ'][:10])}"))
+    return "\n".join(out)
+
+
+def machine():
+    cpu = "unknown CPU"
+    with open("/proc/cpuinfo") as f:
+        for line in f:
+            if line.startswith("model name"):
+                cpu = line.split(":", 1)[1].strip()
+                break
+    mpi = subprocess.run(["mpirun", "--version"], capture_output=True, text=True).stdout.splitlines()
+    return dict(cpu=cpu, cores=os.cpu_count(), kernel=platform.release(), mpi=mpi[0] if mpi else "unknown MPI")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", default=os.path.join(ROOT, "bin", "wavefuel"))
+    ap.add_argument("--mpi-bin", default=os.path.join(ROOT, "bin", "wavefuel-mpi"))
+    ap.add_argument("--per-rank", type=float, default=2.5e6, help="vehicles per rank of the weak scaling")
+    ap.add_argument("--steps", type=int, default=40)
+    ap.add_argument("--ranks", default="1,2,4")
+    ap.add_argument("--no-identity", action="store_true", help="skip the one-process run of the largest ring")
+    ap.add_argument("--out", default=os.path.join(HERE, "results.json"))
+    ap.add_argument("--table", nargs="?", const=os.path.join(HERE, "results.json"), metavar="RESULTS_JSON",
+                    help="only print the table of an existing results.json")
+    args = ap.parse_args()
+    if args.table:
+        with open(args.table) as f:
+            print(table(json.load(f)))
+        return 0
+    os.environ.setdefault("WAVEFUEL_VEHICLES", os.path.join(ROOT, "vehicles"))  # the copies find no classes beside them
+    per, ranks = int(args.per_rank), [int(r) for r in args.ranks.split(",")]
+    res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), machine=machine(),
+               scenario=os.path.relpath(SCENARIO, ROOT), per_rank=per, steps=args.steps, runs=[])
+    print(f"# {res['date']}  {res['machine']['cpu']}, {res['machine']['cores']} cores "
+          f"(R > {res['machine']['cores']}: oversubscribed, the ranks share the cores); load {os.getloadavg()[0]:.2f}",
+          flush=True)
+    t_start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="wf_mpi_ring_", dir=os.environ.get("TMPDIR", "/tmp")) as tmp:
+        bins = dict(one=os.path.join(tmp, "wavefuel"), mpi=os.path.join(tmp, "wavefuel-mpi"))
+        shutil.copy2(args.bin, bins["one"])
+        shutil.copy2(args.mpi_bin, bins["mpi"])
+        res["binary_sha256"] = {k: sha256(v) for k, v in bins.items()}
+        runs = res["runs"]
+        runs.append(run_one("one-proc", 0, per, args.steps, 1, bins, tmp))
+        big = os.path.join(tmp, "mpi_big.h5")
+        for r in ranks:
+            keep = big if r == max(ranks) and not args.no_identity else None
+            runs.append(run_one("weak", r, per * r, args.steps, 1, bins, tmp, keep=keep))
+        n_strong = 2 * per
+        for r in ranks:
+            if r * per != n_strong:  # R = 2 is the weak run of this N
+                runs.append(run_one("strong", r, n_strong, args.steps, 1, bins, tmp))
+            else:
+                runs.append(dict(next(c for c in runs if c["kind"] == "weak" and c["ranks"] == r), kind="strong"))
+        if not args.no_identity:
+            n_big = per * max(ranks)
+            ref = os.path.join(tmp, "one_big.h5")
+            runs.append(run_one("one-proc", 0, n_big, args.steps, 2, bins, tmp, keep=ref))
+            count, bad = compare(ref, big)
+            res["identity"] = dict(n=n_big, ranks=max(ranks), threads=2, datasets=count, differ=bad)
+            print(f"identity  N={n_big}: {count} datasets outside /meta compared: "
+                  + ("identical" if not bad else f"DIFFER: {bad[:10]}"), flush=True)
+    res["git_hash"] = res["runs"][0]["git_hash"]
+    res["total_s"] = time.perf_counter() - t_start
+    with open(args.out, "w") as f:
+        json.dump(res, f, indent=1)
+    print()
+    print(table(res))
+    return 1 if res.get("identity", {}).get("differ") else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,267 @@
+#!/usr/bin/env bash
+# One ring split across MPI ranks (`mpirun -n R bin/wavefuel-mpi run`, issue 20): the result file equals
+# `wavefuel run` of the same scenario in every dataset outside /meta (and /meta/steps_done, /meta/completed), bit for
+# bit, for 2 and 3 ranks, 1 and 2 threads, time-blocked windows of 16 steps and one step at a time: a graded
+# heterogeneous noisy ring with two classes and a speed limit, controllers with memory under a safety filter, a ring
+# whose overlaps are repaired, a numerical fault on rank 1 (the same exit status, message and partial file); a run
+# stopped by SIGTERM (to mpirun, or to rank 1 alone) resumes on another rank count and in one process to the
+# uninterrupted result; what the ranks cannot split is refused with exit status 2, the key named and no file
+# written; uneven shares are refused or give the one-process result.
+set -u
+BIN=${WAVEFUEL_BIN:-bin/wavefuel}
+MPIBIN=${WAVEFUEL_MPI_BIN:-bin/wavefuel-mpi}
+PY=/usr/bin/python3
+. tests/scaffold.sh
+
+if ! command -v mpicc >/dev/null 2>&1 || ! command -v mpirun >/dev/null 2>&1; then
+  echo "NOTE t_mpi_ring: mpicc/mpirun not installed, MPI ring tests skipped (tools/install-deps.sh mpi)"
+  exit 0
+fi
+export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_vader_single_copy_mechanism=none
+# The default build tree: a sanitizer run of the suite (BUILD=build-san in the environment) must not mix its objects.
+if ! make -s --no-print-directory mpi BUILD=build >"$tmp/make_mpi.log" 2>&1; then
+  ko build_mpi "make mpi failed: $(tail -3 "$tmp/make_mpi.log")"; exit 1
+fi
+
+# mpi R ARGS...: wavefuel-mpi on R ranks (this machine has 2 cores: oversubscribed, unbound), bounded by a timeout so
+# that a hung job fails this test instead of hanging the suite.
+mpi() { local r=$1; shift; timeout -k 10 150 mpirun -n "$r" --oversubscribe --bind-to none "$MPIBIN" "$@"; }
+
+# same.py A B [META...]: every dataset and attribute outside /meta of the two files, bytes, dtype and shape, the same
+# set of names; and /meta/steps_done, /meta/completed and the /meta datasets named. Prints the count compared.
+cat >"$tmp/same.py" <<'PY'
+import sys, h5py, numpy as np
+a, b = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
+def objects(f):
+    out = {}
+    f.visititems(lambda n, o: out.__setitem__(n, o) if not n.startswith("meta") else None)
+    return out
+def raw(x):
+    if isinstance(x, bytes):
+        return x
+    x = np.asarray(x)
+    if x.dtype.kind == "O":
+        return b"\0".join(v if isinstance(v, bytes) else str(v).encode() for v in x.ravel())
+    return x.tobytes()
+oa, ob = objects(a), objects(b)
+assert set(oa) == set(ob), f"only in one file: {sorted(set(oa) ^ set(ob))}"
+bad = []
+for n in sorted(oa):
+    x, y = oa[n], ob[n]
+    if sorted(x.attrs) != sorted(y.attrs) or any(raw(x.attrs[k]) != raw(y.attrs[k]) for k in x.attrs):
+        bad.append(n + " (attributes)")
+    if isinstance(x, h5py.Dataset) and (x.dtype != y.dtype or x.shape != y.shape or raw(x[()]) != raw(y[()])):
+        bad.append(n)
+for n in ["meta/steps_done", "meta/completed"] + sys.argv[3:]:
+    if raw(a[n][()]) != raw(b[n][()]):
+        bad.append(f"{n} ({a[n][()]} vs {b[n][()]})")
+assert not bad, "differ: " + ", ".join(bad[:8]) + (f" and {len(bad) - 8} more" if len(bad) > 8 else "")
+nd = sum(isinstance(o, h5py.Dataset) for o in oa.values())
+assert nd > 30, f"only {nd} datasets"
+print(f"{nd} datasets, {a['meta/steps_done'][()]} steps")
+PY
+same() { $PY "$tmp/same.py" "$@"; }
+
+# ranks LOG R THREADS: the run really had R ranks of THREADS threads (its header line: "2 threads x 3 processes").
+ranks() {
+  grep -q "[(, ]$3 threads x $2 processes," "$1" ||
+    { echo "the header does not say '$3 threads x $2 processes': $(head -1 "$1")"; return 1; }
+}
+
+# mpi_same NAME REF R THREADS BLOCK SCENARIO [--set ...]: the MPI run of the scenario equals REF.
+mpi_same() {
+  local name=$1 ref=$2 r=$3 th=$4 bs=$5 out msg rc; shift 5
+  out="$tmp/$name.h5"
+  mpi "$r" run "$@" -o "$out" --threads "$th" --set time.block_steps="$bs" >"$tmp/$name.log" 2>&1; rc=$?
+  if [ $rc -ne 0 ]; then ko "$name" "rc $rc: $(tail -4 "$tmp/$name.log")"; return; fi
+  if msg=$(ranks "$tmp/$name.log" "$r" "$th" && same "$ref" "$out" 2>&1); then ok "$name ($msg)"; else ko "$name" "$msg"; fi
+}
+
+# (a) A graded ring (net climb 0 over the lap) with a speed limit: 3000 vehicles (12 blocks: 6 or 4 per rank) of two
+# classes, heterogeneous noisy IDM with the feasible clip; a record every step and a warm-up ending between windows.
+cat >"$tmp/het.yaml" <<'EOF'
+seed: 11
+road:
+  length_m: 80000
+  speed_limit_mps: 24
+  grade: {points: [[0, 0.0], [20000, 0.02], [40000, 0.0], [60000, -0.02]]}
+time: {duration_s: 30, dt_s: 0.1, output_interval_s: 0.1, warmup_s: 3.3}
+fleet:
+  vehicles: 3000
+  placement: random
+  classes:
+    - {class: midsize_sedan, fraction: 0.7}
+    - {class: class8_tractor, fraction: 0.3}
+  drivers:
+    - {model: idm, fraction: 1, noise_mps2: 0.3, feasible_accel: clip,
+       heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1, a_mps2: 0.1}}}
+initial: {state: equilibrium, jitter_m: 0.5}
+output: {trajectories: false}
+EOF
+run "$tmp/het.yaml" -o "$tmp/het_ref.h5" --threads 1 --set time.block_steps=1
+for r in 2 3; do
+  for th in 1 2; do
+    for bs in 16 1; do
+      mpi_same "graded_ring_R${r}_threads${th}_block${bs}" "$tmp/het_ref.h5" $r $th $bs "$tmp/het.yaml"
+    done
+  done
+done
+
+# (b) Controllers: scenarios/sugiyama_followerstopper.yaml at 1536 vehicles (the same density, one AV in 24), and the
+# ring of scenarios/ring_waves_av.yaml with 10 % PI with saturation (per-vehicle memory) under a Gipps safety filter
+# whose interventions are counted.
+FS="scenarios/sugiyama_followerstopper.yaml --set fleet.vehicles=1536 --set fleet.drivers[0].count=1472
+    --set fleet.drivers[1].count=64 --set road.length_m=16058 --set time.duration_s=120 --set time.warmup_s=30
+    --set output.trajectories=false"
+PI="scenarios/ring_waves_av.yaml --set fleet.vehicles=1536 --set fleet.drivers[0].count=1382
+    --set fleet.drivers[1].count=154 --set fleet.drivers[1].model=pi_saturation --set road.length_m=16058
+    --set time.duration_s=120 --set time.warmup_s=30 --set fleet.drivers[1].safety.kind=gipps
+    --set fleet.drivers[1].safety.gap_min_m=6"
+run $FS -o "$tmp/fs_ref.h5" --threads 1
+mpi_same followerstopper_R3_threads1_block16 "$tmp/fs_ref.h5" 3 1 16 $FS
+run $PI -o "$tmp/pi_ref.h5" --threads 1
+if $PY -c "import h5py,sys; n=h5py.File(sys.argv[1])['summary/safety_interventions'][()]; assert n > 100, n" "$tmp/pi_ref.h5"
+then
+  mpi_same pi_safety_R2_threads2_block16 "$tmp/pi_ref.h5" 2 2 16 $PI
+  mpi_same pi_safety_R3_threads1_block1 "$tmp/pi_ref.h5" 3 1 1 $PI
+else ko pi_safety "the reference run has no safety interventions: the check would not exercise the filter"; fi
+
+# (c) Noise far beyond what the brakes absorb (tests/test_window.c): overlaps repaired in many windows, some of them
+# at the ranks' boundaries.
+cat >"$tmp/ov.yaml" <<'EOF'
+seed: 7
+road: {length_m: 36000}
+time: {duration_s: 20, dt_s: 0.1, output_interval_s: 0.5}
+fleet:
+  vehicles: 3000
+  classes: [{class: midsize_sedan, fraction: 1}]
+  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]
+initial: {state: equilibrium}
+output: {trajectories: false}
+EOF
+run "$tmp/ov.yaml" -o "$tmp/ov_ref.h5" --threads 2
+if $PY -c "import h5py,sys; n=h5py.File(sys.argv[1])['timeseries/overlaps'][-1]; assert n > 50, n" "$tmp/ov_ref.h5"; then
+  mpi_same overlaps_R2_threads2_block16 "$tmp/ov_ref.h5" 2 2 16 "$tmp/ov.yaml"
+  mpi_same overlaps_R3_threads1_block16 "$tmp/ov_ref.h5" 3 1 16 "$tmp/ov.yaml"
+else ko overlaps "the reference run repaired too few overlaps to exercise the repairs"; fi
+
+# (d) A fault on rank 1: vehicle 900 of 1200 (5 blocks: rank 0 holds at most the first 768) returns NaN above 5 m/s
+# (tests/data/nan_plugin.c): exit status 1, the message of one process (file names and program name aside), and the
+# same partial file.
+if cc -std=c11 -O1 -fPIC -shared -Iinclude tests/data/nan_plugin.c -o "$tmp/nan_plugin.so" -lm 2>"$tmp/cc.log"; then
+  printf 'road: {length_m: 18000}\ntime: {duration_s: 60, dt_s: 0.1}\nfleet:\n  vehicles: 1200\n  classes: [{class: midsize_sedan, count: 1200}]\n  drivers:\n    - {model: idm, count: 1199}\n    - {model: plugin, path: nan_plugin.so, placement: explicit, indices: [900]}\ninitial: {state: rest}\n' >"$tmp/nan.yaml"
+  $BIN run "$tmp/nan.yaml" -q -o "$tmp/nref.h5" --threads 1 2>"$tmp/nref.err"; r0=$?
+  norm() { grep '^wavefuel' "$1" | sed -e "s#$2#FILE#g" -e 's#^wavefuel-mpi:#wavefuel:#'; }
+  for bs in 16 1; do
+    name=fault_on_rank1_R2_block$bs msg=
+    mpi 2 run "$tmp/nan.yaml" -q -o "$tmp/n$bs.h5" --threads 1 --set time.block_steps=$bs 2>"$tmp/n$bs.err"; rc=$?
+    if [ $r0 -eq 1 ] && [ $rc -eq 1 ] && grep -q "numerical fault at t = .*vehicle 900 " "$tmp/nref.err" &&
+       [ "$(norm "$tmp/nref.err" "$tmp/nref.h5")" = "$(norm "$tmp/n$bs.err" "$tmp/n$bs.h5")" ] &&
+       msg=$(same "$tmp/nref.h5.partial" "$tmp/n$bs.h5.partial" meta/reason meta/timeseries_rows 2>&1); then
+      ok "$name ($msg)"
+    else ko "$name" "rc $r0/$rc: $(norm "$tmp/nref.err" "$tmp/nref.h5") | $(norm "$tmp/n$bs.err" "$tmp/n$bs.h5") ${msg:-}"; fi
+  done
+else
+  ko fault_on_rank1 "cannot build the test plugin: $(cat "$tmp/cc.log")"
+fi
+
+# SIGTERM once the ranks are stepping (rank 0 writes FILE.h5.partial before they step; checkpoints under MPI are
+# written on a signal only), sent to mpirun and, in a second run, to rank 1 alone: every rank stops at the same step
+# and rank 0 leaves FILE.h5.partial and .ckpt in the one-process format; the first resumed on 3 ranks, the second by
+# `wavefuel run --resume`, both give the uninterrupted run. Open MPI 4.1's mpirun sends its ranks SIGCONT at once,
+# SIGTERM odls_base_sigkill_timeout (1 s) later and SIGKILL 1 s after that: 3000 vehicles are saved well within it.
+LONG="$tmp/het.yaml --set time.duration_s=6000 --set time.output_interval_s=1"
+run $LONG -o "$tmp/long_ref.h5" --threads 2
+alive() { local s; s=$(ps -o stat= -p "$1") && [ "${s:0:1}" != Z ]; } # a child ended but not waited for is a zombie
+# rank_pid MPIRUN_PID R: the process of rank R (Open MPI names it in the environment of each rank).
+rank_pid() {
+  local k
+  for k in $(pgrep -P "$1"); do tr '\0' '\n' <"/proc/$k/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2" && echo "$k"; done
+}
+# interrupted NAME TARGET: runs LONG on 2 ranks into $tmp/NAME.h5 and sends SIGTERM to TARGET (mpirun or rank1) once
+# the ranks step; mpirun itself in the background (not under timeout, which would signal the ranks too), killed if it
+# outlives 120 s. Sets rc to mpirun's exit status.
+interrupted() {
+  local name=$1 target=$2 pid to
+  mpirun -n 2 --oversubscribe --bind-to none "$MPIBIN" run $LONG -q -o "$tmp/$name.h5" --threads 1 >"$tmp/$name.log" 2>&1 &
+  pid=$!; pids+=($pid)
+  for _ in $(seq 600); do [ -e "$tmp/$name.h5.partial" ] && break; alive $pid || break; sleep 0.05; done
+  sleep 1
+  to=$pid; [ "$target" = rank1 ] && to=$(rank_pid $pid 1)
+  kill -TERM ${to:-$pid} 2>/dev/null
+  for _ in $(seq 1200); do alive $pid || break; sleep 0.1; done
+  kill -KILL $pid 2>/dev/null; wait $pid; rc=$?
+}
+# stopped NAME: the partial and checkpoint of an interrupted run (the steps done printed); no result.
+stopped() {
+  [ -e "$tmp/$1.h5.ckpt" ] && [ -e "$tmp/$1.h5.partial" ] && [ ! -e "$tmp/$1.h5" ] ||
+    { echo "files: $(cd "$tmp" && echo "$1".h5*)"; return 1; }
+  $PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); s=f['meta/steps_done'][()]; \
+assert f['meta/completed'][()]==0 and 0 < s < 60000, s; print(s)" "$tmp/$1.h5.partial"
+}
+interrupted i mpirun
+if [ $rc -ne 0 ] && msg=$(stopped i 2>&1); then
+  ok "sigterm_to_mpirun_leaves_checkpoint (rc $rc, stopped after $msg steps)"
+  # The reason names the signal, as one process's does.
+  reason=$($PY -c "import h5py,sys; print(h5py.File(sys.argv[1])['meta/reason'][()].decode())" "$tmp/i.h5.partial")
+  if [ "$reason" = "interrupted by SIGTERM" ] && grep -q "interrupted by SIGTERM at t = " "$tmp/i.log"; then ok sigterm_named
+  else ko sigterm_named "/meta/reason '$reason'; $(grep -m1 interrupted "$tmp/i.log")"; fi
+  mpi 3 run --resume "$tmp/i.h5" -q --threads 1 >"$tmp/ri.log" 2>&1; rc=$?
+  if [ $rc -eq 0 ] && msg=$(same "$tmp/long_ref.h5" "$tmp/i.h5" 2>&1); then ok "resume_on_3_ranks ($msg)"
+  else ko resume_on_3_ranks "rc $rc: $(tail -3 "$tmp/ri.log") ${msg:-}"; fi
+else
+  ko sigterm_to_mpirun_leaves_checkpoint "rc $rc, ${msg:-}: $(tail -3 "$tmp/i.log")"
+fi
+interrupted j rank1
+if [ $rc -eq 3 ] && msg=$(stopped j 2>&1); then
+  ok "sigterm_to_rank1_stops_all (rc $rc, stopped after $msg steps)"
+  $BIN run --resume "$tmp/j.h5" -q --threads 2 >"$tmp/rj.log" 2>&1; rc=$?
+  if [ $rc -eq 0 ] && msg=$(same "$tmp/long_ref.h5" "$tmp/j.h5" 2>&1); then ok "resume_in_one_process ($msg)"
+  else ko resume_in_one_process "rc $rc: $(tail -3 "$tmp/rj.log") ${msg:-}"; fi
+else
+  ko sigterm_to_rank1_stops_all "rc $rc (3: interrupted), ${msg:-}: $(tail -3 "$tmp/j.log")"
+fi
+
+# Refusals: exit status 2, the key or option named, no file; each case runs in one process (so it is the ranks that
+# refuse it, not the scenario).
+refused() { # name, text the message must hold, ranks, arguments of run (without -o)
+  local name=$1 want=$2 r=$3 msg rc; shift 3
+  if ! msg=$($BIN run "$@" -q --force -o "$tmp/one.h5" 2>&1); then ko "$name" "not a valid run in one process: $msg"; return; fi
+  msg=$(mpi "$r" run "$@" -q -o "$tmp/bad.h5" 2>&1); rc=$?
+  if [ $rc -eq 2 ] && echo "$msg" | grep -q -- "$want" && [ -z "$(ls "$tmp" | grep '^bad\.h5')" ]; then ok "$name"
+  else ko "$name" "rc $rc, files: $(ls "$tmp" | grep '^bad\.h5' | tr '\n' ' '): $msg"; fi
+  rm -f "$tmp"/bad.h5*
+}
+SHORT="$tmp/het.yaml --set time.duration_s=5"
+refused refuses_corridor road.type 2 tests/data/tiny_corridor.yaml --set time.duration_s=40
+refused refuses_lanes road.lanes 2 $SHORT --set road.lanes=2
+for integ in cvode arkode rk4; do refused "refuses_$integ" time.integrator 2 $SHORT --set time.integrator=$integ; done
+refused refuses_trajectories output.trajectories 2 $SHORT --set output.trajectories=true
+refused refuses_unfused time.fused_step 2 $SHORT --set time.fused_step=false
+sed "s#network: data/#network: $PWD/scenarios/data/#" scenarios/sugiyama_mlp.yaml >"$tmp/learned.yaml"
+refused refuses_mlp mlp 2 "$tmp/learned.yaml" --set fleet.vehicles=1536 --set 'fleet.drivers[0].count=1472' \
+  --set 'fleet.drivers[1].count=64' --set road.length_m=16058 --set output.trajectories=false \
+  --set time.duration_s=5 --set time.warmup_s=0
+refused refuses_external external 2 scenarios/ring_waves_av.yaml --set fleet.vehicles=1536 \
+  --set 'fleet.drivers[0].count=1382' --set 'fleet.drivers[1].count=154' --set 'fleet.drivers[1].model=external' \
+  --set road.length_m=16058 --set time.duration_s=5 --set time.warmup_s=0
+refused refuses_checkpoint_every --checkpoint-every 2 $SHORT --checkpoint-every 1
+# 700 vehicles on 2 ranks: 3 blocks, one for rank 0.
+refused refuses_too_few_per_rank fleet.vehicles 2 $SHORT --set fleet.vehicles=700
+
+# Uneven shares, refused or run as one process runs them: windows on some ranks and single steps on others would
+# exchange halos of different sizes. 1000 vehicles on 2 ranks: rank 1 holds a whole block and 232 vehicles (fewer
+# than 512); 8960 vehicles (35 blocks) on 2 ranks of 9 threads: 17 blocks on rank 0, 18 on rank 1, which alone has
+# two per thread.
+refused_or_same() { # name, ranks, threads, arguments of run (without -o)
+  local name=$1 r=$2 th=$3 msg rc; shift 3
+  run "$@" -o "$tmp/u_ref.h5" --threads 1
+  msg=$(mpi "$r" run "$@" -q -o "$tmp/u.h5" --threads "$th" 2>&1); rc=$?
+  if [ $rc -eq 2 ] && echo "$msg" | grep -q fleet.vehicles && [ -z "$(ls "$tmp" | grep '^u\.h5')" ]; then ok "$name (refused)"
+  elif [ $rc -eq 0 ] && msg=$(same "$tmp/u_ref.h5" "$tmp/u.h5" 2>&1); then ok "$name ($msg)"
+  else ko "$name" "rc $rc, files: $(ls "$tmp" | grep '^u\.h5' | tr '\n' ' '): $(echo "$msg" | grep -m3 'MPI_ERR\|wavefuel')"; fi
+  rm -f "$tmp"/u.h5* "$tmp/u_ref.h5"
+}
+refused_or_same short_last_share_R2 2 1 $SHORT --set fleet.vehicles=1000
+refused_or_same window_fits_one_rank_R2_threads9 2 9 "$tmp/ov.yaml" --set fleet.vehicles=8960 \
+  --set road.length_m=240000 --set 'fleet.drivers[0].noise_mps2=0.3' --set time.duration_s=5
