@@ -28,8 +28,9 @@ typedef struct WfPartition {
     /* Bytes [off[r], off[r + 1]) of buf are rank r's (off: size + 1 offsets): afterwards rank `root` holds all of
      * them (root -1: every rank). */
     int (*gather)(void *ctx, void *buf, const size_t *off, int root, WfError *err);
-    /* The run's stop: each rank's own flag (a signal handler's), and the flag every rank agrees on at each step
-     * (set by the engine from the OR of the ranks' own flags; the step loop reads it). */
+    /* The run's stop: each rank's own flag (the number of the signal that stopped it, 0 while none did), and the
+     * flag every rank agrees on at each step (set by the engine: the bitwise OR of the ranks' own, the signal's
+     * number when they got the same; the step loop reads it). */
     volatile sig_atomic_t *stop_own, stop_all;
 } WfPartition;
 

@@ -269,7 +269,7 @@ static int window_init(WfRing *s, WfError *err)
  * and is written into the same arrays; whatever needs the whole ring (a record's block sums, the overlap repair,
  * the summary, a checkpoint) is gathered. Each step or window ends with one agreement of every rank on its flags and
  * on a stop, so all ranks repair, redo or stop at the same step. */
-enum { WF_PART_STOP = 1 << 8 };
+enum { WF_PART_STOP_SHIFT = 8 }; /* the agreed word: WF_STEP_* flags below, the stop's signal number above */
 
 static void part_range(const WfRing *s, int r, size_t *lo, size_t *hi)
 {
@@ -373,10 +373,10 @@ static int part_agree(WfRing *s, int adv, int *flags, WfError *err)
     int rc = adv ? part_refresh(s, 1, err) : 0;
     if (rc) return rc;
     if (adv) *flags |= wf_lane_chunk_edge(&s->lane, 0, s->f->n, s->b_hi, wf_lane_blocks(0, s->f->n));
-    int x = *flags | (p->stop_own && *p->stop_own ? WF_PART_STOP : 0);
+    int x = *flags | (p->stop_own ? (int)*p->stop_own << WF_PART_STOP_SHIFT : 0);
     if ((rc = p->or_all(p->ctx, &x, err))) return rc;
-    p->stop_all = (x & WF_PART_STOP) != 0;
-    *flags = x & ~WF_PART_STOP;
+    p->stop_all = x >> WF_PART_STOP_SHIFT;
+    *flags = x & ((1 << WF_PART_STOP_SHIFT) - 1);
     return 0;
 }
 
