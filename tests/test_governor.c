@@ -1,7 +1,8 @@
 /* The thread governor of corridors (src/core/governor.h, time.thread_check_steps) fed with made-up step times: it
- * starts on all threads, probes one thread after `every - every/16` steps for every/16 steps, switches when the probe
- * did more work per second, backs off (doubling the interval, up to 64 times) while probes lose, and never probes
- * with one thread or every = 0. tests/test_engine_paths.c checks that switching threads every step keeps the bits. */
+ * starts on all threads, probes one thread soon (after 2 every/16 steps) and then every `every` steps for every/16
+ * steps, switches when the probe did 5 % more work per second, backs off (doubling the interval, up to 64 times) while
+ * probes lose, cuts short a probe whose steps took twice as long as the chosen count's, and never probes with one
+ * thread or every = 0. tests/test_engine_paths.c checks that switching threads every step keeps the bits. */
 #include <stdio.h>
 
 #include "core/governor.h"
@@ -24,19 +25,28 @@ static void test_keeps_the_faster(void)
     WfGovernor g;
     wf_governor_init(&g, 2, 64);
     CHECK(wf_governor_threads(&g) == 2, "starts on %d threads, not all", wf_governor_threads(&g));
-    /* two threads faster: the first probe (steps 60..63 on one thread) loses, the interval doubles */
-    long one = drive(&g, 64, 2e-3, 1e-3);
+    /* two threads faster: the first probe (steps 8..11 on one thread) loses, the interval doubles */
+    long one = drive(&g, 12, 2e-3, 1e-3);
     CHECK(one == 4 && g.probes == 1 && g.switches == 0 && g.interval == 128,
           "%ld steps on one thread, %ld probes, %ld switches, interval %ld", one, g.probes, g.switches, g.interval);
-    /* a loaded machine: two threads now 8 times slower; the next probe (after 128 - 8 steps) wins */
-    one = drive(&g, 128, 2e-3, 16e-3);
+    /* within 5 %: no switch */
+    drive(&g, 128, 1.0e-3, 1.04e-3);
+    CHECK(g.switches == 0 && g.interval == 256, "%ld switches at 4 %%, interval %ld", g.switches, g.interval);
+    /* a loaded machine: two threads now 8 times slower; the next probe (after 256 - 16 steps) wins */
+    drive(&g, 256, 2e-3, 16e-3);
     CHECK(g.switches == 1 && wf_governor_threads(&g) == 1 && g.interval == 64,
           "after the load: %ld switches, %d threads, interval %ld", g.switches, wf_governor_threads(&g), g.interval);
-    /* still loaded: probes of two threads lose, and come ever more rarely */
-    long probes0 = g.probes;
-    drive(&g, 64 * 64 * 8, 2e-3, 16e-3);
-    CHECK(g.interval == 64 * 64 && g.probes - probes0 == 13, /* 6 while the interval doubles, then one every 4096 */
-          "interval %ld (64 x 64 expected), %ld probes in %d steps", g.interval, g.probes - probes0, 64 * 64 * 8);
+    /* still loaded, two threads now a hundred times slower: each probe of them is cut short after its first step,
+     * and probes come ever more rarely */
+    long probes0 = g.probes, slow = 0;
+    for (long s = 0; s < 64 * 64 * 8; s++) {
+        int n = wf_governor_threads(&g);
+        slow += n == 2;
+        wf_governor_done(&g, n == 1 ? 2e-3 : 0.2, 1000.0);
+    }
+    CHECK(g.interval == 64 * 64 && g.probes - probes0 == 13 && slow == g.probes - probes0,
+          "interval %ld (64 x 64 expected), %ld probes (13: 6 while the interval doubles, then one every 4096), %ld "
+          "steps on two threads (one per probe)", g.interval, g.probes - probes0, slow);
     /* the load goes: the next probe of two threads wins and the run goes back to them */
     drive(&g, 64 * 64 * 2, 2e-3, 1e-3);
     CHECK((wf_governor_threads(&g) == 2 || g.probing) && g.switches == 2, "%d threads, %ld switches after the load went",

@@ -12,8 +12,7 @@ static long probe_steps(const WfGovernor *g)
 void wf_governor_init(WfGovernor *g, int n_max, long every)
 {
     *g = (WfGovernor){.n_max = n_max, .now = n_max, .every = n_max > 1 ? every : 0, .interval = every};
-    g->left = g->interval - probe_steps(g);
-    if (g->left < 1) g->left = 1;
+    g->left = 2 * probe_steps(g); /* the first probe soon: the machine may be busy from the start */
 }
 
 int wf_governor_threads(const WfGovernor *g) { return g->now; }
@@ -21,22 +20,27 @@ int wf_governor_threads(const WfGovernor *g) { return g->now; }
 void wf_governor_done(WfGovernor *g, double wall_s, double work)
 {
     if (!g->every) return;
-    g->wall_s[g->probing] += wall_s, g->work[g->probing] += work;
-    if (--g->left > 0) return;
+    int p = g->probing;
+    g->wall_s[p] += wall_s, g->work[p] += work, g->steps[p]++;
+    /* a probe whose steps so far took twice as long as the chosen count's has lost */
+    int lost = p && g->steps[0] && g->wall_s[1] > 2.0 * (double)g->steps[1] * g->wall_s[0] / (double)g->steps[0];
+    if (--g->left > 0 && !lost) return;
     int other = g->now == 1 ? g->n_max : 1;
-    if (!g->probing) { /* the chosen count's stretch is over: probe the other */
+    if (!p) { /* the chosen count's stretch is over: probe the other */
         g->probing = 1, g->now = other, g->left = probe_steps(g), g->probes++;
         return;
     }
-    /* the probe is over: keep the faster (rates compared as work0 / wall0 < work1 / wall1, without dividing) */
-    int probe_won = g->work[1] * g->wall_s[0] > g->work[0] * g->wall_s[1];
+    /* the probe is over: switch when it did 5 % more work per second (work1 / wall1 > 1.05 work0 / wall0) */
+    int probe_won = !lost && g->work[1] * g->wall_s[0] > 1.05 * g->work[0] * g->wall_s[1];
     if (probe_won) {
         g->switches++, g->interval = g->every; /* g->now stays the probe's count */
     } else {
         g->now = other;
         if (g->interval < WF_GOV_BACKOFF_MAX * g->every) g->interval *= 2;
     }
-    g->probing = 0, g->left = g->interval - probe_steps(g);
+    /* after a switch the new count is checked soon, as at the start: a probe can win by chance on a busy machine */
+    g->probing = 0, g->left = probe_won ? 2 * probe_steps(g) : g->interval - probe_steps(g);
     if (g->left < 1) g->left = 1;
     g->wall_s[0] = g->wall_s[1] = g->work[0] = g->work[1] = 0.0;
+    g->steps[0] = g->steps[1] = 0;
 }

@@ -3,10 +3,14 @@
  * whose cores other processes also use, a step that meets its threads at a barrier waits for whichever thread the
  * system has descheduled, and two threads can be several times slower than one.
  *
- * The run steps on its chosen count (at first all its threads); every `interval` steps it times `probe` steps
- * (interval / 16, at least one) on the other count (one thread, or all of them) and keeps whichever did more
- * vehicle-steps per second of wall time. A probe that loses doubles the interval (up to 64 times `every`), so a
- * steady machine pays for few probes; a switch sets it back to `every`. */
+ * The run steps on its chosen count (at first all its threads); every `interval` steps (twice `probe` steps at the
+ * start and after a switch, when the machine may just have become busy or the switch may have won by chance) it
+ * times `probe` steps
+ * (interval / 16, at least one) on the other count (one thread, or all of them) and switches when the probe did at
+ * least 5 % more vehicle-steps per second of wall time. A probe that loses doubles the interval (up to 64 times
+ * `every`), so a steady machine pays for few probes; a switch sets it back to `every`. A probe is cut short as
+ * soon as its steps so far took twice as long as the chosen count's: on a loaded machine a step whose thread was
+ * descheduled can take a hundred times longer, and a whole probe of them would cost more than it could save. */
 #ifndef WAVEFUEL_CORE_GOVERNOR_H
 #define WAVEFUEL_CORE_GOVERNOR_H
 
@@ -16,6 +20,7 @@ typedef struct WfGovernor {
     long   left;                /* steps left in this stretch (the chosen count's, or the probe's) */
     int    probing;             /* the stretch is a probe */
     double wall_s[2], work[2];  /* wall time and vehicle-steps of the chosen count's stretch [0] and the probe [1] */
+    long   steps[2];            /* and their steps */
     long   probes, switches;    /* what it did (tests, benchmarks) */
 } WfGovernor;
 
