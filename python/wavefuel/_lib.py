@@ -111,7 +111,7 @@ class WfScenario(C.Structure):
                 ("name", C.c_char * 128), ("road", WfRoad), ("duration_s", C.c_double), ("dt_s", C.c_double),
                 ("output_interval_s", C.c_double), ("warmup_s", C.c_double), ("integrator", C.c_char * 32),
                 ("adaptive", C.c_int), ("solver", WfOdeConfig), ("fused_step", C.c_int), ("block_steps", C.c_int),
-                ("tile_vehicles", C.c_long), ("seed", C.c_uint64),
+                ("tile_vehicles", C.c_long), ("thread_check_steps", C.c_long), ("seed", C.c_uint64),
                 ("n_vehicles", C.c_long), ("n_lanes", C.c_int), ("lane_rule", C.c_int),
                 ("lane_counts", C.c_long * WF_MAX_LANES), ("lane_speed_limit_mps", C.c_double * WF_MAX_LANES),
                 ("placement", C.c_int),
