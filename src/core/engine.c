@@ -284,9 +284,11 @@ static size_t part_ahead(const WfRing *s)
     return s->b_hi < wf_lane_blocks(0, s->f->n) ? s->b_hi * WF_BLOCK : 0;
 }
 
-static int part_check(const WfScenario *sc, const WfFleet *f, const WfPartition *p, WfError *err)
+/* Before the fleet is built: what a split ring cannot be. */
+static int part_check(const WfScenario *sc, const WfPartition *p, WfError *err)
 {
-    const char *why = f->n_lanes > 1 ? "road.lanes: a ring of several lanes"
+    size_t n = (size_t)sc->n_vehicles;
+    const char *why = sc->n_lanes > 1 ? "road.lanes: a ring of several lanes"
                     : sc->adaptive ? "time.integrator: a SUNDIALS integrator (fixed-step integrators only)"
                     : sc->trajectories ? "output.trajectories: trajectories"
                     : !sc->fused_step ? "time.fused_step false: steps in two passes" : NULL;
@@ -296,10 +298,10 @@ static int part_check(const WfScenario *sc, const WfFleet *f, const WfPartition 
             return wf_err(err, WF_EINPUT, "%s: driver group '%s': model %s takes its commands from outside every step "
                           "and cannot be split across processes (docs/mpi.md)", sc->path, sc->groups[g].name,
                           sc->groups[g].mlp ? "mlp" : sc->groups[g].model->name);
-    size_t nb = wf_lane_blocks(0, f->n);
+    size_t nb = wf_lane_blocks(0, n);
     if (nb < 2 * (size_t)p->size)
         return wf_err(err, WF_EINPUT, "%s: fleet.vehicles %zu: %d processes need at least %zu vehicles (two blocks of "
-                      "%d per process)", sc->path, f->n, p->size, (size_t)(2 * p->size - 1) * WF_BLOCK + 1, WF_BLOCK);
+                      "%d per process)", sc->path, n, p->size, (size_t)(2 * p->size - 1) * WF_BLOCK + 1, WF_BLOCK);
     return 0;
 }
 
@@ -307,8 +309,6 @@ static int part_init(WfRing *s, WfPartition *p, WfError *err)
 {
     const WfScenario *sc = s->sc;
     const WfFleet *f = s->f;
-    int rc = part_check(sc, f, p, err);
-    if (rc) return rc;
     s->part = p;
     wf_partition_blocks(wf_lane_blocks(0, f->n), p->size, p->rank, &s->b_lo, &s->b_hi);
     size_t ns = (size_t)p->size + 1, most_state = 0;
@@ -463,6 +463,7 @@ static int ring_create(WfSim *sim, WfError *err)
     s->sc = sc;
     s->nthreads = sim->nthreads;
     int rc = sc->adaptive ? 0 : wf_integrator_find(sc->integrator, &s->ig, err);
+    if (!rc && sim->part) rc = part_check(sc, sim->part, err);
     if (!rc) rc = wf_fleet_create(sc, &s->f, err);
     if (rc) return rc;
     s->n_steps = wf_scenario_n_steps(sc);
