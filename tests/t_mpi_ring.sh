@@ -27,40 +27,8 @@ fi
 # that a hung job fails this test instead of hanging the suite.
 mpi() { local r=$1; shift; timeout -k 10 150 mpirun -n "$r" --oversubscribe --bind-to none "$MPIBIN" "$@"; }
 
-# same.py A B [META...]: every dataset and attribute outside /meta of the two files, bytes, dtype and shape, the same
-# set of names; and /meta/steps_done, /meta/completed and the /meta datasets named. Prints the count compared.
-cat >"$tmp/same.py" <<'PY'
-import sys, h5py, numpy as np
-a, b = h5py.File(sys.argv[1], "r"), h5py.File(sys.argv[2], "r")
-def objects(f):
-    out = {}
-    f.visititems(lambda n, o: out.__setitem__(n, o) if not n.startswith("meta") else None)
-    return out
-def raw(x):
-    if isinstance(x, bytes):
-        return x
-    x = np.asarray(x)
-    if x.dtype.kind == "O":
-        return b"\0".join(v if isinstance(v, bytes) else str(v).encode() for v in x.ravel())
-    return x.tobytes()
-oa, ob = objects(a), objects(b)
-assert set(oa) == set(ob), f"only in one file: {sorted(set(oa) ^ set(ob))}"
-bad = []
-for n in sorted(oa):
-    x, y = oa[n], ob[n]
-    if sorted(x.attrs) != sorted(y.attrs) or any(raw(x.attrs[k]) != raw(y.attrs[k]) for k in x.attrs):
-        bad.append(n + " (attributes)")
-    if isinstance(x, h5py.Dataset) and (x.dtype != y.dtype or x.shape != y.shape or raw(x[()]) != raw(y[()])):
-        bad.append(n)
-for n in ["meta/steps_done", "meta/completed"] + sys.argv[3:]:
-    if raw(a[n][()]) != raw(b[n][()]):
-        bad.append(f"{n} ({a[n][()]} vs {b[n][()]})")
-assert not bad, "differ: " + ", ".join(bad[:8]) + (f" and {len(bad) - 8} more" if len(bad) > 8 else "")
-nd = sum(isinstance(o, h5py.Dataset) for o in oa.values())
-assert nd > 30, f"only {nd} datasets"
-print(f"{nd} datasets, {a['meta/steps_done'][()]} steps")
-PY
-same() { $PY "$tmp/same.py" "$@"; }
+# same A B [META...]: the two results are the same bits outside /meta (tests/h5same.py)
+same() { $PY tests/h5same.py "$@"; }
 
 # ranks LOG R THREADS: the run really had R ranks of THREADS threads (its header line: "2 threads x 3 processes").
 ranks() {

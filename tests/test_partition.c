@@ -226,27 +226,11 @@ static void compare(const Out *o, const Out *ref, const char *what)
     CHECK(memcmp(&o->summary, &ref->summary, sizeof o->summary) == 0, "%s: the summary differs", what);
 }
 
-static const char *write_yaml(const char *text, char *dir, char *path, size_t size)
-{
-    if (!mkdtemp(dir)) return NULL;
-    snprintf(path, size, "%s/s.yaml", dir);
-    FILE *f = fopen(path, "w");
-    fputs(text, f);
-    fclose(f);
-    return path;
-}
-
-static void remove_yaml(const char *dir, const char *path)
-{
-    unlink(path);
-    rmdir(dir);
-}
-
 /* Every split against one process, windows of 16 and single steps. */
 static void split_equals_one(const char *yaml, const char *name, int need_redone)
 {
     char dir[] = "/tmp/wf_part_XXXXXX", path[64];
-    if (!write_yaml(yaml, dir, path, sizeof path)) return;
+    if (!wf_test_write_yaml(yaml, dir, path, sizeof path)) return;
     static const char *k16[] = {"time.block_steps=16"}, *k1[] = {"time.block_steps=1"};
     const char *const *sets[] = {k16, k1};
     Out *ref = calloc(1, sizeof *ref), *out = calloc(MAX_RANKS, sizeof *out);
@@ -272,7 +256,7 @@ static void split_equals_one(const char *yaml, const char *name, int need_redone
     if (need_redone) CHECK(redone > 0, "%s: no window was redone: the repair path was not exercised", name);
     out_free(ref, 1);
     free(ref), free(out);
-    remove_yaml(dir, path);
+    wf_test_remove_yaml(dir, path);
 }
 
 static void test_noisy_ring_with_controllers(void) { split_equals_one(ring_yaml, "graded ring, controllers", 0); }
@@ -282,7 +266,7 @@ static void test_overlaps_repaired(void) { split_equals_one(overlap_yaml, "overl
 static void test_stop_on_one_rank(void)
 {
     char dir[] = "/tmp/wf_part_XXXXXX", path[64];
-    if (!write_yaml(ring_yaml, dir, path, sizeof path)) return;
+    if (!wf_test_write_yaml(ring_yaml, dir, path, sizeof path)) return;
     Out *out = calloc(MAX_RANKS, sizeof *out);
     run_split(path, NULL, 0, 3, 1, 2, 9, out);
     for (int r = 0; r < 3; r++)
@@ -292,7 +276,7 @@ static void test_stop_on_one_rank(void)
     printf("  a stop raised by rank 2 at its 9th exchange: every rank stopped after %ld steps\n", out[0].steps);
     out_free(out, 3);
     free(out);
-    remove_yaml(dir, path);
+    wf_test_remove_yaml(dir, path);
 }
 
 int main(void)

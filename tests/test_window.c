@@ -118,22 +118,6 @@ static void compare(const Out *o, const Out *ref, const char *what)
           "%s: the checkpoint state (accumulators, modes, controller memory, safety counts) differs", what);
 }
 
-static const char *write_yaml(const char *text, char *dir, char *path, size_t size)
-{
-    if (!mkdtemp(dir)) return NULL;
-    snprintf(path, size, "%s/s.yaml", dir);
-    FILE *f = fopen(path, "w");
-    fputs(text, f);
-    fclose(f);
-    return path;
-}
-
-static void remove_yaml(const char *dir, const char *path)
-{
-    unlink(path);
-    rmdir(dir);
-}
-
 typedef struct Variant {
     const char *set[4];
     size_t n_set;
@@ -147,7 +131,7 @@ static double compare_variants(const char *text, const Variant *vs, size_t nv, c
                                size_t n_extra, long *windows, long *redone)
 {
     char dir[] = "/tmp/wf_test_window.XXXXXX", path[128];
-    if (!write_yaml(text, dir, path, sizeof path)) return -1;
+    if (!wf_test_write_yaml(text, dir, path, sizeof path)) return -1;
     const char *set[8] = {"time.block_steps=1"};
     for (size_t j = 0; j < n_extra; j++) set[1 + j] = extra[j];
     Out ref, o;
@@ -170,7 +154,7 @@ static double compare_variants(const char *text, const Variant *vs, size_t nv, c
     }
     double overlaps = ref.n_rows ? ref.rows[ref.n_rows - 1].v[WF_TS_OVERLAPS] : -1;
     out_free(&ref);
-    remove_yaml(dir, path);
+    wf_test_remove_yaml(dir, path);
     return overlaps;
 }
 

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "wavefuel/engine.h"
 #include "wavefuel/vehicle.h"
@@ -74,6 +75,26 @@ static void wf_test_setup_(void)
     } while (0)
 
 #define TEST_EXIT() return wf_test_fail_total_ ? 1 : 0
+
+/* A scenario text in a new temporary directory: dir is a mkdtemp template ("/tmp/x_XXXXXX", filled in), path
+ * receives dir/s.yaml (size bytes). Returns path, or NULL when the directory cannot be made. wf_test_remove_yaml
+ * removes both. */
+static inline const char *wf_test_write_yaml(const char *text, char *dir, char *path, size_t size)
+{
+    if (!mkdtemp(dir)) return NULL;
+    snprintf(path, size, "%s/s.yaml", dir);
+    FILE *f = fopen(path, "w");
+    if (!f) return NULL;
+    fputs(text, f);
+    fclose(f);
+    return path;
+}
+
+static inline void wf_test_remove_yaml(const char *dir, const char *path)
+{
+    unlink(path);
+    rmdir(dir);
+}
 
 /* The run's complete state, what a checkpoint saves (wf_sim_state), concatenated into a new buffer (the caller frees
  * it; NULL when out of memory), its size in *size. */

@@ -19,12 +19,12 @@ import sys
 import tempfile
 import time
 
-import h5py
-import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 SCENARIO = os.path.join(ROOT, "bench", "corridor_vs_ring", "corridor.yaml")
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from h5same import compare  # noqa: E402 (the one comparison of two results)
 CASES = [("1 thread", 1, 1024), ("2 threads, always", 2, 0), ("2 threads, governor", 2, 1024)]
 
 
@@ -35,20 +35,6 @@ def one_run(binary, args, threads, check, out):
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True)
     return time.perf_counter() - t0
-
-
-def datasets(path):
-    """Every dataset outside /meta as bytes (text as its values)."""
-    out = {}
-
-    def keep(name, obj):
-        if isinstance(obj, h5py.Dataset) and not name.startswith("meta/"):
-            a = np.asarray(obj[()])
-            out[name] = repr(a.tolist()) if a.dtype.kind == "O" else a.tobytes()
-    with h5py.File(path, "r") as f:
-        f.visititems(keep)
-    return out
-
 
 
 def start_load(seconds):
@@ -76,10 +62,11 @@ def main():
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         quiet = measure(args.bin, args, tmp, "quiet")
-        ref = datasets(os.path.join(tmp, "quiet_1_1024.h5"))
+        ref = os.path.join(tmp, "quiet_1_1024.h5")
         for _, threads, check in CASES[1:]:
-            if datasets(os.path.join(tmp, "quiet_%d_%d.h5" % (threads, check))) != ref:
-                sys.exit("run.py: results differ between thread settings")
+            _, bad = compare(ref, os.path.join(tmp, "quiet_%d_%d.h5" % (threads, check)))
+            if bad:
+                sys.exit("run.py: results differ between thread settings: " + ", ".join(bad[:5]))
         load = start_load(args.load_timeout)
         try:
             loaded = measure(args.bin, args, tmp, "load")

@@ -28,7 +28,6 @@ import glob
 import hashlib
 import json
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -36,11 +35,14 @@ import tempfile
 import time
 
 import h5py
-import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+from machine import machine  # noqa: E402 (what a benchmark ran on)
 SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
+sys.path.insert(0, os.path.join(ROOT, "tests"))
+from h5same import compare  # noqa: E402 (the one comparison of two results)
 SPACING_M = 25.0  # road per vehicle, as in ring.yaml
 DT_S = 0.1
 MPI_ENV = dict(OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
@@ -106,39 +108,6 @@ def run_one(kind, ranks, n, steps, threads, bins, tmp, keep=None):
     return res
 
 
-def compare(a_path, b_path):
-    """Every dataset and attribute outside /meta, and /meta/steps_done and /meta/completed, byte for byte.
-    Returns (number of datasets compared, names that differ)."""
-    def raw(x):
-        if isinstance(x, bytes):
-            return x
-        x = np.asarray(x)
-        if x.dtype.kind == "O":
-            return b"\0".join(v if isinstance(v, bytes) else str(v).encode() for v in x.ravel())
-        return x.tobytes()
-
-    with h5py.File(a_path) as a, h5py.File(b_path) as b:
-        def objects(f):
-            out = []
-            f.visititems(lambda n, o: out.append(n) if not n.startswith("meta") else None)
-            return out
-        na, nb = objects(a), objects(b)
-        bad = sorted(set(na) ^ set(nb))
-        count = 0
-        for n in sorted(set(na) & set(nb)):
-            x, y = a[n], b[n]
-            if sorted(x.attrs) != sorted(y.attrs) or any(raw(x.attrs[k]) != raw(y.attrs[k]) for k in x.attrs):
-                bad.append(n + " (attributes)")
-            if isinstance(x, h5py.Dataset):
-                count += 1
-                if x.dtype != y.dtype or x.shape != y.shape or raw(x[()]) != raw(y[()]):
-                    bad.append(n)
-        for n in ("meta/steps_done", "meta/completed"):
-            if raw(a[n][()]) != raw(b[n][()]):
-                bad.append(n)
-    return count, bad
-
-
 def fmt_n(n):
     """2500000 -> 2.5e6, 1250000 -> 1.25e6."""
     m, e = f"{n:.2e}".split("e")
@@ -188,17 +157,6 @@ def table(res):
     return "\n".join(out)
 
 
-def machine():
-    cpu = "unknown CPU"
-    with open("/proc/cpuinfo") as f:
-        for line in f:
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    mpi = subprocess.run(["mpirun", "--version"], capture_output=True, text=True).stdout.splitlines()
-    return dict(cpu=cpu, cores=os.cpu_count(), kernel=platform.release(), mpi=mpi[0] if mpi else "unknown MPI")
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default=os.path.join(ROOT, "bin", "wavefuel"))
@@ -217,7 +175,7 @@ def main():
         return 0
     os.environ.setdefault("WAVEFUEL_VEHICLES", os.path.join(ROOT, "vehicles"))  # the copies find no classes beside them
     per, ranks = int(args.per_rank), [int(r) for r in args.ranks.split(",")]
-    res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), machine=machine(),
+    res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), machine=machine("mpi", ["mpirun", "--version"], "unknown MPI"),
                scenario=os.path.relpath(SCENARIO, ROOT), per_rank=per, steps=args.steps, runs=[])
     print(f"# {res['date']}  {res['machine']['cpu']}, {res['machine']['cores']} cores "
           f"(R > {res['machine']['cores']}: oversubscribed, the ranks share the cores); load {os.getloadavg()[0]:.2f}",

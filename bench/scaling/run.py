@@ -28,7 +28,6 @@ import datetime
 import hashlib
 import json
 import os
-import platform
 import shutil
 import subprocess
 import sys
@@ -39,6 +38,8 @@ import h5py
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
+sys.path.insert(0, os.path.join(ROOT, "bench"))
+from machine import machine  # noqa: E402 (what a benchmark ran on)
 SCENARIO = os.path.join(HERE, "ring.yaml")
 SPACING_M = 25.0  # road per vehicle, as in ring.yaml
 DT_S = 0.1
@@ -316,17 +317,6 @@ def write_csv(res, path):
                        [f"{c['phases'].get(k, 0.0):.6g}" for k in names])
 
 
-def machine():
-    cpu = "unknown CPU"
-    with open("/proc/cpuinfo") as f:
-        for line in f:
-            if line.startswith("model name"):
-                cpu = line.split(":", 1)[1].strip()
-                break
-    cc = subprocess.run(["gcc", "--version"], capture_output=True, text=True).stdout.splitlines()
-    return dict(cpu=cpu, cores=os.cpu_count(), kernel=platform.release(), compiler=cc[0] if cc else "unknown")
-
-
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default=os.path.join(ROOT, "bin", "wavefuel"))
@@ -352,7 +342,7 @@ def main():
     with tempfile.TemporaryDirectory(prefix="wf_scaling_", dir=os.environ.get("TMPDIR", "/tmp")) as tmp:
         binary = os.path.join(tmp, "wavefuel")
         shutil.copy2(args.bin, binary)
-        res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), machine=machine(),
+        res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), machine=machine("compiler", ["gcc", "--version"], "unknown"),
                    binary_sha256=sha256(binary), repeats=args.repeats, repeats_large=args.repeats_large, scenario=os.path.relpath(SCENARIO, ROOT),
                    configs=[])
         print(f"# {res['date']}  {res['machine']['cpu']}, {res['machine']['cores']} cores; load {loadavg():.2f}",
