@@ -1,5 +1,5 @@
 /* The thread governor of corridors (src/core/governor.h, time.thread_check_steps) fed with made-up step times: it
- * starts on all threads, probes one thread soon (after 2 every/16 steps) and then every `every` steps for every/16
+ * starts on all threads, probes one thread soon (after 8 steps) and then every `every` steps for every/16
  * steps, switches when the probe did 5 % more work per second, backs off (doubling the interval, up to 64 times) while
  * probes lose, cuts short a probe whose steps took twice as long as the chosen count's, and never probes with one
  * thread or every = 0. tests/test_engine_paths.c checks that switching threads every step keeps the bits. */

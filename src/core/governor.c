@@ -1,7 +1,7 @@
 /* The threads of a run's steps, chosen by timing them (governor.h). */
 #include "core/governor.h"
 
-enum { WF_GOV_PROBE_PART = 16, WF_GOV_BACKOFF_MAX = 64 };
+enum { WF_GOV_PROBE_PART = 16, WF_GOV_BACKOFF_MAX = 64, WF_GOV_FIRST = 8 };
 
 static long probe_steps(const WfGovernor *g)
 {
@@ -12,7 +12,8 @@ static long probe_steps(const WfGovernor *g)
 void wf_governor_init(WfGovernor *g, int n_max, long every)
 {
     *g = (WfGovernor){.n_max = n_max, .now = n_max, .every = n_max > 1 ? every : 0, .interval = every};
-    g->left = 2 * probe_steps(g); /* the first probe soon: the machine may be busy from the start */
+    /* the first probe soon: on a busy machine a step on all threads can take a hundred times one thread's */
+    g->left = WF_GOV_FIRST < 2 * probe_steps(g) ? WF_GOV_FIRST : 2 * probe_steps(g);
 }
 
 int wf_governor_threads(const WfGovernor *g) { return g->now; }

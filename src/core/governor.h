@@ -3,9 +3,8 @@
  * whose cores other processes also use, a step that meets its threads at a barrier waits for whichever thread the
  * system has descheduled, and two threads can be several times slower than one.
  *
- * The run steps on its chosen count (at first all its threads); every `interval` steps (twice `probe` steps at the
- * start and after a switch, when the machine may just have become busy or the switch may have won by chance) it
- * times `probe` steps
+ * The run steps on its chosen count (at first all its threads); every `interval` steps (after 8 steps at the start,
+ * and twice `probe` steps after a switch, when the switch may have won by chance) it times `probe` steps
  * (interval / 16, at least one) on the other count (one thread, or all of them) and switches when the probe did at
  * least 5 % more vehicle-steps per second of wall time. A probe that loses doubles the interval (up to 64 times
  * `every`), so a steady machine pays for few probes; a switch sets it back to `every`. A probe is cut short as
