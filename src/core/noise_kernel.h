@@ -16,13 +16,16 @@ static void NK_NAME(size_t pairs, const double *restrict u1, const double *restr
         memcpy(&b, u2 + p, sizeof b);
         NK_VEC r = NK_SQRT(NK_MUL(minus_two, NK_LOG(a)));
         NK_SC sc = NK_SINCOSPI(NK_MUL(two, b)); /* .x = sin, .y = cos */
-        double s[NK_LANES], c[NK_LANES], rr[NK_LANES];
-        memcpy(s, &sc.x, sizeof s);
-        memcpy(c, &sc.y, sizeof c);
-        memcpy(rr, &r, sizeof rr);
+        /* The products as vectors, then interleaved lane by lane: copying sc's halves to arrays first made GCC
+         * reload them with loads wider than its stores, which the CPU cannot forward (a third of this kernel's
+         * time on one Zen 5 core). */
+        NK_VEC zc = NK_MUL(r, sc.y), zs = NK_MUL(r, sc.x);
+        double c[NK_LANES], s[NK_LANES];
+        memcpy(c, &zc, sizeof c);
+        memcpy(s, &zs, sizeof s);
         for (size_t l = 0; l < NK_LANES; l++) {
-            z[2 * (p + l)] = rr[l] * c[l];
-            z[2 * (p + l) + 1] = rr[l] * s[l];
+            z[2 * (p + l)] = c[l];
+            z[2 * (p + l) + 1] = s[l];
         }
     }
 }

@@ -2,7 +2,7 @@
  * Physics-Like Models"): fuel rate f(v, a, theta) in g/s, polynomial with a fuel cut, a lower bound and an
  * idle rule, plus the feasible-acceleration bound a_max(v, theta). Evaluation order and arithmetic follow
  * the authors' release; powers are written as products and this file is built with -ffp-contract=off.
- * The kernel evaluates two or four points per step with GNU C vector types; results are those of the scalar
+ * The kernel evaluates two, four or eight points per step with GNU C vector types; results are those of the scalar
  * formula. */
 #include <math.h>
 #include <stddef.h>
@@ -114,9 +114,10 @@ double wf_circles_a_max(const WfCirclesParams *p, double v, double theta)
     return min1(p->b1, p->b2 / vs - p->b3 * v * v) - min1(p->b4, p->b5 + p->b6 * v) * theta;
 }
 
-/* The array kernel in two widths from one source (circles_kernel.h): 2 lanes (SSE2, every x86-64; NEON or
- * scalar code elsewhere) and, on x86-64, 4 lanes compiled for AVX2 and chosen at run time when the CPU has it.
- * Both give the scalar formula's bits (tests/test_energy.c checks each width against circles_eval1). */
+/* The array kernel in three widths from one source (circles_kernel.h): 2 lanes (SSE2, every x86-64; NEON or
+ * scalar code elsewhere) and, on x86-64, 4 lanes compiled for AVX2 and 8 for x86-64-v4 (AVX-512), chosen at run
+ * time by the library's SIMD level. All give the scalar formula's bits (tests/test_energy.c checks the level's
+ * width against circles_eval1; tests/t_simd.sh runs it again at each narrower level). */
 #define WF_LANES  2
 #define WF_KERNEL circles_kernel2
 #include "models/energy/circles_kernel.h"
@@ -124,11 +125,19 @@ double wf_circles_a_max(const WfCirclesParams *p, double v, double theta)
 #undef WF_KERNEL
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
-#define WF_HAVE_AVX2_KERNEL 1
+#define WF_HAVE_WIDE_KERNELS 1
 #pragma GCC push_options
 #pragma GCC target("avx2")
 #define WF_LANES  4
 #define WF_KERNEL circles_kernel4
+#include "models/energy/circles_kernel.h"
+#undef WF_LANES
+#undef WF_KERNEL
+#pragma GCC pop_options
+#pragma GCC push_options
+#pragma GCC target("arch=x86-64-v4")
+#define WF_LANES  8
+#define WF_KERNEL circles_kernel8
 #include "models/energy/circles_kernel.h"
 #undef WF_LANES
 #undef WF_KERNEL
@@ -139,14 +148,16 @@ typedef void CirclesKernel(const WfCirclesParams *restrict p, size_t n, const do
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag);
 
-/* The widest kernel of the library's SIMD level (core/simd.h: 2 lanes when WAVEFUEL_SIMD=2; tests compare the
- * two). */
+/* The widest kernel of the library's SIMD level (core/simd.h: at most 2 or 4 lanes when WAVEFUEL_SIMD=2 or 4;
+ * tests compare them). */
 static void circles_kernel(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag)
 {
-#ifdef WF_HAVE_AVX2_KERNEL
-    CirclesKernel *k = wf_simd_level() >= WF_SIMD_AVX2 ? circles_kernel4 : circles_kernel2;
+#ifdef WF_HAVE_WIDE_KERNELS
+    WfSimdLevel level = wf_simd_level();
+    CirclesKernel *k = level >= WF_SIMD_AVX512 ? circles_kernel8 : level >= WF_SIMD_AVX2 ? circles_kernel4
+                                                                                          : circles_kernel2;
 #else
     CirclesKernel *k = circles_kernel2;
 #endif

@@ -1,5 +1,6 @@
 /* The CIRCLES array kernel, written once for any SIMD width: src/models/energy/circles.c includes this file once per
- * width with WF_LANES (2 or 4) and WF_KERNEL (the function's name) defined, the 4-lane copy compiled for AVX2.
+ * width with WF_LANES (2, 4 or 8) and WF_KERNEL (the function's name) defined, the 4-lane copy compiled for AVX2
+ * and the 8-lane one for x86-64-v4.
  * GNU C vector types: lane-wise IEEE arithmetic, the same operations in the same order as the scalar formula
  * (circles_eval1), so every lane's result is bitwise the scalar result whatever the width (contraction into
  * FMA is off project-wide). GCC 12 does not vectorise the scalar loop at the project's -O2: the very-cheap cost
