@@ -596,6 +596,8 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
     int adv = (pass & WF_PASS_ADVANCE) != 0, count = (pass & WF_PASS_COUNT) && ln->safe, flags = 0;
     WfChunkOut *cf = ln->chunks;
     double *bx = ln->bound_x, *bv = ln->bound_v;
+    int after = adv && ln->after_wanted && ln->ops->after_step;
+    ln->after_done = 0;
     block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
     for (int t = 0; t < nth; t++) {
         cf[t].flags = 0;
@@ -609,7 +611,7 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
         return adv && !part ? flags | wf_lane_chunk_edge(ln, first, n, nb, nb) : adv ? flags : 0;
     }
     double xf = ln->x_m[lo_f], vf = ln->v_mps[lo_f];
-#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count)
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count, after)
     {
         /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
          * actually running. */
@@ -632,8 +634,16 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
 #pragma omp barrier
         if (adv && b1 > b0 && !(part && b1 == bb1)) fl |= wf_lane_chunk_edge(ln, first, n, b1, nb);
         cf[t].flags = fl;
+        if (after) {
+            /* every chunk's flags, then the boundary's work unless the step must be repaired first */
+#pragma omp barrier
+            int any = 0;
+            for (int u = 0; u < nt; u++) any |= cf[u].flags;
+            if (!any) ln->ops->after_step(ln->ctx, t, nt);
+        }
     }
     for (int t = 0; t < nth; t++) flags |= cf[t].flags;
+    ln->after_done = after && !flags;
     if (count) wf_lane_safety_add(ln, cf, nth);
     return adv ? flags : 0;
 }

@@ -75,6 +75,11 @@ typedef struct WfRoadOps {
     /* after a block advanced (x_old_m to x_m): the boundary's per-vehicle bookkeeping of the step, on the thread
      * that stepped the block while it is in cache; NULL: none */
     void (*moved)(const void *ctx, size_t lo, size_t m);
+    /* the boundary's work on the whole step's result, shared by the step's threads: called inside the step's
+     * parallel region by each of its nt threads (t in [0, nt)) once every vehicle has moved, when the lane asked
+     * for it (WfLane.after_wanted) and no chunk flagged an overlap or fault; NULL: none. Saves the boundary a
+     * parallel region of its own every step. */
+    void (*after_step)(const void *ctx, int t, int nt);
 } WfRoadOps;
 
 /* The step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with
@@ -113,6 +118,8 @@ typedef struct WfLane {
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
     WfChunkOut *chunks;             /* nthreads + 1 */
     int       safe;                 /* some driver group has a safety filter (set by wf_lane_safety_init) */
+    int       after_wanted;         /* set by the boundary: an advancing pass calls ops->after_step */
+    int       after_done;           /* set by the step: ops->after_step ran for this step */
     WfSafetyCount safety;           /* the counts of the counting passes so far */
 } WfLane;
 

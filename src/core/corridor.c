@@ -127,6 +127,8 @@ struct WfCorridor {
     size_t   q_cap;
     double   free_share[WF_MAX_CLASSES]; /* class shares among vehicles whose group fixes no class */
     int      has_vl;        /* a virtual leader (outflow leader or speed) */
+    long     meas_step;     /* the step being stepped, for measure_after_step */
+    int      meas_in_window;
     /* measurement */
     WfDetectors det;
     WfEdie   edie;
@@ -714,6 +716,8 @@ static int coop_possible(const WfCorridor *c)
     return ends && yields;
 }
 
+static void measure_after_step(const void *ctx, int t, int nt);
+
 static int lane_init(WfCorridor *c, WfError *err)
 {
     const WfScenario *sc = c->sc;
@@ -732,7 +736,7 @@ static int lane_init(WfCorridor *c, WfError *err)
     for (size_t l = 0; l < c->n_lanes; l++) c->has_cap |= isfinite(sc->lane_speed_limit_mps[l]);
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
-                         .moved = step_cells,
+                         .moved = step_cells, .after_step = measure_after_step,
                          .params_at = params_at};
     for (size_t l = 0; l < c->n_lanes; l++) {
         CorLane *cl = &c->ln[l];
@@ -1176,29 +1180,62 @@ static void measure_range(WfCorridor *c, const CorLane *ln, long step, int in_wi
     else measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 4);
 }
 
+/* The first Edie cell of thread t of nt (0 for t = 0, nx for t = nt): the cell of the vehicle with n t / nt of the
+ * lane's n vehicles behind it, so that the threads visit about as many vehicles each however they crowd along the
+ * road (a queue at the entrance holds most of them in a few kilometres). A running maximum over t' <= t keeps the
+ * cuts in order whatever the positions. */
+static size_t cell_cut(const WfCorridor *c, const CorLane *ln, size_t t, size_t nt)
+{
+    size_t n = ln->veh.n, nx = c->edie.nx, cut = 0;
+    if (t >= nt) return nx;
+    for (size_t u = 1; u <= t && n; u++) {
+        double x = ln->veh.x_m[wf_corridor_slot(&ln->veh, n - 1 - n * u / nt)] / c->edie.dx_m;
+        size_t i = x > 0.0 ? (x < (double)nx ? (size_t)x : nx) : 0;
+        cut = i > cut ? i : cut;
+    }
+    return cut;
+}
+
+/* Thread t of nt's share of the measurement of lane ln: its cells (cell_cut) and detectors. */
+static void measure_share(WfCorridor *c, const CorLane *ln, long step, int in_window, size_t t, size_t nt)
+{
+    size_t nd = c->det.n_det;
+    measure_range(c, ln, step, in_window, cell_cut(c, ln, t, nt), cell_cut(c, ln, t + 1, nt), nd * t / nt,
+                  nd * (t + 1) / nt);
+}
+
+/* WfRoadOps.after_step: the measurement inside the step's own parallel region, when the step needs no repair and
+ * nothing else happens between the step and the measurement (one lane, no virtual leader: step_once). */
+static void measure_after_step(const void *ctx, int t, int nt)
+{
+    const CorLane *ln = ctx;
+    measure_share(ln->c, ln, ln->c->meas_step, ln->c->meas_in_window, (size_t)t, (size_t)nt);
+}
+
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
  * add to one cell, so each cell's sum runs in road order whatever the thread count: on a large road each thread
  * owns a range of cells and of detectors and visits, in road order, the vehicles that can reach them
- * (measure_span). */
+ * (measure_span); the cells and detectors of each thread are the same bits wherever the cuts fall. A lane whose
+ * step already measured (measure_after_step) is skipped. */
 static void phase_measure(WfCorridor *c, long step, int in_window)
 {
-    size_t nx = c->edie.nx, nd = c->det.n_det;
     /* lane after lane: each cell's sums run lane by lane, each lane in road order */
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
+        if (ln->lane.after_done) continue;
         int nth = wf_lane_threads(ln->veh.n, wf_governor_threads(&c->gov));
         if (nth <= 1) {
-            measure_range(c, ln, step, in_window, 0, nx, 0, nd);
+            measure_share(c, ln, step, in_window, 0, 1);
             continue;
         }
-#pragma omp parallel num_threads(nth) default(none) shared(c, ln, step, in_window, nx, nd)
+#pragma omp parallel num_threads(nth) default(none) shared(c, ln, step, in_window)
         {
 #ifdef _OPENMP
             size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads();
 #else
             size_t t = 0, nt = 1;
 #endif
-            measure_range(c, ln, step, in_window, nx * t / nt, nx * (t + 1) / nt, nd * t / nt, nd * (t + 1) / nt);
+            measure_share(c, ln, step, in_window, t, nt);
         }
     }
 }
@@ -1510,6 +1547,9 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     for (size_t l = 0; l < nl; l++) front[l] = front_leader(c, l);
     int two_pass = records || traj || last;
     lane_exports(c, two_pass);
+    /* the measurement inside the lane's step when nothing comes between them (phase_measure) */
+    c->meas_step = step, c->meas_in_window = in_window;
+    for (size_t l = 0; l < nl; l++) c->ln[l].lane.after_wanted = nl == 1 && !c->has_vl;
     if (two_pass) {
         for (size_t l = 0; l < nl; l++) {
             CorLane *ln = &c->ln[l];
