@@ -588,6 +588,7 @@ void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
 int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1, const WfLead *front, long step,
                       int pass, int in_window, WfStatsBlock *rec)
 {
+    ln->after_done = 0;
     if (!n) return 0;
     size_t nb = wf_lane_blocks(first, n), lo_f;
     int part = bb0 > 0 || bb1 < nb;
@@ -597,7 +598,6 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
     WfChunkOut *cf = ln->chunks;
     double *bx = ln->bound_x, *bv = ln->bound_v;
     int after = adv && ln->after_wanted && ln->ops->after_step;
-    ln->after_done = 0;
     block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
     for (int t = 0; t < nth; t++) {
         cf[t].flags = 0;

@@ -747,6 +747,9 @@ static int lane_init(WfCorridor *c, WfError *err)
                        .grade_seg = cl->grade_seg, .mode = cl->mode, .x_old_m = cl->xold, .nthreads = c->nthreads,
                        .bound_x = c->bound_x, .bound_v = c->bound_v, .chunks = c->chunks,
                        .key0 = l << 40}; /* lane l's noise from blocks l 2^32: no two lanes share draws */
+        /* the measurement inside the lane's step when nothing comes between them: one lane, no virtual leader to
+         * advance and check first (step_once, phase_measure) */
+        ln->after_wanted = c->n_lanes == 1 && !c->has_vl;
         for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
         for (size_t g = 0; g < sc->n_groups; g++) {
             const WfDriverGroup *grp = &sc->groups[g];
@@ -1547,9 +1550,7 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     for (size_t l = 0; l < nl; l++) front[l] = front_leader(c, l);
     int two_pass = records || traj || last;
     lane_exports(c, two_pass);
-    /* the measurement inside the lane's step when nothing comes between them (phase_measure) */
-    c->meas_step = step, c->meas_in_window = in_window;
-    for (size_t l = 0; l < nl; l++) c->ln[l].lane.after_wanted = nl == 1 && !c->has_vl;
+    c->meas_step = step, c->meas_in_window = in_window; /* for measure_after_step */
     if (two_pass) {
         for (size_t l = 0; l < nl; l++) {
             CorLane *ln = &c->ln[l];
