@@ -580,6 +580,17 @@ void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
         }
 }
 
+/* The first vehicle of each of the nt chunks of blocks [bb0, bb1), at the step's start, into bound_x/bound_v. */
+static void chunk_firsts(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1, int nt)
+{
+    size_t span = bb1 - bb0;
+    for (int t = 0; t < nt; t++) {
+        size_t b0 = bb0 + span * (size_t)t / (size_t)nt, b1 = bb0 + span * (size_t)(t + 1) / (size_t)nt, lo = 0;
+        if (b1 > b0) block_at(ln, first, n, b0, &lo);
+        ln->bound_x[t] = ln->x_m[lo], ln->bound_v[t] = ln->v_mps[lo];
+    }
+}
+
 /* Positions and speeds are updated in place. Race-free and order-free because every vehicle reads only its
  * leader's values from the step's start: within a chunk, vehicle i's leader i + 1 is updated after i; the leader
  * of a chunk's last vehicle is the next chunk's first (or the periodic back vehicle), saved before any update. A
@@ -600,7 +611,7 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
     int after = adv && ln->after_wanted && ln->ops->after_step;
     block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
     for (int t = 0; t < nth; t++) {
-        cf[t].flags = 0;
+        cf[t].flags = 0, cf[t].edge = 0;
         if (count) memset(cf[t].safety_steps, 0, sizeof cf[t].safety_steps), memset(cf[t].safety_hits, 0, sizeof cf[t].safety_hits);
     }
     if (nth <= 1) {
@@ -611,7 +622,10 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
         return adv && !part ? flags | wf_lane_chunk_edge(ln, first, n, nb, nb) : adv ? flags : 0;
     }
     double xf = ln->x_m[lo_f], vf = ln->v_mps[lo_f];
-#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count, after)
+    /* Each chunk's first vehicle at the step's start, read before the team starts, so that the team needs no barrier
+     * for it (a smaller team than asked, nested or limited, reads its own after one). */
+    chunk_firsts(ln, first, n, bb0, bb1, nth);
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count, after, nth)
     {
         /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
          * actually running. */
@@ -621,28 +635,33 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
         int t = 0, nt = 1;
 #endif
         size_t span = bb1 - bb0, b0 = bb0 + span * (size_t)t / (size_t)nt, b1 = bb0 + span * (size_t)(t + 1) / (size_t)nt;
-        size_t lo_t = 0;
-        if (b1 > b0) block_at(ln, first, n, b0, &lo_t);
-        bx[t] = ln->x_m[lo_t];
-        bv[t] = ln->v_mps[lo_t];
-#pragma omp barrier
+        if (nt != nth) {
+#pragma omp single
+            chunk_firsts(ln, first, n, bb0, bb1, nt);
+        }
         /* Leader of this chunk's last vehicle: the next chunk's first, saved (the front chunk's: the part's leader,
          * saved before the team started). */
         double xs = t + 1 < nt ? bx[t + 1] : xf, vs = t + 1 < nt ? bv[t + 1] : vf;
         int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, xs, vs, front, step, pass, in_window, rec,
                                      count ? &cf[t] : NULL) : 0;
+        cf[t].flags = fl, cf[t].edge = 0;
 #pragma omp barrier
-        if (adv && b1 > b0 && !(part && b1 == bb1)) fl |= wf_lane_chunk_edge(ln, first, n, b1, nb);
-        cf[t].flags = fl;
+        if (adv && b1 > b0 && !(part && b1 == bb1)) cf[t].edge = wf_lane_chunk_edge(ln, first, n, b1, nb);
         if (after) {
-            /* every chunk's flags, then the boundary's work unless the step must be repaired first */
-#pragma omp barrier
+            /* The boundary's work unless the step must be repaired first: every thread finds the same answer from
+             * every chunk's flags and front edge, so no second barrier is needed (edges are checked here again,
+             * reading positions nobody writes any more). */
             int any = 0;
-            for (int u = 0; u < nt; u++) any |= cf[u].flags;
+            for (int u = 0; u < nt; u++) {
+                size_t e = bb0 + span * (size_t)(u + 1) / (size_t)nt;
+                any |= cf[u].flags;
+                if (e > bb0 + span * (size_t)u / (size_t)nt && !(part && e == bb1))
+                    any |= wf_lane_chunk_edge(ln, first, n, e, nb);
+            }
             if (!any) ln->ops->after_step(ln->ctx, t, nt);
         }
     }
-    for (int t = 0; t < nth; t++) flags |= cf[t].flags;
+    for (int t = 0; t < nth; t++) flags |= cf[t].flags | cf[t].edge;
     ln->after_done = after && !flags;
     if (count) wf_lane_safety_add(ln, cf, nth);
     return adv ? flags : 0;

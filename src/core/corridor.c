@@ -1101,13 +1101,19 @@ static inline void lanes_store(const V4 *x, double *base, size_t nx, size_t i, s
     if (k + 3 < nc) base[(k + 3) * nx + i] = (*x)[3];
 }
 
-/* A vehicle's distance and fuel into its class's lane of vector v (key: the class, or -1 outside the window). Vectors
- * go by pointer: passing one by value would depend on the target's vector ABI. */
-static inline void lanes_add(V4 *cd, V4 *cf, int64_t key, size_t v, double d, double fuel)
+/* x into the lane of class key of vector v (key -1: into none); the other lanes get +0. Vectors go by pointer:
+ * passing one by value would depend on the target's vector ABI. */
+static inline void lane_add(V4 *acc, int64_t key, size_t v, double x)
 {
     M4 hit = ((M4){0, 1, 2, 3} + (int64_t)(4 * v)) == (M4){key, key, key, key};
-    *cd += (V4)((M4)(V4){d, d, d, d} & hit);
-    *cf += (V4)((M4)(V4){fuel, fuel, fuel, fuel} & hit);
+    *acc += (V4)((M4)(V4){x, x, x, x} & hit);
+}
+
+/* A vehicle's distance and fuel into its class's lane of vector v (key: the class, or -1 outside the window). */
+static inline void lanes_add(V4 *cd, V4 *cf, int64_t key, size_t v, double d, double fuel)
+{
+    lane_add(cd, key, v, d);
+    lane_add(cf, key, v, fuel);
 }
 
 /* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, with nv class vectors
@@ -1406,31 +1412,69 @@ static int corridor_lanes(const void *eng, WfLaneObs *out)
     return 1;
 }
 
+/* The running sums of a record's first pass, lane after lane. */
+typedef struct RecordSums {
+    double sv, sg, vmin, vmax, gmin;
+    size_t n, ngap, stopped, waves; /* counts: the same values as the sums of 1.0 they replace */
+    V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_add) */
+} RecordSums;
+
+/* One lane into the record's sums, front first, with nv class vectors (a constant at each call). Every sum is a
+ * register, so the pass runs at the speed of its longest chain of additions instead of a class sum's store and
+ * reload per vehicle; the minimum and maximum are fmin(m, x) and fmax(m, x) as glibc gives them (m when equal or
+ * when x is NaN), written as comparisons because each call of fmin cost more than the rest of the vehicle. */
+static inline __attribute__((always_inline)) void record_lane(const WfScenario *sc, const WfCorridorVehicles *vh,
+                                                              RecordSums *r, const int nv)
+{
+    double sv = r->sv, sg = r->sg, vmin = r->vmin, vmax = r->vmax, gmin = r->gmin;
+    double v_stop = sc->v_stop_mps, v_wave = sc->wave_speed_mps;
+    size_t stopped = r->stopped, waves = r->waves, n = vh->n;
+    V4 cf0 = r->cf[0], cf1 = r->cf[1], cf2 = r->cf[2], cf3 = r->cf[3];
+    int prev_slow = 0;
+    for (size_t k = 0, s = n ? wf_corridor_slot(vh, 0) : 0; k < n; k++, s = s ? s - 1 : vh->cap - 1) {
+        double v = vh->v_mps[s], rate = vh->fuel_rate_gps[s];
+        int64_t key = vh->class_id[s];
+        sv += v;
+        stopped += v < v_stop;
+        int slow = v < v_wave;
+        waves += slow && !prev_slow;
+        prev_slow = slow;
+        vmin = v < vmin ? v : vmin, vmax = v > vmax ? v : vmax;
+        lane_add(&cf0, key, 0, rate);
+        if (nv > 1) lane_add(&cf1, key, 1, rate);
+        if (nv > 2) lane_add(&cf2, key, 2, rate), lane_add(&cf3, key, 3, rate);
+        if (k > 0) {
+            double g = vh->gap_m[s];
+            sg += g, gmin = g < gmin ? g : gmin;
+        }
+    }
+    r->sv = sv, r->sg = sg, r->vmin = vmin, r->vmax = vmax, r->gmin = gmin, r->stopped = stopped, r->waves = waves;
+    r->cf[0] = cf0, r->cf[1] = cf1, r->cf[2] = cf2, r->cf[3] = cf3;
+    r->n += n, r->ngap += n ? n - 1 : 0;
+}
+
+WF_SIMD_CLONES
+static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, RecordSums *r)
+{
+    size_t nc = c->sc->n_classes;
+    for (size_t l = l0; l < l1; l++) {
+        if (nc <= 4) record_lane(c->sc, &c->ln[l].veh, r, 1);
+        else if (nc <= 8) record_lane(c->sc, &c->ln[l].veh, r, 2);
+        else record_lane(c->sc, &c->ln[l].veh, r, 4);
+    }
+}
+
 /* The record of lanes [l0, l1) (the road's: all of them): sums lane after lane, each lane front first; waves and gaps
  * within each lane. */
 static void record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row)
 {
     const WfScenario *sc = c->sc;
-    size_t n = 0, ngap = 0;
     memset(row, 0, sizeof *row);
-    double sv = 0, sg = 0, stopped = 0, waves = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY, fuel = 0;
-    for (size_t l = l0; l < l1; l++) {
-        const WfCorridorVehicles *vh = &c->ln[l].veh;
-        int prev_slow = 0;
-        for (size_t k = 0; k < vh->n; k++) {
-            size_t s = wf_corridor_slot(vh, k);
-            double v = vh->v_mps[s];
-            sv += v;
-            stopped += v < sc->v_stop_mps;
-            int slow = v < sc->wave_speed_mps;
-            waves += slow && !prev_slow;
-            prev_slow = slow;
-            vmin = fmin(vmin, v), vmax = fmax(vmax, v);
-            row->class_fuel_rate_gps[vh->class_id[s]] += vh->fuel_rate_gps[s];
-            if (k > 0) sg += vh->gap_m[s], gmin = fmin(gmin, vh->gap_m[s]);
-        }
-        n += vh->n, ngap += vh->n ? vh->n - 1 : 0;
-    }
+    RecordSums r = {.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY};
+    record_lanes(c, l0, l1, &r);
+    for (size_t cl = 0; cl < sc->n_classes; cl++) row->class_fuel_rate_gps[cl] = r.cf[cl / 4][cl % 4];
+    size_t n = r.n, ngap = r.ngap;
+    double sv = r.sv, sg = r.sg, fuel = 0.0;
     double mean = n ? sv / (double)n : NAN, m2 = 0.0;
     for (size_t l = l0; l < l1; l++) {
         const WfCorridorVehicles *vh = &c->ln[l].veh;
@@ -1444,13 +1488,13 @@ static void record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorrid
     row->v[WF_CTS_VEHICLES] = (double)n;
     row->v[WF_CTS_MEAN_V] = mean;
     row->v[WF_CTS_SD_V] = n ? sqrt(m2 / (double)n) : NAN;
-    row->v[WF_CTS_MIN_V] = n ? vmin : NAN;
-    row->v[WF_CTS_MAX_V] = n ? vmax : NAN;
-    row->v[WF_CTS_FRAC_STOPPED] = n ? stopped / (double)n : 0.0;
-    row->v[WF_CTS_WAVES] = waves;
+    row->v[WF_CTS_MIN_V] = n ? r.vmin : NAN;
+    row->v[WF_CTS_MAX_V] = n ? r.vmax : NAN;
+    row->v[WF_CTS_FRAC_STOPPED] = n ? (double)r.stopped / (double)n : 0.0;
+    row->v[WF_CTS_WAVES] = (double)r.waves;
     row->v[WF_CTS_FUEL_RATE] = fuel;
     row->v[WF_CTS_MEAN_GAP] = ngap ? sg / (double)ngap : NAN;
-    row->v[WF_CTS_MIN_GAP] = ngap ? gmin : NAN;
+    row->v[WF_CTS_MIN_GAP] = ngap ? r.gmin : NAN;
     row->v[WF_CTS_OVERLAPS] = (double)c->st.counts.overlaps;
     row->v[WF_CTS_ARRIVED] = (double)c->st.counts.arrived;
     row->v[WF_CTS_ENTERED] = (double)c->st.counts.entered;
