@@ -7,7 +7,8 @@ fill_s and fill_s + window_s (identical up to fill_s: runs are deterministic); i
 vehicle-steps (from the `vehicles` record every second) over the difference of their times. The ring (N = the
 corridor's mean count in the window) runs window_s and 2 window_s. Times are the step loop's wall time
 (/meta/wall_time_s) or, with --cpu, the process's CPU time (user + system: steadier on a shared machine, meaningful
-for one thread only); each is the least of --repeats runs (the least disturbed).
+for one thread only); each is the least of --repeats runs (the least disturbed). Each repeat runs every binary and
+thread count in turn, so that all meet the machine's load alike.
 
 usage: run.py [--bin NAME=PATH]... [--threads 1,2] [--length-m 150000] [--fill-s 5000] [--window-s 1000]
               [--repeats 3] [--cpu]"""
@@ -15,7 +16,6 @@ import argparse
 import os
 import resource
 import subprocess
-import sys
 import tempfile
 
 import h5py
@@ -25,45 +25,57 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 
 def run(binary, scenario, sets, args, threads, out):
-    """(record times, vehicles per record, dt, least time of the repeats)."""
+    """(record times, vehicles per record, dt, time) of one run."""
     cmd = [binary, "run", os.path.join(HERE, scenario), "-o", out, "--force", "-q", "--threads", str(threads)]
     for s in sets:
         cmd += ["--set", s]
-    best = float("inf")
-    for _ in range(args.repeats):
-        r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        subprocess.run(cmd, check=True)
-        r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-        with h5py.File(out, "r") as f:
-            t = f["timeseries/t"][()]
-            n = f["timeseries/vehicles"][()] if "vehicles" in f["timeseries"] else None
-            dt = float(f["meta/dt"][()])
-            wall = float(f["meta/wall_time_s"][()])
-        cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
-        best = min(best, cpu if args.cpu else wall)
-    return t, n, dt, best
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    subprocess.run(cmd, check=True)
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    with h5py.File(out, "r") as f:
+        t = f["timeseries/t"][()]
+        n = f["timeseries/vehicles"][()] if "vehicles" in f["timeseries"] else None
+        dt = float(f["meta/dt"][()])
+        wall = float(f["meta/wall_time_s"][()])
+    cpu = (r1.ru_utime - r0.ru_utime) + (r1.ru_stime - r0.ru_stime)
+    return t, n, dt, cpu if args.cpu else wall
 
 
-def corridor_rate(binary, threads, args, tmp):
-    """(vehicle-steps per second, mean vehicles) over the window after the fill."""
-    common = ["road.length_m=%g" % args.length_m]
-    _, _, dt, w1 = run(binary, "corridor.yaml", common + ["time.duration_s=%g" % args.fill_s], args, threads,
-                       os.path.join(tmp, "c1.h5"))
-    t2, n2, _, w2 = run(binary, "corridor.yaml", common + ["time.duration_s=%g" % (args.fill_s + args.window_s)],
-                        args, threads, os.path.join(tmp, "c2.h5"))
-    # Steps [fill, fill + window): the record at t counts the vehicles stepped over the next second.
-    win = (t2 >= args.fill_s - 1e-9) & (t2 < args.fill_s + args.window_s - 1e-9)
-    veh_steps = float(np.sum(n2[win])) * round((t2[1] - t2[0]) / dt)
-    return veh_steps / (w2 - w1), float(np.mean(n2[win]))
+class Case:
+    """One binary on one thread count: the least time of each of its four runs over the repeats."""
 
+    def __init__(self, name, path, threads):
+        self.name, self.path, self.threads = name, path, threads
+        self.best = {}
+        self.n = None  # the corridor's mean vehicles in the window, and the ring's size
+        self.veh_steps = None
 
-def ring_rate(binary, threads, n, args, tmp):
-    sets = ["fleet.vehicles=%d" % n, "road.length_m=%g" % (25.0 * n)]
-    _, _, dt, w1 = run(binary, "ring.yaml", sets + ["time.duration_s=%g" % args.window_s], args, threads,
-                       os.path.join(tmp, "r1.h5"))
-    _, _, _, w2 = run(binary, "ring.yaml", sets + ["time.duration_s=%g" % (2 * args.window_s)], args, threads,
-                      os.path.join(tmp, "r2.h5"))
-    return n * round(args.window_s / dt) / (w2 - w1)
+    def once(self, args, tmp):
+        def keep(key, w):
+            self.best[key] = min(self.best.get(key, w), w)
+        road = ["road.length_m=%g" % args.length_m]
+        _, _, dt, w = run(self.path, "corridor.yaml", road + ["time.duration_s=%g" % args.fill_s], args,
+                          self.threads, os.path.join(tmp, "c1.h5"))
+        keep("c1", w)
+        t2, n2, _, w = run(self.path, "corridor.yaml", road + ["time.duration_s=%g" % (args.fill_s + args.window_s)],
+                           args, self.threads, os.path.join(tmp, "c2.h5"))
+        keep("c2", w)
+        if self.n is None:
+            # Steps [fill, fill + window): the record at t counts the vehicles stepped over the next second.
+            win = (t2 >= args.fill_s - 1e-9) & (t2 < args.fill_s + args.window_s - 1e-9)
+            self.veh_steps = float(np.sum(n2[win])) * round((t2[1] - t2[0]) / dt)
+            self.n, self.dt = float(np.mean(n2[win])), dt
+        n = int(round(self.n))
+        ring = ["fleet.vehicles=%d" % n, "road.length_m=%g" % (25.0 * n)]
+        for key, dur in (("r1", args.window_s), ("r2", 2 * args.window_s)):
+            keep(key, run(self.path, "ring.yaml", ring + ["time.duration_s=%g" % dur], args, self.threads,
+                          os.path.join(tmp, key + ".h5"))[3])
+
+    def rates(self, args):
+        """(corridor, ring) vehicle-steps per second."""
+        ring_steps = int(round(self.n)) * round(args.window_s / self.dt)
+        return (self.veh_steps / (self.best["c2"] - self.best["c1"]),
+                ring_steps / (self.best["r2"] - self.best["r1"]))
 
 
 def main():
@@ -79,15 +91,16 @@ def main():
     bins = [b.split("=", 1) for b in args.bin] or [["this", os.path.join(HERE, "../../bin/wavefuel")]]
     print("| binary | threads | time | corridor vehicles | corridor M veh-steps/s | ring M veh-steps/s | corridor / ring |")
     print("|---|---|---|---|---|---|---|")
+    cases = [Case(name, path, int(th)) for name, path in bins for th in args.threads.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
-        for name, path in bins:
-            for th in [int(x) for x in args.threads.split(",")]:
-                rc, nc = corridor_rate(path, th, args, tmp)
-                rr = ring_rate(path, th, int(round(nc)), args, tmp)
-                print("| %s | %d | %s | %.0f | %.1f | %.1f | %.2f |" % (name, th, "cpu" if args.cpu else "wall", nc,
-                                                                     rc / 1e6, rr / 1e6, rc / rr))
-                sys.stdout.flush()
-
+        # Every case runs once per repeat, in turn, so that all of them meet the machine's load alike.
+        for _ in range(args.repeats):
+            for c in cases:
+                c.once(args, tmp)
+    for c in cases:
+        rc, rr = c.rates(args)
+        print("| %s | %d | %s | %.0f | %.1f | %.1f | %.2f |" % (c.name, c.threads, "cpu" if args.cpu else "wall", c.n,
+                                                             rc / 1e6, rr / 1e6, rc / rr))
 
 if __name__ == "__main__":
     main()

@@ -14,6 +14,7 @@
 #include "wavefuel/rng.h"
 #include "core/par.h"
 #include "core/simd.h"
+#include "util/clock.h"
 
 #define B WF_BLOCK
 #define AI static inline __attribute__((always_inline))
@@ -580,14 +581,44 @@ void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
         }
 }
 
+/* Where chunk t of nt of blocks [bb0, bb1) begins (t = nt: bb1). An even split, or the lane's balanced cuts when the
+ * team is the one they were made for. Any split gives the same bits: a vehicle's step does not depend on its chunk. */
+static size_t chunk_begin(const WfLane *ln, size_t bb0, size_t bb1, int t, int nt)
+{
+    size_t span = bb1 - bb0;
+    if (!ln->cut || nt != ln->nthreads || ln->cut[nt] != 1.0) return bb0 + span * (size_t)t / (size_t)nt;
+    size_t b = bb0 + (size_t)((double)span * ln->cut[t] + 0.5);
+    return b < bb1 ? b : bb1;
+}
+
 /* The first vehicle of each of the nt chunks of blocks [bb0, bb1), at the step's start, into bound_x/bound_v. */
 static void chunk_firsts(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1, int nt)
 {
-    size_t span = bb1 - bb0;
     for (int t = 0; t < nt; t++) {
-        size_t b0 = bb0 + span * (size_t)t / (size_t)nt, b1 = bb0 + span * (size_t)(t + 1) / (size_t)nt, lo = 0;
+        size_t b0 = chunk_begin(ln, bb0, bb1, t, nt), b1 = chunk_begin(ln, bb0, bb1, t + 1, nt), lo = 0;
         if (b1 > b0) block_at(ln, first, n, b0, &lo);
         ln->bound_x[t] = ln->x_m[lo], ln->bound_v[t] = ln->v_mps[lo];
+    }
+}
+
+/* After a fused step on the lane's nthreads: the cuts move a quarter of the way towards those that would have given
+ * every chunk the same wall time, at each chunk's measured blocks per second (a road's free-flowing front costs more
+ * per vehicle than its queued back). Each chunk keeps at least a quarter of an even share. */
+static void chunk_rebalance(WfLane *ln, const WfChunkOut *cf, int nt)
+{
+    double *cut = ln->cut, sum = 0.0;
+    if (cut[nt] != 1.0) /* first use, or made for another team */
+        for (int t = 0; t <= nt; t++) cut[t] = (double)t / nt;
+    for (int t = 0; t < nt; t++) {
+        if (!(cf[t].busy_s > 0.0)) return;
+        sum += (cut[t + 1] - cut[t]) / cf[t].busy_s;
+    }
+    double at = 0.0, floor = 0.25 / nt, room = 1.0 - floor * nt, lo = cut[0];
+    for (int t = 0; t + 1 < nt; t++) {
+        double hi = cut[t + 1];
+        at += floor + room * (hi - lo) / cf[t].busy_s / sum;
+        cut[t + 1] += 0.25 * (at - hi);
+        lo = hi;
     }
 }
 
@@ -609,6 +640,8 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
     WfChunkOut *cf = ln->chunks;
     double *bx = ln->bound_x, *bv = ln->bound_v;
     int after = adv && ln->after_wanted && ln->ops->after_step;
+    /* fused steps time their chunks for the cuts; other passes cost differently along the road and only use them */
+    int balance = ln->cut && (pass & WF_PASS_FUSED) == WF_PASS_FUSED;
     block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
     for (int t = 0; t < nth; t++) {
         cf[t].flags = 0, cf[t].edge = 0;
@@ -625,7 +658,7 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
     /* Each chunk's first vehicle at the step's start, read before the team starts, so that the team needs no barrier
      * for it (a smaller team than asked, nested or limited, reads its own after one). */
     chunk_firsts(ln, first, n, bb0, bb1, nth);
-#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count, after, nth)
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count, after, nth, balance)
     {
         /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
          * actually running. */
@@ -634,7 +667,7 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
 #else
         int t = 0, nt = 1;
 #endif
-        size_t span = bb1 - bb0, b0 = bb0 + span * (size_t)t / (size_t)nt, b1 = bb0 + span * (size_t)(t + 1) / (size_t)nt;
+        size_t b0 = chunk_begin(ln, bb0, bb1, t, nt), b1 = chunk_begin(ln, bb0, bb1, t + 1, nt);
         if (nt != nth) {
 #pragma omp single
             chunk_firsts(ln, first, n, bb0, bb1, nt);
@@ -642,9 +675,10 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
         /* Leader of this chunk's last vehicle: the next chunk's first, saved (the front chunk's: the part's leader,
          * saved before the team started). */
         double xs = t + 1 < nt ? bx[t + 1] : xf, vs = t + 1 < nt ? bv[t + 1] : vf;
+        double t0 = balance ? wf_wall_now() : 0.0;
         int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, xs, vs, front, step, pass, in_window, rec,
                                      count ? &cf[t] : NULL) : 0;
-        cf[t].flags = fl, cf[t].edge = 0;
+        cf[t].flags = fl, cf[t].edge = 0, cf[t].busy_s = balance ? wf_wall_now() - t0 : 0.0;
 #pragma omp barrier
         if (adv && b1 > b0 && !(part && b1 == bb1)) cf[t].edge = wf_lane_chunk_edge(ln, first, n, b1, nb);
         if (after) {
@@ -653,15 +687,16 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
              * reading positions nobody writes any more). */
             int any = 0;
             for (int u = 0; u < nt; u++) {
-                size_t e = bb0 + span * (size_t)(u + 1) / (size_t)nt;
+                size_t e = chunk_begin(ln, bb0, bb1, u + 1, nt);
                 any |= cf[u].flags;
-                if (e > bb0 + span * (size_t)u / (size_t)nt && !(part && e == bb1))
+                if (e > chunk_begin(ln, bb0, bb1, u, nt) && !(part && e == bb1))
                     any |= wf_lane_chunk_edge(ln, first, n, e, nb);
             }
             if (!any) ln->ops->after_step(ln->ctx, t, nt);
         }
     }
     for (int t = 0; t < nth; t++) flags |= cf[t].flags | cf[t].edge;
+    if (balance && nth == ln->nthreads) chunk_rebalance(ln, cf, nth);
     ln->after_done = after && !flags;
     if (count) wf_lane_safety_add(ln, cf, nth);
     return adv ? flags : 0;

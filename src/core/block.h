@@ -48,6 +48,7 @@ typedef struct WfAccum {
 typedef struct WfChunkOut {
     int      flags;    /* of the chunk's steps (and its front edge, once the team has joined) */
     int      edge;     /* of its front edge, when checked after the others read `flags` (wf_lane_step_part) */
+    double   busy_s;   /* wall time of the chunk's blocks in the step (balancing: WfLane.cut) */
     uint64_t safety_steps[WF_MAX_GROUPS], safety_hits[WF_MAX_GROUPS];
 } WfChunkOut;
 
@@ -118,6 +119,9 @@ typedef struct WfLane {
     size_t    key0;                 /* slot i draws the noise of slot key0 + i (a halo's copy of other vehicles) */
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
     WfChunkOut *chunks;             /* nthreads + 1 */
+    double   *cut;                  /* nthreads + 1, or NULL: where the chunks of a step on all nthreads end, as
+                                     * fractions of the blocks (cut[0] = 0, cut[nthreads] = 1; all 0 at first: an
+                                     * even split), moved after each fused step towards equal wall times */
     int       safe;                 /* some driver group has a safety filter (set by wf_lane_safety_init) */
     int       after_wanted;         /* set by the boundary: an advancing pass calls ops->after_step */
     int       after_done;           /* set by the step: ops->after_step ran for this step */
