@@ -581,13 +581,13 @@ void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth)
         }
 }
 
-/* Where chunk t of nt of blocks [bb0, bb1) begins (t = nt: bb1). An even split, or the lane's balanced cuts when the
- * team is the one they were made for. Any split gives the same bits: a vehicle's step does not depend on its chunk. */
+/* Where chunk t of nt of blocks [bb0, bb1) begins (t = nt: bb1): an even split, or the lane's cuts when the team is
+ * the one they were made for. */
 static size_t chunk_begin(const WfLane *ln, size_t bb0, size_t bb1, int t, int nt)
 {
     size_t span = bb1 - bb0;
-    if (!ln->cut || nt != ln->nthreads || ln->cut[nt] != 1.0) return bb0 + span * (size_t)t / (size_t)nt;
-    size_t b = bb0 + (size_t)((double)span * ln->cut[t] + 0.5);
+    if (!ln->cuts || nt != ln->nthreads || ln->cuts->at[nt] != 1.0) return bb0 + span * (size_t)t / (size_t)nt;
+    size_t b = bb0 + (size_t)((double)span * ln->cuts->at[t] + 0.5);
     return b < bb1 ? b : bb1;
 }
 
@@ -601,25 +601,30 @@ static void chunk_firsts(WfLane *ln, size_t first, size_t n, size_t bb0, size_t 
     }
 }
 
-/* After a fused step on the lane's nthreads: the cuts move a quarter of the way towards those that would have given
- * every chunk the same wall time, at each chunk's measured blocks per second (a road's free-flowing front costs more
- * per vehicle than its queued back). Each chunk keeps at least a quarter of an even share. */
+/* After a fused step on the lane's nthreads, with each chunk's blocks and wall time: every WF_CUT_STEPS such steps
+ * the cuts move halfway towards those that would have given the chunks equal wall times at their measured blocks
+ * per second. Summing over many steps keeps a step whose thread was descheduled from moving them, and keeps them
+ * from swinging a block back and forth between cores every step (a block moved loses its cache). */
 static void chunk_rebalance(WfLane *ln, const WfChunkOut *cf, int nt)
 {
-    double *cut = ln->cut, sum = 0.0;
-    if (cut[nt] != 1.0) /* first use, or made for another team */
-        for (int t = 0; t <= nt; t++) cut[t] = (double)t / nt;
+    WfCuts *c = ln->cuts;
+    for (int t = 0; t < nt; t++) c->busy_s[t] += cf[t].busy_s, c->blocks[t] += (double)cf[t].blocks;
+    if (++c->steps < WF_CUT_STEPS) return;
+    double sum = 0.0;
+    int ok = 1;
     for (int t = 0; t < nt; t++) {
-        if (!(cf[t].busy_s > 0.0)) return;
-        sum += (cut[t + 1] - cut[t]) / cf[t].busy_s;
+        ok &= c->blocks[t] > 0.0 && c->busy_s[t] > 0.0;
+        sum += ok ? c->blocks[t] / c->busy_s[t] : 0.0;
     }
-    double at = 0.0, floor = 0.25 / nt, room = 1.0 - floor * nt, lo = cut[0];
-    for (int t = 0; t + 1 < nt; t++) {
-        double hi = cut[t + 1];
-        at += floor + room * (hi - lo) / cf[t].busy_s / sum;
-        cut[t + 1] += 0.25 * (at - hi);
-        lo = hi;
+    if (c->at[nt] != 1.0 || !ok) /* first cuts, cuts made for another team, or a chunk without blocks: even */
+        for (int t = 0; t <= nt; t++) c->at[t] = (double)t / nt;
+    double at = 0.0;
+    for (int t = 0; ok && t + 1 < nt; t++) {
+        at += c->blocks[t] / c->busy_s[t] / sum;
+        c->at[t + 1] += 0.5 * (at - c->at[t + 1]);
     }
+    for (int t = 0; t < nt; t++) c->busy_s[t] = c->blocks[t] = 0.0;
+    c->steps = 0;
 }
 
 /* Positions and speeds are updated in place. Race-free and order-free because every vehicle reads only its
@@ -641,7 +646,7 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
     double *bx = ln->bound_x, *bv = ln->bound_v;
     int after = adv && ln->after_wanted && ln->ops->after_step;
     /* fused steps time their chunks for the cuts; other passes cost differently along the road and only use them */
-    int balance = ln->cut && (pass & WF_PASS_FUSED) == WF_PASS_FUSED;
+    int balance = ln->cuts && (pass & WF_PASS_FUSED) == WF_PASS_FUSED;
     block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
     for (int t = 0; t < nth; t++) {
         cf[t].flags = 0, cf[t].edge = 0;
@@ -655,10 +660,11 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
         return adv && !part ? flags | wf_lane_chunk_edge(ln, first, n, nb, nb) : adv ? flags : 0;
     }
     double xf = ln->x_m[lo_f], vf = ln->v_mps[lo_f];
+    int team = 0; /* the team that ran */
     /* Each chunk's first vehicle at the step's start, read before the team starts, so that the team needs no barrier
      * for it (a smaller team than asked, nested or limited, reads its own after one). */
     chunk_firsts(ln, first, n, bb0, bb1, nth);
-#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count, after, nth, balance)
+#pragma omp parallel num_threads(nth) default(none) shared(ln, first, n, nb, bb0, bb1, part, bx, bv, xf, vf, front, step, pass, in_window, rec, adv, cf, count, after, nth, balance, team)
     {
         /* The team may be smaller than asked (nested inside a sweep worker, or a thread limit): chunk by the team
          * actually running. */
@@ -679,6 +685,8 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
         int fl = b1 > b0 ? run_chunk(ln, first, n, b0, b1, nb, xs, vs, front, step, pass, in_window, rec,
                                      count ? &cf[t] : NULL) : 0;
         cf[t].flags = fl, cf[t].edge = 0, cf[t].busy_s = balance ? wf_wall_now() - t0 : 0.0;
+        cf[t].blocks = b1 - b0;
+        if (t == 0) team = nt;
 #pragma omp barrier
         if (adv && b1 > b0 && !(part && b1 == bb1)) cf[t].edge = wf_lane_chunk_edge(ln, first, n, b1, nb);
         if (after) {
@@ -696,7 +704,7 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
         }
     }
     for (int t = 0; t < nth; t++) flags |= cf[t].flags | cf[t].edge;
-    if (balance && nth == ln->nthreads) chunk_rebalance(ln, cf, nth);
+    if (balance && team == ln->nthreads) chunk_rebalance(ln, cf, team);
     ln->after_done = after && !flags;
     if (count) wf_lane_safety_add(ln, cf, nth);
     return adv ? flags : 0;

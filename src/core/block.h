@@ -48,7 +48,8 @@ typedef struct WfAccum {
 typedef struct WfChunkOut {
     int      flags;    /* of the chunk's steps (and its front edge, once the team has joined) */
     int      edge;     /* of its front edge, when checked after the others read `flags` (wf_lane_step_part) */
-    double   busy_s;   /* wall time of the chunk's blocks in the step (balancing: WfLane.cut) */
+    double   busy_s;   /* wall time of the chunk's blocks in the step, and how many (WfLane.cuts) */
+    size_t   blocks;
     uint64_t safety_steps[WF_MAX_GROUPS], safety_hits[WF_MAX_GROUPS];
 } WfChunkOut;
 
@@ -91,6 +92,17 @@ typedef struct WfLaneValues {
     uint8_t *flag;
 } WfLaneValues;
 
+/* Chunks of a lane's step on all its threads cut where their wall times come out equal (a corridor's free-flowing
+ * front costs more per vehicle than its queue): where chunk t begins, as a fraction of the lane's blocks (at[0] = 0,
+ * at[nt] = 1; at[nt] = 0 until the first cuts: an even split), and each chunk's wall time and blocks summed over
+ * the fused steps since the cuts last moved. Arrays of nthreads + 1, owned by the boundary. Any cut gives the same
+ * bits: a vehicle's step does not depend on its chunk. */
+enum { WF_CUT_STEPS = 64 };
+typedef struct WfCuts {
+    double *at, *busy_s, *blocks;
+    long    steps;
+} WfCuts;
+
 /* A boundary's vehicles as the kernel sees them. Arrays are indexed by slot and borrowed from the boundary. */
 typedef struct WfLane {
     const WfScenario   *sc;
@@ -119,9 +131,7 @@ typedef struct WfLane {
     size_t    key0;                 /* slot i draws the noise of slot key0 + i (a halo's copy of other vehicles) */
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
     WfChunkOut *chunks;             /* nthreads + 1 */
-    double   *cut;                  /* nthreads + 1, or NULL: where the chunks of a step on all nthreads end, as
-                                     * fractions of the blocks (cut[0] = 0, cut[nthreads] = 1; all 0 at first: an
-                                     * even split), moved after each fused step towards equal wall times */
+    WfCuts   *cuts;                 /* NULL: chunks of equal blocks */
     int       safe;                 /* some driver group has a safety filter (set by wf_lane_safety_init) */
     int       after_wanted;         /* set by the boundary: an advancing pass calls ops->after_step */
     int       after_done;           /* set by the step: ops->after_step ran for this step */

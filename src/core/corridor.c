@@ -142,7 +142,8 @@ struct WfCorridor {
     WfRoadOps ops;
     double  *bound_x, *bound_v;
     WfChunkOut *chunks;
-    double  *cuts;          /* each lane's chunk cuts (WfLane.cut): nthreads + 1 per lane */
+    WfCuts   cuts[WF_MAX_LANES]; /* each lane's chunk cuts (WfLane.cuts) */
+    double  *cut_arrays;    /* theirs: 3 (nthreads + 1) per lane */
     int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
     WfSafetyCount safety;   /* the lanes' safety counts summed (safety_total) */
     /* lane changes (several lanes, some group with a lane-change model): the decisions' scratch, the road as they
@@ -198,7 +199,7 @@ static void corridor_destroy(void *eng)
 #undef FREE
     void *arrays[] = {c->ln[0].veh.params, c->ln[0].veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
                       c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g, c->edie.grade_mean_rad,
-                      c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunks, c->cuts};
+                      c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunks, c->cut_arrays};
     for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     wf_lanes_destroy(&c->lcs);
     void *snap[] = {c->snap.x_m, c->snap.v_mps, c->snap.class_id, c->snap.group_id, c->snap.ready, c->snap.slot,
@@ -726,8 +727,12 @@ static int lane_init(WfCorridor *c, WfError *err)
     c->bound_x = calloc(nt, sizeof(double));
     c->bound_v = calloc(nt, sizeof(double));
     c->chunks = calloc(nt, sizeof *c->chunks);
-    c->cuts = calloc(nt * c->n_lanes, sizeof(double));
-    if (!c->bound_x || !c->bound_v || !c->chunks || !c->cuts) return wf_err(err, WF_ESYS, "out of memory");
+    c->cut_arrays = calloc(3 * nt * c->n_lanes, sizeof(double));
+    if (!c->bound_x || !c->bound_v || !c->chunks || !c->cut_arrays) return wf_err(err, WF_ESYS, "out of memory");
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        double *a = c->cut_arrays + 3 * nt * l;
+        c->cuts[l] = (WfCuts){.at = a, .busy_s = a + nt, .blocks = a + 2 * nt};
+    }
     if (coop_possible(c)) {
         size_t n = c->n_lanes * c->ln[0].veh.cap;
         ALLOC(c->coop_cap_mps2, n);
@@ -747,7 +752,7 @@ static int lane_init(WfCorridor *c, WfError *err)
         *ln = (WfLane){.sc = sc, .ig = c->ig, .ops = &c->ops, .ctx = cl, .cap = vh->cap, .x_m = vh->x_m,
                        .v_mps = vh->v_mps, .class_id = vh->class_id, .group_id = vh->group_id,
                        .grade_seg = cl->grade_seg, .mode = cl->mode, .x_old_m = cl->xold, .nthreads = c->nthreads,
-                       .bound_x = c->bound_x, .bound_v = c->bound_v, .chunks = c->chunks, .cut = c->cuts + l * nt,
+                       .bound_x = c->bound_x, .bound_v = c->bound_v, .chunks = c->chunks, .cuts = &c->cuts[l],
                        .key0 = l << 40}; /* lane l's noise from blocks l 2^32: no two lanes share draws */
         /* the measurement inside the lane's step when nothing comes between them: one lane, no virtual leader to
          * advance and check first (step_once, phase_measure) */
