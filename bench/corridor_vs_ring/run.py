@@ -8,7 +8,9 @@ vehicle-steps (from the `vehicles` record every second) over the difference of t
 corridor's mean count in the window) runs window_s and 2 window_s. Times are the step loop's wall time
 (/meta/wall_time_s) or, with --cpu, the process's CPU time (user + system: steadier on a shared machine, meaningful
 for one thread only); each is the least of --repeats runs (the least disturbed). Each repeat runs every binary and
-thread count in turn, so that all meet the machine's load alike.
+thread count in turn, so that all meet the machine's load alike. The last column is the median over the repeats of
+each repeat's own ratio (its corridor and ring runs seconds apart): steadier than the ratio of best times
+when the machine's speed drifts between minutes.
 
 usage: run.py [--bin NAME=PATH]... [--threads 1,2] [--length-m 150000] [--fill-s 5000] [--window-s 1000]
               [--repeats 3] [--cpu]"""
@@ -47,12 +49,16 @@ class Case:
     def __init__(self, name, path, threads):
         self.name, self.path, self.threads = name, path, threads
         self.best = {}
+        self.ratios = []  # corridor / ring of each repeat (its four runs close in time)
         self.n = None  # the corridor's mean vehicles in the window, and the ring's size
         self.veh_steps = None
 
     def once(self, args, tmp):
+        now = {}
+
         def keep(key, w):
             self.best[key] = min(self.best.get(key, w), w)
+            now[key] = w
         road = ["road.length_m=%g" % args.length_m]
         _, _, dt, w = run(self.path, "corridor.yaml", road + ["time.duration_s=%g" % args.fill_s], args,
                           self.threads, os.path.join(tmp, "c1.h5"))
@@ -70,12 +76,14 @@ class Case:
         for key, dur in (("r1", args.window_s), ("r2", 2 * args.window_s)):
             keep(key, run(self.path, "ring.yaml", ring + ["time.duration_s=%g" % dur], args, self.threads,
                           os.path.join(tmp, key + ".h5"))[3])
+        rc, rr = self.rates(args, now)
+        self.ratios.append(rc / rr)
 
-    def rates(self, args):
-        """(corridor, ring) vehicle-steps per second."""
+    def rates(self, args, times=None):
+        """(corridor, ring) vehicle-steps per second from the best times (or the given ones)."""
+        w = times or self.best
         ring_steps = int(round(self.n)) * round(args.window_s / self.dt)
-        return (self.veh_steps / (self.best["c2"] - self.best["c1"]),
-                ring_steps / (self.best["r2"] - self.best["r1"]))
+        return self.veh_steps / (w["c2"] - w["c1"]), ring_steps / (w["r2"] - w["r1"])
 
 
 def main():
@@ -89,8 +97,9 @@ def main():
     ap.add_argument("--cpu", action="store_true", help="CPU time instead of wall time (one thread)")
     args = ap.parse_args()
     bins = [b.split("=", 1) for b in args.bin] or [["this", os.path.join(HERE, "../../bin/wavefuel")]]
-    print("| binary | threads | time | corridor vehicles | corridor M veh-steps/s | ring M veh-steps/s | corridor / ring |")
-    print("|---|---|---|---|---|---|---|")
+    print("| binary | threads | time | corridor vehicles | corridor M veh-steps/s | ring M veh-steps/s | corridor / ring |"
+          " median of the repeats' ratios |")
+    print("|---|---|---|---|---|---|---|---|")
     cases = [Case(name, path, int(th)) for name, path in bins for th in args.threads.split(",")]
     with tempfile.TemporaryDirectory() as tmp:
         # Every case runs once per repeat, in turn, so that all of them meet the machine's load alike.
@@ -99,8 +108,9 @@ def main():
                 c.once(args, tmp)
     for c in cases:
         rc, rr = c.rates(args)
-        print("| %s | %d | %s | %.0f | %.1f | %.1f | %.2f |" % (c.name, c.threads, "cpu" if args.cpu else "wall", c.n,
-                                                             rc / 1e6, rr / 1e6, rc / rr))
+        print("| %s | %d | %s | %.0f | %.1f | %.1f | %.2f | %.2f |" % (
+            c.name, c.threads, "cpu" if args.cpu else "wall", c.n, rc / 1e6, rr / 1e6, rc / rr,
+            float(np.median(c.ratios))))
 
 if __name__ == "__main__":
     main()
