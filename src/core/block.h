@@ -46,8 +46,8 @@ typedef struct WfAccum {
 /* What one thread's chunk of a pass reports: its WF_STEP_* flags and, in a counting pass, per driver group, the
  * vehicle-steps under a safety filter and those whose acceleration the filter changed. */
 typedef struct WfChunkOut {
-    int      flags;    /* of the chunk's steps (and its front edge, once the team has joined) */
-    int      edge;     /* of its front edge, when checked after the others read `flags` (wf_lane_step_part) */
+    int      flags;    /* of the chunk's steps (its front edge apart) */
+    int      edge;     /* of its front edge, checked once every chunk has moved (wf_lane_step_part) */
     double   busy_s;   /* wall time of the chunk's blocks in the step, and how many (WfLane.cuts) */
     size_t   blocks;
     uint64_t safety_steps[WF_MAX_GROUPS], safety_hits[WF_MAX_GROUPS];
