@@ -1155,13 +1155,25 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
     } while (0)
     size_t k0, k1;
     measure_span(c, ln, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
-    /* Road order is descending slot order, wrapping from slot 0 to the last. */
-    for (size_t k = k0, s = k0 < k1 ? wf_corridor_slot(vh, k0) : 0; k < k1; k++, s = s ? s - 1 : vh->cap - 1) {
-        size_t cl = cls[s], i = cell[s];
-        double xa = xold[s], xb = x[s], fuel = rate[s] * dt;
-        if (i != UINT32_MAX && (i < i_lo || i >= i_hi)) {
-            /* inside one cell of another thread */
-        } else if (i != UINT32_MAX) {
+    int64_t out = in_window ? 0 : -1; /* the key of class cl: cl | out (-1 outside the window: no lane) */
+    /* Road order is descending slot order, wrapping from slot 0 to the last: at most two segments of slots
+     * [lo, hi) visited from hi - 1 down. Along one segment a cell's one-cell steps are consecutive (positions fall
+     * along road order), so each run of them is summed by the tight inner loop. */
+    for (size_t k = k0; k < k1;) {
+        size_t top = wf_corridor_slot(vh, k) + 1, len = top < k1 - k ? top : k1 - k, lo = top - len, s = top;
+        k += len;
+        while (s > lo) {
+            size_t i = cell[s - 1];
+            if (i == UINT32_MAX) {
+                FLUSH();
+                s--;
+                edie_vehicle(c, j, cls[s], xold[s], x[s], rate[s] * dt, in_window, i_lo, i_hi);
+                continue;
+            }
+            if (i < i_lo || i >= i_hi) { /* inside one cell of another thread */
+                s--;
+                continue;
+            }
             if (i != held) {
                 FLUSH();
                 held = i, sd = row_d[i], st = row_t[i], sf = row_f[i];
@@ -1170,18 +1182,21 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
                 if (nv > 2) lanes_load(&cd2, cdist, nx, i, 2, nc), lanes_load(&cf2, cfuel, nx, i, 2, nc);
                 if (nv > 2) lanes_load(&cd3, cdist, nx, i, 3, nc), lanes_load(&cf3, cfuel, nx, i, 3, nc);
             }
-            double d = xb - xa;
-            sd += d, st += dt, sf += fuel;
-            int64_t key = in_window ? (int64_t)cl : -1;
-            lanes_add(&cd0, &cf0, key, 0, d, fuel);
-            if (nv > 1) lanes_add(&cd1, &cf1, key, 1, d, fuel);
-            if (nv > 2) lanes_add(&cd2, &cf2, key, 2, d, fuel), lanes_add(&cd3, &cf3, key, 3, d, fuel);
-        } else {
-            FLUSH();
-            edie_vehicle(c, j, cl, xa, xb, fuel, in_window, i_lo, i_hi);
+            do {
+                s--;
+                double d = x[s] - xold[s], fuel = rate[s] * dt;
+                sd += d, st += dt, sf += fuel;
+                int64_t key = (int64_t)cls[s] | out;
+                lanes_add(&cd0, &cf0, key, 0, d, fuel);
+                if (nv > 1) lanes_add(&cd1, &cf1, key, 1, d, fuel);
+                if (nv > 2) lanes_add(&cd2, &cf2, key, 2, d, fuel), lanes_add(&cd3, &cf3, key, 3, d, fuel);
+            } while (s > lo && cell[s - 1] == i);
         }
-        for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xa, xb, vh->length_m[s]);
     }
+    /* detectors: sums of their own, each in road order */
+    for (size_t k = k0, s = k0 < k1 ? wf_corridor_slot(vh, k0) : 0; q_lo < q_hi && k < k1;
+         k++, s = s ? s - 1 : vh->cap - 1)
+        for (size_t q = q_lo; q < q_hi; q++) detector_vehicle(c, jd, q, xold[s], x[s], vh->length_m[s]);
     FLUSH();
 #undef FLUSH
 }
