@@ -85,17 +85,30 @@ typedef struct Rank {
     Shared *sh;
     int rank;
     long exchanges;
+    void *recv; /* the exchange posted */
+    size_t bytes;
     volatile sig_atomic_t own_stop;
 } Rank;
 
-static int from_next(void *ctx, const void *send, void *recv, size_t bytes, WfError *err)
+/* The exchange posted: this rank's send buffer published (every rank reaches the barrier before any reads); waited:
+ * the next rank's copied, and no buffer reused before every rank has copied. Steps in between overlap it, as MPI's
+ * do. */
+static int post_next(void *ctx, const void *send, void *recv, size_t bytes, WfError *err)
 {
     (void)err;
     Rank *r = ctx;
     if (++r->exchanges == r->sh->stop_after[r->rank]) r->own_stop = 1;
     r->sh->ptr[r->rank] = send;
+    r->recv = recv, r->bytes = bytes;
     pthread_barrier_wait(&r->sh->bar);
-    memcpy(recv, r->sh->ptr[(r->rank + 1) % r->sh->size], bytes);
+    return 0;
+}
+
+static int wait_next(void *ctx, WfError *err)
+{
+    (void)err;
+    Rank *r = ctx;
+    memcpy(r->recv, r->sh->ptr[(r->rank + 1) % r->sh->size], r->bytes);
     pthread_barrier_wait(&r->sh->bar);
     return 0;
 }
@@ -164,8 +177,9 @@ static void *job_main(void *arg)
     omp_set_num_threads(j->threads);
 #endif
     Rank rk = {.sh = j->sh, .rank = j->rank};
-    WfPartition part = {.rank = j->rank, .size = j->sh ? j->sh->size : 1, .ctx = &rk, .from_next = from_next,
-                        .or_all = or_all, .sum_u64 = sum_u64, .gather = gather, .stop_own = &rk.own_stop};
+    WfPartition part = {.rank = j->rank, .size = j->sh ? j->sh->size : 1, .ctx = &rk, .post_next = post_next,
+                        .wait_next = wait_next, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
+                        .stop_own = &rk.own_stop};
     WfOutput out = {.record = keep_row, .ctx = o};
     memset(o, 0, sizeof *o);
     o->rc = wf_scenario_load(j->path, j->set, j->n_set, &sc, &err);

@@ -19,8 +19,11 @@ typedef struct WfPartition {
     int   rank, size;
     void *ctx;
     /* `bytes` of send to rank - 1 (rank 0: to size - 1), and as many from rank + 1 (the last rank: from 0) into
-     * recv. */
-    int (*from_next)(void *ctx, const void *send, void *recv, size_t bytes, WfError *err);
+     * recv, in two calls so that the rank can step what does not need them meanwhile: post_next starts the exchange
+     * and returns without waiting for it; wait_next returns once recv holds the bytes and send may be reused. One
+     * exchange at a time; both calls on the thread that initialised the transport. */
+    int (*post_next)(void *ctx, const void *send, void *recv, size_t bytes, WfError *err);
+    int (*wait_next)(void *ctx, WfError *err);
     /* The bitwise OR of *flags over the ranks, into *flags on every rank. */
     int (*or_all)(void *ctx, int *flags, WfError *err);
     /* The sums of m integers over the ranks, into v on every rank. */

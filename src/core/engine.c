@@ -70,7 +70,8 @@ typedef struct WfRing {
     size_t  *off;           /* part: size + 1 byte offsets of a gather */
     size_t  *group_before;  /* part: [g * (size + 1) + r]: vehicles of group g ahead of rank r's first (slots) */
     unsigned char *halo_out, *halo_in; /* part: packed vehicles, halo_vbytes each */
-    size_t   halo_vbytes;
+    size_t   halo_vbytes, halo_m; /* halo_m: vehicles of the exchange in flight */
+    WfError *halo_err;            /* where a window's wait for the exchange reports (part_halo_ready) */
     WfSafetyCount safety_all; /* part: the counts of every rank (what checkpoints save) */
 } WfRing;
 
@@ -241,6 +242,8 @@ static int ode_init(WfRing *s, WfError *err)
 /* Time-blocked stepping (src/core/window.h) for fixed-step schemes on the fused path, when the ring is long enough
  * for the threads: time.block_steps steps per window (0: WF_WINDOW_STEPS; 1: none), tiles of time.tile_vehicles
  * (0: from the cache size and the bytes of state per vehicle). */
+static int part_halo_ready(void *ctx);
+
 static int window_init(WfRing *s, WfError *err)
 {
     const WfScenario *sc = s->sc;
@@ -258,7 +261,9 @@ static int window_init(WfRing *s, WfError *err)
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), bytes = 0;
     for (size_t j = 0; j < nv; j++) bytes += vars[j].size;
     size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(bytes / n);
-    return wf_window_create(&s->win, &s->lane, n, s->b_lo, s->b_hi, k, tile, s->out_every, bytes, err);
+    int rc = wf_window_create(&s->win, &s->lane, n, s->b_lo, s->b_hi, k, tile, s->out_every, bytes, err);
+    if (!rc && s->part && s->part->size > 1) s->win.halo_ready = part_halo_ready, s->win.halo_ctx = s;
+    return rc;
 }
 
 /* ------------------------------------------------------------------ a ring split across processes */
@@ -353,16 +358,37 @@ static void part_pack(WfRing *s, size_t c, size_t m, unsigned char *buf, int unp
     }
 }
 
-/* The next part's first m vehicles, as they are now, into this rank's arrays (m = 1: its first vehicle). */
-static int part_refresh(WfRing *s, size_t m, WfError *err)
+/* The next part's first m vehicles, as they are now, into this rank's arrays (m = 1: its first vehicle): part_post
+ * sends this part's first m and returns at once, part_wait completes the exchange and unpacks what came;
+ * part_refresh does both. */
+static int part_post(WfRing *s, size_t m, WfError *err)
 {
     WfPartition *p = s->part;
     size_t lo, hi;
     part_range(s, p->rank, &lo, &hi);
     part_pack(s, lo, m, s->halo_out, 0);
-    int rc = p->from_next(p->ctx, s->halo_out, s->halo_in, m * s->halo_vbytes, err);
-    if (!rc) part_pack(s, part_ahead(s), m, s->halo_in, 1);
+    s->halo_m = m;
+    return p->post_next(p->ctx, s->halo_out, s->halo_in, m * s->halo_vbytes, err);
+}
+
+static int part_wait(WfRing *s, WfError *err)
+{
+    int rc = s->part->wait_next(s->part->ctx, err);
+    if (!rc) part_pack(s, part_ahead(s), s->halo_m, s->halo_in, 1);
     return rc;
+}
+
+static int part_refresh(WfRing *s, size_t m, WfError *err)
+{
+    int rc = part_post(s, m, err);
+    return rc ? rc : part_wait(s, err);
+}
+
+/* WfWindow.halo_ready: a window's halo exchange, posted before the window, completed after its interior chunks. */
+static int part_halo_ready(void *ctx)
+{
+    WfRing *s = ctx;
+    return part_wait(s, s->halo_err);
 }
 
 /* After this part moved: its front edge against the next part's first vehicle (moved too), then every rank's
@@ -663,8 +689,12 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     lane_exports(s, 0);
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
-    if (s->part && (rc = part_refresh(s, (size_t)k + 1, err))) return rc;
+    /* split across processes, the next part's first k + 1 vehicles travel while this part's interior steps */
+    if (s->part && (rc = s->win.halo_ready ? part_post(s, (size_t)k + 1, err) : part_refresh(s, (size_t)k + 1, err)))
+        return rc;
+    s->halo_err = err;
     int flags = wf_window_run(&s->win, &s->lane, s->f->n, step, (int)k, in_window, vars, nv, &rows);
+    if (s->win.halo_rc) return s->win.halo_rc;
     if (s->part && (rc = part_agree(s, 1, &flags, err))) return rc;
     wf_window_settle(&s->win, &s->lane, vars, nv, flags);
     lap(s, WF_PHASE_FUSED, &tp);

@@ -192,8 +192,10 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
         recs[s] = (step0 + s) % w->out_every == 0 ? w->rec + nb * rows++ : NULL;
     int nth = w->nthreads, flags = 0, part = w->b_lo > 0 || w->b_hi < nb;
     int pass = WF_PASS_FUSED | WF_PASS_COUNT;
+    size_t late = part && w->halo_ready ? 1 : 0; /* the front chunk (the last) waits for the next part's vehicles */
+    w->halo_rc = 0;
 #pragma omp parallel num_threads(nth) if (nth > 1) default(none) \
-    shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass, part)
+    shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass, part, late)
     {
 #ifdef _OPENMP
         int t = omp_get_thread_num(), team = omp_get_num_threads();
@@ -207,13 +209,27 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
             size_t b0, b1;
             chunk_at(w, c, &b0, &b1);
             memset(&w->halo[c].co, 0, sizeof w->halo[c].co);
-            w->halo[c].hl = halo_take(&w->halo[c], ln, b1 < nb ? b1 * B : 0, (size_t)k);
+            if (c + late < nc) w->halo[c].hl = halo_take(&w->halo[c], ln, b1 < nb ? b1 * B : 0, (size_t)k);
         }
         /* Chunks go to whichever thread is free: a thread that the system deschedules holds up one chunk, not a
          * share of the ring. */
-#pragma omp for schedule(dynamic, 1)
-        for (size_t c = 0; c < nc; c++)
+#pragma omp for schedule(dynamic, 1) nowait
+        for (size_t c = 0; c < nc - late; c++)
             w->halo[c].co.flags = run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, vars, n_vars, c);
+        if (late) {
+            /* the thread that posted the exchange (MPI_THREAD_FUNNELED) completes it once its other chunks ran */
+#pragma omp master
+            {
+                size_t c = nc - 1, b0, b1;
+                chunk_at(w, c, &b0, &b1);
+                if ((w->halo_rc = w->halo_ready(w->halo_ctx)) == 0) {
+                    w->halo[c].hl = halo_take(&w->halo[c], ln, b1 < nb ? b1 * B : 0, (size_t)k);
+                    w->halo[c].co.flags =
+                        run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, vars, n_vars, c);
+                }
+            }
+        }
+#pragma omp barrier
 #pragma omp for schedule(static)
         for (size_t c = 0; c < nc; c++) {
             size_t b0, b1;

@@ -33,6 +33,14 @@ typedef struct WfWindow {
     WfStatsBlock *rec;         /* rec_rows rows of nb partial sums: the window's record steps in order */
     size_t        rec_rows;
     unsigned char *backup;     /* the state at the window's start */
+    /* On a part of a ring split across processes, set by the caller: the next part's first k + 1 vehicles may still
+     * be on their way when the window starts. The part's front chunk, the only one that reads them, is then stepped
+     * last, after halo_ready(halo_ctx) returned 0 on the team's first thread (the thread that called
+     * wf_window_run); the other chunks step meanwhile. Its result is in halo_rc: nonzero, the front chunk was not
+     * stepped. NULL: they are in place at the start. */
+    int          (*halo_ready)(void *ctx);
+    void          *halo_ctx;
+    int            halo_rc;
 } WfWindow;
 
 /* Defaults: steps per window, and the vehicles of a tile from the cache of one core (half its L2 over bytes_per_

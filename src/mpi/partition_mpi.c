@@ -7,8 +7,9 @@
 #include <stdlib.h>
 
 typedef struct MpiPart {
-    MPI_Comm comm;
-    int     *counts, *displs;
+    MPI_Comm    comm;
+    int        *counts, *displs;
+    MPI_Request req[2]; /* the halo exchange in flight: receive, send */
 } MpiPart;
 
 static int mpi_fail(int rc, const char *what, WfError *err)
@@ -19,15 +20,24 @@ static int mpi_fail(int rc, const char *what, WfError *err)
     return wf_err(err, WF_ESYS, "MPI: %s failed: %s", what, msg);
 }
 
-static int from_next(void *ctx, const void *send, void *recv, size_t bytes, WfError *err)
+/* The halo exchange: a non-blocking receive from the next rank and send to the previous one. */
+static int post_next(void *ctx, const void *send, void *recv, size_t bytes, WfError *err)
 {
     MpiPart *m = ctx;
     int rank, size;
     MPI_Comm_rank(m->comm, &rank);
     MPI_Comm_size(m->comm, &size);
     if (bytes > INT_MAX) return wf_err(err, WF_ESYS, "MPI: a halo of %zu bytes is too large", bytes);
-    int rc = MPI_Sendrecv(send, (int)bytes, MPI_BYTE, (rank + size - 1) % size, 1, recv, (int)bytes, MPI_BYTE,
-                          (rank + 1) % size, 1, m->comm, MPI_STATUS_IGNORE);
+    int rc = MPI_Irecv(recv, (int)bytes, MPI_BYTE, (rank + 1) % size, 1, m->comm, &m->req[0]);
+    if (rc == MPI_SUCCESS)
+        rc = MPI_Isend(send, (int)bytes, MPI_BYTE, (rank + size - 1) % size, 1, m->comm, &m->req[1]);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "posting the halo exchange", err);
+}
+
+static int wait_next(void *ctx, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rc = MPI_Waitall(2, m->req, MPI_STATUSES_IGNORE);
     return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "the halo exchange", err);
 }
 
@@ -65,7 +75,7 @@ static int gather(void *ctx, void *buf, const size_t *off, int root, WfError *er
 int wf_mpi_partition_init(WfPartition *p, volatile sig_atomic_t *stop_own, WfError *err)
 {
     MpiPart *m = calloc(1, sizeof *m);
-    *p = (WfPartition){.ctx = m, .from_next = from_next, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
+    *p = (WfPartition){.ctx = m, .post_next = post_next, .wait_next = wait_next, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
                        .stop_own = stop_own};
     if (!m) return wf_err(err, WF_ESYS, "out of memory");
     m->comm = MPI_COMM_WORLD;
