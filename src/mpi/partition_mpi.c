@@ -75,8 +75,8 @@ static int gather(void *ctx, void *buf, const size_t *off, int root, WfError *er
 int wf_mpi_partition_init(WfPartition *p, volatile sig_atomic_t *stop_own, WfError *err)
 {
     MpiPart *m = calloc(1, sizeof *m);
-    *p = (WfPartition){.ctx = m, .post_next = post_next, .wait_next = wait_next, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
-                       .stop_own = stop_own};
+    *p = (WfPartition){.ctx = m, .post_next = post_next, .wait_next = wait_next, .or_all = or_all,
+                       .sum_u64 = sum_u64, .gather = gather, .stop_own = stop_own};
     if (!m) return wf_err(err, WF_ESYS, "out of memory");
     m->comm = MPI_COMM_WORLD;
     MPI_Comm_rank(m->comm, &p->rank);
