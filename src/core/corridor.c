@@ -699,7 +699,10 @@ static void step_cells(const void *ctx, size_t lo, size_t m)
         uint32_t i = q < nxd ? (uint32_t)(int32_t)q : last; /* (size_t)q, clamped to the last cell */
         double edge = i == last ? L : (double)(i + 1) * dx;
         int one = (xb[k] > xa[k]) & (xa[k] >= 0.0) & (xb[k] <= L) & !(edge < xb[k]);
-        cell[k] = one ? i : UINT32_MAX;
+        /* a standing vehicle: edie_vehicle adds dt and its fuel to the cell of xa (in [0, L)) and no distance; the
+         * running sums add its d = +0, which leaves every distance sum (+0 or more) unchanged */
+        int still = (xb[k] == xa[k]) & (xa[k] >= 0.0) & (xa[k] < L);
+        cell[k] = one | still ? i : UINT32_MAX;
     }
 }
 
