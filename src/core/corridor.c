@@ -1841,22 +1841,34 @@ static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
     size_t k = 0;
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
-        WfLead front = front_leader(c, l);
         const WfCorridorVehicles *vh = &ln->veh;
         const double *x = vh->x_m, *v = vh->v_mps, *len = ln->lane.class_length_m;
-        for (size_t r = 0; r < vh->n; r++) {
-            size_t s = wf_corridor_slot(vh, r);
-            if (vh->group_id[s] != g) continue;
+        const uint16_t *gid = vh->group_id;
+        size_t n = vh->n, cap = vh->cap, top = vh->first + n; /* road order: slots top - 1 down to first, mod cap */
+        if (!fn) { /* a count only (checked before every visit): the slots' groups in at most two runs */
+            size_t wrap = top > cap ? top - cap : 0;
+            uint16_t g16 = (uint16_t)g; /* g < WF_MAX_GROUPS */
+            uint32_t m = 0;
+#pragma omp simd reduction(+ : m)
+            for (size_t s = vh->first; s < top - wrap; s++) m += gid[s] == g16;
+#pragma omp simd reduction(+ : m)
+            for (size_t s = 0; s < wrap; s++) m += gid[s] == g16;
+            k += m;
+            continue;
+        }
+        WfLead front = front_leader(c, l);
+        /* the front vehicle, then each vehicle behind its leader (the slot after it, wrapping) */
+        for (size_t r = 0, s = n ? wf_corridor_slot(vh, 0) : 0, p = 0; r < n; r++, p = s, s = s ? s - 1 : cap - 1) {
+            if (gid[s] != g) continue;
             double gap, vl;
             if (r > 0) {
-                size_t p = wf_corridor_slot(vh, r - 1);
                 gap = x[p] - len[vh->class_id[p]] - x[s], vl = v[p];
             } else if (front.free_gap_m > 0.0) {
                 gap = front.free_gap_m, vl = v[s];
             } else {
                 gap = front.rear_m - x[s], vl = front.v_mps;
             }
-            if (fn) fn(ctx, k, vh->state + s * c->sstride, v[s], vl, gap);
+            fn(ctx, k, vh->state + s * c->sstride, v[s], vl, gap);
             k++;
         }
     }
