@@ -239,11 +239,12 @@ static int ode_init(WfRing *s, WfError *err)
     return wf_ode_create(&cfg, n, sc->road.length_m, ode_rhs, s, 0.0, s->f->x_m, s->f->v_mps, &s->ode, err);
 }
 
-/* Time-blocked stepping (src/core/window.h) for fixed-step schemes on the fused path, when the ring is long enough
- * for the threads: time.block_steps steps per window (0: WF_WINDOW_STEPS; 1: none), tiles of time.tile_vehicles
- * (0: from the cache size and the bytes of state per vehicle). */
 static int part_halo_ready(void *ctx);
 
+/* Time-blocked stepping (src/core/window.h) for fixed-step schemes on the fused path, when the ring is long enough
+ * for the threads: time.block_steps steps per window (0: WF_WINDOW_STEPS; 1: none), tiles of time.tile_vehicles
+ * (0: from the cache size and the bytes of state per vehicle); split across processes, each window's halo travels
+ * while the window's interior steps (part_halo_ready). */
 static int window_init(WfRing *s, WfError *err)
 {
     const WfScenario *sc = s->sc;
