@@ -16,9 +16,11 @@ class RlBatch:
     """The runs `sims` (Simulations that have begun, held by the caller, stepped only through this batch while it
     lives; rebuild it when one is replaced) with `groups[k]` the external group of run k (a name or an index),
     `reward` a wavefuel.envs.Reward, an action lasting action_steps steps of dt_s. The vehicles on each road must
-    stay the same while the batch lives. step() returns arrays that the next call overwrites (copy to keep)."""
+    stay the same while the batch lives. step() returns arrays that the next call overwrites (copy to keep).
+    thread_check: calls between the thread governor's probes of the other thread count (None: the library's
+    default, WF_RL_THREAD_CHECK in rl.h; 0: always the threads asked)."""
 
-    def __init__(self, sims, groups, reward, action_steps, dt_s):
+    def __init__(self, sims, groups, reward, action_steps, dt_s, thread_check=None):
         self.sims = list(sims)
         for s in self.sims:
             s._alive()
@@ -31,6 +33,11 @@ class RlBatch:
         err = WfError()
         check(lib.wf_rl_batch_create(self._ptrs, n, self._groups.ctypes.data, C.byref(self._rw), int(action_steps),
                                      float(action_steps * dt_s), C.byref(self._b), C.byref(err)), err)
+        if thread_check is not None:
+            if int(thread_check) < 0:
+                self.close()
+                raise ValueError(f"thread_check must be >= 0 (got {thread_check})")
+            lib.wf_rl_batch_set_thread_check(self._b, int(thread_check))
         self.n_rows = lib.wf_rl_batch_rows(self._b)
         self._errs = (WfError * n)()
         self.obs, self.reward = np.empty((self.n_rows, 3)), np.empty(n)
@@ -51,6 +58,12 @@ class RlBatch:
             k = next((i for i, e in enumerate(self._errs) if e.code), 0)
             raise _lib.WavefuelError(self._errs[k].msg.decode(errors="replace"), rc)
         return self.obs, self.reward, self.info
+
+    def governor(self):
+        """(probes, switches) of the thread governor so far."""
+        p, s = C.c_long(), C.c_long()
+        lib.wf_rl_batch_governor(self._b, C.byref(p), C.byref(s))
+        return p.value, s.value
 
     def close(self):
         if self._b:

@@ -13,9 +13,11 @@ from .envs import RingEnv, _box
 
 class VectorEnv:
     """n_envs environments `env(**kwargs, **per_env[i])` (env: RingEnv, TrajectoryEnv or a callable returning
-    one; per_env: optional list of n_envs dicts, e.g. different ring lengths or traces), stepped on `threads`
-    OpenMP threads (None: the library's default, $OMP_NUM_THREADS or all cores). The environments must agree on the
-    number of automated vehicles, dt_s and action_every.
+    one; per_env: optional list of n_envs dicts, e.g. different ring lengths or traces), stepped on up to `threads`
+    OpenMP threads (None: the library's default, $OMP_NUM_THREADS or all cores): how many of them each action takes
+    is chosen by timing the actions, every `thread_check` of them (None: the library's default, 1024; 0: always
+    `threads`), because on a machine whose cores other processes use all threads can be slower than one; results
+    never depend on it. The environments must agree on the number of automated vehicles, dt_s and action_every.
 
     reset(seed=None, options=None) -> (obs, infos): seed an int (environment i gets seed + i), a list of n_envs
     seeds, or None (each environment draws from its own generator). step(actions) -> (obs, rewards, terminated,
@@ -27,7 +29,7 @@ class VectorEnv:
 
     metadata = {"autoreset_mode": "SameStep"}
 
-    def __init__(self, n_envs, env=RingEnv, threads=None, per_env=None, **kwargs):
+    def __init__(self, n_envs, env=RingEnv, threads=None, per_env=None, thread_check=None, **kwargs):
         if int(n_envs) < 1:
             raise ValueError(f"n_envs must be at least 1 (got {n_envs})")
         self.num_envs = int(n_envs)
@@ -46,6 +48,9 @@ class VectorEnv:
         self.threads = int(threads) if threads is not None else _lib.max_threads()
         if not 1 <= self.threads <= 4096:
             raise ValueError(f"threads must be an integer in [1, 4096] (got {threads})")
+        if thread_check is not None and int(thread_check) < 0:
+            raise ValueError(f"thread_check must be >= 0 (got {thread_check})")
+        self.thread_check = None if thread_check is None else int(thread_check)
         self.n_av, self.dt_s, self.action_every = e0.n_av, e0.dt_s, e0.action_every
         self.single_observation_space, self.single_action_space = e0.observation_space, e0.action_space
         self.observation_space = _box(0.0, np.inf, (self.num_envs, self.n_av, 3))
@@ -56,6 +61,13 @@ class VectorEnv:
         self._all = np.ones(self.num_envs, bool)
         self._all.flags.writeable = False
         self._batch = None
+        self._governed = (0, 0)
+
+    @property
+    def thread_governor(self):
+        """(probes, switches): the thread governor's probes of the other thread count and its switches so far."""
+        now = self._batch.governor() if self._batch is not None else (0, 0)
+        return self._governed[0] + now[0], self._governed[1] + now[1]
 
     def _rebuild(self, done=None):
         """The batch after the environments `done` (None: all) were reset (new runs); the others keep their
@@ -63,9 +75,10 @@ class VectorEnv:
         prev = None
         if self._batch is not None:
             prev = self._batch.prev_accel.reshape(self.num_envs, self.n_av).copy()
+            self._governed = self.thread_governor
             self._batch.close()
         self._batch = RlBatch([e.sim for e in self.envs], [e.AV for e in self.envs], self.envs[0].reward,
-                              self.action_every, self.dt_s)
+                              self.action_every, self.dt_s, self.thread_check)
         if done is not None:
             prev[done] = np.nan
             self._batch.prev_accel[:] = prev.ravel()

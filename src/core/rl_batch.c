@@ -10,6 +10,8 @@
 #include <string.h>
 
 #include "core/batch.h"
+#include "core/governor.h"
+#include "util/clock.h"
 #include "wavefuel/corridor.h"
 
 /* One run's share of the batch's arrays. */
@@ -28,6 +30,9 @@ struct WfRlBatch {
     WfRlReward    rw;
     long          action_steps;
     double        dt_s;                   /* of an action */
+    WfGovernor    gov;                    /* the threads of each call, for the threads asked (gov.n_max) */
+    long          gov_every;              /* calls between its probes */
+    int           gov_last;               /* the threads of the last call */
     /* per vehicle, runs one after the other, each in road order */
     double       *v0, *v1, *a, *fuel, *cv, *ca, *cf, *zero;
     uint32_t     *order;                  /* by class within each run (cv, ca, cf are in this order) */
@@ -96,7 +101,8 @@ int wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, c
                       n_runs, action_steps, dt_action_s);
     WfRlBatch *b = calloc(1, sizeof *b);
     if (!b) return wf_err(err, WF_ESYS, "out of memory");
-    *b = (WfRlBatch){.sims = sims, .n_runs = n_runs, .rw = *rw, .action_steps = action_steps, .dt_s = dt_action_s};
+    *b = (WfRlBatch){.sims = sims, .n_runs = n_runs, .rw = *rw, .action_steps = action_steps, .dt_s = dt_action_s,
+                     .gov_every = WF_RL_THREAD_CHECK};
     b->group = malloc(n_runs * sizeof *b->group);
     b->run = calloc(n_runs, sizeof *b->run);
     int rc = b->group && b->run ? 0 : wf_err(err, WF_ESYS, "out of memory");
@@ -216,7 +222,28 @@ int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *o
                      WfError *errs)
 {
     RlStep c = {b, actions, reward, info};
-    int rc = wf_runs_each(b->n_runs, threads, step_run, &c, errs);
+    if (threads < 1) threads = 1;
+    if (b->gov.n_max != threads) wf_governor_init(&b->gov, threads, b->gov_every);
+    int nt = wf_governor_threads(&b->gov);
+    /* Not timed: a call on one run or one thread (nothing to choose), and the first call on another count than the
+     * last, which wakes the team's threads and moves half the runs' state to another core's cache (a call lasts some
+     * 50 us: that first one alone can lose a probe of two threads on an idle machine). */
+    double t0 = threads > 1 && b->n_runs > 1 && nt == b->gov_last ? wf_wall_now() : 0.0;
+    b->gov_last = nt;
+    int rc = wf_runs_each(b->n_runs, nt, step_run, &c, errs);
+    if (t0 > 0.0) wf_governor_done(&b->gov, wf_wall_now() - t0, (double)b->n_veh * (double)b->action_steps);
     if (!rc && obs) wf_rl_batch_observe(b, obs);
     return rc;
+}
+
+void wf_rl_batch_set_thread_check(WfRlBatch *b, long calls)
+{
+    b->gov_every = calls > 0 ? calls : 0;
+    b->gov.n_max = 0; /* set up again at the next call */
+}
+
+void wf_rl_batch_governor(const WfRlBatch *b, long *probes, long *switches)
+{
+    if (probes) *probes = b->gov.probes;
+    if (switches) *switches = b->gov.switches;
 }

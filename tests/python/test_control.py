@@ -261,8 +261,9 @@ def test_vector_env(tmp):
     rng = np.random.default_rng(2)
     actions = rng.uniform(-2.0, 2.0, (40, 3, 2))
     first, ref = single_runs(lambda i: wf.envs.RingEnv(**kw, **per_env[i]), [10, 11, 12], actions)
-    for threads in (1, 2):
-        venv = wf.envs.VectorEnv(3, threads=threads, per_env=per_env, **kw)
+    # The last case: the thread governor probing at every action (one thread, then two, ...): the same bits.
+    for threads, thread_check in ((1, None), (2, None), (2, 1)):
+        venv = wf.envs.VectorEnv(3, threads=threads, per_env=per_env, thread_check=thread_check, **kw)
         obs, info = venv.reset(seed=10)
         bad = [] if obs.tobytes() == first.tobytes() and obs.shape == (3, 2, 3) else ["reset"]
         resets = 0
@@ -277,9 +278,13 @@ def test_vector_env(tmp):
             resets += len(final)
             if not same:
                 bad.append(k)
-        check(f"vector_env_equals_single_envs_threads_{threads}", not bad and resets == 7, (bad[:5], resets))
+        probes, switches = venv.thread_governor
+        name = f"vector_env_equals_single_envs_threads_{threads}" + ("_governor" if thread_check else "")
+        check(name, not bad and resets == 7 and (probes >= 5 if thread_check else not probes or threads > 1),
+              (bad[:5], resets, probes))
         if threads == 2:
-            print(f"  3 rings, {len(actions)} actions, {resets} autoresets: the bits of the environments alone")
+            print(f"  3 rings, {len(actions)} actions, {resets} autoresets: the bits of the environments alone"
+                  + (f" ({probes} probes of the thread governor, {switches} switches)" if thread_check else ""))
         venv.close()
     # Environment 0's first episode in a plain Simulation: warm-up, then the same (clipped) commands.
     sim = wf.Simulation(wf.Scenario.from_dict(ref_scenario(kw, per_env[0], 10)), threads=1)
