@@ -10,8 +10,10 @@
 2. rings: --envs rings of 22 vehicles (1 automated, RingEnv's defaults: IDM humans with 0.2 m/s^2 noise, ring
    length drawn in [220, 270] m, dt 0.1 s, an action every step), a constant action (0 m/s^2): env-steps per
    second = envs x steps / time of the step calls, wall and CPU (the process's, all threads), best of --repeats
-   (each repeat times every case in turn), for VectorEnv on 1 and 2 threads and the baseline; no episode ends
-   inside the timed steps (horizon 1e4 s), resets are timed apart;
+   (each repeat times every case in turn), for VectorEnv on 1 thread, on 2 threads (its thread governor choosing
+   each action's count: the default) and on 2 threads always (thread_check=0), and the baseline; no episode ends
+   inside the timed steps (horizon 1e4 s), resets are timed apart; --load adds two CPU-bound processes beside
+   every timed case (busy loops that stop themselves after 600 s and are killed at the end);
 3. trajectories: --envs TrajectoryEnvs of 200 vehicles (an automated vehicle after every 4 humans, 40 a platoon)
    behind a leader replaying a synthetic stop-and-go trace, on 1 and 2 threads.
 
@@ -26,7 +28,7 @@
 OpenMP reads OMP_WAIT_POLICY when the process starts: run the script once per policy (bench/README.md).
 Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/run.py
        [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600] [--sumo-envs 1,4,64]
-       [--sumo-steps 500]"""
+       [--sumo-steps 500] [--load]"""
 import argparse
 import os
 import platform
@@ -98,9 +100,9 @@ def bench_vector(n_envs, steps, repeats, baseline=False, **env_kw):
     threads (and the numpy baseline of the same rings): each repeat times every case in turn, so that all meet the
     same load; the best wall and the best CPU time of the repeats."""
     venvs, rows, cases = {}, {}, {}
-    for threads in (1, 2):
-        name = f"VectorEnv, {threads} thread{'s' if threads > 1 else ''}"
-        venvs[name] = v = wf.envs.VectorEnv(n_envs, threads=threads, **env_kw)
+    for threads, check in ((1, None), (2, None), (2, 0)):
+        name = f"VectorEnv, {threads} thread{'s' if threads > 1 else ''}" + (", always" if check == 0 else "")
+        venvs[name] = v = wf.envs.VectorEnv(n_envs, threads=threads, thread_check=check, **env_kw)
         t = time.perf_counter()
         v.reset(seed=1)
         rows[name] = time.perf_counter() - t
@@ -174,9 +176,28 @@ def main():
     ap.add_argument("--check-steps", type=int, default=600)
     ap.add_argument("--sumo-envs", default="1,4,64", help="numbers of SUMO environments stepped in turn")
     ap.add_argument("--sumo-steps", type=int, default=500)
+    ap.add_argument("--load", action="store_true", help="two CPU-bound processes beside the timed cases")
     a = ap.parse_args()
     print("machine:", machine())
     ok = agreement(4, a.check_steps)
+    load = start_load(600.0) if a.load else []
+    try:
+        return timed_cases(a, ok)
+    finally:
+        for p in load:
+            p.kill()
+            p.wait()
+
+
+def start_load(seconds):
+    """Two busy loops that stop themselves after `seconds`."""
+    busy = "import time\nt = time.time() + %g\nwhile time.time() < t: pass\n" % seconds
+    return [subprocess.Popen(["/usr/bin/python3", "-c", busy]) for _ in range(2)]
+
+
+def timed_cases(a, ok):
+    if a.load:
+        print("beside two CPU-bound processes (--load)")
     rings = bench_vector(a.envs, a.steps, a.repeats, baseline=True, horizon_s=1e4)
     base = rings["numpy baseline"]
     print(f"\n{a.envs} rings of 22 vehicles, {a.steps} steps, best of {a.repeats}:")
@@ -203,7 +224,8 @@ def main():
         ok = ok and sumo_ok
     for k, (wall, cpu) in cases:
         print(f"BENCH rl_envs case={k.replace(' ', '_').replace(',', '')} env_steps_per_s={wall:.6g} "
-              f"env_steps_per_cpu_s={cpu:.6g} omp_wait_policy={os.environ.get('OMP_WAIT_POLICY', 'default')}")
+              f"env_steps_per_cpu_s={cpu:.6g} omp_wait_policy={os.environ.get('OMP_WAIT_POLICY', 'default')} "
+              f"load={int(a.load)}")
     print(f"load average {os.getloadavg()[0]:.2f} at the end")
     return 0 if ok else 1
 
