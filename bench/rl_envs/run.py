@@ -15,7 +15,7 @@
    inside the timed steps (horizon 1e4 s), resets are timed apart; --load adds two CPU-bound processes beside
    every timed case (busy loops that stop themselves after 600 s and are killed at the end);
 3. trajectories: --envs TrajectoryEnvs of 200 vehicles (an automated vehicle after every 4 humans, 40 a platoon)
-   behind a leader replaying a synthetic stop-and-go trace, on 1 and 2 threads.
+   behind a leader replaying a synthetic stop-and-go trace, the same three VectorEnv cases.
 
 4. SUMO + TraCI (the issue's second comparison; sumo_ring.py: the same rings, --envs lengths, in SUMO, one SUMO
    simulation per environment as Flow runs them, the automated vehicle commanded and observed every step from
