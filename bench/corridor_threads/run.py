@@ -25,6 +25,8 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 SCENARIO = os.path.join(ROOT, "bench", "corridor_vs_ring", "corridor.yaml")
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 from h5same import compare  # noqa: E402 (the one comparison of two results)
+sys.path.insert(0, os.path.dirname(HERE))
+from busy_load import start_load  # noqa: E402
 CASES = [("1 thread", 1, 1024), ("2 threads, always", 2, 0), ("2 threads, governor", 2, 1024)]
 
 
@@ -35,11 +37,6 @@ def one_run(binary, args, threads, check, out):
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True)
     return time.perf_counter() - t0
-
-
-def start_load(seconds):
-    busy = "import time\nt = time.time() + %g\nwhile time.time() < t: pass\n" % seconds
-    return [subprocess.Popen(["/usr/bin/python3", "-c", busy]) for _ in range(2)]
 
 
 def measure(binary, args, tmp, label):

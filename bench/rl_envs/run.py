@@ -40,6 +40,8 @@ import numpy as np
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
+sys.path.insert(0, os.path.dirname(HERE))
+from busy_load import start_load  # noqa: E402
 import wavefuel as wf  # noqa: E402
 from numpy_ring import NumpyRing  # noqa: E402
 from ring_spec import ring_spec  # noqa: E402
@@ -187,12 +189,6 @@ def main():
         for p in load:
             p.kill()
             p.wait()
-
-
-def start_load(seconds):
-    """Two busy loops that stop themselves after `seconds`."""
-    busy = "import time\nt = time.time() + %g\nwhile time.time() < t: pass\n" % seconds
-    return [subprocess.Popen(["/usr/bin/python3", "-c", busy]) for _ in range(2)]
 
 
 def timed_cases(a, ok):
