@@ -2,6 +2,7 @@
 takes its commands from one array, the runs step in parallel over runs on OpenMP threads (each run single-threaded
 inside, giving the bits it gives alone), and each run's observation, reward and its terms come back as arrays."""
 import ctypes as C
+import functools
 
 import numpy as np
 
@@ -53,11 +54,28 @@ class RlBatch:
         u = np.ascontiguousarray(actions, dtype=np.float64)
         if u.size != self.n_rows:
             raise _lib.WavefuelError(f"{u.size} actions for the batch's {self.n_rows} automated vehicles")
-        rc = lib.wf_rl_batch_step(self._b, u.ctypes.data, int(threads), *self._args)
+        self._raise(lib.wf_rl_batch_step(self._b, u.ctypes.data, int(threads), *self._args))
+        return self.obs, self.reward, self.info
+
+    def stepper(self, u, threads):
+        """step() as a call without arguments, for a caller that steps many times: the commands are read from u (a
+        float64 C-contiguous array of n_rows values, which the caller fills before each call), the results are in
+        self.obs, self.reward and self.info. Valid while the batch lives (close() ends it)."""
+        if not (isinstance(u, np.ndarray) and u.dtype == np.float64 and u.flags.c_contiguous and u.size == self.n_rows):
+            raise ValueError(f"stepper: the commands must be a C-contiguous float64 array of {self.n_rows} values")
+        call = functools.partial(lib.wf_rl_batch_step, self._b, u.ctypes.data, int(threads), *self._args)
+
+        def step():
+            rc = call()
+            if rc:
+                self._raise(rc)
+        step.commands = u  # the array whose address the call holds stays alive with it
+        return step
+
+    def _raise(self, rc):
         if rc:
             k = next((i for i, e in enumerate(self._errs) if e.code), 0)
             raise _lib.WavefuelError(self._errs[k].msg.decode(errors="replace"), rc)
-        return self.obs, self.reward, self.info
 
     def governor(self):
         """(probes, switches) of the thread governor so far."""

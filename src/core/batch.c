@@ -4,6 +4,8 @@
  * in order. */
 #include "core/batch.h"
 
+#include "core/par.h"
+
 #include "wavefuel/engine.h"
 
 int wf_runs_each(size_t n_runs, int threads, int (*fn)(void *ctx, size_t k, WfError *err), void *ctx, WfError *errs)
@@ -17,12 +19,13 @@ int wf_runs_each(size_t n_runs, int threads, int (*fn)(void *ctx, size_t k, WfEr
      * outputs (a reward, an observation row: a few bytes each) are written by one thread, not alternately by two.
      * Dynamic schedules (one run, or a quarter of a thread's share, at a time) stepped 64 RL rings 1.6 and 1.3
      * times slower on two threads (bench/README.md, RL environments). The schedule changes no run's bits. */
-#pragma omp parallel for num_threads(threads) default(none) shared(fn, ctx, n, errs) schedule(static)
-    for (long k = 0; k < n; k++) {
-        errs[k].code = 0, errs[k].msg[0] = '\0';
-        int rc = fn(ctx, (size_t)k, &errs[k]);
-        if (rc && !errs[k].code) errs[k].code = rc;
-    }
+    WF_PAR_FOR(threads > 1 && n > 1,
+               "omp parallel for num_threads(threads) default(none) shared(fn, ctx, n, errs) schedule(static)",
+               for (long k = 0; k < n; k++) {
+                   errs[k].code = 0, errs[k].msg[0] = '\0';
+                   int rc = fn(ctx, (size_t)k, &errs[k]);
+                   if (rc && !errs[k].code) errs[k].code = rc;
+               });
     for (size_t k = 0; k < n_runs; k++)
         if (errs[k].code) return errs[k].code;
     return 0;

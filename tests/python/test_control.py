@@ -243,8 +243,9 @@ def single_runs(make, seeds, actions):
         final = {i: obs[i].copy() for i in np.flatnonzero(trunc)}
         for i in final:
             obs[i] = envs[i].reset()[0]
-        out.append((obs, np.array([r[1] for r in rows]), trunc,
-                    {k: np.array([r[4]["reward_terms"][k] for r in rows]) for k in ("fuel", "gap", "comfort")}, final))
+        terms = {k: np.array([r[4]["reward_terms"][k] for r in rows]) for k in ("fuel", "gap", "comfort")}
+        terms["t"] = np.array([r[4]["t"] for r in rows])
+        out.append((obs, np.array([r[1] for r in rows]), trunc, terms, final))
     for e in envs:
         e.close()
     return first, out
@@ -267,12 +268,18 @@ def test_vector_env(tmp):
         obs, info = venv.reset(seed=10)
         bad = [] if obs.tobytes() == first.tobytes() and obs.shape == (3, 2, 3) else ["reset"]
         resets = 0
+        # Gymnasium's vector infos: every key K with its mask "_K", all True but for final_obs / final_info.
+        masks = lambda d: {k: masks(x) if isinstance(x, dict) else x.tolist() for k, x in d.items()  # noqa: E731
+                           if k.startswith("_") and k not in ("_final_obs", "_final_info") or isinstance(x, dict)}
+        masks_want = {k: [True] * 3 for k in ("_t", "_fuel_rate_gps", "_mean_speed_mps", "_reward_terms")}
+        masks_want["reward_terms"] = {k: [True] * 3 for k in ("_fuel", "_gap", "_comfort")}
         for k, u in enumerate(actions):
             obs, r, term, trunc, info = venv.step(u)
             o, rr, tt, terms, final = ref[k]
             same = (obs.tobytes() == o.tobytes() and r.tobytes() == rr.tobytes() and np.array_equal(trunc, tt)
                     and not term.any() and all(info["reward_terms"][t].tobytes() == terms[t].tobytes()
-                                               for t in terms)
+                                               for t in terms if t != "t")
+                    and info["t"].tobytes() == terms["t"].tobytes() and masks(info) == masks_want
                     and all(info["final_obs"][i].tobytes() == final[i].tobytes() for i in final)
                     and (not final or list(np.flatnonzero(info["_final_obs"])) == sorted(final)))
             resets += len(final)
