@@ -23,7 +23,7 @@ static long drive(WfGovernor *g, long steps, double one_thread_s, double all_thr
 static void test_keeps_the_faster(void)
 {
     WfGovernor g;
-    wf_governor_init(&g, 2, 64);
+    wf_governor_init(&g, 2, 64, 0);
     CHECK(wf_governor_threads(&g) == 2, "starts on %d threads, not all", wf_governor_threads(&g));
     /* two threads faster: the first probe (steps 8..11 on one thread) loses, the interval doubles */
     long one = drive(&g, 12, 2e-3, 1e-3);
@@ -53,18 +53,65 @@ static void test_keeps_the_faster(void)
           wf_governor_threads(&g), g.switches);
 }
 
+/* As drive, but the first step on all threads after a step on one costs warm_s (waking the team, moving caches). */
+static long drive_warm(WfGovernor *g, long steps, double one_thread_s, double all_threads_s, double warm_s)
+{
+    long on_all = 0;
+    int last = wf_governor_threads(g);
+    for (long s = 0; s < steps; s++) {
+        int n = wf_governor_threads(g);
+        on_all += n > 1;
+        wf_governor_done(g, n == 1 ? one_thread_s : n != last ? warm_s : all_threads_s, 1000.0);
+        last = n;
+    }
+    return on_all;
+}
+
+/* settle: the first step after a change of the count is not timed (an RL batch's steps last microseconds, and the
+ * warm-up of a team would decide alone), and a probe lasts its steps plus that one. */
+static void test_settle(void)
+{
+    long back[2], on_all[2];
+    for (long settle = 0; settle < 2; settle++) {
+        WfGovernor g;
+        wf_governor_init(&g, 2, 64, settle);
+        /* loaded: two threads 10 times slower; the run goes to one thread, and each probe of two is cut short */
+        drive_warm(&g, 16, 1e-3, 10e-3, 20e-3); /* the first probe, of one thread, wins */
+        long probes0 = g.probes;
+        on_all[settle] = drive_warm(&g, 1024, 1e-3, 10e-3, 20e-3);
+        CHECK(wf_governor_threads(&g) == 1 && g.switches == 1, "settle %ld, loaded: %d threads, %ld switches",
+              settle, wf_governor_threads(&g), g.switches);
+        on_all[settle] -= (g.probes - probes0) * (1 + settle); /* a step a probe, and the settling one */
+        /* the load goes: two threads twice as fast, but the first step after one thread 20 times slower */
+        drive_warm(&g, 64 * 64, 1e-3, 0.5e-3, 20e-3);
+        back[settle] = g.switches;
+    }
+    /* the first step of all is a change too (the team starts cold) */
+    WfGovernor g;
+    wf_governor_init(&g, 2, 64, 1);
+    wf_governor_done(&g, 1.0, 1000.0);
+    wf_governor_done(&g, 1e-3, 1000.0);
+    CHECK(g.steps[0] == 1 && g.wall_s[0] == 1e-3, "the first step timed (%ld steps timed, %g s)", g.steps[0],
+          g.wall_s[0]);
+    CHECK(on_all[0] == 0 && on_all[1] == 0, "steps on two threads besides the probes' (settle 0, 1): %ld, %ld",
+          on_all[0], on_all[1]);
+    CHECK(back[1] == 2 && back[0] == 1, "switches after the load went: settle 1 %ld (back to two threads), settle 0 "
+          "%ld (every probe of two threads lost by its warm-up)", back[1], back[0]);
+}
+
 static void test_never_probes(void)
 {
     WfGovernor g;
-    wf_governor_init(&g, 2, 0);
+    wf_governor_init(&g, 2, 0, 0);
     CHECK(drive(&g, 10000, 1e-3, 9e-3) == 0 && g.probes == 0, "every = 0 probed (%ld)", g.probes);
-    wf_governor_init(&g, 1, 64);
+    wf_governor_init(&g, 1, 64, 0);
     CHECK(drive(&g, 10000, 1e-3, 9e-3) == 10000 && g.probes == 0, "one thread probed (%ld)", g.probes);
 }
 
 int main(void)
 {
     RUN(test_keeps_the_faster);
+    RUN(test_settle);
     RUN(test_never_probes);
     TEST_EXIT();
 }

@@ -407,7 +407,7 @@ static int corridor_create(WfSim *sim, WfError *err)
     sim->steps_done = &c->st.steps_done;
     c->sim = sim;
     c->nthreads = sim->nthreads;
-    wf_governor_init(&c->gov, c->nthreads, sc->thread_check_steps);
+    wf_governor_init(&c->gov, c->nthreads, sc->thread_check_steps, 0);
     c->sc = sc;
     c->cs = sc->corridor;
     c->L = sc->road.length_m;

@@ -9,9 +9,11 @@ static long probe_steps(const WfGovernor *g)
     return p > 0 ? p : 1;
 }
 
-void wf_governor_init(WfGovernor *g, int n_max, long every)
+void wf_governor_init(WfGovernor *g, int n_max, long every, long settle)
 {
-    *g = (WfGovernor){.n_max = n_max, .now = n_max, .every = n_max > 1 ? every : 0, .interval = every};
+    *g = (WfGovernor){.n_max = n_max, .now = n_max, .every = n_max > 1 ? every : 0, .interval = every,
+                      .settle = settle > 0 ? settle : 0};
+    g->unsettled = g->settle; /* the first steps too: the team starts cold */
     /* the first probe soon: on a busy machine a step on all threads can take a hundred times one thread's */
     g->left = WF_GOV_FIRST < 2 * probe_steps(g) ? WF_GOV_FIRST : 2 * probe_steps(g);
 }
@@ -21,6 +23,10 @@ int wf_governor_threads(const WfGovernor *g) { return g->now; }
 void wf_governor_done(WfGovernor *g, double wall_s, double work)
 {
     if (!g->every) return;
+    if (g->unsettled > 0) {
+        g->unsettled--;
+        return;
+    }
     int p = g->probing;
     g->wall_s[p] += wall_s, g->work[p] += work, g->steps[p]++;
     /* a probe whose steps so far took twice as long as the chosen count's has lost */
@@ -28,7 +34,7 @@ void wf_governor_done(WfGovernor *g, double wall_s, double work)
     if (--g->left > 0 && !lost) return;
     int other = g->now == 1 ? g->n_max : 1;
     if (!p) { /* the chosen count's stretch is over: probe the other */
-        g->probing = 1, g->now = other, g->left = probe_steps(g), g->probes++;
+        g->probing = 1, g->now = other, g->left = probe_steps(g), g->probes++, g->unsettled = g->settle;
         return;
     }
     /* the probe is over: switch when it did 5 % more work per second (work1 / wall1 > 1.05 work0 / wall0) */
@@ -36,7 +42,7 @@ void wf_governor_done(WfGovernor *g, double wall_s, double work)
     if (probe_won) {
         g->switches++, g->interval = g->every; /* g->now stays the probe's count */
     } else {
-        g->now = other;
+        g->now = other, g->unsettled = g->settle;
         if (g->interval < WF_GOV_BACKOFF_MAX * g->every) g->interval *= 2;
     }
     /* after a switch the new count is checked soon, as at the start: a probe can win by chance on a busy machine */

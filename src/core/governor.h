@@ -9,7 +9,12 @@
  * least 5 % more vehicle-steps per second of wall time. A probe that loses doubles the interval (up to 64 times
  * `every`), so a steady machine pays for few probes; a switch sets it back to `every`. A probe is cut short as
  * soon as its steps so far took twice as long as the chosen count's: on a loaded machine a step whose thread was
- * descheduled can take a hundred times longer, and a whole probe of them would cost more than it could save. */
+ * descheduled can take a hundred times longer, and a whole probe of them would cost more than it could save.
+ *
+ * `settle` steps after every change of the count are taken on the new count but neither timed nor counted: where a
+ * step lasts microseconds (a batch of RL environments), the first one on another count wakes the team's threads and
+ * moves half the state to another core's cache, and alone it lost every probe of two threads on an idle machine. A
+ * corridor's steps last milliseconds: 0 there, so that a probe on a loaded machine costs one slow step, not two. */
 #ifndef WAVEFUEL_CORE_GOVERNOR_H
 #define WAVEFUEL_CORE_GOVERNOR_H
 
@@ -20,11 +25,12 @@ typedef struct WfGovernor {
     int    probing;             /* the stretch is a probe */
     double wall_s[2], work[2];  /* wall time and vehicle-steps of the chosen count's stretch [0] and the probe [1] */
     long   steps[2];            /* and their steps */
+    long   settle, unsettled;   /* steps not timed after a change of the count; those still to come */
     long   probes, switches;    /* what it did (tests, benchmarks) */
 } WfGovernor;
 
-/* n_max threads; every: time.thread_check_steps (0: always n_max). */
-void wf_governor_init(WfGovernor *g, int n_max, long every);
+/* n_max threads; every: time.thread_check_steps (0: always n_max); settle: steps not timed after a change. */
+void wf_governor_init(WfGovernor *g, int n_max, long every, long settle);
 /* The threads the next step takes. */
 int  wf_governor_threads(const WfGovernor *g);
 /* After the step: its wall time (s) and its work (vehicles stepped). */

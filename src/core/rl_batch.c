@@ -32,7 +32,6 @@ struct WfRlBatch {
     double        dt_s;                   /* of an action */
     WfGovernor    gov;                    /* the threads of each call, for the threads asked (gov.n_max) */
     long          gov_every;              /* calls between its probes */
-    int           gov_last;               /* the threads of the last call */
     /* per vehicle, runs one after the other, each in road order */
     double       *v0, *v1, *a, *fuel, *cv, *ca, *cf, *zero;
     uint32_t     *order;                  /* by class within each run (cv, ca, cf are in this order) */
@@ -223,13 +222,11 @@ int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *o
 {
     RlStep c = {b, actions, reward, info};
     if (threads < 1) threads = 1;
-    if (b->gov.n_max != threads) wf_governor_init(&b->gov, threads, b->gov_every);
+    /* A call lasts some 50 us: the first on another thread count is not timed (governor.h, settle). */
+    if (b->gov.n_max != threads) wf_governor_init(&b->gov, threads, b->gov_every, 1);
     int nt = wf_governor_threads(&b->gov);
-    /* Not timed: a call on one run or one thread (nothing to choose), and the first call on another count than the
-     * last, which wakes the team's threads and moves half the runs' state to another core's cache (a call lasts some
-     * 50 us: that first one alone can lose a probe of two threads on an idle machine). */
-    double t0 = threads > 1 && b->n_runs > 1 && nt == b->gov_last ? wf_wall_now() : 0.0;
-    b->gov_last = nt;
+    /* not timed: a call on one run or one thread (nothing to choose) */
+    double t0 = threads > 1 && b->n_runs > 1 ? wf_wall_now() : 0.0;
     int rc = wf_runs_each(b->n_runs, nt, step_run, &c, errs);
     if (t0 > 0.0) wf_governor_done(&b->gov, wf_wall_now() - t0, (double)b->n_veh * (double)b->action_steps);
     if (!rc && obs) wf_rl_batch_observe(b, obs);
