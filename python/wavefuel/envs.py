@@ -88,18 +88,28 @@ class _ExternalEnv(_Base):
         self._rl = RlBatch([self.sim], [self.AV], self.reward, self.action_every, self.dt_s)
         if self._rl.n_rows != self.n_av:
             raise RuntimeError(f"{self._rl.n_rows} automated vehicles on the road, expected {self.n_av}")
+        self._u = np.empty(self.n_av)
+        self._step_rl = self._rl.stepper(self._u, 1)
         return self._rl.obs.reshape(self.n_av, 3).copy(), {"t": self.sim.t}
 
     def _warm(self):
         """Steps before the agent acts (the automated vehicles drive as acc meanwhile)."""
 
     def step(self, action):
-        u = np.clip(np.asarray(action, np.float64).reshape(self.n_av), self.action_space.low, self.action_space.high)
-        obs, r, info = self._rl.step(u, 1)
-        truncated = self.sim.t - self.t0 >= self.horizon_s - 1e-9
-        out = {"t": self.sim.t, "fuel_rate_gps": float(info[0, 3]), "mean_speed_mps": float(info[0, 4]),
-               "reward_terms": {k: float(info[0, i]) for i, k in enumerate(INFO[:3])}}
-        return obs.reshape(self.n_av, 3).copy(), float(r[0]), False, truncated, out
+        if getattr(self, "_rl", None) is None:
+            raise RuntimeError("step() before reset() (or after close())")
+        u = np.asarray(action, np.float64)
+        if u.shape != self._u.shape:
+            u = u.reshape(self._u.shape)
+        # np.minimum/np.maximum into one buffer: np.clip costs several times more on arrays this small.
+        np.minimum(np.maximum(u, self.action_space.low, out=self._u), self.action_space.high, out=self._u)
+        self._step_rl()
+        rl, t = self._rl, self.sim.t
+        info = rl.info[0].tolist()
+        out = {"t": t, "fuel_rate_gps": info[3], "mean_speed_mps": info[4],
+               "reward_terms": {k: info[i] for i, k in enumerate(INFO[:3])}}
+        return (rl.obs.reshape(self.n_av, 3).copy(), float(rl.reward[0]), False, t - self.t0 >= self.horizon_s - 1e-9,
+                out)
 
     def close(self):
         if getattr(self, "_rl", None) is not None:

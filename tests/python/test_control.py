@@ -126,6 +126,12 @@ def run_episode(env, seed, actions):
 
 def test_ring_env():
     env = wf.envs.RingEnv(n_av=2, horizon_s=20.0, warmup_s=5.0)
+    try:
+        env.step(np.zeros(2))
+        early = "no error"
+    except RuntimeError as e:
+        early = str(e)
+    check("ring_env_step_before_reset", "before reset" in early, early)
     obs, info = env.reset(seed=4)
     check("ring_env_reset", obs.shape == (2, 3) and env.observation_space.shape == (2, 3)
           and env.action_space.shape == (2,) and abs(info["t"] - 5.0) < 1e-9, (obs.shape, info))
