@@ -97,7 +97,10 @@ class VectorEnv:
         """Actions environment i takes before its episode is truncated (at least 1)."""
         steps0, t0, horizon, every = int(self._steps[i]), self._t0[i], self._horizon[i], self.action_every
         ends = lambda k: float(steps0 + k * every) * self.dt_s - t0 >= horizon - 1e-9  # noqa: E731
-        k = max(1, int(np.ceil((horizon + t0 - steps0 * self.dt_s) / (every * self.dt_s))) - 2)
+        est = (horizon + t0 - steps0 * self.dt_s) / (every * self.dt_s)
+        if not est < 2.0**40:  # beyond any run's steps (time.duration_s <= 1e9 s), or not a number: not in reach
+            return 2**62
+        k = max(1, int(np.ceil(est)) - 2)
         while k > 1 and ends(k - 1):
             k -= 1
         while not ends(k):
