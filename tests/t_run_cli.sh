@@ -38,6 +38,19 @@ assert c["meta/seed"][()] == 4
 PY
 then ok seed_and_overrides; else ko seed_and_overrides "see above"; fi
 
+# The step loop's phase times (read from the clock only when the run writes a result): each is >= 0, the step
+# phase's is positive, and together they take no longer than the step loop.
+if $PY - "$tmp/a.h5" <<'PY'
+import sys, h5py, numpy as np
+f = h5py.File(sys.argv[1])
+names = [n.decode() for n in f["meta/phase_name"][()]]
+t = f["meta/phase_time"][()]
+assert len(names) == len(t) and np.all(t >= 0), (names, t)
+assert t[names.index("fused_step")] + t[names.index("car_following")] > 0, (names, t)
+assert t.sum() <= f["meta/wall_time_s"][()] * 1.001 + 1e-6, (t.sum(), f["meta/wall_time_s"][()])
+PY
+then ok phase_times; else ko phase_times "see above"; fi
+
 # Every dataset documented in docs/output.md exists with units, and every dataset written is documented.
 if $PY - "$tmp/a.h5" docs/output.md <<'PY'
 import re, sys, h5py
