@@ -60,9 +60,11 @@ void wf_rl_batch_observe(const WfRlBatch *b, double *obs);
 int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
                      WfError *errs);
 /* The thread governor's interval: calls between its probes of the other thread count (WF_RL_THREAD_CHECK by
- * default; 0: always `threads`). Its probes and switches so far into *probes and *switches (either may be NULL). */
+ * default; 0: always `threads`), set and read. Its probes and switches so far into *probes and *switches (either
+ * may be NULL). */
 enum { WF_RL_THREAD_CHECK = 1024 };
 void wf_rl_batch_set_thread_check(WfRlBatch *b, long calls);
+long wf_rl_batch_thread_check(const WfRlBatch *b);
 void wf_rl_batch_governor(const WfRlBatch *b, long *probes, long *switches);
 
 #endif

@@ -77,6 +77,10 @@ class RlBatch:
             k = next((i for i, e in enumerate(self._errs) if e.code), 0)
             raise _lib.WavefuelError(self._errs[k].msg.decode(errors="replace"), rc)
 
+    def thread_check(self):
+        """Calls between the thread governor's probes (0: never probes)."""
+        return lib.wf_rl_batch_thread_check(self._b)
+
     def governor(self):
         """(probes, switches) of the thread governor so far."""
         p, s = C.c_long(), C.c_long()

@@ -239,6 +239,8 @@ void wf_rl_batch_set_thread_check(WfRlBatch *b, long calls)
     b->gov.n_max = 0; /* set up again at the next call */
 }
 
+long wf_rl_batch_thread_check(const WfRlBatch *b) { return b->gov_every; }
+
 void wf_rl_batch_governor(const WfRlBatch *b, long *probes, long *switches)
 {
     if (probes) *probes = b->gov.probes;

@@ -13,6 +13,7 @@
 - The library's batch calls (wf_sims_set_actions, wf_sims_step, wf_sims_observe) equal the runs stepped alone.
 - Refusals: commands to a group that is not external, the wrong count, an infinite command, an unknown group."""
 import os
+import re
 import sys
 import tempfile
 
@@ -21,6 +22,7 @@ import numpy as np
 
 import wavefuel as wf
 
+ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 failures = 0
 
 
@@ -292,6 +294,11 @@ def test_vector_env(tmp):
             if not same:
                 bad.append(k)
         probes, switches = venv.thread_governor
+        if thread_check is None:  # the library's default, as docs/python.md and the docstring quote it
+            quoted = {re.search(r"None: (?:the library's default, )?(\d+)", text).group(1)
+                      for text in (open(os.path.join(ROOT, "docs", "python.md")).read(), wf.envs.VectorEnv.__doc__)}
+            check(f"vector_env_thread_check_default_quoted_{threads}", quoted == {str(venv._batch.thread_check())},
+                  (quoted, venv._batch.thread_check()))
         name = f"vector_env_equals_single_envs_threads_{threads}" + ("_governor" if thread_check else "")
         check(name, not bad and resets == 7 and (probes >= 5 if thread_check else not probes or threads > 1),
               (bad[:5], resets, probes))
