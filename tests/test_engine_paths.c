@@ -331,9 +331,58 @@ static void test_corridor_threads(void)
     rmdir(dir);
 }
 
+/* One scenario text run (fused steps, `threads` threads) into o. */
+static int run_text(const char *text, int threads, Out *o)
+{
+    char dir[] = "/tmp/wf_test_paths.XXXXXX", path[128];
+    if (!mkdtemp(dir)) return -1;
+    snprintf(path, sizeof path, "%s/s.yaml", dir);
+    FILE *f = fopen(path, "w");
+    fputs(text, f);
+    fclose(f);
+    int rc = run(path, "time.fused_step=true", threads, o);
+    unlink(path);
+    rmdir(dir);
+    return rc;
+}
+
+/* A block's largest driver group runs over the whole block in place when its rule allows (one parameter set, a
+ * block kernel, no memory, zones or safety filter: src/core/block.c accel_block), the others gathered. The same
+ * humans as one group and split into two identical groups (the larger second, then first) must drive the same:
+ * every vehicle's final position, speed and fuel, every record, the same bits. */
+static void test_groups_split(void)
+{
+    const char *one = RING_HEAD "    - {model: idm, fraction: 1.0, noise_mps2: 0.3, feasible_accel: clip}\n"
+                                "initial: {state: equilibrium, jitter_m: 0.5}\n";
+    const char *split[] = {
+        RING_HEAD "    - {model: idm, fraction: 0.3, noise_mps2: 0.3, feasible_accel: clip}\n"
+                  "    - {model: idm, fraction: 0.7, noise_mps2: 0.3, feasible_accel: clip}\n"
+                  "initial: {state: equilibrium, jitter_m: 0.5}\n",
+        RING_HEAD "    - {model: idm, fraction: 0.9, noise_mps2: 0.3, feasible_accel: clip}\n"
+                  "    - {model: idm, fraction: 0.1, noise_mps2: 0.3, feasible_accel: clip}\n"
+                  "initial: {state: equilibrium, jitter_m: 0.5}\n"};
+    Out ref = {0};
+    CHECK(run_text(one, 1, &ref) == 0 && ref.x, "one group: run failed");
+    for (int k = 0; k < 2 && ref.x; k++)
+        for (int threads = 1; threads <= 2; threads++) {
+            Out o = {0};
+            CHECK(run_text(split[k], threads, &o) == 0 && o.x, "split %d: run failed", k);
+            if (!o.x) continue;
+            CHECK(o.n == ref.n && memcmp(o.x, ref.x, o.n * sizeof(double)) == 0 &&
+                      memcmp(o.v, ref.v, o.n * sizeof(double)) == 0 &&
+                      memcmp(o.fuel, ref.fuel, o.n * sizeof(double)) == 0,
+                  "split %d, %d threads: positions, speeds or fuel differ from one group's", k, threads);
+            CHECK(o.n_rows == ref.n_rows && memcmp(o.rows, ref.rows, o.n_rows * sizeof o.rows[0]) == 0,
+                  "split %d, %d threads: the records differ from one group's", k, threads);
+            free(o.x), free(o.v), free(o.fuel), free(o.state);
+        }
+    free(ref.x), free(ref.v), free(ref.fuel), free(ref.state);
+}
+
 int main(void)
 {
     RUN(test_paths_bitwise_equal);
+    RUN(test_groups_split);
     RUN(test_paths_with_safety);
     RUN(test_paths_equal_with_overlaps);
     RUN(test_corridor_threads);
