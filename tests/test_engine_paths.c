@@ -346,10 +346,10 @@ static int run_text(const char *text, int threads, Out *o)
     return rc;
 }
 
-/* A block's largest driver group runs over the whole block in place when its rule allows (one parameter set, a
- * block kernel, no memory, zones or safety filter: src/core/block.c accel_block), the others gathered. The same
- * humans as one group and split into two identical groups (the larger second, then first) must drive the same:
- * every vehicle's final position, speed and fuel, every record, the same bits. */
+/* A block mixing driver groups gathers each group's vehicles for its rule (src/core/block.c accel_block); a block
+ * of one group runs it in place. The same humans as one group and split into two identical groups (the larger
+ * second, then first) must drive the same: every vehicle's final position, speed and fuel, every record, the same
+ * bits, on 1 and 2 threads. */
 static void test_groups_split(void)
 {
     const char *one = RING_HEAD "    - {model: idm, fraction: 1.0, noise_mps2: 0.3, feasible_accel: clip}\n"

@@ -218,19 +218,7 @@ void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, cons
     energy_block(ln, lo, n, v, a, th, fr, fl);
 }
 
-/* Whether group g's rule may run over a whole block in place, its vehicles and others alike: one parameter set
- * through the model's block kernel (element-wise: a vehicle's value does not depend on the others evaluated with
- * it), no controller memory, no zones, no safety filter to count. */
-static inline int whole_block(const WfLane *ln, size_t g)
-{
-    const WfDriverGroup *grp = &ln->sc->groups[g];
-    return grp->model->accel_block && !grp->model->state_size && !ln->zoned[g] && !ln->pstride[g] && !grp->safety;
-}
-
-/* Accelerations of a block, group by group (gathered when the block mixes groups); co: see accel_group. The
- * block's largest group runs over the whole block in place when it may (whole_block), and only the others are
- * gathered and written over their vehicles, as energy_block does with classes: each vehicle gets the bits of its
- * own group's rule, with fewer gathers (a block of a ring with a few automated vehicles among humans). */
+/* Accelerations of a block, group by group (gathered when the block mixes groups); co: see accel_group. */
 AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, const double *v, const double *z,
                     const double *cap, Blk *b, WfChunkOut *co)
 {
@@ -240,16 +228,10 @@ AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, cons
         accel_group(ln, 0, lo, NULL, m, x, b->gap, v, b->vl, b->th, z, cap, cid, b->a, co);
         return;
     }
-    size_t count[WF_MAX_GROUPS] = {0}, major = 0;
-    for (size_t k = 0; k < m; k++) count[gid[k]]++;
-    for (size_t g = 1; g < sc->n_groups; g++) major = count[g] > count[major] ? g : major;
-    int in_place = whole_block(ln, major);
-    if (in_place) accel_group(ln, major, lo, NULL, m, x, b->gap, v, b->vl, b->th, z, cap, cid, b->a, NULL);
     double gg[B], gv[B], gl[B], gt[B], gz[B], gc[B], ga[B];
     uint16_t gcl[B];
     uint32_t idx[B];
     for (size_t g = 0; g < sc->n_groups; g++) {
-        if (!count[g] || (in_place && g == major)) continue;
         size_t cnt = 0;
         for (size_t k = 0; k < m; k++)
             if (gid[k] == g) idx[cnt++] = (uint32_t)k;
