@@ -99,23 +99,39 @@ static int run(const char *path, const char *mode, int threads, Out *o)
     return rc;
 }
 
+/* A scenario text into dir/s.yaml (path), dir a new temporary folder; 0 on success. */
+static int write_temp(const char *text, char dir[static 28], char path[static 128])
+{
+    strcpy(dir, "/tmp/wf_test_paths.XXXXXX");
+    if (!mkdtemp(dir)) return -1;
+    snprintf(path, 128, "%s/s.yaml", dir);
+    FILE *f = fopen(path, "w");
+    if (!f) return -1;
+    fputs(text, f);
+    return fclose(f);
+}
+
+/* run() of a scenario text (written to a temporary file). */
+static int run_text(const char *text, const char *mode, int threads, Out *o)
+{
+    char dir[28], path[128];
+    int rc = write_temp(text, dir, path) ? -1 : run(path, mode, threads, o);
+    unlink(path);
+    rmdir(dir);
+    return rc;
+}
+
 /* Both paths over one scenario text; returns the reference's overlap count (final record). */
 static double compare_paths(const char *text)
 {
-    char dir[] = "/tmp/wf_test_paths.XXXXXX", path[128];
-    if (!mkdtemp(dir)) return -1;
-    snprintf(path, sizeof path, "%s/s.yaml", dir);
-    FILE *f = fopen(path, "w");
-    fputs(text, f);
-    fclose(f);
     double overlaps = -1;
     Out ref = {0}, o = {0};
-    CHECK(run(path, "time.fused_step=false", 1, &ref) == 0, "multi-pass run failed");
+    CHECK(run_text(text, "time.fused_step=false", 1, &ref) == 0, "multi-pass run failed");
     const char *modes[] = {"time.fused_step=true", "time.fused_step=true", "time.fused_step=false", "traj"};
     int threads[] = {1, 2, 2, 2};
     for (int k = 0; k < 4 && ref.x; k++) {
         memset(&o, 0, sizeof o);
-        CHECK(run(path, modes[k], threads[k], &o) == 0, "run failed");
+        CHECK(run_text(text, modes[k], threads[k], &o) == 0, "run failed");
         if (!o.x) continue;
         CHECK(memcmp(o.x, ref.x, o.n * sizeof(double)) == 0, "%s, %d threads: positions differ", modes[k], threads[k]);
         CHECK(memcmp(o.v, ref.v, o.n * sizeof(double)) == 0, "%s, %d threads: speeds differ", modes[k], threads[k]);
@@ -143,8 +159,6 @@ static double compare_paths(const char *text)
     if (ref.n_rows) overlaps = ref.rows[ref.n_rows - 1].v[WF_TS_OVERLAPS];
     last_safety = ref.safety;
     free(ref.x), free(ref.v), free(ref.fuel), free(ref.state);
-    unlink(path);
-    rmdir(dir);
     return overlaps;
 }
 
@@ -293,12 +307,11 @@ static int run_corridor(const char *path, int threads, long check_steps, COut *o
 
 static void test_corridor_threads(void)
 {
-    char dir[] = "/tmp/wf_test_paths.XXXXXX", path[128];
-    if (!mkdtemp(dir)) return;
-    snprintf(path, sizeof path, "%s/c.yaml", dir);
-    FILE *f = fopen(path, "w");
-    fputs(corridor_yaml, f);
-    fclose(f);
+    char dir[28], path[128];
+    if (write_temp(corridor_yaml, dir, path)) {
+        CHECK(0, "cannot write the scenario into %s", dir);
+        return;
+    }
     static COut a, b, sw;
     CHECK(run_corridor(path, 1, 1024, &a) == 0 && run_corridor(path, 2, 0, &b) == 0, "corridor runs failed");
     printf("  corridor: up to %.0f vehicles on the road, %zu trips, %zu records, %lld safety interventions\n",
@@ -331,21 +344,6 @@ static void test_corridor_threads(void)
     rmdir(dir);
 }
 
-/* One scenario text run (fused steps, `threads` threads) into o. */
-static int run_text(const char *text, int threads, Out *o)
-{
-    char dir[] = "/tmp/wf_test_paths.XXXXXX", path[128];
-    if (!mkdtemp(dir)) return -1;
-    snprintf(path, sizeof path, "%s/s.yaml", dir);
-    FILE *f = fopen(path, "w");
-    fputs(text, f);
-    fclose(f);
-    int rc = run(path, "time.fused_step=true", threads, o);
-    unlink(path);
-    rmdir(dir);
-    return rc;
-}
-
 /* A block mixing driver groups gathers each group's vehicles for its rule (src/core/block.c accel_block); a block
  * of one group runs it in place. The same humans as one group and split into two identical groups (the larger
  * second, then first) must drive the same: every vehicle's final position, speed and fuel, every record, the same
@@ -362,11 +360,11 @@ static void test_groups_split(void)
                   "    - {model: idm, fraction: 0.1, noise_mps2: 0.3, feasible_accel: clip}\n"
                   "initial: {state: equilibrium, jitter_m: 0.5}\n"};
     Out ref = {0};
-    CHECK(run_text(one, 1, &ref) == 0 && ref.x, "one group: run failed");
+    CHECK(run_text(one, "time.fused_step=true", 1, &ref) == 0 && ref.x, "one group: run failed");
     for (int k = 0; k < 2 && ref.x; k++)
         for (int threads = 1; threads <= 2; threads++) {
             Out o = {0};
-            CHECK(run_text(split[k], threads, &o) == 0 && o.x, "split %d: run failed", k);
+            CHECK(run_text(split[k], "time.fused_step=true", threads, &o) == 0 && o.x, "split %d: run failed", k);
             if (!o.x) continue;
             CHECK(o.n == ref.n && memcmp(o.x, ref.x, o.n * sizeof(double)) == 0 &&
                       memcmp(o.v, ref.v, o.n * sizeof(double)) == 0 &&
