@@ -52,6 +52,12 @@ def _box(low, high, shape):
     return Box(low, high, shape)
 
 
+def episode_ended(t_s, t0_s, horizon_s):
+    """Whether an episode that began at t0_s has reached its horizon at t_s (arrays or numbers; the same operations
+    in every environment, so that a VectorEnv truncates where the environments alone do)."""
+    return t_s - t0_s >= horizon_s - 1e-9
+
+
 _Base = _gym.Env if _gym is not None else object
 # Steps between the runs' time-series records: nothing reads them (the runs write no file), and a record every
 # step costs a quarter of a 22-vehicle ring's step.
@@ -108,8 +114,8 @@ class _ExternalEnv(_Base):
         info = rl.info[0].tolist()
         out = {"t": t, "fuel_rate_gps": info[3], "mean_speed_mps": info[4],
                "reward_terms": {k: info[i] for i, k in enumerate(INFO[:3])}}
-        return (rl.obs.reshape(self.n_av, 3).copy(), float(rl.reward[0]), False, t - self.t0 >= self.horizon_s - 1e-9,
-                out)
+        truncated = episode_ended(t, self.t0, self.horizon_s)
+        return rl.obs.reshape(self.n_av, 3).copy(), float(rl.reward[0]), False, truncated, out
 
     def close(self):
         if getattr(self, "_rl", None) is not None:

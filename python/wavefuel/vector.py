@@ -8,7 +8,7 @@ import numpy as np
 
 from . import _lib
 from .batch import INFO, RlBatch
-from .envs import RingEnv, _box
+from .envs import RingEnv, _box, episode_ended
 
 
 class VectorEnv:
@@ -91,12 +91,12 @@ class VectorEnv:
         self._step_batch = self._batch.stepper(self._u, self.threads)
 
     def _truncated(self):
-        return self._steps * self.dt_s - self._t0 >= self._horizon - 1e-9
+        return episode_ended(self._steps * self.dt_s, self._t0, self._horizon)
 
     def _actions_left(self, i):
         """Actions environment i takes before its episode is truncated (at least 1)."""
         steps0, t0, horizon, every = int(self._steps[i]), self._t0[i], self._horizon[i], self.action_every
-        ends = lambda k: float(steps0 + k * every) * self.dt_s - t0 >= horizon - 1e-9  # noqa: E731
+        ends = lambda k: episode_ended(float(steps0 + k * every) * self.dt_s, t0, horizon)  # noqa: E731
         est = (horizon + t0 - steps0 * self.dt_s) / (every * self.dt_s)
         if not est < 2.0**40:  # beyond any run's steps (time.duration_s <= 1e9 s), or not a number: not in reach
             return 2**62
@@ -118,7 +118,7 @@ class VectorEnv:
             e.reset(seed=s, options=options)
         self._rebuild()
         obs = self._batch.obs.reshape(self.num_envs, self.n_av, 3).copy()
-        return obs, _with_masks({"t": self._steps * self.dt_s}, self._all)
+        return obs, {"t": self._steps * self.dt_s, "_t": self._all}
 
     def step(self, actions):
         if self._batch is None:
@@ -134,36 +134,32 @@ class VectorEnv:
         self._steps += self.action_every
         t = self._steps * self.dt_s  # as Simulation.t: steps done x dt
         cols = b.info.T.copy()  # one copy: the batch's buffers are overwritten by the next step
+        infos = _infos(t, cols, self._all)
         self._left -= 1
         if self._left > 0:
-            every = self._all  # the dict _with_masks builds, written out: it costs more than the rest of step()
-            infos = {"t": t, "_t": every, "fuel_rate_gps": cols[3], "_fuel_rate_gps": every,
-                     "mean_speed_mps": cols[4], "_mean_speed_mps": every,
-                     "reward_terms": {"fuel": cols[0], "_fuel": every, "gap": cols[1], "_gap": every,
-                                      "comfort": cols[2], "_comfort": every}, "_reward_terms": every}
             return obs, r, np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool), infos
         truncated = self._truncated()
-        infos = {"t": t, "fuel_rate_gps": cols[3], "mean_speed_mps": cols[4],
-                 "reward_terms": {k: cols[i] for i, k in enumerate(INFO[:3])}}
         if truncated.any():
-            infos.update(self._autoreset(np.flatnonzero(truncated), obs, infos))
+            infos.update(self._autoreset(np.flatnonzero(truncated), obs, t, cols))
             obs = self._batch.obs.reshape(self.num_envs, self.n_av, 3).copy()
         else:
             self._left = 1  # not reached: _actions_left is the exact test's
-        return obs, r, np.zeros(self.num_envs, bool), truncated, _with_masks(infos, self._all)
+        return obs, r, np.zeros(self.num_envs, bool), truncated, infos
 
-    def _autoreset(self, done, obs, infos):
-        """Reset the environments `done` (each from its own generator) and return the final_obs / final_info."""
+    def _autoreset(self, done, obs, t, cols):
+        """Reset the environments `done` (each from its own generator) and return final_obs / final_info with their
+        masks."""
         final_obs = np.full(self.num_envs, None, object)
         final_info = np.full(self.num_envs, None, object)
         for i in done:
             final_obs[i] = obs[i].copy()
-            final_info[i] = {"t": float(infos["t"][i]), "fuel_rate_gps": float(infos["fuel_rate_gps"][i]),
-                             "mean_speed_mps": float(infos["mean_speed_mps"][i]),
-                             "reward_terms": {k: float(x[i]) for k, x in infos["reward_terms"].items()}}
+            final_info[i] = {"t": float(t[i]), "fuel_rate_gps": float(cols[3][i]), "mean_speed_mps": float(cols[4][i]),
+                             "reward_terms": {k: float(cols[j][i]) for j, k in enumerate(INFO[:3])}}
             self.envs[i].reset()
         self._rebuild(done)
-        return {"final_obs": final_obs, "final_info": final_info}
+        mask = np.zeros(self.num_envs, bool)
+        mask[done] = True
+        return {"final_obs": final_obs, "_final_obs": mask, "final_info": final_info, "_final_info": mask.copy()}
 
     def close(self):
         if self._batch is not None:
@@ -173,11 +169,11 @@ class VectorEnv:
             e.close()
 
 
-def _with_masks(infos, every):
-    """Gymnasium's vector infos: each key K with a boolean array "_K" saying which environments have it (every: a
+def _infos(t, cols, every):
+    """Gymnasium's vector infos of a step: "t", "fuel_rate_gps", "mean_speed_mps" (n_envs,) and "reward_terms" (a dict
+    of such arrays) from t and the batch's info columns (INFO), each key K with its boolean mask "_K" (every: a
     read-only all-True mask, shared)."""
-    out = {}
-    for k, x in infos.items():
-        out[k] = _with_masks(x, every) if isinstance(x, dict) else x
-        out["_" + k] = np.array([v is not None for v in x]) if k.startswith("final") else every
-    return out
+    return {"t": t, "_t": every, "fuel_rate_gps": cols[3], "_fuel_rate_gps": every,
+            "mean_speed_mps": cols[4], "_mean_speed_mps": every,
+            "reward_terms": {"fuel": cols[0], "_fuel": every, "gap": cols[1], "_gap": every,
+                             "comfort": cols[2], "_comfort": every}, "_reward_terms": every}

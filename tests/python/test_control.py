@@ -289,7 +289,10 @@ def test_vector_env(tmp):
                                                for t in terms if t != "t")
                     and info["t"].tobytes() == terms["t"].tobytes() and masks(info) == masks_want
                     and all(info["final_obs"][i].tobytes() == final[i].tobytes() for i in final)
-                    and (not final or list(np.flatnonzero(info["_final_obs"])) == sorted(final)))
+                    and (not final or list(np.flatnonzero(info["_final_obs"])) == sorted(final)
+                         == list(np.flatnonzero(info["_final_info"])))
+                    and all(info["final_info"][i]["t"] == terms["t"][i]
+                            and info["final_info"][i]["reward_terms"]["fuel"] == terms["fuel"][i] for i in final))
             resets += len(final)
             if not same:
                 bad.append(k)
