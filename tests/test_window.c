@@ -13,6 +13,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "wavefuel/corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/scenario.h"
 #include "wf_test.h"
@@ -41,30 +42,91 @@ static const char *overlap_yaml =
     "  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]\n"
     "initial: {state: equilibrium}\n";
 
+/* A corridor with every part of its state a window touches: Poisson arrivals above what the road takes (a queue at
+ * the entrance), noisy heterogeneous IDM with the feasible clip, a PI-with-saturation controller with memory under
+ * a safety filter, two classes, a grade profile, a headway and a speed-limit zone, a prescribed-speed virtual leader
+ * that drops (a queue from the exit, and its restarts at each exit), detectors and Edie cells. */
+static const char *corridor_yaml =
+    "seed: 17\n"
+    "road:\n  type: corridor\n  length_m: 12000\n  speed_limit_mps: 30\n"
+    "  grade: {points: [[0, 0], [3000, 0.02], [7000, -0.015], [12000, 0]]}\n"
+    "  zones:\n    - {type: headway, from_m: 2000, to_m: 4000, factor: 1.4}\n"
+    "    - {type: speed_limit, from_m: 9000, to_m: 9500, speed_limit_mps: 9}\n"
+    "time: {duration_s: 900, dt_s: 0.1, output_interval_s: 5.0, warmup_s: 450}\n"
+    "fleet:\n  placement: random\n"
+    "  classes:\n    - {class: midsize_sedan, fraction: 0.75}\n    - {class: class8_tractor, fraction: 0.25}\n"
+    "  drivers:\n"
+    "    - {model: idm, fraction: 0.8, noise_mps2: 0.2, feasible_accel: clip,\n"
+    "       heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}\n"
+    "    - {model: pi_saturation, fraction: 0.2, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}\n"
+    "corridor:\n  inflow: {flow_vph: 2600, arrivals: poisson}\n"
+    "  outflow: {type: speed, points: [[0, 25], [350, 25], [400, 5], [700, 5], [750, 25]]}\n"
+    "  detectors: {x_m: [1000, 6000, 11900], interval_s: 60}\n"
+    "  edie: {dx_m: 250, dt_s: 30}\n";
+
+/* Noise far beyond what the brakes absorb on a corridor: overlaps, and windows redone. */
+static const char *corridor_overlap_yaml =
+    "seed: 5\nroad: {type: corridor, length_m: 6000}\n"
+    "time: {duration_s: 600, dt_s: 0.1, output_interval_s: 2.0}\n"
+    "fleet:\n  classes: [{class: midsize_sedan, fraction: 1}]\n"
+    "  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]\n"
+    "corridor:\n  inflow: {flow_vph: 3000}\n"
+    "  outflow: {type: speed, points: [[0, 20], [200, 20], [260, 3], [600, 3]]}\n";
+
 typedef struct Out {
     size_t n;
     double *x, *v;
-    WfTsRow rows[128];
+    WfTsRow rows[128];          /* a ring's first records */
     size_t n_rows;
+    double *vals;               /* every record's values and class fuel rates, then (a corridor) every trip's fields */
+    size_t n_vals, cap_vals, n_trips;
     unsigned char *state;
     size_t state_size;
     long windows, redone;
 } Out;
 
+static void keep_vals(Out *o, const double *v, size_t n)
+{
+    if (o->n_vals + n > o->cap_vals) {
+        o->cap_vals = 2 * (o->n_vals + n);
+        o->vals = realloc(o->vals, o->cap_vals * sizeof(double));
+        if (!o->vals) abort();
+    }
+    memcpy(o->vals + o->n_vals, v, n * sizeof(double));
+    o->n_vals += n;
+}
+
 static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
     (void)err;
     Out *o = ctx;
-    if (o->n_rows < sizeof o->rows / sizeof o->rows[0]) {
+    keep_vals(o, rec->v, rec->n);
+    keep_vals(o, rec->class_fuel_rate_gps, wf_sim_scenario(sim)->n_classes);
+    if (rec->n == WF_TS_N_COLS && o->n_rows < sizeof o->rows / sizeof o->rows[0]) {
         WfTsRow *row = &o->rows[o->n_rows++];
         WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(sim)->n_classes);
     }
     return 0;
 }
 
+/* A corridor's trips, field by field, in the order they come. */
+static int keep_trips(void *ctx, const WfSim *sim, const WfTrip *tr, size_t n, WfError *err)
+{
+    (void)sim, (void)err;
+    Out *o = ctx;
+    for (size_t k = 0; k < n; k++, o->n_trips++) {
+        const WfTrip *t = &tr[k];
+        double f[] = {(double)t->serial, t->class_id, t->group_id, t->completed, t->t_arrival_s, t->t_entry_s,
+                      t->t_exit_s, t->v_entry_mps, t->fuel_g, t->dist_m, t->time_stopped_s, t->stops,
+                      t->hard_brakes, t->infeasible_steps, t->lane, t->lane_changes};
+        keep_vals(o, f, sizeof f / sizeof f[0]);
+    }
+    return 0;
+}
+
 static void out_free(Out *o)
 {
-    free(o->x), free(o->v), free(o->state);
+    free(o->x), free(o->v), free(o->state), free(o->vals);
     memset(o, 0, sizeof *o);
 }
 
@@ -82,7 +144,7 @@ static int run(const char *path, const char *const *set, size_t n_set, int threa
     memset(o, 0, sizeof *o);
     int rc = wf_scenario_load(path, set, n_set, &sc, &err);
     if (!rc) rc = wf_sim_create(sc, &sim, &err);
-    WfOutput out = {.record = keep_row, .ctx = o};
+    WfOutput out = {.record = keep_row, .trips = keep_trips, .ctx = o};
     if (!rc && piece <= 0) rc = wf_sim_run(sim, &out, NULL, NULL, NULL, &err);
     if (!rc && piece > 0) {
         rc = wf_sim_begin(sim, &out, &err);
@@ -90,12 +152,11 @@ static int run(const char *path, const char *const *set, size_t n_set, int threa
     }
     if (rc) printf("  %s\n", err.msg);
     if (!rc) {
-        const WfFleet *f = wf_sim_fleet(sim);
-        o->n = f->n;
-        o->x = malloc(f->n * sizeof(double));
-        o->v = malloc(f->n * sizeof(double));
-        memcpy(o->x, f->x_m, f->n * sizeof(double));
-        memcpy(o->v, f->v_mps, f->n * sizeof(double));
+        const WfFleet *f = wf_sim_fleet(sim); /* a corridor's vehicles are in its state */
+        o->n = f ? f->n : 0;
+        o->x = malloc(o->n * sizeof(double) + 1);
+        o->v = malloc(o->n * sizeof(double) + 1);
+        if (f) memcpy(o->x, f->x_m, f->n * sizeof(double)), memcpy(o->v, f->v_mps, f->n * sizeof(double));
         o->state = wf_test_state_copy(sim, &o->state_size);
         wf_sim_window_stats(sim, &o->windows, &o->redone);
     }
@@ -110,7 +171,9 @@ static void compare(const Out *o, const Out *ref, const char *what)
     if (!o->x || !ref->x) return;
     CHECK(memcmp(o->x, ref->x, o->n * sizeof(double)) == 0, "%s: positions differ", what);
     CHECK(memcmp(o->v, ref->v, o->n * sizeof(double)) == 0, "%s: speeds differ", what);
-    CHECK(o->n_rows == ref->n_rows && o->n_rows > 0, "%s: %zu records, reference %zu", what, o->n_rows, ref->n_rows);
+    CHECK(o->n_vals == ref->n_vals && o->n_vals > 0 && memcmp(o->vals, ref->vals, o->n_vals * sizeof(double)) == 0,
+          "%s: the records or trips differ (%zu values, reference %zu)", what, o->n_vals, ref->n_vals);
+    CHECK(o->n_trips == ref->n_trips, "%s: %zu trips, reference %zu", what, o->n_trips, ref->n_trips);
     for (size_t r = 0; r < o->n_rows && r < ref->n_rows; r++)
         CHECK(memcmp(&o->rows[r], &ref->rows[r], sizeof o->rows[r]) == 0, "%s: record %zu (t = %g s) differs", what, r,
               ref->rows[r].v[WF_TS_T]);
@@ -199,10 +262,32 @@ static void test_windows_redone_on_overlap(void)
     CHECK(redone > 0 && redone < windows, "%ld of %ld windows redone", redone, windows);
 }
 
+/* Corridors: the front part, the windowed interior and the entrance give the per-step path's records, trips, Edie
+ * cells, detector sums and state, bit for bit; records every 3 steps (windows of 2) too. */
+static void test_corridor_windows(void)
+{
+    long windows, redone;
+    compare_variants(corridor_yaml, variants, N_VARIANTS, NULL, 0, &windows, &redone);
+    printf("  corridor of 12 km: %ld windows (%ld redone), the same bits as one step at a time\n", windows, redone);
+    const char *extra[] = {"time.output_interval_s=0.3"};
+    compare_variants(corridor_yaml, variants, N_VARIANTS, extra, 1, &windows, &redone);
+    printf("  records every 3 steps: %ld windows, the same bits\n", windows);
+}
+
+static void test_corridor_windows_redone(void)
+{
+    long windows, redone;
+    compare_variants(corridor_overlap_yaml, variants, N_VARIANTS, NULL, 0, &windows, &redone);
+    printf("  noisy corridor: %ld of %ld windows redone, the same bits\n", redone, windows);
+    CHECK(redone > 0 && redone < windows, "%ld of %ld windows redone", redone, windows);
+}
+
 int main(void)
 {
     RUN(test_windows_bitwise_equal);
     RUN(test_windows_records_and_trajectories);
     RUN(test_windows_redone_on_overlap);
+    RUN(test_corridor_windows);
+    RUN(test_corridor_windows_redone);
     TEST_EXIT();
 }

@@ -3,7 +3,8 @@
 
 The corridor of bench/corridor_vs_ring (IDM, noise, two classes, Edie fields, fed above capacity; about 5000
 vehicles on 150 km once full) is run for --duration-s simulated seconds on one thread, on two threads always
-(time.thread_check_steps=0) and on two threads with the governor (the default, 1024), first on the machine as it is,
+(time.thread_check_steps=0) and on two threads with the governor (the default, 1024), each one step at a time and in
+time-blocked windows of 9 steps (time.block_steps=9: the 9 steps between records), first on the machine as it is,
 then beside two CPU-bound processes (busy loops that stop themselves after --load-timeout seconds and are killed at
 the end). Cases alternate within each repeat; the table gives each case's best wall time of --repeats (whole
 processes). Results are the same bits in every case (checked on the runs of the machine as it is: every dataset
@@ -27,13 +28,16 @@ sys.path.insert(0, os.path.join(ROOT, "tests"))
 from h5same import compare  # noqa: E402 (the one comparison of two results)
 sys.path.insert(0, os.path.dirname(HERE))
 from busy_load import start_load  # noqa: E402
-CASES = [("1 thread", 1, 1024), ("2 threads, always", 2, 0), ("2 threads, governor", 2, 1024)]
+# (name, threads, time.thread_check_steps, time.block_steps)
+CASES = [("1 thread", 1, 1024, 1), ("2 threads, always", 2, 0, 1), ("2 threads, governor", 2, 1024, 1),
+         ("1 thread, windows", 1, 1024, 9), ("2 threads, always, windows", 2, 0, 9),
+         ("2 threads, governor, windows", 2, 1024, 9)]
 
 
-def one_run(binary, args, threads, check, out):
+def one_run(binary, args, threads, check, block, out):
     cmd = [binary, "run", SCENARIO, "-q", "--force", "-o", out, "--threads", str(threads),
            "--set", "road.length_m=150000", "--set", "time.duration_s=%g" % args.duration_s,
-           "--set", "time.thread_check_steps=%d" % check]
+           "--set", "time.thread_check_steps=%d" % check, "--set", "time.block_steps=%d" % block]
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True)
     return time.perf_counter() - t0
@@ -42,9 +46,9 @@ def one_run(binary, args, threads, check, out):
 def measure(binary, args, tmp, label):
     best = {}
     for _ in range(args.repeats):
-        for name, threads, check in CASES:
-            out = os.path.join(tmp, "%s_%d_%d.h5" % (label, threads, check))
-            w = one_run(binary, args, threads, check, out)
+        for name, threads, check, block in CASES:
+            out = os.path.join(tmp, "%s_%d_%d_%d.h5" % (label, threads, check, block))
+            w = one_run(binary, args, threads, check, block, out)
             best[name] = min(best.get(name, w), w)
     return best
 
@@ -59,11 +63,11 @@ def main():
     args = ap.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
         quiet = measure(args.bin, args, tmp, "quiet")
-        ref = os.path.join(tmp, "quiet_1_1024.h5")
-        for _, threads, check in CASES[1:]:
-            _, bad = compare(ref, os.path.join(tmp, "quiet_%d_%d.h5" % (threads, check)))
+        ref = os.path.join(tmp, "quiet_1_1024_1.h5")
+        for _, threads, check, block in CASES[1:]:
+            _, bad = compare(ref, os.path.join(tmp, "quiet_%d_%d_%d.h5" % (threads, check, block)))
             if bad:
-                sys.exit("run.py: results differ between thread settings: " + ", ".join(bad[:5]))
+                sys.exit("run.py: results differ between thread or window settings: " + ", ".join(bad[:5]))
         load = start_load(args.load_timeout)
         try:
             loaded = measure(args.bin, args, tmp, "load")
@@ -74,7 +78,7 @@ def main():
             loadavg = f.read().split()[0]
     print("| case | wall s, machine as it is | wall s, beside 2 busy processes |")
     print("|---|---|---|")
-    for name, _, _ in CASES:
+    for name, _, _, _ in CASES:
         print("| %s | %.2f | %.2f |" % (name, quiet[name], loaded[name]))
     print("(same bits in every case; load average at the end %s)" % loadavg)
     if args.json:

@@ -490,8 +490,7 @@ void wf_lane_stats_after(WfLane *ln, size_t lo, size_t n, int in_window)
 
 size_t wf_lane_blocks(size_t first, size_t n) { return n ? (n + first % B + B - 1) / B : 0; }
 
-/* Logical block j of the range: slots [*lo, *lo + return value). Blocks end at multiples of B in slots. */
-static size_t block_at(const WfLane *ln, size_t first, size_t n, size_t j, size_t *lo)
+size_t wf_lane_block_at(const WfLane *ln, size_t first, size_t n, size_t j, size_t *lo)
 {
     size_t off = first % B, s = j ? j * B - off : 0, e = (j + 1) * B - off;
     if (e > n) e = n;
@@ -518,16 +517,16 @@ int wf_lane_tile(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, long 
 {
     int fl = 0;
     size_t lo0, last = 0;
-    block_at(ln, first, n, b0, &lo0);
+    wf_lane_block_at(ln, first, n, b0, &lo0);
     for (int s = 0; s < k; s++) {
         if (tx) tx[s] = ln->x_m[lo0], tv[s] = ln->v_mps[lo0];
         size_t prev_last = 0;
         for (size_t b = b0; b < b1; b++) {
-            size_t lo, m = block_at(ln, first, n, b, &lo), nx = (lo + m) % ln->cap;
+            size_t lo, m = wf_lane_block_at(ln, first, n, b, &lo), nx = (lo + m) % ln->cap;
             WfLead ld = b + 1 == b1 ? lead[s]
                                     : (WfLead){ln->x_m[nx] - ln->class_length_m[ln->class_id[nx]], ln->v_mps[nx], 0.0};
             fl |= run_block(ln, lo, m, &ld, step0 + s, pass, in_window, recs && recs[s] ? recs[s] + b : NULL, co);
-            if ((pass & WF_PASS_ADVANCE) && ln->ops->moved) ln->ops->moved(ln->ctx, lo, m);
+            if ((pass & WF_PASS_ADVANCE) && ln->ops->moved) ln->ops->moved(ln->ctx, lo, m, step0 + s);
             /* The previous block's edge, while both blocks are in cache. */
             if ((pass & WF_PASS_ADVANCE) && b > b0) fl |= edge_overlap(ln, prev_last, lo, 0.0);
             prev_last = last = lo + m - 1;
@@ -543,7 +542,7 @@ int wf_lane_tile(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, long 
 static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, size_t nb, double xs, double vs,
                      const WfLead *front, long step, int pass, int in_window, WfStatsBlock *rec, WfChunkOut *co)
 {
-    size_t lo, m = block_at(ln, first, n, b1 - 1, &lo), nx = (lo + m) % ln->cap;
+    size_t lo, m = wf_lane_block_at(ln, first, n, b1 - 1, &lo), nx = (lo + m) % ln->cap;
     WfLead ld = b1 == nb ? front_lead(ln, first, xs, vs, front)
                          : (WfLead){xs - ln->class_length_m[ln->class_id[nx]], vs, 0.0};
     return wf_lane_tile(ln, first, n, b0, b1, step, 1, &ld, NULL, NULL, pass, in_window, &rec, co);
@@ -551,7 +550,7 @@ static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, s
 
 int wf_lane_chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_t nb)
 {
-    size_t lo, m = block_at(ln, first, n, b1 - 1, &lo), last = lo + m - 1;
+    size_t lo, m = wf_lane_block_at(ln, first, n, b1 - 1, &lo), last = lo + m - 1;
     if (b1 < nb) return edge_overlap(ln, last, (last + 1) % ln->cap, 0.0);
     return ln->period_m > 0.0 && n > 1 ? edge_overlap(ln, last, first, ln->period_m) : 0;
 }
@@ -596,7 +595,7 @@ static void chunk_firsts(WfLane *ln, size_t first, size_t n, size_t bb0, size_t 
 {
     for (int t = 0; t < nt; t++) {
         size_t b0 = chunk_begin(ln, bb0, bb1, t, nt), b1 = chunk_begin(ln, bb0, bb1, t + 1, nt), lo = 0;
-        if (b1 > b0) block_at(ln, first, n, b0, &lo);
+        if (b1 > b0) wf_lane_block_at(ln, first, n, b0, &lo);
         ln->bound_x[t] = ln->x_m[lo], ln->bound_v[t] = ln->v_mps[lo];
     }
 }
@@ -647,7 +646,7 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
     int after = adv && ln->after_wanted && ln->ops->after_step;
     /* fused steps time their chunks for the cuts; other passes cost differently along the road and only use them */
     int balance = ln->cuts && (pass & WF_PASS_FUSED) == WF_PASS_FUSED;
-    block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
+    wf_lane_block_at(ln, first, n, bb1 % nb, &lo_f); /* the front chunk's leader (the ring's back vehicle when whole) */
     for (int t = 0; t < nth; t++) {
         cf[t].flags = 0, cf[t].edge = 0;
         if (count) memset(cf[t].safety_steps, 0, sizeof cf[t].safety_steps), memset(cf[t].safety_hits, 0, sizeof cf[t].safety_hits);

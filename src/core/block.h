@@ -75,9 +75,9 @@ typedef struct WfRoadOps {
     int (*cap)(const void *ctx, size_t lo, size_t m, const double *x_m, const double *v_mps, double *cap_mps2);
     /* the parameters a vehicle of a zoned group drives with at x (own, or a copy in buf) */
     const double *(*params_at)(const void *ctx, size_t group, const double *own, double x_m, double *buf);
-    /* after a block advanced (x_old_m to x_m): the boundary's per-vehicle bookkeeping of the step, on the thread
-     * that stepped the block while it is in cache; NULL: none */
-    void (*moved)(const void *ctx, size_t lo, size_t m);
+    /* after a block advanced (x_old_m to x_m) in step `step`: the boundary's per-vehicle bookkeeping of the step, on
+     * the thread that stepped the block while it is in cache; NULL: none */
+    void (*moved)(const void *ctx, size_t lo, size_t m, long step);
     /* the boundary's work on the whole step's result, shared by the step's threads: called inside the step's
      * parallel region by each of its nt threads (t in [0, nt)) once every vehicle has moved, when the lane asked
      * for it (WfLane.after_wanted) and no chunk flagged an overlap or fault; NULL: none. Saves the boundary a
@@ -170,6 +170,9 @@ int wf_lane_chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size
 void wf_lane_safety_add(WfLane *ln, const WfChunkOut *cf, int nth);
 /* Number of blocks of that range (the length of rec). */
 size_t wf_lane_blocks(size_t first, size_t n);
+/* Logical block j of that range: its first slot in *lo, and its vehicles returned (blocks end at multiples of
+ * WF_BLOCK in slots, so one never wraps). */
+size_t wf_lane_block_at(const WfLane *ln, size_t first, size_t n, size_t j, size_t *lo);
 /* Fuel rate and flag of slots [lo, lo + n) at speeds v and accelerations a (grades theta_rad), class by class. */
 void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
                     double *fr, uint8_t *fl);

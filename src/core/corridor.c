@@ -25,6 +25,7 @@
 #include "core/par.h"
 #include "core/sim.h"
 #include "core/simd.h"
+#include "core/window.h"
 
 #define TRIP_BUF 1024 /* trips handed to the output per call */
 
@@ -107,6 +108,35 @@ typedef struct CorLane {
     double    share, start_m, end_m;
 } CorLane;
 
+/* Time-blocked stepping of a corridor (corridor_window): the front part (the vehicles that may leave within the
+ * window, and one more) steps one step at a time with the exits, the interior in the windows of window.c following
+ * the front part's rearmost vehicle, then the entrance steps one at a time behind the interior's back vehicle. The
+ * measurement (Edie, detectors) and the exits' trips and totals wait for the window: each step's movement of every
+ * vehicle is kept in rows, measured after the window step by step in road order. */
+typedef struct CorWindow {
+    WfWindow  w;              /* the interior's */
+    int       k_max;          /* steps per window; 0: one step at a time */
+    int       active;         /* the moved hook keeps each step's movement in the rows */
+    long      step0, per_step_until, windows, redone;
+    size_t    first0, n0, n_int; /* the road's back slot and vehicles as the window began; the interior's vehicles */
+    double   *x, *xold, *rate; /* k_max rows of cap slots: each step's end and start positions and fuel rate */
+    uint32_t *cell;           /* and Edie cell (cells_of) */
+    size_t   *nf, *nb;        /* per step: the front part's vehicles (before its exits) and the entered ones */
+    double   *fx, *fv;        /* the front part's rearmost vehicle at the start of each step */
+    uint32_t *exit_slot;      /* the exits so far, front first, step after step, and their times */
+    double   *exit_t;
+    size_t    n_exits;
+    /* the interior's back vehicle at the start of the entrance's step (try_insert reads it there) */
+    int       back_on;
+    size_t    back_slot;
+    double    back_x, back_v;
+    /* the per-slot arrays a step changes, and all of them (an entry writes every one), stride = bytes per slot */
+    WfStateVar vars[WF_MAX_STATE_VARS], all[WF_MAX_STATE_VARS];
+    size_t    n_vars, n_all, slot_bytes, all_bytes;
+    unsigned char *keep;      /* the scalars, the front part's slots of vars and the entrance's of all, as the window
+                               * began (the interior's are window.c's) */
+} CorWindow;
+
 struct WfCorridor {
     WfSim                *sim; /* the run this engine is the boundary of (outputs, threads, summary) */
     const WfScenario     *sc;  /* borrowed */
@@ -170,31 +200,36 @@ struct WfCorridor {
     uint32_t *off_src, *off_dst; /* an off-ramp exit: the global slots of the vehicles that move up behind it */
     double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
     size_t   lane_row_len, lane_rows_max;
+    CorWindow win;
 };
 
-/* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names; the others
- * (acceleration, gap, leader speed, grade, fuel rate, flag, xold) every step recomputes before reading them. */
+/* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names, and whether a
+ * step changes them (what a time-blocked window keeps to undo); the others (acceleration, gap, leader speed, grade,
+ * fuel rate, flag, xold, cell) every step recomputes before reading them. */
 #define SAVED_SLOT_ARRAYS(X)                                                                                       \
-    X("x", veh.x_m) X("v", veh.v_mps) X("length", veh.length_m) X("serial", veh.serial) X("class_id", veh.class_id) \
-    X("group_id", veh.group_id) X("grade_seg", grade_seg) X("mode", mode) X("t_arrival", t_arr)                    \
-    X("t_entry", t_ent) X("v_entry", v_ent) X("trip_fuel", trip.fuel_g) X("trip_dist", trip.dist_m)                \
-    X("trip_stopped", trip.stopped_s) X("trip_stops", trip.stops) X("trip_hard", trip.hard_brakes)                 \
-    X("trip_infeasible", trip.infeasible) X("w_fuel", win.fuel_g) X("w_dist", win.dist_m)                          \
-    X("w_stopped", win.stopped_s) X("w_steps", win.steps) X("w_stops", win.stops) X("w_hard", win.hard_brakes)     \
-    X("w_infeasible", win.infeasible) X("lane_changes", lane_changes) X("cut_ins", cut_ins) X("lc_ready", lc_ready)  \
-    X("dest", dest)
+    X("x", veh.x_m, 1) X("v", veh.v_mps, 1) X("length", veh.length_m, 0) X("serial", veh.serial, 0)                \
+    X("class_id", veh.class_id, 0) X("group_id", veh.group_id, 0) X("grade_seg", grade_seg, 1) X("mode", mode, 1)  \
+    X("t_arrival", t_arr, 0) X("t_entry", t_ent, 0) X("v_entry", v_ent, 0) X("trip_fuel", trip.fuel_g, 1)          \
+    X("trip_dist", trip.dist_m, 1) X("trip_stopped", trip.stopped_s, 1) X("trip_stops", trip.stops, 1)             \
+    X("trip_hard", trip.hard_brakes, 1) X("trip_infeasible", trip.infeasible, 1) X("w_fuel", win.fuel_g, 1)        \
+    X("w_dist", win.dist_m, 1) X("w_stopped", win.stopped_s, 1) X("w_steps", win.steps, 1)                         \
+    X("w_stops", win.stops, 1) X("w_hard", win.hard_brakes, 1) X("w_infeasible", win.infeasible, 1)                \
+    X("lane_changes", lane_changes, 0) X("cut_ins", cut_ins, 0) X("lc_ready", lc_ready, 0) X("dest", dest, 0)
 #define STEP_SLOT_ARRAYS(X)                                                                                          \
-    X("", veh.a_mps2) X("", veh.gap_m) X("", veh.v_lead_mps) X("", veh.theta_rad) X("", veh.fuel_rate_gps)          \
-    X("", veh.flag) X("", xold) X("", cell)
+    X("", veh.a_mps2, 0) X("", veh.gap_m, 0) X("", veh.v_lead_mps, 0) X("", veh.theta_rad, 0)                      \
+    X("", veh.fuel_rate_gps, 0) X("", veh.flag, 0) X("", xold, 0) X("", cell, 0)
 
 /* A lane's counter-based key of its n-th arrival or entry: lane 0 keys as a single-lane corridor does, lane l from
  * l 2^40 (trips name vehicles by it: /trips/serial). */
 static inline uint64_t lane_key(size_t l, uint64_t n) { return ((uint64_t)l << 40) + n; }
 
+static void window_free(CorWindow *cw);
+static int  window_init(WfCorridor *c, WfError *err);
+
 static void corridor_destroy(void *eng)
 {
     WfCorridor *c = eng;
-#define FREE(nm, field) free(c->ln[0].field);
+#define FREE(nm, field, stepped) free(c->ln[0].field);
     SAVED_SLOT_ARRAYS(FREE) STEP_SLOT_ARRAYS(FREE)
 #undef FREE
     void *arrays[] = {c->ln[0].veh.params, c->ln[0].veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
@@ -206,6 +241,7 @@ static void corridor_destroy(void *eng)
                     c->snap.buf, c->lane_rows, c->coop_cap_mps2, c->coop_slot, c->snap.exiting, c->off_src,
                     c->off_dst};
     for (size_t i = 0; i < sizeof snap / sizeof snap[0]; i++) free(snap[i]);
+    window_free(&c->win);
     free(c);
 }
 
@@ -277,7 +313,7 @@ static int alloc_vehicles(WfCorridor *c, WfError *err)
     size_t nl = c->n_lanes;
     CorLane *l0 = &c->ln[0];
     l0->veh.cap = cap;
-#define ALLOC_SLOTS(nm, field) ALLOC(l0->field, nl * cap);
+#define ALLOC_SLOTS(nm, field, stepped) ALLOC(l0->field, nl * cap);
     SAVED_SLOT_ARRAYS(ALLOC_SLOTS) STEP_SLOT_ARRAYS(ALLOC_SLOTS)
 #undef ALLOC_SLOTS
     ALLOC(l0->veh.params, nl * cap * c->pstride);
@@ -288,7 +324,7 @@ static int alloc_vehicles(WfCorridor *c, WfError *err)
         size_t o = l * cap;
         ln->c = c;
         ln->index = l;
-#define VIEW(nm, field) ln->field = l0->field + o;
+#define VIEW(nm, field, stepped) ln->field = l0->field + o;
         if (l) {
             SAVED_SLOT_ARRAYS(VIEW) STEP_SLOT_ARRAYS(VIEW)
             ln->veh.cap = cap;
@@ -435,6 +471,7 @@ static int corridor_create(WfSim *sim, WfError *err)
     if (!rc) init_boundary(c);
     if (!rc) rc = lane_init(c, err);
     if (!rc) rc = lanes_init(c, err);
+    if (!rc) rc = window_init(c, err);
     return rc;
 }
 
@@ -559,9 +596,11 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
     double gap, vl;
     int free_road = 0, obstacle = 0;
     if (vh->n > 0) {
+        /* the back vehicle at the step's start (inside a window, the interior's back one from its trace) */
         size_t last = wf_corridor_slot(vh, vh->n - 1);
-        gap = vh->x_m[last] - vh->length_m[last] - x0;
-        vl = vh->v_mps[last];
+        int traced = c->win.back_on && last == c->win.back_slot;
+        gap = (traced ? c->win.back_x : vh->x_m[last]) - vh->length_m[last] - x0;
+        vl = traced ? c->win.back_v : vh->v_mps[last];
     } else if (isfinite(ln->end_m)) {
         gap = ln->end_m - x0, vl = 0.0, obstacle = 1; /* an empty merge lane: its end ahead */
     } else if (c->has_vl) {
@@ -686,12 +725,9 @@ static int corridor_cap(const void *ctx, size_t lo, size_t m, const double *x, c
  * (WfRoadOps.moved), on the block's thread; an overlap repair calls it again for the vehicle it moves. A loop without
  * control flow: it vectorises, and takes the division out of the measurement. */
 WF_SIMD_CLONES
-static void step_cells(const void *ctx, size_t lo, size_t m)
+static void cells_of(const WfCorridor *c, const double *restrict xa, const double *restrict xb,
+                     uint32_t *restrict cell, size_t m)
 {
-    const CorLane *ln = ctx;
-    const WfCorridor *c = ln->c;
-    const double *restrict xa = ln->xold + lo, *restrict xb = ln->veh.x_m + lo;
-    uint32_t *restrict cell = ln->cell + lo;
     double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx;
     uint32_t last = (uint32_t)(c->edie.nx - 1);
     for (size_t k = 0; k < m; k++) {
@@ -704,6 +740,23 @@ static void step_cells(const void *ctx, size_t lo, size_t m)
         int still = (xb[k] == xa[k]) & (xa[k] >= 0.0) & (xa[k] < L);
         cell[k] = one | still ? i : UINT32_MAX;
     }
+}
+
+/* WfRoadOps.moved: the Edie cells of the step; inside a window, the step's movement into its rows. */
+static void step_moved(const void *ctx, size_t lo, size_t m, long step)
+{
+    const CorLane *ln = ctx;
+    const WfCorridor *c = ln->c;
+    const CorWindow *cw = &c->win;
+    if (!cw->active) {
+        cells_of(c, ln->xold + lo, ln->veh.x_m + lo, ln->cell + lo, m);
+        return;
+    }
+    size_t r = (size_t)(step - cw->step0) * ln->veh.cap + lo;
+    memcpy(cw->x + r, ln->veh.x_m + lo, m * sizeof(double));
+    memcpy(cw->xold + r, ln->xold + lo, m * sizeof(double));
+    memcpy(cw->rate + r, ln->veh.fuel_rate_gps + lo, m * sizeof(double));
+    cells_of(c, ln->xold + lo, ln->veh.x_m + lo, cw->cell + r, m);
 }
 
 /* Whether drivers may cooperate: several lanes, one of them ending or an off-ramp, and a driver who yields. */
@@ -746,7 +799,7 @@ static int lane_init(WfCorridor *c, WfError *err)
     for (size_t l = 0; l < c->n_lanes; l++) c->has_cap |= isfinite(sc->lane_speed_limit_mps[l]);
     for (size_t z = 0; z < c->cs->n_zones; z++) c->has_cap |= c->cs->zones[z].type == WF_ZONE_SPEED_LIMIT;
     c->ops = (WfRoadOps){.grade = c->cs->n_grade ? corridor_grade : NULL, .cap = c->has_cap ? corridor_cap : NULL,
-                         .moved = step_cells, .after_step = measure_after_step,
+                         .moved = step_moved, .after_step = measure_after_step,
                          .params_at = params_at};
     for (size_t l = 0; l < c->n_lanes; l++) {
         CorLane *cl = &c->ln[l];
@@ -852,7 +905,7 @@ static void lanes_move(WfCorridor *c, const uint32_t *src, const uint32_t *dst, 
     unsigned char *buf = c->snap.buf;
     CorLane *l0 = &c->ln[0];
 #define MOVE_ARRAY(base, unit)                                                                               do {                                                                                                         unsigned char *a_ = (unsigned char *)(base);                                                             size_t u_ = (unit);                                                                                      for (size_t k = 0; k < n; k++) memcpy(buf + k * u_, a_ + (size_t)src[k] * u_, u_);                      for (size_t k = 0; k < n; k++) memcpy(a_ + (size_t)dst[k] * u_, buf + k * u_, u_);                  } while (0)
-#define MOVE(nm, field) MOVE_ARRAY(l0->field, sizeof *l0->field);
+#define MOVE(nm, field, stepped) MOVE_ARRAY(l0->field, sizeof *l0->field);
     SAVED_SLOT_ARRAYS(MOVE)
 #undef MOVE
     MOVE_ARRAY(l0->veh.params, c->pstride * sizeof(double));
@@ -986,7 +1039,7 @@ static void phase_overlaps(WfCorridor *c, CorLane *ln, int in_window, size_t upt
             vh->x_m[s] = limit;
             vh->v_mps[s] = 0.0;
             c->st.counts.overlaps++;
-            step_cells(ln, s, 1);
+            step_moved(ln, s, 1, c->meas_step);
         }
     }
 }
@@ -1136,7 +1189,7 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
     const WfCorridorVehicles *vh = &ln->veh;
     WfEdie *e = &c->edie;
     /* row j of the lane's plane */
-    size_t j = (size_t)(ln - c->ln) * e->nt + (size_t)(step / c->edie_every), nx = e->nx;
+    size_t j = ln->index * e->nt + (size_t)(step / c->edie_every), nx = e->nx;
     size_t jd = c->det.n_det ? (size_t)(step / c->det_every) : 0;
     size_t nc = c->sc->n_classes, held = SIZE_MAX; /* the cell whose sums are in registers */
     double dt = c->sc->dt_s, *row_d = e->dist_m + j * nx, *row_t = e->time_s + j * nx, *row_f = e->fuel_g + j * nx;
@@ -1364,13 +1417,19 @@ static int phase_offramp(WfCorridor *c, double t_end, WfError *err)
 }
 
 /* Vehicles whose front has reached L leave (front first); with the speed outflow each one becomes the virtual
- * leader: its rear bumper drives on at the prescribed speed. */
+ * leader: its rear bumper drives on at the prescribed speed. Inside a window their trips and totals wait for its
+ * end (its slot keeps them: no entry reaches it within a window). */
 static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, WfError *err)
 {
     WfCorridorVehicles *vh = &ln->veh;
+    CorWindow *cw = &c->win;
     while (vh->n > 0 && vh->x_m[wf_corridor_slot(vh, 0)] >= c->L) {
         size_t s = wf_corridor_slot(vh, 0);
-        int rc = finish_vehicle(c, ln, s, t_end, 1, err);
+        int rc = 0;
+        if (cw->active)
+            cw->exit_slot[cw->n_exits] = (uint32_t)s, cw->exit_t[cw->n_exits++] = t_end;
+        else
+            rc = finish_vehicle(c, ln, s, t_end, 1, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
             struct CorEntrance *en = &c->st.lane[ln - c->ln];
             size_t seg = en->vl_seg;
@@ -1663,13 +1722,269 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     return 0;
 }
 
+/* ------------------------------------------------------------------------------ time-blocked windows */
+
+enum { FRONT_MAX = WF_BLOCK }; /* vehicles of a window's front part at most (else one step at a time) */
+#define REACH_A_MPS2 10.0     /* the acceleration bounding how far a vehicle may get within a window */
+
+/* Windows of time.block_steps steps (0 or 1: none) when the road is a single lane without an off-ramp whose groups
+ * all step by the kernel (no commands from outside). Owns what it allocates until destroy. */
+static int window_init(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    /* Only when asked for: measured on this project's machine (bench/README.md, time-blocked corridors), a corridor
+     * of 5000 vehicles steps slower in windows on two idle cores, its state being in cache anyway; beside busy
+     * processes they lose less to waiting threads. */
+    int k = sc->block_steps, ok = k >= 2 && c->n_lanes == 1 && sc->fused_step;
+    ok &= !c->cs->has_offramp && !c->coop_cap_mps2;
+    for (size_t g = 0; g < sc->n_groups; g++) ok &= !sc->groups[g].model->external;
+    size_t cap = ln->veh.cap, nv = 0, bytes = 0;
+    if (!ok || cap / WF_BLOCK < 2) return 0;
+    size_t na = 0, pst = c->pstride * sizeof(double);
+#define SLOT_VAR(nm, field, stepped)                                                                            \
+    cw->all[na++] = (WfStateVar){nm, ln->field, cap * sizeof *ln->field, sizeof *ln->field};                     \
+    if (stepped) cw->vars[nv++] = cw->all[na - 1];
+    SAVED_SLOT_ARRAYS(SLOT_VAR)
+#undef SLOT_VAR
+    cw->all[na++] = (WfStateVar){"params", ln->veh.params, cap * pst, pst};
+    if (c->sstride) cw->vars[nv++] = cw->all[na++] = (WfStateVar){"controller_state", ln->veh.state, cap * c->sstride, c->sstride};
+    for (size_t j = 0; j < nv; j++) bytes += cw->vars[j].size, cw->slot_bytes += cw->vars[j].stride;
+    for (size_t j = 0; j < na; j++) cw->all_bytes += cw->all[j].stride;
+    cw->n_vars = nv, cw->n_all = na;
+    size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(2 * cw->slot_bytes);
+    int rc = wf_window_create(&cw->w, &ln->lane, cap, 0, cap / WF_BLOCK, k, tile, c->out_every, bytes, err);
+    if (rc) return rc;
+    size_t rows = (size_t)k * cap;
+    ALLOC(cw->x, rows);
+    ALLOC(cw->xold, rows);
+    ALLOC(cw->rate, rows);
+    ALLOC(cw->cell, rows);
+    ALLOC(cw->nf, (size_t)k);
+    ALLOC(cw->nb, (size_t)k);
+    ALLOC(cw->fx, (size_t)k);
+    ALLOC(cw->fv, (size_t)k);
+    ALLOC(cw->exit_slot, (size_t)FRONT_MAX);
+    ALLOC(cw->exit_t, (size_t)FRONT_MAX);
+    ALLOC(cw->keep, (size_t)k * cw->all_bytes + FRONT_MAX * cw->slot_bytes + sizeof c->st + sizeof ln->lane.safety);
+    cw->k_max = k;
+    return 0;
+}
+
+static void window_free(CorWindow *cw)
+{
+    wf_window_destroy(&cw->w);
+    free(cw->x), free(cw->xold), free(cw->rate), free(cw->cell), free(cw->nf), free(cw->nb);
+    free(cw->fx), free(cw->fv), free(cw->exit_slot), free(cw->exit_t), free(cw->keep);
+}
+
+/* Steps a window may take from `step`: none across a record, a trajectory step, the opening of the statistics
+ * window or the final instant, which step one at a time. */
+static long window_steps(const WfCorridor *c, long step, long max_steps)
+{
+    const CorWindow *cw = &c->win;
+    if (!cw->k_max || step < cw->per_step_until || step % c->out_every == 0) return 1;
+    long k = cw->k_max < max_steps ? cw->k_max : max_steps;
+    if (c->n_steps - step < k) k = c->n_steps - step;
+    if (step < c->warm_steps && c->warm_steps - step < k) k = c->warm_steps - step;
+    if (c->out_every - step % c->out_every < k) k = c->out_every - step % c->out_every;
+    if (c->sc->trajectories) {
+        long r = step % c->traj_every;
+        if (!r) return 1;
+        if (c->traj_every - r < k) k = c->traj_every - r;
+    }
+    return k;
+}
+
+/* The front part of a window of k steps: the vehicles from the front that could reach L within it (moving off at
+ * their speed with REACH_A_MPS2), and one more, whose trace the interior follows. Should more leave, the window
+ * finds it (front_part) and is redone. */
+static size_t front_count(const WfCorridor *c, int k)
+{
+    const WfCorridorVehicles *vh = &c->ln[0].veh;
+    double T = (double)k * c->sc->dt_s;
+    size_t m = 0;
+    for (; m < vh->n && m < FRONT_MAX; m++) {
+        size_t s = wf_corridor_slot(vh, m);
+        if (vh->x_m[s] + T * (vh->v_mps[s] + 0.5 * REACH_A_MPS2 * T) < c->L) break;
+    }
+    return m + 1;
+}
+
+/* `count` slots from lo (wrapping at cap) of a per-slot array, into p (restore: from p); returns the next p. */
+static unsigned char *keep_run(unsigned char *p, const WfStateVar *v, size_t lo, size_t count, size_t cap, int restore)
+{
+    size_t st = v->stride, a = count < cap - lo ? count : cap - lo;
+    unsigned char *d = v->data;
+    if (restore) memcpy(d + lo * st, p, a * st), memcpy(d, p + a * st, (count - a) * st);
+    else memcpy(p, d + lo * st, a * st), memcpy(p + a * st, d, (count - a) * st);
+    return p + count * st;
+}
+
+/* What a window changes outside the interior (window.c keeps that): the scalars, the buffer's indices, the safety
+ * counts, the per-slot arrays a step changes of the front part, and every per-slot array of the k slots behind the
+ * back, where vehicles may enter (restore: put back as the window began, the unused slots too: a checkpoint saves
+ * them). */
+static void window_keep(WfCorridor *c, int k, int restore)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    size_t cap = ln->veh.cap, nf = cw->n0 - cw->n_int;
+    unsigned char *p = cw->keep;
+    if (restore) {
+        memcpy(&c->st, p, sizeof c->st), memcpy(&ln->lane.safety, p + sizeof c->st, sizeof ln->lane.safety);
+        ln->veh.first = cw->first0, ln->veh.n = cw->n0;
+    } else {
+        memcpy(p, &c->st, sizeof c->st), memcpy(p + sizeof c->st, &ln->lane.safety, sizeof ln->lane.safety);
+    }
+    p += sizeof c->st + sizeof ln->lane.safety;
+    for (size_t j = 0; j < cw->n_all; j++)
+        p = keep_run(p, &cw->all[j], (cw->first0 + cap - (size_t)k) % cap, (size_t)k, cap, restore);
+    for (size_t j = 0; j < cw->n_vars; j++) p = keep_run(p, &cw->vars[j], (cw->first0 + cw->n_int) % cap, nf, cap, restore);
+}
+
+/* The front part k steps one at a time, as step_once steps it (the virtual leader, the repair at the front, the
+ * exits, whose trips wait), the trace of its rearmost vehicle into fx, fv. Returns WF_STEP_* flags: any, and the
+ * window is redone one step at a time (an overlap behind the front, a fault, the rearmost vehicle left). */
+static int front_part(WfCorridor *c, long step0, int k, int in_window, WfError *err)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    WfCorridorVehicles *vh = &ln->veh;
+    size_t rear = (cw->first0 + cw->n_int) % vh->cap;
+    for (int s = 0; s < k; s++) {
+        long step = step0 + s;
+        double t_next = (double)(step + 1) * c->sc->dt_s;
+        size_t nf = vh->n - cw->n_int;
+        cw->nf[s] = nf;
+        cw->fx[s] = vh->x_m[rear], cw->fv[s] = vh->v_mps[rear];
+        WfLead front = front_leader(c, 0);
+        c->meas_step = step;
+        int fl = wf_lane_step(&ln->lane, rear, nf, &front, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
+        if (fl) return fl;
+        advance_leader(c, t_next);
+        phase_overlaps(c, ln, in_window, c->has_vl ? 1 : 0);
+        if (c->fault_slot >= 0) return WF_STEP_FAULT;
+        if (phase_exits(c, ln, t_next, in_window, err) || vh->n <= cw->n_int) return WF_STEP_OVERLAP;
+    }
+    return 0;
+}
+
+/* The interior's window behind the front part's rearmost vehicle, and its front edge against that vehicle. */
+static int interior(WfCorridor *c, long step0, int k, int in_window)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    const double *x = ln->veh.x_m;
+    size_t cap = ln->veh.cap, rear = (cw->first0 + cw->n_int) % cap, front = (rear + cap - 1) % cap, rows;
+    cw->w.open_x = cw->fx, cw->w.open_v = cw->fv;
+    cw->w.open_len_m = ln->lane.class_length_m[ln->veh.class_id[rear]];
+    int fl = wf_window_run(&cw->w, &ln->lane, cw->n_int, step0, k, in_window, cw->vars, cw->n_vars, &rows);
+    return x[rear] - cw->w.open_len_m - x[front] < 0.0 ? fl | WF_STEP_OVERLAP : fl;
+}
+
+/* The entrance k steps one at a time behind the interior's back vehicle (its trace from the window): arrivals, an
+ * insertion against that vehicle's state at the step's start, the vehicles that entered stepped behind it. Returns
+ * WF_STEP_* flags (an error of the entrance too: redone one step at a time, the error comes at its step). */
+static int back_part(WfCorridor *c, long step0, int k, int in_window, WfError *err)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    WfCorridorVehicles *vh = &ln->veh;
+    size_t cap = vh->cap, back = cw->first0, ahead = (back + cap - 1) % cap;
+    const double *bx, *bv;
+    wf_window_back_trace(&cw->w, &bx, &bv);
+    double len = ln->lane.class_length_m[vh->class_id[back]];
+    for (int s = 0; s < k; s++) {
+        long step = step0 + s;
+        double t = (double)step * c->sc->dt_s;
+        cw->back_on = 1, cw->back_slot = back, cw->back_x = bx[s], cw->back_v = bv[s];
+        int rc = arrivals(c, t, err);
+        if (!rc) rc = entrance(c, t, step, err);
+        cw->back_on = 0;
+        if (rc) return WF_STEP_FAULT;
+        size_t nb = (back + cap - vh->first) % cap;
+        cw->nb[s] = nb;
+        if (!nb) continue;
+        WfLead lead = {bx[s] - len, bv[s], 0.0};
+        c->meas_step = step;
+        int fl = wf_lane_step(&ln->lane, vh->first, nb, &lead, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
+        double xl = s + 1 < k ? bx[s + 1] : vh->x_m[back];
+        if (fl || xl - len - vh->x_m[ahead] < 0.0) return fl | WF_STEP_OVERLAP;
+    }
+    return 0;
+}
+
+/* The window's Edie cells and detectors, step after step, from the rows: each thread owns a range of cells (cut by
+ * the vehicles at the first step) and of detectors for the whole window, so each sum gets its additions in road
+ * order within a step and step after step, as in the per-step path. */
+static void window_measure(WfCorridor *c, int k, int in_window)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    size_t cap = ln->veh.cap, nd = c->det.n_det;
+    int nth = wf_lane_threads(cw->n0, wf_governor_threads(&c->gov));
+#pragma omp parallel num_threads(nth) if (nth > 1) default(none) shared(c, cw, ln, k, in_window, cap, nd)
+    {
+#ifdef _OPENMP
+        size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads();
+#else
+        size_t t = 0, nt = 1;
+#endif
+        CorLane v = *ln;
+        size_t i_lo = 0, i_hi = 0;
+        for (int s = 0; s < k; s++) {
+            size_t r = (size_t)s * cap;
+            v.veh.first = (cw->first0 + cap - cw->nb[s]) % cap, v.veh.n = cw->nf[s] + cw->n_int + cw->nb[s];
+            v.veh.x_m = cw->x + r, v.xold = cw->xold + r, v.veh.fuel_rate_gps = cw->rate + r, v.cell = cw->cell + r;
+            if (s == 0) i_lo = cell_cut(c, &v, t, nt), i_hi = cell_cut(c, &v, t + 1, nt);
+            measure_range(c, &v, cw->step0 + s, in_window, i_lo, i_hi, nd * t / nt, nd * (t + 1) / nt);
+        }
+    }
+}
+
+/* k steps (2 <= k) in one window; *done 0 when the road does not fit one (one step at a time then), or when some
+ * step overlapped, faulted or a vehicle behind the front part left: the state is as before, and the steps are
+ * taken one at a time (their repairs and errors are the per-step path's). */
+static int corridor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    WfCorridorVehicles *vh = &ln->veh;
+    int in_window = step0 >= c->warm_steps, flags, ran = 0, rc = 0;
+    size_t nf = front_count(c, k);
+    *done = 0;
+    if (nf > FRONT_MAX || nf >= vh->n || vh->n + (size_t)k >= vh->cap) return 0;
+    cw->first0 = vh->first, cw->n0 = vh->n, cw->n_int = vh->n - nf;
+    if (!wf_window_range(&cw->w, vh->first, cw->n_int, ln->lane.nthreads)) return 0;
+    lane_exports(c, 0);
+    window_keep(c, k, 0);
+    cw->active = 1, cw->step0 = step0, cw->n_exits = 0;
+    flags = front_part(c, step0, k, in_window, err);
+    if (!flags) flags = interior(c, step0, k, in_window), ran = 1;
+    if (!flags) flags = back_part(c, step0, k, in_window, err);
+    cw->active = 0;
+    cw->windows++;
+    if (ran) wf_window_settle(&cw->w, &ln->lane, cw->vars, cw->n_vars, flags);
+    if (flags) {
+        window_keep(c, k, 1);
+        c->fault_slot = -1, cw->n_exits = 0;
+        cw->redone++, cw->per_step_until = step0 + k;
+        return 0;
+    }
+    window_measure(c, k, in_window);
+    for (size_t e = 0; !rc && e < cw->n_exits; e++) rc = finish_vehicle(c, ln, cw->exit_slot[e], cw->exit_t[e], 1, err);
+    *done = 1;
+    return rc;
+}
+
 /* One step on the threads the governor chooses (time.thread_check_steps), timed for it. */
 static int corridor_step(void *eng, long step, long max_steps, long *steps, WfError *err)
 {
-    (void)max_steps;
     *steps = 1;
     WfCorridor *c = eng;
-    int nt = wf_governor_threads(&c->gov), parallel = 0;
+    int nt = wf_governor_threads(&c->gov), parallel = 0, rc = 0, done = 0;
     size_t on_road = 0;
     for (size_t l = 0; l < c->n_lanes; l++) {
         c->ln[l].lane.nthreads = nt, on_road += c->ln[l].veh.n;
@@ -1677,8 +1992,11 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     }
     /* only steps that threads could share are timed: a short road steps on one thread whatever the count */
     double t0 = parallel ? wf_wall_now() : 0.0;
-    int rc = step_once(c, step, err);
-    if (parallel) wf_governor_done(&c->gov, wf_wall_now() - t0, (double)on_road);
+    long k = window_steps(c, step, max_steps);
+    if (k > 1) rc = corridor_window(c, step, (int)k, &done, err);
+    if (done) *steps = k;
+    else if (!rc) rc = step_once(c, step, err);
+    if (parallel) wf_governor_done(&c->gov, wf_wall_now() - t0, (double)on_road * (double)*steps);
     return rc;
 }
 
@@ -1771,7 +2089,7 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
         VAR(firsts[l], &c->ln[l].veh.first, 1);
         VAR(counts[l], &c->ln[l].veh.n, 1);
     }
-#define SAVE_SLOTS(nm, field) VAR(nm, c->ln[0].field, nl * cap);
+#define SAVE_SLOTS(nm, field, stepped) VAR(nm, c->ln[0].field, nl * cap);
     SAVED_SLOT_ARRAYS(SAVE_SLOTS)
 #undef SAVE_SLOTS
     VAR("params", vh->params, nl * cap * c->pstride);
@@ -1875,7 +2193,15 @@ static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
     return k;
 }
 
+static int corridor_windows(const void *eng, long *windows, long *redone)
+{
+    const WfCorridor *c = eng;
+    *windows = c->win.windows, *redone = c->win.redone;
+    return c->win.k_max;
+}
+
 const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,
                                      .step = corridor_step, .flush = flush_trips, .close = corridor_close,
                                      .state = corridor_state, .restored = corridor_restored,
-                                     .group = corridor_group, .lanes = corridor_lanes};
+                                     .group = corridor_group, .lanes = corridor_lanes,
+                                     .windows = corridor_windows};

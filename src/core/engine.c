@@ -869,11 +869,11 @@ const WfFleet *wf_sim_fleet(const WfSim *sim)
     return sim->b == &wf_boundary_periodic ? ((const WfRing *)sim->eng)->f : NULL;
 }
 
-int wf_sim_window_stats(const WfSim *sim, long *windows, long *redone)
+static int ring_windows(const void *eng, long *windows, long *redone)
 {
-    const WfRing *s = sim->b == &wf_boundary_periodic ? sim->eng : NULL;
-    *windows = s ? s->windows : 0, *redone = s ? s->redone : 0;
-    return s ? s->win.k_max : 0;
+    const WfRing *s = eng;
+    *windows = s->windows, *redone = s->redone;
+    return s->win.k_max;
 }
 
 /* The lane observers (wf_sim_lanes); every vehicle was on the ring the whole time run so far. */
@@ -1020,4 +1020,5 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
                                          .step = ring_step, .flush = ring_flush, .close = ring_close, .state = ring_state,
-                                         .restored = ring_restored, .group = ring_group, .lanes = ring_lanes};
+                                         .restored = ring_restored, .group = ring_group, .lanes = ring_lanes,
+                                         .windows = ring_windows};

@@ -151,6 +151,7 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
 
 const WfScenario *wf_sim_scenario(const WfSim *s) { return s->sc; }
 int wf_sim_lanes(const WfSim *s, WfLaneObs *out) { return s->b->lanes ? s->b->lanes(s->eng, out) : 0; }
+int wf_sim_window_stats(const WfSim *s, long *windows, long *redone) { return s->b->windows(s->eng, windows, redone); }
 const char *wf_sim_kind(const WfSim *s) { return s->b->kind; }
 const WfSummary *wf_sim_summary(const WfSim *s) { return &s->summary; }
 double wf_sim_wall_s(const WfSim *s) { return s->wall_s; }

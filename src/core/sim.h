@@ -34,6 +34,8 @@ typedef struct WfBoundary {
     size_t (*group)(void *eng, size_t g, WfGroupVisit fn, void *ctx);
     /* The lane observers of a road of several lanes (wf_sim_lanes); NULL, or 0 returned: one lane. */
     int    (*lanes)(const void *eng, WfLaneObs *out);
+    /* Time-blocked windows so far (wf_sim_window_stats): returns the steps per window, 0 when none are taken. */
+    int    (*windows)(const void *eng, long *windows, long *redone);
 } WfBoundary;
 
 extern const WfBoundary wf_boundary_periodic, wf_boundary_open;

@@ -18,6 +18,7 @@ struct WfHalo {
     uint32_t *grade_seg, *slot, *sslot;
     unsigned char *state[WF_MAX_GROUPS];
     WfLead   *lead;
+    WfRoadOps ops;       /* the lane's hooks but its per-step bookkeeping (moved): a halo's steps are not the lane's */
     WfLane    hl;        /* the lane over the halo */
     WfChunkOut co;       /* the chunk's flags and safety counts */
 };
@@ -77,7 +78,7 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_
                     .b_hi = b_hi, .n = n, .out_every = out_every};
     if (!w->tile_blocks) w->tile_blocks = 1;
     size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)w->nthreads;
-    w->n_chunks = (b_hi - b_lo) / 2 < most ? (b_hi - b_lo) / 2 : most;
+    w->n_chunks = w->n_halos = (b_hi - b_lo) / 2 < most ? (b_hi - b_lo) / 2 : most;
     w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
     w->halo = calloc(w->n_chunks, sizeof *w->halo);
     w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
@@ -91,11 +92,45 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_
                   "time.block_steps: 1 steps one step at a time without it)", state_bytes);
 }
 
+int wf_window_range(WfWindow *w, size_t first, size_t n, int nthreads)
+{
+    size_t nb = wf_lane_blocks(first, n);
+    int nt = wf_lane_threads(n, nthreads);
+    if (w->k_max + 1 >= B || nb < 2 * (size_t)nt || !w->n_halos) return 0;
+    size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)nt, nc = nb / 2 < most ? nb / 2 : most;
+    w->first = first, w->n = n, w->nb = nb, w->b_lo = 0, w->b_hi = nb, w->nthreads = nt;
+    w->n_chunks = nc < w->n_halos ? nc : w->n_halos;
+    return 1;
+}
+
+/* The first slot of logical block j of the window's range (j = nb: block 0, the periodic wrap). */
+static size_t block_slot(const WfWindow *w, const WfLane *ln, size_t j)
+{
+    size_t lo;
+    wf_lane_block_at(ln, w->first, w->n, j % w->nb, &lo);
+    return lo;
+}
+
+/* The slots of blocks [b0, b1) of the range: one run [lo[0], hi[0]), or two when they wrap around the buffer's end.
+ * Returns the number of runs. */
+static int block_runs(const WfWindow *w, const WfLane *ln, size_t b0, size_t b1, size_t lo[2], size_t hi[2])
+{
+    size_t l0, l1, m1 = wf_lane_block_at(ln, w->first, w->n, b1 - 1, &l1);
+    wf_lane_block_at(ln, w->first, w->n, b0, &l0);
+    lo[0] = l0, hi[0] = l1 + m1;
+    if (l1 >= l0) return 1;
+    hi[0] = ln->cap, lo[1] = 0, hi[1] = l1 + m1;
+    return 2;
+}
+
 /* The k + 1 vehicles from slot c as they are at the window's start, and a lane over that copy: the same
  * parameters, classes and noise keys (key0), its own memory, modes and grade cache, no accumulators. */
 static WfLane halo_take(WfHalo *h, const WfLane *ln, size_t c, size_t k)
 {
     WfLane hl = *ln;
+    h->ops = *ln->ops;
+    h->ops.moved = NULL;
+    hl.ops = &h->ops;
     for (size_t j = 0; j <= k; j++) {
         size_t i = c + j, g = ln->group_id[i], idx = ln->slot ? ln->slot[i] : i;
         h->x_m[j] = ln->x_m[i], h->v_mps[j] = ln->v_mps[i], h->mode[j] = ln->mode[i];
@@ -142,14 +177,22 @@ static void backup_share(WfWindow *w, const WfStateVar *vars, size_t n_vars, int
     }
 }
 
-/* The per-vehicle arrays of slots [lo, hi) into the backup, as a tile begins: the copy reads what the tile is
- * about to load anyway. */
-static void backup_tile(WfWindow *w, const WfStateVar *vars, size_t n_vars, size_t lo, size_t hi)
+/* The per-vehicle arrays of blocks [b0, b1) into the backup (restore: back from it), as a tile begins: the copy
+ * reads what the tile is about to load anyway. */
+static void backup_blocks(WfWindow *w, const WfLane *ln, const WfStateVar *vars, size_t n_vars, size_t b0, size_t b1,
+                          int restore)
 {
+    size_t lo[2], hi[2];
+    int runs = block_runs(w, ln, b0, b1, lo, hi);
     unsigned char *bk = w->backup;
     for (size_t j = 0; j < n_vars; bk += vars[j++].size) {
         size_t st = vars[j].stride;
-        if (st) memcpy(bk + lo * st, (unsigned char *)vars[j].data + lo * st, (hi - lo) * st);
+        unsigned char *d = vars[j].data;
+        for (int r = 0; st && r < runs; r++) {
+            size_t off = lo[r] * st, len = (hi[r] - lo[r]) * st;
+            if (restore) memcpy(d + off, bk + off, len);
+            else memcpy(bk + off, d + off, len);
+        }
     }
 }
 
@@ -167,17 +210,21 @@ static int run_chunk_window(WfWindow *w, WfLane *ln, size_t n, long step0, size_
     WfHalo *h = &w->halo[ci];
     size_t nb = w->nb, b0, b1;
     chunk_at(w, ci, &b0, &b1);
-    size_t c = b1 < nb ? b1 * B : 0;
     int fl = 0;
-    halo_run(h, &h->hl, k, step0, in_window);
-    leads_of(ln, c, h->hx, h->hv, b1 < nb ? 0.0 : ln->period_m, k, h->lead);
+    if (w->open_x && b1 == nb) { /* an open front: the vehicle ahead's trace */
+        for (size_t s = 0; s < k; s++) h->lead[s] = (WfLead){w->open_x[s] - w->open_len_m, w->open_v[s], 0.0};
+    } else {
+        halo_run(h, &h->hl, k, step0, in_window);
+        leads_of(ln, block_slot(w, ln, b1), h->hx, h->hv, b1 < nb ? 0.0 : ln->period_m, k, h->lead);
+    }
     for (size_t e = b1; e > b0;) {
         size_t s0 = e - b0 > w->tile_blocks ? e - w->tile_blocks : b0;
-        backup_tile(w, vars, n_vars, s0 * B, e * B < n ? e * B : n);
-        fl |= wf_lane_tile(ln, 0, n, s0, e, step0, (int)k, h->lead, h->tx, h->tv, pass, in_window, recs, &h->co);
+        backup_blocks(w, ln, vars, n_vars, s0, e, 0);
+        fl |= wf_lane_tile(ln, w->first, n, s0, e, step0, (int)k, h->lead, h->tx, h->tv, pass, in_window, recs,
+                           &h->co);
         /* the tile's front edge after the last step: the tile ahead has finished */
-        if (e < b1) fl |= wf_lane_chunk_edge(ln, 0, n, e, nb);
-        leads_of(ln, s0 * B, h->tx, h->tv, 0.0, k, h->lead);
+        if (e < b1) fl |= wf_lane_chunk_edge(ln, w->first, n, e, nb);
+        leads_of(ln, block_slot(w, ln, s0), h->tx, h->tv, 0.0, k, h->lead);
         e = s0;
     }
     return fl;
@@ -209,7 +256,8 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
             size_t b0, b1;
             chunk_at(w, c, &b0, &b1);
             memset(&w->halo[c].co, 0, sizeof w->halo[c].co);
-            if (c + late < nc) w->halo[c].hl = halo_take(&w->halo[c], ln, b1 < nb ? b1 * B : 0, (size_t)k);
+            if (c + late < nc && !(w->open_x && b1 == nb))
+                w->halo[c].hl = halo_take(&w->halo[c], ln, block_slot(w, ln, b1), (size_t)k);
         }
         /* Chunks go to whichever thread is free: a thread that the system deschedules holds up one chunk, not a
          * share of the ring. */
@@ -223,7 +271,7 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
                 size_t c = nc - 1, b0, b1;
                 chunk_at(w, c, &b0, &b1);
                 if ((w->halo_rc = w->halo_ready(w->halo_ctx)) == 0) {
-                    w->halo[c].hl = halo_take(&w->halo[c], ln, b1 < nb ? b1 * B : 0, (size_t)k);
+                    w->halo[c].hl = halo_take(&w->halo[c], ln, block_slot(w, ln, b1), (size_t)k);
                     w->halo[c].co.flags =
                         run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, vars, n_vars, c);
                 }
@@ -234,12 +282,18 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
         for (size_t c = 0; c < nc; c++) {
             size_t b0, b1;
             chunk_at(w, c, &b0, &b1);
-            if (!part || b1 < w->b_hi) w->halo[c].co.flags |= wf_lane_chunk_edge(ln, 0, n, b1, nb);
+            if (!part || b1 < w->b_hi) w->halo[c].co.flags |= wf_lane_chunk_edge(ln, w->first, n, b1, nb);
         }
     }
     for (size_t c = 0; c < nc; c++) flags |= w->halo[c].co.flags;
     *n_rows = rows;
     return flags;
+}
+
+void wf_window_back_trace(const WfWindow *w, const double **x_m, const double **v_mps)
+{
+    /* chunk 0's tiles run from its front to the range's first block: the last one traced the back vehicle */
+    *x_m = w->halo[0].tx, *v_mps = w->halo[0].tv;
 }
 
 void wf_window_settle(WfWindow *w, WfLane *ln, const WfStateVar *vars, size_t n_vars, int flags)
@@ -250,14 +304,8 @@ void wf_window_settle(WfWindow *w, WfLane *ln, const WfStateVar *vars, size_t n_
         return;
     }
     /* the window's blocks of each per-vehicle array, every other variable whole */
-    size_t lo = w->b_lo * B, hi = w->b_hi * B < w->n ? w->b_hi * B : w->n;
+    backup_blocks(w, ln, vars, n_vars, w->b_lo, w->b_hi, 1);
     unsigned char *bk = w->backup;
-    for (size_t j = 0; j < n_vars; bk += vars[j++].size) {
-        size_t st = vars[j].stride;
-        unsigned char *d = vars[j].data;
-        if (st)
-            memcpy(d + lo * st, bk + lo * st, (hi - lo) * st);
-        else
-            memcpy(d, bk, vars[j].size);
-    }
+    for (size_t j = 0; j < n_vars; bk += vars[j++].size)
+        if (!vars[j].stride) memcpy(vars[j].data, bk, vars[j].size);
 }

@@ -33,6 +33,14 @@ typedef struct WfWindow {
     WfStatsBlock *rec;         /* rec_rows rows of nb partial sums: the window's record steps in order */
     size_t        rec_rows;
     unsigned char *backup;     /* the state at the window's start */
+    size_t        first;       /* the lane's range starts at this slot (a ring's: 0; wf_window_range) */
+    size_t        n_halos;     /* chunks allocated */
+    /* An open front (a corridor's interior, wf_window_range): the front chunk follows the vehicle ahead through its
+     * trace, position and speed at the start of each step of the window, and its length; NULL: periodic (the front
+     * chunk follows the lane's back vehicle one period ahead, stepped redundantly as a halo). The front chunk's edge
+     * is then left to the caller. */
+    const double  *open_x, *open_v;
+    double         open_len_m;
     /* On a part of a ring split across processes, set by the caller: the next part's first k + 1 vehicles may still
      * be on their way when the window starts. The part's front chunk, the only one that reads them, is then stepped
      * last, after halo_ready(halo_ctx) returned 0 on the team's first thread (the thread that called
@@ -53,12 +61,17 @@ size_t wf_window_tile_default(size_t bytes_per_vehicle);
 int wf_window_fits(size_t n, size_t b_lo, size_t b_hi, int nthreads, int k);
 
 /* The window of blocks [b_lo, b_hi) of lane ln (its n vehicles, threads and groups; a part of a ring split across
- * processes steps only its own blocks) for windows of up to k_max steps, tiles of
+ * processes steps only its own blocks; an open lane: n its capacity, then wf_window_range before each window) for windows of up to k_max steps, tiles of
  * tile_vehicles (rounded up to blocks), records every out_every steps and a backup of state_bytes. Owns everything
  * it allocates until wf_window_destroy; 0 or WF_ESYS (out of memory, with the size). */
 int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_t b_hi, int k_max,
                      size_t tile_vehicles, long out_every, size_t state_bytes, WfError *err);
 void wf_window_destroy(WfWindow *w);
+
+/* An open lane's window over the logical range of n vehicles from slot first (window.h: a corridor's interior),
+ * stepped on nthreads: the range's blocks and chunks, as many as were allocated. Returns 0 when the range does not
+ * fit (wf_window_fits' rules), else 1. */
+int wf_window_range(WfWindow *w, size_t first, size_t n, int nthreads);
 
 /* k fused steps (2 <= k <= k_max) of the window's blocks of the periodic lane's n vehicles from step step0, all
  * inside or all outside the statistics window. vars: the run's complete state (what a checkpoint saves), copied at
@@ -68,9 +81,13 @@ void wf_window_destroy(WfWindow *w);
  * j-th step s of the window with (step0 + s) % out_every == 0. Then wf_window_settle. */
 int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_window, const WfStateVar *vars,
                   size_t n_vars, size_t *n_rows);
+/* The trace of the range's first vehicle (its back one) over the last window: its position and speed at the start
+ * of each of its steps. */
+void wf_window_back_trace(const WfWindow *w, const double **x_m, const double **v_mps);
+
 /* After wf_window_run, with the flags of every part: 0, the window stands and its safety counts are added to the
  * lane's; else the state of the window's blocks is restored as it was at step0 and nothing is counted: the caller
- * redoes the steps one at a time. */
+ * redoes the steps one at a time. vars with a stride are indexed by slot. */
 void wf_window_settle(WfWindow *w, WfLane *ln, const WfStateVar *vars, size_t n_vars, int flags);
 
 #endif

@@ -320,22 +320,26 @@ static const WfKeySpec time_rows[] = {
             "second advancing. Results are bit-identical either way (`tests/test_engine_paths.c`: final state, every "
             "record, every accumulator, with and without trajectories). Set false to time the two passes apart in "
             "`/meta/phase_time`"},
-    {.key = "block_steps", .type = WF_KEY_INTEGER, .on = WF_ON_RING, .offset = offsetof(WfScenario, block_steps),
-     .size = sizeof(int), .def = 0, .imin = 0, .imax = 200, .doc_default = "0 (16)", .doc_range = "0, 1, …, 200",
-     .off_msg = "time.block_steps applies to rings: a corridor steps one step at a time",
-     .doc = "ring, fixed-step schemes on the fused path: steps per time-blocked window. The ring is cut into chunks "
+    {.key = "block_steps", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, block_steps),
+     .size = sizeof(int), .def = 0, .imin = 0, .imax = 200, .doc_default = "0 (ring: 16; corridor: 1)",
+     .doc_range = "0, 1, …, 200",
+     .doc = "fixed-step schemes on the fused path: steps per time-blocked window. The road is cut into chunks "
             "(8 per thread) that go to whichever thread is free; a chunk is stepped tile by tile, every tile "
             "`block_steps` steps while it stays in cache, following the tile ahead through the trace of its first "
             "vehicle, and the threads meet once per window instead of once per step. Results are bit-identical to "
             "stepping one step at a time (`tests/test_window.c`); a window in which a vehicle overlaps or a fault "
-            "appears is undone and redone one step at a time. Costs a copy of the state (about the run's memory "
-            "again). 1: one step at a time. Stepped one at a time whatever the value: rings shorter than 512 "
-            "vehicles per thread, trajectory steps, the step that opens the statistics window, runs with a "
-            "`model: mlp` group, `fused_step: false`, the SUNDIALS integrators"},
-    {.key = "tile_vehicles", .type = WF_KEY_INTEGER, .on = WF_ON_RING, .offset = offsetof(WfScenario, tile_vehicles),
+            "appears is undone and redone one step at a time. A ring copies its state for that (about the run's "
+            "memory again). A corridor steps in windows only when asked (0 is 1 there: measured slower on idle "
+            "cores, bench/README.md): its front vehicles that may leave and its entrance step one step at a time "
+            "around the windowed interior, and the Edie and detector measurement of the window follows it "
+            "(docs/corridors.md); it keeps 28 B per slot of its vehicle buffer and step of the window, and copies "
+            "every slot's controller memory. 1: one step at a time. Stepped one at a time whatever the value: "
+            "roads shorter than 512 vehicles per thread, trajectory steps, the step that opens the statistics "
+            "window, runs with a `model: mlp` group, `fused_step: false`, the SUNDIALS integrators; on a corridor "
+            "also record steps, groups commanded from outside, several lanes and an off-ramp"},
+    {.key = "tile_vehicles", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, tile_vehicles),
      .size = sizeof(long), .def = 0, .imin = 0, .imax = 1000000000L, .doc_default = "0 (from the L2 cache)",
-     .off_msg = "time.tile_vehicles applies to rings: a corridor steps one step at a time",
-     .doc = "ring: vehicles per tile of a time-blocked window, rounded up to blocks of 256; 0: half the L2 cache of a "
+     .doc = "vehicles per tile of a time-blocked window, rounded up to blocks of 256; 0: half the L2 cache of a "
             "core over the bytes of state per vehicle. Results do not depend on it"},
     {.key = "thread_check_steps", .type = WF_KEY_INTEGER, .on = WF_ON_CORRIDOR,
      .offset = offsetof(WfScenario, thread_check_steps), .size = sizeof(long), .def = 1024, .imin = 0,
