@@ -126,6 +126,8 @@ typedef struct CorWindow {
     uint32_t *exit_slot;      /* the exits so far, front first, step after step, and their times */
     double   *exit_t;
     size_t    n_exits;
+    int       k, in_window, flags; /* the window's steps, statistics gate and flags (window_after) */
+    WfError  *err;
     /* the interior's back vehicle at the start of the entrance's step (try_insert reads it there) */
     int       back_on;
     size_t    back_slot;
@@ -1724,7 +1726,7 @@ static int step_once(WfCorridor *c, long step, WfError *err)
 
 /* ------------------------------------------------------------------------------ time-blocked windows */
 
-enum { FRONT_MAX = WF_BLOCK }; /* vehicles of a window's front part at most (else one step at a time) */
+enum { FRONT_MAX = 2 * WF_BLOCK }; /* vehicles of a window's front part at most (else one step at a time) */
 #define REACH_A_MPS2 10.0     /* the acceleration bounding how far a vehicle may get within a window */
 
 /* Windows of time.block_steps steps (0 or 1: none) when the road is a single lane without an off-ramp whose groups
@@ -1798,18 +1800,22 @@ static long window_steps(const WfCorridor *c, long step, long max_steps)
 }
 
 /* The front part of a window of k steps: the vehicles from the front that could reach L within it (moving off at
- * their speed with REACH_A_MPS2), and one more, whose trace the interior follows. Should more leave, the window
- * finds it (front_part) and is redone. */
+ * their speed with REACH_A_MPS2), one more, whose trace the interior follows, and, unless that leaves the interior
+ * shorter than two blocks, those behind it in its block of slots, so that the part begins a block: a range that
+ * begins inside one draws its block's noise from the block's start again. Should more leave, the window finds it
+ * (front_part) and is redone. */
 static size_t front_count(const WfCorridor *c, int k)
 {
     const WfCorridorVehicles *vh = &c->ln[0].veh;
     double T = (double)k * c->sc->dt_s;
     size_t m = 0;
-    for (; m < vh->n && m < FRONT_MAX; m++) {
+    for (; m < vh->n && m < WF_BLOCK; m++) {
         size_t s = wf_corridor_slot(vh, m);
         if (vh->x_m[s] + T * (vh->v_mps[s] + 0.5 * REACH_A_MPS2 * T) < c->L) break;
     }
-    return m + 1;
+    m++;
+    size_t aligned = m < vh->n ? m + wf_corridor_slot(vh, m - 1) % WF_BLOCK : m;
+    return aligned + 2 * WF_BLOCK <= vh->n ? aligned : m; /* a short road keeps its interior */
 }
 
 /* `count` slots from lo (wrapping at cap) of a per-slot array, into p (restore: from p); returns the next p. */
@@ -1871,17 +1877,12 @@ static int front_part(WfCorridor *c, long step0, int k, int in_window, WfError *
     return 0;
 }
 
-/* The interior's window behind the front part's rearmost vehicle, and its front edge against that vehicle. */
-static int interior(WfCorridor *c, long step0, int k, int in_window)
+/* WfWindow.front_first: the front part, on the window's first thread while the others step the interior. */
+static int window_front(void *ctx)
 {
+    WfCorridor *c = ctx;
     CorWindow *cw = &c->win;
-    CorLane *ln = &c->ln[0];
-    const double *x = ln->veh.x_m;
-    size_t cap = ln->veh.cap, rear = (cw->first0 + cw->n_int) % cap, front = (rear + cap - 1) % cap, rows;
-    cw->w.open_x = cw->fx, cw->w.open_v = cw->fv;
-    cw->w.open_len_m = ln->lane.class_length_m[ln->veh.class_id[rear]];
-    int fl = wf_window_run(&cw->w, &ln->lane, cw->n_int, step0, k, in_window, cw->vars, cw->n_vars, &rows);
-    return x[rear] - cw->w.open_len_m - x[front] < 0.0 ? fl | WF_STEP_OVERLAP : fl;
+    return front_part(c, cw->step0, cw->k, cw->in_window, cw->err);
 }
 
 /* The entrance k steps one at a time behind the interior's back vehicle (its trace from the window): arrivals, an
@@ -1916,64 +1917,75 @@ static int back_part(WfCorridor *c, long step0, int k, int in_window, WfError *e
     return 0;
 }
 
-/* The window's Edie cells and detectors, step after step, from the rows: each thread owns a range of cells (cut by
- * the vehicles at the first step) and of detectors for the whole window, so each sum gets its additions in road
- * order within a step and step after step, as in the per-step path. */
-static void window_measure(WfCorridor *c, int k, int in_window)
+/* Thread t of nt's share of the window's Edie cells and detectors, step after step, from the rows: each thread owns
+ * a range of cells (cut by the vehicles at the first step) and of detectors for the whole window, so each sum gets
+ * its additions in road order within a step and step after step, as in the per-step path. */
+static void window_measure(WfCorridor *c, size_t t, size_t nt)
 {
     CorWindow *cw = &c->win;
     CorLane *ln = &c->ln[0];
-    size_t cap = ln->veh.cap, nd = c->det.n_det;
-    int nth = wf_lane_threads(cw->n0, wf_governor_threads(&c->gov));
-#pragma omp parallel num_threads(nth) if (nth > 1) default(none) shared(c, cw, ln, k, in_window, cap, nd)
-    {
-#ifdef _OPENMP
-        size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads();
-#else
-        size_t t = 0, nt = 1;
-#endif
-        CorLane v = *ln;
-        size_t i_lo = 0, i_hi = 0;
-        for (int s = 0; s < k; s++) {
-            size_t r = (size_t)s * cap;
-            v.veh.first = (cw->first0 + cap - cw->nb[s]) % cap, v.veh.n = cw->nf[s] + cw->n_int + cw->nb[s];
-            v.veh.x_m = cw->x + r, v.xold = cw->xold + r, v.veh.fuel_rate_gps = cw->rate + r, v.cell = cw->cell + r;
-            if (s == 0) i_lo = cell_cut(c, &v, t, nt), i_hi = cell_cut(c, &v, t + 1, nt);
-            measure_range(c, &v, cw->step0 + s, in_window, i_lo, i_hi, nd * t / nt, nd * (t + 1) / nt);
-        }
+    size_t cap = ln->veh.cap, nd = c->det.n_det, i_lo = 0, i_hi = 0;
+    CorLane v = *ln;
+    for (int s = 0; s < cw->k; s++) {
+        size_t r = (size_t)s * cap;
+        v.veh.first = (cw->first0 + cap - cw->nb[s]) % cap, v.veh.n = cw->nf[s] + cw->n_int + cw->nb[s];
+        v.veh.x_m = cw->x + r, v.xold = cw->xold + r, v.veh.fuel_rate_gps = cw->rate + r, v.cell = cw->cell + r;
+        if (s == 0) i_lo = cell_cut(c, &v, t, nt), i_hi = cell_cut(c, &v, t + 1, nt);
+        measure_range(c, &v, cw->step0 + s, cw->in_window, i_lo, i_hi, nd * t / nt, nd * (t + 1) / nt);
     }
 }
 
-/* k steps (2 <= k) in one window; *done 0 when the road does not fit one (one step at a time then), or when some
- * step overlapped, faulted or a vehicle behind the front part left: the state is as before, and the steps are
- * taken one at a time (their repairs and errors are the per-step path's). */
+/* WfWindow.after, on each thread of the window's team once the interior has moved: on the first, the interior's
+ * front edge against the front part's rearmost vehicle and the entrance; then, when every part stands, the
+ * measurement, shared. */
+static void window_after(void *ctx, int t, int nt, int flags)
+{
+    WfCorridor *c = ctx;
+    CorWindow *cw = &c->win;
+    if (t == 0) {
+        const double *x = c->ln[0].veh.x_m;
+        size_t cap = c->ln[0].veh.cap, rear = (cw->first0 + cw->n_int) % cap, front = (rear + cap - 1) % cap;
+        flags |= cw->w.front_rc;
+        if (!flags && x[rear] - cw->w.open_len_m - x[front] < 0.0) flags |= WF_STEP_OVERLAP;
+        if (!flags) flags = back_part(c, cw->step0, cw->k, cw->in_window, cw->err);
+        cw->flags = flags;
+    }
+#pragma omp barrier
+    if (!cw->flags) window_measure(c, (size_t)t, (size_t)nt);
+}
+
+/* k steps (2 <= k) in one window, in one parallel region: the front part on its first thread while the others step
+ * the interior, then the entrance and the measurement (window_after). *done 0 when the road does not fit one (one
+ * step at a time then), or when some step overlapped, faulted or a vehicle behind the front part left: the state is
+ * as before, and the steps are taken one at a time (their repairs and errors are the per-step path's). */
 static int corridor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
 {
     CorWindow *cw = &c->win;
     CorLane *ln = &c->ln[0];
     WfCorridorVehicles *vh = &ln->veh;
-    int in_window = step0 >= c->warm_steps, flags, ran = 0, rc = 0;
-    size_t nf = front_count(c, k);
+    size_t nf = front_count(c, k), rows;
+    int rc = 0;
     *done = 0;
     if (nf > FRONT_MAX || nf >= vh->n || vh->n + (size_t)k >= vh->cap) return 0;
     cw->first0 = vh->first, cw->n0 = vh->n, cw->n_int = vh->n - nf;
     if (!wf_window_range(&cw->w, vh->first, cw->n_int, ln->lane.nthreads)) return 0;
     lane_exports(c, 0);
     window_keep(c, k, 0);
-    cw->active = 1, cw->step0 = step0, cw->n_exits = 0;
-    flags = front_part(c, step0, k, in_window, err);
-    if (!flags) flags = interior(c, step0, k, in_window), ran = 1;
-    if (!flags) flags = back_part(c, step0, k, in_window, err);
+    size_t rear = (cw->first0 + cw->n_int) % vh->cap;
+    cw->active = 1, cw->step0 = step0, cw->k = k, cw->in_window = step0 >= c->warm_steps, cw->err = err;
+    cw->n_exits = 0, cw->flags = 0;
+    cw->w.open_x = cw->fx, cw->w.open_v = cw->fv, cw->w.open_len_m = ln->lane.class_length_m[vh->class_id[rear]];
+    cw->w.front_first = window_front, cw->w.front_ctx = c, cw->w.after = window_after, cw->w.after_ctx = c;
+    wf_window_run(&cw->w, &ln->lane, cw->n_int, step0, k, cw->in_window, cw->vars, cw->n_vars, &rows);
     cw->active = 0;
     cw->windows++;
-    if (ran) wf_window_settle(&cw->w, &ln->lane, cw->vars, cw->n_vars, flags);
-    if (flags) {
+    wf_window_settle(&cw->w, &ln->lane, cw->vars, cw->n_vars, cw->flags);
+    if (cw->flags) {
         window_keep(c, k, 1);
         c->fault_slot = -1, cw->n_exits = 0;
         cw->redone++, cw->per_step_until = step0 + k;
         return 0;
     }
-    window_measure(c, k, in_window);
     for (size_t e = 0; !rc && e < cw->n_exits; e++) rc = finish_vehicle(c, ln, cw->exit_slot[e], cw->exit_t[e], 1, err);
     *done = 1;
     return rc;

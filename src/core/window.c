@@ -240,7 +240,7 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
     int nth = w->nthreads, flags = 0, part = w->b_lo > 0 || w->b_hi < nb;
     int pass = WF_PASS_FUSED | WF_PASS_COUNT;
     size_t late = part && w->halo_ready ? 1 : 0; /* the front chunk (the last) waits for the next part's vehicles */
-    w->halo_rc = 0;
+    w->halo_rc = w->front_rc = 0;
 #pragma omp parallel num_threads(nth) if (nth > 1) default(none) \
     shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass, part, late)
     {
@@ -259,10 +259,23 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
             if (c + late < nc && !(w->open_x && b1 == nb))
                 w->halo[c].hl = halo_take(&w->halo[c], ln, block_slot(w, ln, b1), (size_t)k);
         }
+        /* An open front's vehicles ahead, then the front chunk behind them, on the first thread while the others
+         * take the other chunks (nobody waits for them) */
+        size_t own = w->front_first ? 1 : 0;
+        if (own && t == 0) {
+            size_t c = nc - 1, b0, b1;
+            if ((w->front_rc = w->front_first(w->front_ctx)) == 0) {
+                w->halo[c].co.flags =
+                    run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, vars, n_vars, c);
+            } else {
+                chunk_at(w, c, &b0, &b1);
+                backup_blocks(w, ln, vars, n_vars, b0, b1, 0); /* for the undo */
+            }
+        }
         /* Chunks go to whichever thread is free: a thread that the system deschedules holds up one chunk, not a
          * share of the ring. */
 #pragma omp for schedule(dynamic, 1) nowait
-        for (size_t c = 0; c < nc - late; c++)
+        for (size_t c = 0; c < nc - late - own; c++)
             w->halo[c].co.flags = run_chunk_window(w, ln, n, step0, (size_t)k, in_window, pass, recs, vars, n_vars, c);
         if (late) {
             /* the thread that posted the exchange (MPI_THREAD_FUNNELED) completes it once its other chunks ran */
@@ -283,6 +296,11 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
             size_t b0, b1;
             chunk_at(w, c, &b0, &b1);
             if (!part || b1 < w->b_hi) w->halo[c].co.flags |= wf_lane_chunk_edge(ln, w->first, n, b1, nb);
+        }
+        if (w->after) { /* the loop's end was a barrier: every chunk's flags are final */
+            int fl = 0;
+            for (size_t c = 0; c < nc; c++) fl |= w->halo[c].co.flags;
+            w->after(w->after_ctx, t, team, fl);
         }
     }
     for (size_t c = 0; c < nc; c++) flags |= w->halo[c].co.flags;

@@ -41,6 +41,18 @@ typedef struct WfWindow {
      * is then left to the caller. */
     const double  *open_x, *open_v;
     double         open_len_m;
+    /* An open front whose vehicles ahead step inside the window's parallel region (a corridor's front part): the
+     * team's first thread calls front_first(front_ctx), then steps the front chunk, which follows their trace, then
+     * takes other chunks; its result in front_rc: nonzero, the front chunk is not stepped (its state is copied all the
+     * same, for the undo). NULL: the trace is complete when the window starts. */
+    int          (*front_first)(void *ctx);
+    void          *front_ctx;
+    int            front_rc;
+    /* Called inside the window's parallel region by each of its team's nt threads (t in [0, nt)) once every chunk has
+     * moved and its edges are checked, with the window's flags (the same on every thread): the boundary's work on
+     * the window's result, without a parallel region of its own. NULL: none. */
+    void         (*after)(void *ctx, int t, int nt, int flags);
+    void          *after_ctx;
     /* On a part of a ring split across processes, set by the caller: the next part's first k + 1 vehicles may still
      * be on their way when the window starts. The part's front chunk, the only one that reads them, is then stepped
      * last, after halo_ready(halo_ctx) returned 0 on the team's first thread (the thread that called
