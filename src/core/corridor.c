@@ -119,8 +119,9 @@ typedef struct CorWindow {
     int       active;         /* the moved hook keeps each step's movement in the rows */
     long      step0, per_step_until, windows, redone;
     size_t    first0, n0, n_int; /* the road's back slot and vehicles as the window began; the interior's vehicles */
-    double   *x, *xold, *rate; /* k_max rows of cap slots: each step's end and start positions and fuel rate */
-    uint32_t *cell;           /* and Edie cell (cells_of) */
+    double   *x, *rate;       /* rows of cap slots: positions at the window's start and after each step (k_max + 1),
+                               * each step's fuel rate (k_max) */
+    uint32_t *cell;           /* each thread's Edie cells of a step (cells_of), cap slots per thread */
     size_t   *nf, *nb;        /* per step: the front part's vehicles (before its exits) and the entered ones */
     double   *fx, *fv;        /* the front part's rearmost vehicle at the start of each step */
     uint32_t *exit_slot;      /* the exits so far, front first, step after step, and their times */
@@ -754,11 +755,12 @@ static void step_moved(const void *ctx, size_t lo, size_t m, long step)
         cells_of(c, ln->xold + lo, ln->veh.x_m + lo, ln->cell + lo, m);
         return;
     }
-    size_t r = (size_t)(step - cw->step0) * ln->veh.cap + lo;
-    memcpy(cw->x + r, ln->veh.x_m + lo, m * sizeof(double));
-    memcpy(cw->xold + r, ln->xold + lo, m * sizeof(double));
-    memcpy(cw->rate + r, ln->veh.fuel_rate_gps + lo, m * sizeof(double));
-    cells_of(c, ln->xold + lo, ln->veh.x_m + lo, cw->cell + r, m);
+    /* a vehicle's position before step s is row s: the window's start, its position after the step before, or where
+     * it entered (back_part) */
+    size_t s = (size_t)(step - cw->step0), cap = ln->veh.cap;
+    if (s == 0) memcpy(cw->x + lo, ln->xold + lo, m * sizeof(double));
+    memcpy(cw->x + (s + 1) * cap + lo, ln->veh.x_m + lo, m * sizeof(double));
+    memcpy(cw->rate + s * cap + lo, ln->veh.fuel_rate_gps + lo, m * sizeof(double));
 }
 
 /* Whether drivers may cooperate: several lanes, one of them ending or an off-ramp, and a driver who yields. */
@@ -1758,11 +1760,9 @@ static int window_init(WfCorridor *c, WfError *err)
     size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(2 * cw->slot_bytes);
     int rc = wf_window_create(&cw->w, &ln->lane, cap, 0, cap / WF_BLOCK, k, tile, c->out_every, bytes, err);
     if (rc) return rc;
-    size_t rows = (size_t)k * cap;
-    ALLOC(cw->x, rows);
-    ALLOC(cw->xold, rows);
-    ALLOC(cw->rate, rows);
-    ALLOC(cw->cell, rows);
+    ALLOC(cw->x, ((size_t)k + 1) * cap);
+    ALLOC(cw->rate, (size_t)k * cap);
+    ALLOC(cw->cell, (size_t)c->nthreads * cap);
     ALLOC(cw->nf, (size_t)k);
     ALLOC(cw->nb, (size_t)k);
     ALLOC(cw->fx, (size_t)k);
@@ -1777,7 +1777,7 @@ static int window_init(WfCorridor *c, WfError *err)
 static void window_free(CorWindow *cw)
 {
     wf_window_destroy(&cw->w);
-    free(cw->x), free(cw->xold), free(cw->rate), free(cw->cell), free(cw->nf), free(cw->nb);
+    free(cw->x), free(cw->rate), free(cw->cell), free(cw->nf), free(cw->nb);
     free(cw->fx), free(cw->fv), free(cw->exit_slot), free(cw->exit_t), free(cw->keep);
 }
 
@@ -1906,6 +1906,7 @@ static int back_part(WfCorridor *c, long step0, int k, int in_window, WfError *e
         cw->back_on = 0;
         if (rc) return WF_STEP_FAULT;
         size_t nb = (back + cap - vh->first) % cap;
+        if (nb > (s ? cw->nb[s - 1] : 0)) cw->x[(size_t)s * cap + vh->first] = vh->x_m[vh->first]; /* it entered */
         cw->nb[s] = nb;
         if (!nb) continue;
         WfLead lead = {bx[s] - len, bv[s], 0.0};
@@ -1924,14 +1925,22 @@ static void window_measure(WfCorridor *c, size_t t, size_t nt)
 {
     CorWindow *cw = &c->win;
     CorLane *ln = &c->ln[0];
-    size_t cap = ln->veh.cap, nd = c->det.n_det, i_lo = 0, i_hi = 0;
+    size_t cap = ln->veh.cap, nd = c->det.n_det, q_lo = nd * t / nt, q_hi = nd * (t + 1) / nt, i_lo = 0, i_hi = 0;
     CorLane v = *ln;
+    v.cell = cw->cell + t * cap;
     for (int s = 0; s < cw->k; s++) {
-        size_t r = (size_t)s * cap;
+        size_t r = (size_t)s * cap, k0, k1;
         v.veh.first = (cw->first0 + cap - cw->nb[s]) % cap, v.veh.n = cw->nf[s] + cw->n_int + cw->nb[s];
-        v.veh.x_m = cw->x + r, v.xold = cw->xold + r, v.veh.fuel_rate_gps = cw->rate + r, v.cell = cw->cell + r;
+        v.xold = cw->x + r, v.veh.x_m = cw->x + r + cap, v.veh.fuel_rate_gps = cw->rate + r;
         if (s == 0) i_lo = cell_cut(c, &v, t, nt), i_hi = cell_cut(c, &v, t + 1, nt);
-        measure_range(c, &v, cw->step0 + s, cw->in_window, i_lo, i_hi, nd * t / nt, nd * (t + 1) / nt);
+        /* the cells of the vehicles this thread visits (measure_span's), slots ascending in at most two runs */
+        measure_span(c, &v, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
+        for (size_t k = k0; k < k1;) {
+            size_t top = wf_corridor_slot(&v.veh, k) + 1, len = top < k1 - k ? top : k1 - k, lo = top - len;
+            cells_of(c, v.xold + lo, v.veh.x_m + lo, v.cell + lo, len);
+            k += len;
+        }
+        measure_range(c, &v, cw->step0 + s, cw->in_window, i_lo, i_hi, q_lo, q_hi);
     }
 }
 

@@ -332,7 +332,7 @@ static const WfKeySpec time_rows[] = {
             "memory again). A corridor steps in windows only when asked (0 is 1 there: measured slower on idle "
             "cores, bench/README.md): its front vehicles that may leave and its entrance step one step at a time "
             "around the windowed interior, and the Edie and detector measurement of the window follows it "
-            "(docs/corridors.md); it keeps 28 B per slot of its vehicle buffer and step of the window, and copies "
+            "(docs/corridors.md); it keeps 16 B per slot of its vehicle buffer and step of the window, and copies "
             "every slot's controller memory. 1: one step at a time. Stepped one at a time whatever the value: "
             "roads shorter than 512 vehicles per thread, trajectory steps, the step that opens the statistics "
             "window, runs with a `model: mlp` group, `fused_step: false`, the SUNDIALS integrators; on a corridor "
