@@ -62,7 +62,7 @@ static int halo_alloc(WfHalo *h, const WfLane *ln, size_t k)
 void wf_window_destroy(WfWindow *w)
 {
     if (w->halo)
-        for (size_t c = 0; c < w->n_chunks; c++) halo_free(&w->halo[c]);
+        for (size_t c = 0; c < w->n_halos; c++) halo_free(&w->halo[c]);
     free(w->halo);
     free(w->rec);
     free(w->backup);
