@@ -4,7 +4,8 @@
  * every step or every 3 steps (windows that start between records), a statistics window opening inside the run,
  * trajectories, a run stepped in pieces as Python steps it, and windows that must be undone and redone because a
  * vehicle overlapped inside them. Each run also reports how many windows it took, so a path that silently fell back
- * to one step at a time fails. */
+ * to one step at a time fails. Corridors (their windows when asked): every record, every trip and the whole
+ * checkpoint state (Edie and detector sums, class totals, counters, unused slots) against one step at a time. */
 #ifdef _OPENMP
 #include <omp.h>
 #endif
