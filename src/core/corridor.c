@@ -115,9 +115,8 @@ typedef struct CorLane {
  * vehicle is kept in rows, measured after the window step by step in road order. */
 typedef struct CorWindow {
     WfWindow  w;              /* the interior's */
-    int       k_max;          /* steps per window; 0: one step at a time */
     int       active;         /* the moved hook keeps each step's movement in the rows */
-    long      step0, per_step_until, windows, redone;
+    long      step0;
     size_t    first0, n0, n_int; /* the road's back slot and vehicles as the window began; the interior's vehicles */
     double   *x, *rate;       /* rows of cap slots: positions at the window's start and after each step (k_max + 1),
                                * each step's fuel rate (k_max) */
@@ -1738,9 +1737,9 @@ static int window_init(WfCorridor *c, WfError *err)
     const WfScenario *sc = c->sc;
     CorWindow *cw = &c->win;
     CorLane *ln = &c->ln[0];
-    /* Only when asked for: measured on this project's machine (bench/README.md, time-blocked corridors), a corridor
-     * of 5000 vehicles steps slower in windows on two idle cores, its state being in cache anyway; beside busy
-     * processes they lose less to waiting threads. */
+    /* Only when asked for: measured on this project's machine (bench/README.md, "Corridor threads under load"), a
+     * corridor of 5000 vehicles steps 10-15 % slower in windows on idle cores, its state being in cache anyway, and
+     * about as fast beside busy processes. */
     int k = sc->block_steps, ok = k >= 2 && c->n_lanes == 1 && sc->fused_step;
     ok &= !c->cs->has_offramp && !c->coop_cap_mps2;
     for (size_t g = 0; g < sc->n_groups; g++) ok &= !sc->groups[g].model->external;
@@ -1753,10 +1752,12 @@ static int window_init(WfCorridor *c, WfError *err)
     SAVED_SLOT_ARRAYS(SLOT_VAR)
 #undef SLOT_VAR
     cw->all[na++] = (WfStateVar){"params", ln->veh.params, cap * pst, pst};
-    if (c->sstride) cw->vars[nv++] = cw->all[na++] = (WfStateVar){"controller_state", ln->veh.state, cap * c->sstride, c->sstride};
+    if (c->sstride)
+        cw->vars[nv++] = cw->all[na++] = (WfStateVar){"controller_state", ln->veh.state, cap * c->sstride, c->sstride};
     for (size_t j = 0; j < nv; j++) bytes += cw->vars[j].size, cw->slot_bytes += cw->vars[j].stride;
     for (size_t j = 0; j < na; j++) cw->all_bytes += cw->all[j].stride;
     cw->n_vars = nv, cw->n_all = na;
+    /* a step reads about as many bytes per slot again as it changes (parameters, class, group, step values) */
     size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(2 * cw->slot_bytes);
     int rc = wf_window_create(&cw->w, &ln->lane, cap, 0, cap / WF_BLOCK, k, tile, c->out_every, bytes, err);
     if (rc) return rc;
@@ -1770,7 +1771,6 @@ static int window_init(WfCorridor *c, WfError *err)
     ALLOC(cw->exit_slot, (size_t)FRONT_MAX);
     ALLOC(cw->exit_t, (size_t)FRONT_MAX);
     ALLOC(cw->keep, (size_t)k * cw->all_bytes + FRONT_MAX * cw->slot_bytes + sizeof c->st + sizeof ln->lane.safety);
-    cw->k_max = k;
     return 0;
 }
 
@@ -1779,24 +1779,6 @@ static void window_free(CorWindow *cw)
     wf_window_destroy(&cw->w);
     free(cw->x), free(cw->rate), free(cw->cell), free(cw->nf), free(cw->nb);
     free(cw->fx), free(cw->fv), free(cw->exit_slot), free(cw->exit_t), free(cw->keep);
-}
-
-/* Steps a window may take from `step`: none across a record, a trajectory step, the opening of the statistics
- * window or the final instant, which step one at a time. */
-static long window_steps(const WfCorridor *c, long step, long max_steps)
-{
-    const CorWindow *cw = &c->win;
-    if (!cw->k_max || step < cw->per_step_until || step % c->out_every == 0) return 1;
-    long k = cw->k_max < max_steps ? cw->k_max : max_steps;
-    if (c->n_steps - step < k) k = c->n_steps - step;
-    if (step < c->warm_steps && c->warm_steps - step < k) k = c->warm_steps - step;
-    if (c->out_every - step % c->out_every < k) k = c->out_every - step % c->out_every;
-    if (c->sc->trajectories) {
-        long r = step % c->traj_every;
-        if (!r) return 1;
-        if (c->traj_every - r < k) k = c->traj_every - r;
-    }
-    return k;
 }
 
 /* The front part of a window of k steps: the vehicles from the front that could reach L within it (moving off at
@@ -1847,7 +1829,8 @@ static void window_keep(WfCorridor *c, int k, int restore)
     p += sizeof c->st + sizeof ln->lane.safety;
     for (size_t j = 0; j < cw->n_all; j++)
         p = keep_run(p, &cw->all[j], (cw->first0 + cap - (size_t)k) % cap, (size_t)k, cap, restore);
-    for (size_t j = 0; j < cw->n_vars; j++) p = keep_run(p, &cw->vars[j], (cw->first0 + cw->n_int) % cap, nf, cap, restore);
+    for (size_t j = 0; j < cw->n_vars; j++)
+        p = keep_run(p, &cw->vars[j], (cw->first0 + cw->n_int) % cap, nf, cap, restore);
 }
 
 /* The front part k steps one at a time, as step_once steps it (the virtual leader, the repair at the front, the
@@ -1987,12 +1970,10 @@ static int corridor_window(WfCorridor *c, long step0, int k, int *done, WfError 
     cw->w.front_first = window_front, cw->w.front_ctx = c, cw->w.after = window_after, cw->w.after_ctx = c;
     wf_window_run(&cw->w, &ln->lane, cw->n_int, step0, k, cw->in_window, cw->vars, cw->n_vars, &rows);
     cw->active = 0;
-    cw->windows++;
     wf_window_settle(&cw->w, &ln->lane, cw->vars, cw->n_vars, cw->flags);
     if (cw->flags) {
         window_keep(c, k, 1);
         c->fault_slot = -1, cw->n_exits = 0;
-        cw->redone++, cw->per_step_until = step0 + k;
         return 0;
     }
     for (size_t e = 0; !rc && e < cw->n_exits; e++) rc = finish_vehicle(c, ln, cw->exit_slot[e], cw->exit_t[e], 1, err);
@@ -2013,7 +1994,9 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     }
     /* only steps that threads could share are timed: a short road steps on one thread whatever the count */
     double t0 = parallel ? wf_wall_now() : 0.0;
-    long k = window_steps(c, step, max_steps);
+    /* records step one at a time here: they read the whole road at the step's start */
+    long k = wf_window_steps(&c->win.w, step, max_steps, c->n_steps, c->warm_steps,
+                             c->sc->trajectories ? c->traj_every : 0, c->out_every);
     if (k > 1) rc = corridor_window(c, step, (int)k, &done, err);
     if (done) *steps = k;
     else if (!rc) rc = step_once(c, step, err);
@@ -2217,8 +2200,8 @@ static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 static int corridor_windows(const void *eng, long *windows, long *redone)
 {
     const WfCorridor *c = eng;
-    *windows = c->win.windows, *redone = c->win.redone;
-    return c->win.k_max;
+    *windows = c->win.w.windows, *redone = c->win.w.redone;
+    return c->win.w.k_max;
 }
 
 const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,

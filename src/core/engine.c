@@ -42,8 +42,6 @@ typedef struct WfRing {
     double   sd_sum;
     long     n_sd;
     WfWindow win;           /* time-blocked stepping (win.k_max 0: one step at a time) */
-    long     per_step_until; /* after a window redone step by step: no window before this step */
-    long     windows, redone;  /* windows stepped, and undone to be redone step by step */
     /* a multi-lane ring (f->n_lanes > 1): each lane as the kernel sees it (lane_views), its record blocks, the
      * lane changes' scratch and what they did (totals, and since the last record) */
     WfLane   lanes[WF_MAX_LANES];
@@ -667,22 +665,6 @@ static void lap(WfRing *s, int phase, double *tp)
     *tp = tq;
 }
 
-/* Steps a window may take from `step`: none across the opening of the statistics window, a trajectory step or the
- * final instant, which run one at a time. */
-static long window_steps(const WfRing *s, long step, long max_steps)
-{
-    if (!s->win.k_max || step < s->per_step_until) return 1;
-    long k = s->win.k_max < max_steps ? s->win.k_max : max_steps;
-    if (s->n_steps - step < k) k = s->n_steps - step;
-    if (step < s->warm_steps && s->warm_steps - step < k) k = s->warm_steps - step;
-    if (s->sc->trajectories) {
-        long r = step % s->traj_every;
-        if (!r) return 1;
-        if (s->traj_every - r < k) k = s->traj_every - r;
-    }
-    return k;
-}
-
 /* k steps in one window; *done 0 when some step overlapped or faulted: the state is as before, the steps are then
  * taken one at a time (their repairs and errors are the per-step path's). Records in step order. */
 static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
@@ -705,12 +687,7 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     if (s->part && (rc = part_agree(s, 1, &flags, err))) return rc;
     wf_window_settle(&s->win, &s->lane, vars, nv, flags);
     lap(s, WF_PHASE_FUSED, &tp);
-    s->windows++;
-    if ((*done = !flags) == 0) {
-        s->redone++;
-        s->per_step_until = step + k;
-        return 0;
-    }
+    if ((*done = !flags) == 0) return 0;
     s->repaired = 0;
     for (long q = step; q < step + k && j < rows; q++) {
         if (q % s->out_every) continue;
@@ -769,7 +746,8 @@ static void lanes_observe(WfRing *s, const WfStatsBlock *rec, double t)
 static int ring_step(void *eng, long step, long max_steps, long *steps, WfError *err)
 {
     WfRing *s = eng;
-    long k = window_steps(s, step, max_steps);
+    long k = wf_window_steps(&s->win, step, max_steps, s->n_steps, s->warm_steps,
+                             s->sc->trajectories ? s->traj_every : 0, 0);
     *steps = 1;
     if (k > 1) {
         int done, rc = ring_window(s, step, k, &done, err);
@@ -872,7 +850,7 @@ const WfFleet *wf_sim_fleet(const WfSim *sim)
 static int ring_windows(const void *eng, long *windows, long *redone)
 {
     const WfRing *s = eng;
-    *windows = s->windows, *redone = s->redone;
+    *windows = s->win.windows, *redone = s->win.redone;
     return s->win.k_max;
 }
 

@@ -92,6 +92,22 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_
                   "time.block_steps: 1 steps one step at a time without it)", state_bytes);
 }
 
+long wf_window_steps(const WfWindow *w, long step, long max_steps, long n_steps, long warm_steps, long traj_every,
+                     long rec_every)
+{
+    if (!w->k_max || step < w->per_step_until || (rec_every && step % rec_every == 0)) return 1;
+    long k = w->k_max < max_steps ? w->k_max : max_steps;
+    if (n_steps - step < k) k = n_steps - step;
+    if (step < warm_steps && warm_steps - step < k) k = warm_steps - step;
+    if (rec_every && rec_every - step % rec_every < k) k = rec_every - step % rec_every;
+    if (traj_every) {
+        long r = step % traj_every;
+        if (!r) return 1;
+        if (traj_every - r < k) k = traj_every - r;
+    }
+    return k;
+}
+
 int wf_window_range(WfWindow *w, size_t first, size_t n, int nthreads)
 {
     size_t nb = wf_lane_blocks(first, n);
@@ -241,6 +257,7 @@ int wf_window_run(WfWindow *w, WfLane *ln, size_t n, long step0, int k, int in_w
     int pass = WF_PASS_FUSED | WF_PASS_COUNT;
     size_t late = part && w->halo_ready ? 1 : 0; /* the front chunk (the last) waits for the next part's vehicles */
     w->halo_rc = w->front_rc = 0;
+    w->end = step0 + k;
 #pragma omp parallel num_threads(nth) if (nth > 1) default(none) \
     shared(w, ln, n, step0, k, in_window, vars, n_vars, recs, nb, nc, pass, part, late)
     {
@@ -316,6 +333,8 @@ void wf_window_back_trace(const WfWindow *w, const double **x_m, const double **
 
 void wf_window_settle(WfWindow *w, WfLane *ln, const WfStateVar *vars, size_t n_vars, int flags)
 {
+    w->windows++;
+    if (flags) w->redone++, w->per_step_until = w->end;
     if (!flags) {
         if (ln->safe)
             for (size_t c = 0; c < w->n_chunks; c++) wf_lane_safety_add(ln, &w->halo[c].co, 1);

@@ -1,5 +1,7 @@
-/* Time-blocked stepping of a periodic lane (issue 20): k fused steps at a time, with one synchronisation of the
- * threads per window instead of one per step, and each tile of vehicles kept in cache across its k steps.
+/* Time-blocked stepping of a lane (issue 20): k fused steps at a time, with one synchronisation of the threads per
+ * window instead of one per step, and each tile of vehicles kept in cache across its k steps. Written for the ring
+ * (below); a corridor's interior uses it as an open range of its circular buffer whose front chunk follows a trace
+ * (open_x, front_first, after: src/core/corridor.c, docs/corridors.md).
  *
  * On a single lane information flows one way: a vehicle's step reads only itself and its leader at the step's
  * start. The ring is cut into chunks of consecutive blocks (WF_WINDOW_CHUNKS per thread), each stepped by one
@@ -53,6 +55,9 @@ typedef struct WfWindow {
      * the window's result, without a parallel region of its own. NULL: none. */
     void         (*after)(void *ctx, int t, int nt, int flags);
     void          *after_ctx;
+    /* windows stepped, and undone to be redone step by step (wf_window_settle); after a redone window no window
+     * starts before per_step_until */
+    long           windows, redone, per_step_until, end;
     /* On a part of a ring split across processes, set by the caller: the next part's first k + 1 vehicles may still
      * be on their way when the window starts. The part's front chunk, the only one that reads them, is then stepped
      * last, after halo_ready(halo_ctx) returned 0 on the team's first thread (the thread that called
@@ -73,12 +78,20 @@ size_t wf_window_tile_default(size_t bytes_per_vehicle);
 int wf_window_fits(size_t n, size_t b_lo, size_t b_hi, int nthreads, int k);
 
 /* The window of blocks [b_lo, b_hi) of lane ln (its n vehicles, threads and groups; a part of a ring split across
- * processes steps only its own blocks; an open lane: n its capacity, then wf_window_range before each window) for windows of up to k_max steps, tiles of
- * tile_vehicles (rounded up to blocks), records every out_every steps and a backup of state_bytes. Owns everything
+ * processes steps only its own blocks; an open lane: n its capacity, then wf_window_range before each window) for
+ * windows of up to k_max steps, tiles of tile_vehicles (rounded up to blocks), records every out_every steps and a
+ * backup of state_bytes. Owns everything
  * it allocates until wf_window_destroy; 0 or WF_ESYS (out of memory, with the size). */
 int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_t b_hi, int k_max,
                      size_t tile_vehicles, long out_every, size_t state_bytes, WfError *err);
 void wf_window_destroy(WfWindow *w);
+
+/* Steps a window may take from `step` (1: one step at a time): at most k_max and max_steps; none across the opening
+ * of the statistics window (warm_steps), a trajectory step (traj_every; 0: none), a record step (rec_every; 0: the
+ * window records them, as a ring's does) or the final instant (n_steps), which step one at a time; none before
+ * per_step_until. */
+long wf_window_steps(const WfWindow *w, long step, long max_steps, long n_steps, long warm_steps, long traj_every,
+                     long rec_every);
 
 /* An open lane's window over the logical range of n vehicles from slot first (window.h: a corridor's interior),
  * stepped on nthreads: the range's blocks and chunks, as many as were allocated. Returns 0 when the range does not
@@ -99,7 +112,7 @@ void wf_window_back_trace(const WfWindow *w, const double **x_m, const double **
 
 /* After wf_window_run, with the flags of every part: 0, the window stands and its safety counts are added to the
  * lane's; else the state of the window's blocks is restored as it was at step0 and nothing is counted: the caller
- * redoes the steps one at a time. vars with a stride are indexed by slot. */
+ * redoes the steps one at a time (and wf_window_steps gives 1 until then). vars with a stride are indexed by slot. */
 void wf_window_settle(WfWindow *w, WfLane *ln, const WfStateVar *vars, size_t n_vars, int flags);
 
 #endif
