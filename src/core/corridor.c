@@ -1738,8 +1738,8 @@ static int window_init(WfCorridor *c, WfError *err)
     CorWindow *cw = &c->win;
     CorLane *ln = &c->ln[0];
     /* Only when asked for: measured on this project's machine (bench/README.md, "Corridor threads under load"), a
-     * corridor of 5000 vehicles steps 10-15 % slower in windows on idle cores, its state being in cache anyway, and
-     * about as fast beside busy processes. */
+     * corridor of 5000 vehicles steps 13-15 % slower in windows on idle cores, its state being in cache anyway, and
+     * is not faster beside busy processes. */
     int k = sc->block_steps, ok = k >= 2 && c->n_lanes == 1 && sc->fused_step;
     ok &= !c->cs->has_offramp && !c->coop_cap_mps2;
     for (size_t g = 0; g < sc->n_groups; g++) ok &= !sc->groups[g].model->external;
