@@ -72,9 +72,11 @@ $(BUILD)/%.o: %.c Makefile
 # source path; the library and the programs have no build-tree path compiled in (docs/energy.md: search paths).
 $(BUILD)/tests/%.o $(BUILD)/bench/%.o $(BUILD)/fuzz/%.o: override CFLAGS += -DWF_REPO_DIR='"$(CURDIR)"'
 
-# The 4-lane noise kernel: AVX instructions, called only on CPUs that have them (src/core/rng.c checks at run time).
+# The 4-lane noise kernel (AVX) and the 8-lane Philox (AVX2): called only on CPUs that have them (src/core/rng.c
+# checks at run time).
 ifneq ($(filter x86_64%,$(shell $(CC) -dumpmachine)),)
 $(BUILD)/src/core/noise_avx.o: override CFLAGS += -mavx
+$(BUILD)/src/core/philox_avx2.o: override CFLAGS += -mavx2
 endif
 
 $(LIBA): $(LIB_OBJ)
@@ -118,6 +120,7 @@ $(BUILD)/pic/%.o: %.c Makefile
 	$(CC) $(CFLAGS) -fPIC -c $< -o $@
 ifneq ($(filter x86_64%,$(shell $(CC) -dumpmachine)),)
 $(BUILD)/pic/src/core/noise_avx.o: override CFLAGS += -mavx
+$(BUILD)/pic/src/core/philox_avx2.o: override CFLAGS += -mavx2
 endif
 $(LIBSO): $(PIC_OBJ)
 	@mkdir -p $(dir $@)

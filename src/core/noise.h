@@ -1,11 +1,18 @@
-/* Box-Muller kernels over arrays of uniforms (src/noise_*.c), used by wf_rng_normal_block. pairs: a multiple
- * of 4; z receives 2 * pairs deviates. */
+/* Box-Muller kernels over arrays of uniforms (src/core/noise_*.c; pairs: a multiple of 4, z receives 2 * pairs
+ * deviates) and the vector Philox (src/core/philox_avx2.c), used by wf_rng_normal_block. */
 #ifndef WAVEFUEL_NOISE_H
 #define WAVEFUEL_NOISE_H
 
 #include <stddef.h>
+#include <stdint.h>
 
 void wf_noise_sse2(size_t pairs, const double *u1, const double *u2, double *z);
 void wf_noise_avx(size_t pairs, const double *u1, const double *u2, double *z);
+
+/* The uniforms of Philox4x32-10 calls with key (k0, k1) and counters (c0, c1, c2, first + j) for j < calls rounded
+ * down to a multiple of 8 (src/core/philox_avx2.c; AVX2 only): u1[j] from words 0 and 1, u2[j] from words 2 and 3,
+ * each ((w_a:w_b >> 11) + 0.5) 2^-53. */
+void wf_philox_uniforms_avx2(uint32_t k0, uint32_t k1, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first,
+                             size_t calls, double *u1, double *u2);
 
 #endif

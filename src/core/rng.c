@@ -38,18 +38,25 @@ void wf_rng_normal2(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, doub
     out[1] = r * sin(ang);
 }
 
-/* Philox words for calls (c0, c1, c2, first), (c0, c1, c2, first + 1), ...: one loop over independent counters,
- * which the compiler vectorises (the AVX2 clone runs eight 32x32->64-bit multiplies per instruction pair). */
+/* An unsigned 32-bit integer as a double, exactly, through the signed conversion the vector units have. */
+static inline double u32_double(uint32_t w) { return (double)(int32_t)(w ^ 0x80000000u) + 2147483648.0; }
+
+/* The uniforms of Philox calls (c0, c1, c2, first), (c0, c1, c2, first + 1), ...: call j's words (r0, r1, r2, r3)
+ * give u1[j] and u2[j] as draw() does from x = r0:r1 and y = r2:r3. One loop over independent counters, which the
+ * compiler vectorises: the four words stay in four vectors, and x >> 11 (< 2^53) is formed exactly as
+ * r0 * 2^21 + (r1 >> 11) in doubles, the same value as draw()'s integer conversion. */
 WF_SIMD_CLONES
-static void philox_fill(philox4x32_key_t key, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first, size_t calls,
-                        uint32_t *restrict out)
+static void philox_uniforms(philox4x32_key_t key, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first,
+                            size_t calls, double *restrict u1, double *restrict u2)
 {
     /* A size_t index: with a 32-bit one GCC 12 does not vectorise this loop. */
 #pragma omp simd
     for (size_t j = 0; j < calls; j++) {
         philox4x32_ctr_t c = {{c0, c1, c2, first + (uint32_t)j}};
         philox4x32_ctr_t r = philox4x32(c, key);
-        out[4 * j] = r.v[0], out[4 * j + 1] = r.v[1], out[4 * j + 2] = r.v[2], out[4 * j + 3] = r.v[3];
+        /* 53-bit uniforms strictly inside (0, 1), as draw(): log never sees 0 */
+        u1[j] = (u32_double(r.v[0]) * 0x1p21 + (double)(int32_t)(r.v[1] >> 11) + 0.5) * 0x1p-53;
+        u2[j] = (u32_double(r.v[2]) * 0x1p21 + (double)(int32_t)(r.v[3] >> 11) + 0.5) * 0x1p-53;
     }
 }
 
@@ -77,7 +84,7 @@ static BoxMuller *box_muller(void)
 #endif
 }
 
-#define NB_CHUNK 128 /* pairs per chunk: the buffers below stay on the stack (9 kB) */
+#define NB_CHUNK 128 /* pairs per chunk: the buffers below stay on the stack (4 kB) */
 
 void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_t step, size_t n, double *out)
 {
@@ -86,18 +93,21 @@ void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_
     uint32_t c0 = (uint32_t)block, c1 = (uint32_t)step;
     uint32_t c2 = stream ^ (uint32_t)(block >> 32) * 0x9E3779B9u ^ (uint32_t)(step >> 32) * 0x85EBCA6Bu;
     BoxMuller *bm = box_muller();
-    uint32_t w[4 * NB_CHUNK];
+#if defined(__x86_64__)
+    int avx2 = wf_simd_level() >= WF_SIMD_AVX2;
+#endif
     double u1[NB_CHUNK], u2[NB_CHUNK], z[2 * NB_CHUNK];
     size_t pairs = (n + 1) / 2;
     for (size_t p0 = 0; p0 < pairs; p0 += NB_CHUNK) {
         size_t cnt = pairs - p0 < NB_CHUNK ? pairs - p0 : NB_CHUNK, padded = (cnt + 3) & ~(size_t)3;
-        philox_fill(key, c0, c1, c2, (uint32_t)p0, cnt, w);
-        for (size_t j = 0; j < cnt; j++) {
-            uint64_t x = ((uint64_t)w[4 * j] << 32) | w[4 * j + 1], y = ((uint64_t)w[4 * j + 2] << 32) | w[4 * j + 3];
-            /* 53-bit uniforms strictly inside (0, 1), as draw(): log never sees 0 */
-            u1[j] = ((double)(x >> 11) + 0.5) * 0x1p-53;
-            u2[j] = ((double)(y >> 11) + 0.5) * 0x1p-53;
+        size_t wide = 0;
+#if defined(__x86_64__)
+        if (avx2) {
+            wide = cnt & ~(size_t)7;
+            wf_philox_uniforms_avx2(key.v[0], key.v[1], c0, c1, c2, (uint32_t)p0, wide, u1, u2);
         }
+#endif
+        philox_uniforms(key, c0, c1, c2, (uint32_t)(p0 + wide), cnt - wide, u1 + wide, u2 + wide);
         for (size_t j = cnt; j < padded; j++) u1[j] = 0.5, u2[j] = 0.5;
         bm(padded, u1, u2, z);
         size_t lo = 2 * p0, m = n - lo < 2 * cnt ? n - lo : 2 * cnt;
