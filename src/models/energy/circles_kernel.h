@@ -80,10 +80,12 @@ static void WF_KERNEL(const WfCirclesParams *restrict p, size_t n, const double 
         /* 9. Idle, with the v of step 4 and the a of step 3. */
         V abs_a = (V)((M)a & abs_bits);
         f = FN(vselect)((v < idle_v) & (abs_a < idle_a), f_idle, f);
-        for (size_t l = 0; l < lanes; l++) {
-            fuel[i + l] = f[l];
-            if (flag) flag[i + l] = (uint8_t)fl[l];
-        }
+        if (lanes == WF_LANES) /* one vector store: the lane by lane loop cost a tenth of the kernel */
+            memcpy(fuel + i, &f, sizeof f);
+        else
+            for (size_t l = 0; l < lanes; l++) fuel[i + l] = f[l];
+        if (flag)
+            for (size_t l = 0; l < lanes; l++) flag[i + l] = (uint8_t)fl[l];
     }
 }
 
