@@ -13,6 +13,7 @@
 #include "wavefuel/fleet.h"
 #include "wavefuel/rng.h"
 #include "core/par.h"
+#include "core/select.h"
 #include "core/simd.h"
 #include "util/clock.h"
 
@@ -209,9 +210,7 @@ AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, con
         vm->model->eval(vm->params, m, v + b0, a + b0, th + b0, 0, fr + b0, fl + b0);
         for (size_t c = 0; c < sc->n_classes; c++) {
             if (c == major || !count[c]) continue;
-            size_t cnt = 0;
-            /* without a branch: the classes of a mixed fleet alternate unpredictably */
-            for (size_t k = 0; k < m; k++) idx[cnt] = (uint32_t)(b0 + k), cnt += cid[b0 + k] == c;
+            size_t cnt = wf_select_eq16(cid + b0, m, (uint16_t)c, (uint32_t)b0, idx);
             for (size_t j = 0; j < cnt; j++) gv[j] = v[idx[j]], ga[j] = a[idx[j]], gt[j] = th[idx[j]];
             const WfVehicleClass *vc = &sc->classes[c].vc;
             vc->model->eval(vc->params, cnt, gv, ga, gt, 0, gf, gfl);
@@ -240,8 +239,7 @@ AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, cons
     uint16_t gcl[B];
     uint32_t idx[B];
     for (size_t g = 0; g < sc->n_groups; g++) {
-        size_t cnt = 0;
-        for (size_t k = 0; k < m; k++) idx[cnt] = (uint32_t)k, cnt += gid[k] == g; /* without a branch */
+        size_t cnt = wf_select_eq16(gid, m, (uint16_t)g, 0, idx);
         if (!cnt) continue;
         for (size_t j = 0; j < cnt; j++) {
             size_t k = idx[j];
