@@ -225,7 +225,20 @@ void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, cons
     energy_block(ln, lo, n, v, a, th, fr, fl);
 }
 
-/* Accelerations of a block, group by group (gathered when the block mixes groups); co: see accel_group. */
+/* Whether group g's accelerations can be computed over a whole block in place, its vehicles and the others alike
+ * (the others' then overwritten): its model's block kernel on one shared parameter set, element-wise, with no
+ * memory, zones or safety counts that would see the others. */
+static inline int whole_block(const WfLane *ln, size_t g)
+{
+    const WfDriverGroup *grp = &ln->sc->groups[g];
+    const WfCfModel *m = grp->model;
+    return m->accel_block && !m->state_size && !ln->zoned[g] && !ln->pstride[g] && !grp->safety;
+}
+
+/* Accelerations of a block, group by group; co: see accel_group. The block's largest group over the whole block in
+ * place when it can be (whole_block), each other group gathered, computed and scattered over its vehicles: with a
+ * few automated vehicles among humans, the humans are not copied. Each vehicle's acceleration is computed from its
+ * own inputs alone, so the bits are those of every group gathered. */
 AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, const double *v, const double *z,
                     const double *cap, Blk *b, WfChunkOut *co)
 {
@@ -235,12 +248,23 @@ AI void accel_block(const WfLane *ln, size_t lo, size_t m, const double *x, cons
         accel_group(ln, 0, lo, NULL, m, x, b->gap, v, b->vl, b->th, z, cap, cid, b->a, co);
         return;
     }
+    size_t count[WF_MAX_GROUPS], major = 0;
+    for (size_t g = 0; g < sc->n_groups; g++) {
+        const uint16_t g16 = (uint16_t)g;
+        uint32_t c = 0;
+#pragma omp simd reduction(+ : c)
+        for (size_t k = 0; k < m; k++) c += gid[k] == g16;
+        count[g] = c;
+        major = count[g] > count[major] ? g : major;
+    }
+    int in_place = whole_block(ln, major);
+    if (in_place) accel_group(ln, major, lo, NULL, m, x, b->gap, v, b->vl, b->th, z, cap, cid, b->a, co);
     double gg[B], gv[B], gl[B], gt[B], gz[B], gc[B], ga[B];
     uint16_t gcl[B];
     uint32_t idx[B];
     for (size_t g = 0; g < sc->n_groups; g++) {
+        if (!count[g] || (in_place && g == major)) continue;
         size_t cnt = wf_select_eq16(gid, m, (uint16_t)g, 0, idx);
-        if (!cnt) continue;
         for (size_t j = 0; j < cnt; j++) {
             size_t k = idx[j];
             gg[j] = b->gap[k], gv[j] = v[k], gl[j] = b->vl[k], gt[j] = b->th[k], gcl[j] = cid[k];
