@@ -158,7 +158,7 @@ class Simulation:
 
     @property
     def wall_s(self):
-        """Wall time of the step loop so far, s."""
+        """Wall time of the step loop so far, s (the steps an RL batch takes, as an environment's, are not timed)."""
         self._alive()
         return lib.wf_sim_wall_s(self._ptr)
 

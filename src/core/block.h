@@ -197,7 +197,7 @@ typedef struct WfLoop {
     int  (*close)(void *ctx, WfError *err);            /* summaries of the run (also after an error) */
     int  (*end)(void *ctx, int completed, const char *reason, WfError *err); /* NULL: none */
     long  *steps_done;
-    double *wall_s;                                    /* wall time of the step loop */
+    double *wall_s;                                    /* wall time of the step loop; NULL: not timed */
     long   n_steps;
     double dt_s, duration_s, checkpoint_every_s;
     WfProgressFn progress;                             /* may be NULL */
@@ -212,7 +212,7 @@ typedef struct WfLoopState {
 } WfLoopState;
 void wf_loop_start(WfLoopState *st);
 /* Up to n more iterations of the loop (a step each, the last one the final instant); stops early at the end, on a
- * signal (st->reason) or an error, which it returns. Adds its wall time to *lp->wall_s. */
+ * signal (st->reason) or an error, which it returns. Adds its wall time to *lp->wall_s (when not NULL). */
 int wf_loop_advance(const WfLoop *lp, WfLoopState *st, long n, WfError *err);
 /* After the last wf_loop_advance (rc: what it returned): the checkpoint of an interrupted run, the close, the end.
  * 0 when the run reached its end; WF_EINTR when a signal stopped it; else the first error. */

@@ -11,6 +11,7 @@
 
 #include "core/batch.h"
 #include "core/governor.h"
+#include "core/sim.h"
 #include "util/clock.h"
 #include "wavefuel/corridor.h"
 
@@ -64,6 +65,7 @@ void wf_rl_batch_destroy(WfRlBatch **pb)
 {
     if (!pb || !*pb) return;
     WfRlBatch *b = *pb;
+    for (size_t k = 0; k < b->n_runs; k++) wf_sim_set_timed(b->sims[k], 1);
     void *arrays[] = {b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
                       b->scope, b->flag, b->obs0, b->obs1, b->a_prev};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
@@ -126,6 +128,8 @@ int wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, c
     if (!rc) rc = wf_sims_observe(sims, n_runs, b->group, b->obs0, b->n_rows, err);
     for (size_t k = 0; !rc && k < n_runs; k++) layout_run(b, k);
     for (size_t j = 0; !rc && j < b->n_rows; j++) b->a_prev[j] = NAN; /* no previous action: no jerk */
+    /* the batch's calls are what is timed (the governor); wf_sim_wall_s stays as it was until the batch ends */
+    for (size_t k = 0; !rc && k < n_runs; k++) wf_sim_set_timed(sims[k], 0);
     if (rc) wf_rl_batch_destroy(&b);
     *out = b;
     return rc;

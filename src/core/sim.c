@@ -126,6 +126,7 @@ int wf_sim_step(WfSim *s, long n, WfError *err)
     if (!s->begun || s->finished)
         return wf_err(err, WF_EINPUT, "%s: %s", s->sc->path,
                       s->finished ? "the run has ended: no step is left" : "wf_sim_begin first");
+    s->loop.wall_s = s->untimed ? NULL : &s->wall_s;
     int rc = wf_loop_advance(&s->loop, &s->ls, n, err);
     return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
 }
@@ -138,6 +139,7 @@ int wf_sim_finish(WfSim *s, WfError *err)
 }
 
 int wf_sim_done(const WfSim *s) { return s->finished; }
+void wf_sim_set_timed(WfSim *s, int on) { s->untimed = !on; }
 double wf_sim_time_s(const WfSim *s) { return (double)*s->steps_done * s->sc->dt_s; }
 
 int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,
