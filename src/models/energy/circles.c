@@ -125,6 +125,7 @@ double wf_circles_a_max(const WfCirclesParams *p, double v, double theta)
 #undef WF_KERNEL
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#include <immintrin.h>
 #define WF_HAVE_WIDE_KERNELS 1
 #pragma GCC push_options
 #pragma GCC target("avx2")
