@@ -37,19 +37,21 @@ void wf_philox_uniforms_avx2(uint32_t k0, uint32_t k1, uint32_t c0, uint32_t c1,
 {
     const __m256i m0 = _mm256_set1_epi64x(PHILOX_M4x32_0), m1 = _mm256_set1_epi64x(PHILOX_M4x32_1);
     const __m256d half = _mm256_set1_pd(0.5), scale = _mm256_set1_pd(0x1p-53);
+    /* the ten rounds' keys, each in every lane: the key is bumped between rounds */
+    __m256i rk0[10], rk1[10];
+    for (uint32_t r = 0, key0 = k0, key1 = k1; r < 10; r++, key0 += PHILOX_W32_0, key1 += PHILOX_W32_1)
+        rk0[r] = _mm256_set1_epi32((int)key0), rk1[r] = _mm256_set1_epi32((int)key1);
     for (size_t j = 0; j + 8 <= calls; j += 8) {
         __m256i x0 = _mm256_set1_epi32((int)c0), x1 = _mm256_set1_epi32((int)c1), x2 = _mm256_set1_epi32((int)c2);
         __m256i x3 = _mm256_add_epi32(_mm256_set1_epi32((int)(first + (uint32_t)j)),
                                       _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7));
-        uint32_t key0 = k0, key1 = k1;
         for (int r = 0; r < 10; r++) {
-            if (r) key0 += PHILOX_W32_0, key1 += PHILOX_W32_1;
             __m256i lo0, hi0, lo1, hi1;
             mulhilo8(m0, x0, &lo0, &hi0);
             mulhilo8(m1, x2, &lo1, &hi1);
-            x0 = _mm256_xor_si256(_mm256_xor_si256(hi1, x1), _mm256_set1_epi32((int)key0));
+            x0 = _mm256_xor_si256(_mm256_xor_si256(hi1, x1), rk0[r]);
             x1 = lo1;
-            x2 = _mm256_xor_si256(_mm256_xor_si256(hi0, x3), _mm256_set1_epi32((int)key1));
+            x2 = _mm256_xor_si256(_mm256_xor_si256(hi0, x3), rk1[r]);
             x3 = lo0;
         }
         for (int h = 0; h < 2; h++) {
