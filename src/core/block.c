@@ -303,7 +303,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     if (ln->noisy) lane_noise(sc->seed, ln->key0 + lo, m, step, z);
     size_t pairs = m ? m - 1 : 0;
     const double *len = ln->class_length_m;
-    /* a vector gather (the scalar loop took 7 instructions a vehicle) */
+    /* under omp simd gcc 12 emits no gather instruction, but unrolls the lookup: 4 instructions a vehicle, from 7 */
 #pragma omp simd
     for (size_t k = 0; k < pairs; k++) b->ll[k] = len[cid[k + 1]];
     for (size_t k = 0; k + 1 < m; k++) {
