@@ -161,9 +161,55 @@ static void test_refusals(void)
     wf_scenario_destroy(&sc);
 }
 
+/* The group's rows are its vehicles in ring order, each with its own inputs (from the fleet's arrays here), and
+ * command k goes to row k's vehicle: after distinct commands and one step, each speed changed by its command. */
+static void test_ring_rows_in_order(void)
+{
+    /* the commanded vehicles without noise (the humans keep theirs): a command is then the step's acceleration */
+    const char *ext[] = {"fleet.drivers[1].model=external", "fleet.drivers[1].noise_mps2=0"};
+    WfScenario *sc = NULL;
+    WfSim *sim = NULL;
+    WfError err = {0};
+    int rc = wf_scenario_load_text("external.yaml", ring, ext, 2, &sc, &err);
+    if (!rc) rc = wf_sim_create(sc, &sim, &err);
+    if (!rc) rc = wf_sim_begin(sim, NULL, &err);
+    double u[6], obs[18], v0[6];
+    for (int s = 0; !rc && s < 400; s++) { /* noise and distinct commands: every vehicle's state its own */
+        for (size_t k = 0; k < 6; k++) u[k] = 0.2 + 0.05 * (double)k - (s > 200 ? 0.3 : 0.0);
+        rc = wf_sim_set_actions(sim, 1, u, 6, &err);
+        if (!rc) rc = wf_sim_step(sim, 1, &err);
+    }
+    CHECK(rc == 0, "%s", err.msg);
+    if (!rc) {
+        const WfFleet *f = wf_sim_fleet(sim);
+        size_t member[6], m = 0, bad = 0;
+        for (size_t i = 0; i < f->n && m < 6; i++)
+            if (f->group_id[i] == 1) member[m++] = i;
+        CHECK(m == 6, "%zu members", m);
+        rc = wf_sim_observe(sim, 1, obs, 6, &err);
+        for (size_t k = 0; !rc && k < m; k++) {
+            size_t i = member[k], l = (i + 1) % f->n;
+            double gap = f->x_m[l] + (l < i ? 600.0 : 0.0) - sc->classes[0].length_m - f->x_m[i];
+            bad += obs[3 * k] != f->v_mps[i] || obs[3 * k + 1] != f->v_mps[l] || fabs(obs[3 * k + 2] - gap) > 1e-9;
+            v0[k] = f->v_mps[i];
+            u[k] = 0.1 * (double)k - 0.2;
+        }
+        CHECK(bad == 0, "%zu of 6 rows are not their vehicle's inputs in ring order", bad);
+        if (!rc) rc = wf_sim_set_actions(sim, 1, u, 6, &err);
+        if (!rc) rc = wf_sim_step(sim, 1, &err);
+        for (size_t k = 0; !rc && k < m; k++)
+            CHECK(fabs(f->v_mps[member[k]] - v0[k] - u[k] * 0.1) < 1e-12, "row %zu: speed %.17g -> %.17g, command %g",
+                  k, v0[k], f->v_mps[member[k]], u[k]);
+        CHECK(rc == 0, "%s", err.msg);
+    }
+    wf_sim_destroy(&sim);
+    wf_scenario_destroy(&sc);
+}
+
 int main(void)
 {
     RUN(test_ring_idm_commands);
+    RUN(test_ring_rows_in_order);
     RUN(test_corridor_set_speed);
     RUN(test_refusals);
     TEST_EXIT();
