@@ -85,6 +85,7 @@ static BoxMuller *box_muller(void)
 }
 
 #define NB_CHUNK 128 /* pairs per chunk: the buffers below stay on the stack (4 kB) */
+_Static_assert(NB_CHUNK % 8 == 0, "the vector Philox fills whole groups of 8 calls");
 
 void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_t step, size_t n, double *out)
 {
@@ -102,9 +103,10 @@ void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_
         size_t cnt = pairs - p0 < NB_CHUNK ? pairs - p0 : NB_CHUNK, padded = (cnt + 3) & ~(size_t)3;
         size_t wide = 0;
 #if defined(__x86_64__)
-        if (avx2) {
-            wide = cnt & ~(size_t)7;
+        if (avx2) { /* whole groups of 8 calls, the last one's extra uniforms unused (each call is independent) */
+            wide = (cnt + 7) & ~(size_t)7;
             wf_philox_uniforms_avx2(key.v[0], key.v[1], c0, c1, c2, (uint32_t)p0, wide, u1, u2);
+            wide = cnt;
         }
 #endif
         philox_uniforms(key, c0, c1, c2, (uint32_t)(p0 + wide), cnt - wide, u1 + wide, u2 + wide);
