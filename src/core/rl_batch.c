@@ -140,7 +140,7 @@ double *wf_rl_batch_prev_accel(WfRlBatch *b) { return b->a_prev; }
 void wf_rl_batch_observe(const WfRlBatch *b, double *obs) { memcpy(obs, b->obs0, 3 * b->n_rows * sizeof *obs); }
 
 /* Every vehicle's fuel rate of run k over the action (its class model at v0 and (v1 - v0) / dt, flat road): the
- * vehicles gathered by class, one array evaluation per class, scattered back. */
+ * vehicles gathered by class, one array evaluation per class, scattered back (a road of one class: in place). */
 static void run_fuel(WfRlBatch *b, size_t k)
 {
     const RlRun *ru = &b->run[k];
@@ -150,11 +150,15 @@ static void run_fuel(WfRlBatch *b, size_t k)
     for (size_t c = 0; c < sc->n_classes; c++) {
         size_t lo = ru->cls_off[c], hi = ru->cls_off[c + 1];
         if (lo == hi) continue;
+        const WfVehicleClass *vc = &sc->classes[c].vc;
+        if (hi - lo == ru->n) { /* one class on the road: in place (an evaluation is element-wise) */
+            vc->model->eval(vc->params, ru->n, b->v0 + o, b->a + o, b->zero + o, 0, b->fuel + o, b->flag + o);
+            break;
+        }
         for (size_t j = lo; j < hi; j++) {
             size_t i = o + b->order[o + j];
             b->cv[o + j] = b->v0[i], b->ca[o + j] = b->a[i];
         }
-        const WfVehicleClass *vc = &sc->classes[c].vc;
         vc->model->eval(vc->params, hi - lo, b->cv + o + lo, b->ca + o + lo, b->zero + o + lo, 0, b->cf + o + lo,
                         b->flag + o + lo);
         for (size_t j = lo; j < hi; j++) b->fuel[o + b->order[o + j]] = b->cf[o + j];
