@@ -37,9 +37,9 @@ typedef struct WfRlBatch WfRlBatch;
 
 /* A batch of n_runs runs (begun, external group group[k] of run k), their vehicles on the road now (which must
  * stay the same during the batch's life: a ring's; a corridor's once its platoon has entered) and the reward rw.
- * Takes the runs' state now as the first action's start. Ownership: sims borrowed and must outlive the batch (and
- * not be stepped by anything else meanwhile; the batch's steps are not added to wf_sim_wall_s); *out the caller's
- * until wf_rl_batch_destroy; NULL on failure.
+ * Takes the runs' state now as the first action's start. Ownership: sims borrowed, alive at every call on the batch
+ * but wf_rl_batch_destroy, which does not touch them (and not stepped by anything else meanwhile; the batch's steps
+ * are not added to wf_sim_wall_s); *out the caller's until wf_rl_batch_destroy; NULL on failure.
  * WF_EINPUT for a group that is not external or is empty, action_steps < 1, dt_action_s <= 0. */
 int  wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, const WfRlReward *rw,
                         long action_steps, double dt_action_s, WfRlBatch **out, WfError *err);

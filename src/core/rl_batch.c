@@ -65,7 +65,6 @@ void wf_rl_batch_destroy(WfRlBatch **pb)
 {
     if (!pb || !*pb) return;
     WfRlBatch *b = *pb;
-    for (size_t k = 0; k < b->n_runs; k++) wf_sim_set_timed(b->sims[k], 1);
     void *arrays[] = {b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
                       b->scope, b->flag, b->obs0, b->obs1, b->a_prev};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
@@ -128,8 +127,6 @@ int wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, c
     if (!rc) rc = wf_sims_observe(sims, n_runs, b->group, b->obs0, b->n_rows, err);
     for (size_t k = 0; !rc && k < n_runs; k++) layout_run(b, k);
     for (size_t j = 0; !rc && j < b->n_rows; j++) b->a_prev[j] = NAN; /* no previous action: no jerk */
-    /* the batch's calls are what is timed (the governor); wf_sim_wall_s stays as it was until the batch ends */
-    for (size_t k = 0; !rc && k < n_runs; k++) wf_sim_set_timed(sims[k], 0);
     if (rc) wf_rl_batch_destroy(&b);
     *out = b;
     return rc;
@@ -219,7 +216,8 @@ static int step_run(void *ctx, size_t k, WfError *err)
     const RlRun *ru = &c->b->run[k];
     WfSim *sim = c->b->sims[k];
     int rc = wf_sim_set_actions(sim, c->b->group[k], c->actions + ru->row, ru->m, err);
-    if (!rc) rc = wf_sim_step(sim, c->b->action_steps, err);
+    /* not timed one by one: the batch's call is (wf_sim_wall_s leaves these steps out) */
+    if (!rc) rc = wf_sim_step_untimed(sim, c->b->action_steps, err);
     if (!rc) rc = run_reward(c->b, k, c->reward, c->info, err);
     if (rc) wf_err_prefix(err, "run %zu of the batch: ", k);
     return rc;

@@ -121,15 +121,18 @@ static int finish(WfSim *s, int rc, WfError *err)
     return wf_loop_finish(&s->loop, &s->ls, rc, err);
 }
 
-int wf_sim_step(WfSim *s, long n, WfError *err)
+static int sim_step(WfSim *s, long n, int timed, WfError *err)
 {
     if (!s->begun || s->finished)
         return wf_err(err, WF_EINPUT, "%s: %s", s->sc->path,
                       s->finished ? "the run has ended: no step is left" : "wf_sim_begin first");
-    s->loop.wall_s = s->untimed ? NULL : &s->wall_s;
+    s->loop.wall_s = timed ? &s->wall_s : NULL;
     int rc = wf_loop_advance(&s->loop, &s->ls, n, err);
     return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
 }
+
+int wf_sim_step(WfSim *s, long n, WfError *err) { return sim_step(s, n, 1, err); }
+int wf_sim_step_untimed(WfSim *s, long n, WfError *err) { return sim_step(s, n, 0, err); }
 
 int wf_sim_finish(WfSim *s, WfError *err)
 {
@@ -139,7 +142,6 @@ int wf_sim_finish(WfSim *s, WfError *err)
 }
 
 int wf_sim_done(const WfSim *s) { return s->finished; }
-void wf_sim_set_timed(WfSim *s, int on) { s->untimed = !on; }
 double wf_sim_time_s(const WfSim *s) { return (double)*s->steps_done * s->sc->dt_s; }
 
 int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx, volatile sig_atomic_t *stop,

@@ -40,8 +40,10 @@ typedef struct WfBoundary {
 
 extern const WfBoundary wf_boundary_periodic, wf_boundary_open;
 
-/* Whether wf_sim_step adds its wall time to wf_sim_wall_s (1, the default) or not. */
-void wf_sim_set_timed(WfSim *s, int on);
+/* wf_sim_step without adding its wall time to wf_sim_wall_s: an RL batch's steps (src/core/rl_batch.c, which times
+ * its own call), where two clock reads a call, 30-60 ns each on a VM, were some 5 % of an action of 22-vehicle
+ * rings. */
+int wf_sim_step_untimed(WfSim *s, long n, WfError *err);
 
 struct WfSim {
     const WfScenario *sc;       /* borrowed */
@@ -56,9 +58,6 @@ struct WfSim {
     WfLoop            loop;     /* set by wf_sim_begin */
     WfLoopState       ls;
     int               begun, finished;
-    /* Steps not timed (wall_s left as it is) while an RL batch steps the run: two clock reads a call, 30-60 ns each
-     * on a VM, were some 5 % of an action of 22-vehicle rings (src/core/rl_batch.c: its own call is timed). */
-    int               untimed;
     /* `model: mlp` groups (src/core/sim.c: mlp_command): the observation rows and commands of one group's batch,
      * room for the most vehicles a group can have on the road; NULL when no group is mlp. Owned. */
     double           *mlp_rows, *mlp_cmd;
