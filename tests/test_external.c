@@ -13,6 +13,7 @@
 #include "wavefuel/corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/scenario.h"
+#include "wavefuel/rl.h"
 #include "wf_test.h"
 
 typedef struct Bytes {
@@ -206,9 +207,40 @@ static void test_ring_rows_in_order(void)
     wf_scenario_destroy(&sc);
 }
 
+/* An RL batch over two such rings: its steps are not added to the runs' wall times, and it may be destroyed after
+ * its runs (include/wavefuel/rl.h; VectorEnv replaces its environments' runs before rebuilding its batch): under
+ * make sanitize, a destroy that touched the runs fails here. */
+static void test_rl_batch_lifetime(void)
+{
+    const char *ext[] = {"fleet.drivers[1].model=external"};
+    WfScenario *sc = NULL;
+    WfSim *sims[2] = {NULL, NULL};
+    WfRlBatch *b = NULL;
+    WfError err = {0}, errs[2] = {{0}, {0}};
+    int rc = wf_scenario_load_text("external.yaml", ring, ext, 1, &sc, &err);
+    for (int k = 0; !rc && k < 2; k++) {
+        rc = wf_sim_create(sc, &sims[k], &err);
+        if (!rc) rc = wf_sim_begin(sims[k], NULL, &err);
+        if (!rc) rc = wf_sim_step(sims[k], 10, &err);
+    }
+    const size_t group[2] = {1, 1};
+    const WfRlReward rw = {.scope_all = 1, .w_fuel = 1.0, .gap_min_m = 5.0, .gap_max_m = 60.0, .w_gap = 1.0};
+    if (!rc) rc = wf_rl_batch_create(sims, 2, group, &rw, 1, 0.1, &b, &err);
+    double wall0 = rc ? 0.0 : wf_sim_wall_s(sims[0]), u[12] = {0}, obs[36], reward[2], info[2 * WF_RL_N_INFO];
+    for (int a = 0; !rc && a < 50; a++) rc = wf_rl_batch_step(b, u, 1, obs, reward, info, errs);
+    CHECK(rc == 0, "%s %s %s", err.msg, errs[0].msg, errs[1].msg);
+    if (!rc) CHECK(wf_sim_wall_s(sims[0]) == wall0, "the batch's steps were timed: %g -> %g s", wall0,
+                   wf_sim_wall_s(sims[0]));
+    for (int k = 0; k < 2; k++) wf_sim_destroy(&sims[k]);
+    wf_rl_batch_destroy(&b); /* after its runs */
+    CHECK(b == NULL, "batch not released");
+    wf_scenario_destroy(&sc);
+}
+
 int main(void)
 {
     RUN(test_ring_idm_commands);
+    RUN(test_rl_batch_lifetime);
     RUN(test_ring_rows_in_order);
     RUN(test_corridor_set_speed);
     RUN(test_refusals);
