@@ -1004,7 +1004,6 @@ static int ring_restored(void *eng, WfError *err)
     return 0;
 }
 
-/* Group g's vehicles in ring order; the last vehicle's leader is vehicle 0 one lap ahead (block.c: front_lead). */
 /* Vehicle i of group g, the k-th in ring order: its inputs of the next step to fn. */
 static void group_visit(const WfRing *s, size_t g, size_t k, size_t i, WfGroupVisit fn, void *ctx)
 {
@@ -1015,6 +1014,8 @@ static void group_visit(const WfRing *s, size_t g, size_t k, size_t i, WfGroupVi
     fn(ctx, k, f->group_state[g] + wf_fleet_slot(f, i) * ssz, f->v_mps[i], f->v_mps[l], gap);
 }
 
+/* Group g's vehicles in ring order (its member list, or a scan of the fleet); the last vehicle's leader is vehicle 0
+ * one lap ahead (block.c: front_lead). */
 static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 {
     const WfRing *s = eng;
