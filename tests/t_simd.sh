@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # The hand-written kernels' narrower forms on a machine whose runs take a wider one: the bitwise checks of
 # tests/test_energy.c with WAVEFUEL_SIMD=2 (2 lanes, every x86-64) and WAVEFUEL_SIMD=4 (4 lanes, AVX2) forcing the
-# narrower energy and noise kernels, tests/test_select.c's with the gather's plain loop; and one engine run whose fleet fuel must agree to the last bit between the
-# CPU's widest form and each narrower one. (Where the CPU's widest is 4 lanes, the =4 run repeats the default.)
+# narrower energy and noise kernels, tests/test_select.c's with the gather's plain loop; and one engine run whose
+# fleet fuel must agree to the last bit between the CPU's widest form and each narrower one (the noise's Philox too:
+# plain at 2 lanes, 8 counters at once at AVX2). (Where the CPU's widest is 4 lanes, the =4 run repeats the default.)
 set -u
 cd "$(dirname "$0")/.."
 BUILD=${BUILD:-build}

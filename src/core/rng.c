@@ -9,6 +9,13 @@
 #include "core/noise.h"
 #include "core/simd.h"
 
+/* The uniform of two Philox words hi:lo: its top 53 bits, (k + 0.5) / 2^53, strictly inside (0, 1) (log never sees
+ * 0). The one scalar form of the rule (src/core/philox_avx2.c forms the same value in vectors; tests/test_rng.c). */
+static inline double uniform53(uint32_t hi, uint32_t lo)
+{
+    return ((double)((((uint64_t)hi << 32) | lo) >> 11) + 0.5) * 0x1p-53;
+}
+
 static void draw(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, double u[2])
 {
     philox4x32_key_t k = {{(uint32_t)seed, (uint32_t)(seed >> 32)}};
@@ -17,10 +24,8 @@ static void draw(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, double 
     philox4x32_ctr_t c = {{(uint32_t)a, (uint32_t)b, stream ^ (uint32_t)(a >> 32) * 0x9E3779B9u,
                            (uint32_t)(b >> 32)}};
     philox4x32_ctr_t r = philox4x32(c, k);
-    uint64_t x = ((uint64_t)r.v[0] << 32) | r.v[1], y = ((uint64_t)r.v[2] << 32) | r.v[3];
-    /* (k + 0.5) / 2^53 lies strictly inside (0, 1): log() below never sees 0. */
-    u[0] = ((double)(x >> 11) + 0.5) * 0x1p-53;
-    u[1] = ((double)(y >> 11) + 0.5) * 0x1p-53;
+    u[0] = uniform53(r.v[0], r.v[1]);
+    u[1] = uniform53(r.v[2], r.v[3]);
 }
 
 void wf_rng_uniform2(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, double out[2])
@@ -38,13 +43,8 @@ void wf_rng_normal2(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, doub
     out[1] = r * sin(ang);
 }
 
-/* An unsigned 32-bit integer as a double, exactly, through the signed conversion the vector units have. */
-static inline double u32_double(uint32_t w) { return (double)(int32_t)(w ^ 0x80000000u) + 2147483648.0; }
-
 /* The uniforms of Philox calls (c0, c1, c2, first), (c0, c1, c2, first + 1), ...: call j's words (r0, r1, r2, r3)
- * give u1[j] and u2[j] as draw() does from x = r0:r1 and y = r2:r3. One loop over independent counters, which the
- * compiler vectorises: the four words stay in four vectors, and x >> 11 (< 2^53) is formed exactly as
- * r0 * 2^21 + (r1 >> 11) in doubles, the same value as draw()'s integer conversion. */
+ * give u1[j] and u2[j] as draw() does. Where the CPU has no AVX2 (wf_philox_uniforms_avx2 otherwise). */
 WF_SIMD_CLONES
 static void philox_uniforms(philox4x32_key_t key, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first,
                             size_t calls, double *restrict u1, double *restrict u2)
@@ -54,9 +54,8 @@ static void philox_uniforms(philox4x32_key_t key, uint32_t c0, uint32_t c1, uint
     for (size_t j = 0; j < calls; j++) {
         philox4x32_ctr_t c = {{c0, c1, c2, first + (uint32_t)j}};
         philox4x32_ctr_t r = philox4x32(c, key);
-        /* 53-bit uniforms strictly inside (0, 1), as draw(): log never sees 0 */
-        u1[j] = (u32_double(r.v[0]) * 0x1p21 + (double)(int32_t)(r.v[1] >> 11) + 0.5) * 0x1p-53;
-        u2[j] = (u32_double(r.v[2]) * 0x1p21 + (double)(int32_t)(r.v[3] >> 11) + 0.5) * 0x1p-53;
+        u1[j] = uniform53(r.v[0], r.v[1]);
+        u2[j] = uniform53(r.v[2], r.v[3]);
     }
 }
 
@@ -101,15 +100,13 @@ void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_
     size_t pairs = (n + 1) / 2;
     for (size_t p0 = 0; p0 < pairs; p0 += NB_CHUNK) {
         size_t cnt = pairs - p0 < NB_CHUNK ? pairs - p0 : NB_CHUNK, padded = (cnt + 3) & ~(size_t)3;
-        size_t wide = 0;
 #if defined(__x86_64__)
-        if (avx2) { /* whole groups of 8 calls, the last one's extra uniforms unused (each call is independent) */
-            wide = (cnt + 7) & ~(size_t)7;
-            wf_philox_uniforms_avx2(key.v[0], key.v[1], c0, c1, c2, (uint32_t)p0, wide, u1, u2);
-            wide = cnt;
-        }
+        /* whole groups of 8 calls, the last group's extra uniforms unused (each call is independent) */
+        if (avx2)
+            wf_philox_uniforms_avx2(key.v[0], key.v[1], c0, c1, c2, (uint32_t)p0, (cnt + 7) & ~(size_t)7, u1, u2);
+        else
 #endif
-        philox_uniforms(key, c0, c1, c2, (uint32_t)(p0 + wide), cnt - wide, u1 + wide, u2 + wide);
+            philox_uniforms(key, c0, c1, c2, (uint32_t)p0, cnt, u1, u2);
         for (size_t j = cnt; j < padded; j++) u1[j] = 0.5, u2[j] = 0.5;
         bm(padded, u1, u2, z);
         size_t lo = 2 * p0, m = n - lo < 2 * cnt ? n - lo : 2 * cnt;
