@@ -329,53 +329,53 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     }
 }
 
-/* Left-point accumulation of one gate over a block. */
-AI void accum_before(const WfAccum *ac, const WfScenario *sc, size_t lo, size_t m, const double *restrict v,
-                     const double *restrict a, const double *restrict fr, const uint8_t *restrict fl,
-                     const uint8_t *restrict mode, int with_fuel)
+/* The speed and acceleration moments of one gate over a block (one loop: v and a loaded once for the four). */
+AI void accum_moments(const WfAccum *ac, size_t lo, size_t m, const double *restrict v, const double *restrict a)
+{
+    if (!ac || !ac->sum_v) return;
+    double *restrict s1 = ac->sum_v + lo, *restrict s2 = ac->sum_v2 + lo;
+    double *restrict a1 = ac->sum_a + lo, *restrict a2 = ac->sum_a2 + lo;
+#pragma omp simd
+    for (size_t k = 0; k < m; k++) {
+        s1[k] += v[k];
+        s2[k] += v[k] * v[k];
+        a1[k] += a[k];
+        a2[k] += a[k] * a[k];
+    }
+}
+
+/* Adds expr (a value of vehicle k) to array f of gate g1 and, when g2 is not NULL, of gate g2 (the statistics
+ * window) over a block, computing it once for both: each array gets the value it would get alone. */
+#define GATES_ADD(g1, g2, T, f, expr)                                                                               \
+    do {                                                                                                            \
+        T *p1_ = (g1)->f ? (g1)->f + lo : NULL, *p2_ = (g2) && (g2)->f ? (g2)->f + lo : NULL;                        \
+        if (p1_ && p2_) {                                                                                           \
+            T *restrict q1_ = p1_, *restrict q2_ = p2_;                                                             \
+            _Pragma("omp simd") for (size_t k = 0; k < m; k++) {                                                    \
+                T u_ = (expr);                                                                                      \
+                q1_[k] += u_;                                                                                       \
+                q2_[k] += u_;                                                                                       \
+            }                                                                                                       \
+        } else if (p1_ || p2_) {                                                                                    \
+            T *restrict q_ = p1_ ? p1_ : p2_;                                                                       \
+            _Pragma("omp simd") for (size_t k = 0; k < m; k++) q_[k] += (expr);                                     \
+        }                                                                                                           \
+    } while (0)
+
+/* Left-point accumulation over a block into gate g1 and, when g2 is not NULL, gate g2. */
+AI void accum_before(const WfAccum *g1, const WfAccum *g2, const WfScenario *sc, size_t lo, size_t m,
+                     const double *restrict v, const double *restrict a, const double *restrict fr,
+                     const uint8_t *restrict fl, const uint8_t *restrict mode, int with_fuel)
 {
     double dt = sc->dt_s, v_stop = sc->v_stop_mps, hard = -sc->hard_brake_mps2;
-    if (ac->fuel_g && with_fuel) {
-        double *restrict q = ac->fuel_g + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k] += fr[k] * dt;
-    }
-    if (ac->stopped_s) {
-        double *restrict q = ac->stopped_s + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k] += v[k] < v_stop ? dt : 0.0;
-    }
-    if (ac->sum_v) {
-        double *restrict s1 = ac->sum_v + lo, *restrict s2 = ac->sum_v2 + lo;
-        double *restrict a1 = ac->sum_a + lo, *restrict a2 = ac->sum_a2 + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) {
-            s1[k] += v[k];
-            s2[k] += v[k] * v[k];
-            a1[k] += a[k];
-            a2[k] += a[k] * a[k];
-        }
-    }
-    if (ac->stopped_steps) {
-        uint32_t *restrict q = ac->stopped_steps + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(v[k] < v_stop);
-    }
-    if (ac->infeasible) {
-        uint32_t *restrict q = ac->infeasible + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k] += (uint32_t)(fl[k] == WF_INFEASIBLE_ACCEL);
-    }
-    if (ac->hard_brakes) {
-        uint32_t *restrict q = ac->hard_brakes + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k] += (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING));
-    }
-    if (ac->steps) {
-        uint32_t *restrict q = ac->steps + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k]++;
-    }
+    if (with_fuel) GATES_ADD(g1, g2, double, fuel_g, fr[k] * dt);
+    GATES_ADD(g1, g2, double, stopped_s, v[k] < v_stop ? dt : 0.0);
+    accum_moments(g1, lo, m, v, a);
+    accum_moments(g2, lo, m, v, a);
+    GATES_ADD(g1, g2, uint32_t, stopped_steps, (uint32_t)(v[k] < v_stop));
+    GATES_ADD(g1, g2, uint32_t, infeasible, (uint32_t)(fl[k] == WF_INFEASIBLE_ACCEL));
+    GATES_ADD(g1, g2, uint32_t, hard_brakes, (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING)));
+    GATES_ADD(g1, g2, uint32_t, steps, 1u);
 }
 
 /* Whether p[k] and q[k] are finite for every k < m: x - x is +0 for a finite x and NaN otherwise, so the sum of
@@ -395,8 +395,7 @@ AI int stats_before(WfLane *ln, size_t lo, size_t m, const double *restrict v, c
 {
     uint8_t *restrict mode = ln->mode + lo;
     double hard = -ln->sc->hard_brake_mps2;
-    accum_before(&ln->always, ln->sc, lo, m, v, a, fr, fl, mode, with_fuel);
-    if (in_window) accum_before(&ln->window, ln->sc, lo, m, v, a, fr, fl, mode, with_fuel);
+    accum_before(&ln->always, in_window ? &ln->window : NULL, ln->sc, lo, m, v, a, fr, fl, mode, with_fuel);
     for (size_t k = 0; k < m; k++) mode[k] = (uint8_t)((mode[k] & ~WF_MODE_BRAKING) | (a[k] < hard) * WF_MODE_BRAKING);
     if (finite_all(m, a, fr)) return 0;
     /* Rare: mark the vehicles (the step then ends in a numerical-fault error naming the first). */
@@ -405,19 +404,11 @@ AI int stats_before(WfLane *ln, size_t lo, size_t m, const double *restrict v, c
     return WF_STEP_FAULT;
 }
 
-AI void accum_after(const WfAccum *ac, size_t lo, size_t m, const double *restrict x, const double *restrict xo,
-                    const uint8_t *restrict stop)
+AI void accum_after(const WfAccum *g1, const WfAccum *g2, size_t lo, size_t m, const double *restrict x,
+                    const double *restrict xo, const uint8_t *restrict stop)
 {
-    if (ac->stops) {
-        uint32_t *restrict q = ac->stops + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k] += stop[k];
-    }
-    if (ac->dist_m) {
-        double *restrict q = ac->dist_m + lo;
-#pragma omp simd
-        for (size_t k = 0; k < m; k++) q[k] += x[k] - xo[k];
-    }
+    GATES_ADD(g1, g2, uint32_t, stops, stop[k]);
+    GATES_ADD(g1, g2, double, dist_m, x[k] - xo[k]);
 }
 
 /* Statistics of the new state: stops (hysteresis between v_stop and v_go), distances from xo, overlaps inside the
@@ -440,8 +431,7 @@ AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, c
         stop[k] = st;
         mode[k] = (uint8_t)((md & ~1u) | (moving ^ st) | go);
     }
-    accum_after(&ln->always, lo, m, x, xo, stop);
-    if (in_window) accum_after(&ln->window, lo, m, x, xo, stop);
+    accum_after(&ln->always, in_window ? &ln->window : NULL, lo, m, x, xo, stop);
     int bad = !finite_all(m, x, v);
     if (!lead_len) {
         for (size_t k = 0; k + 1 < m; k++) ll[k] = ln->class_length_m[cid[k + 1]];
