@@ -1147,7 +1147,8 @@ static void measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, si
  * consecutive vehicles step inside that cell: each sum gets the same additions in the same order as adding to the
  * cell in memory. The class sums are vectors with a lane per class: a vehicle adds its distance and fuel to its
  * class's lane and +0 to the others, which leaves them unchanged (these sums start at +0 and never become -0), so
- * no branch depends on the class. Vector v holds classes 4 v .. 4 v + 3 of the cell. */
+ * no branch depends on the class. With nv vectors, vector v holds classes 4 v .. 4 v + 3; packed (nv = 0, at most
+ * two classes), one vector holds {distance of class 0, of class 1, fuel of class 0, of class 1}. */
 typedef double  V4 __attribute__((vector_size(32)));
 typedef int64_t M4 __attribute__((vector_size(32)));
 
@@ -1167,23 +1168,22 @@ static inline void lanes_store(const V4 *x, double *base, size_t nx, size_t i, s
     if (k + 3 < nc) base[(k + 3) * nx + i] = (*x)[3];
 }
 
-/* x into the lane of class key of vector v (key -1: into none); the other lanes get +0. Vectors go by pointer:
- * passing one by value would depend on the target's vector ABI. */
-static inline void lane_add(V4 *acc, int64_t key, size_t v, double x)
+/* mk[c][v]: the lanes of class c in vector v (nv = 0: in the packed vector), for classes [0, nc); all clear when
+ * !on (outside the statistics window: nothing is added). */
+static void lane_masks(M4 mk[][4], size_t nc, int nv, int on)
 {
-    M4 hit = ((M4){0, 1, 2, 3} + (int64_t)(4 * v)) == (M4){key, key, key, key};
-    *acc += (V4)((M4)(V4){x, x, x, x} & hit);
+    for (size_t c = 0; c < nc; c++)
+        for (int v = 0; v < (nv ? nv : 1); v++)
+            for (int j = 0; j < 4; j++)
+                mk[c][v][j] = on && (nv ? (size_t)(4 * v + j) == c : (size_t)(j & 1) == c) ? -1 : 0;
 }
 
-/* A vehicle's distance and fuel into its class's lane of vector v (key: the class, or -1 outside the window). */
-static inline void lanes_add(V4 *cd, V4 *cf, int64_t key, size_t v, double d, double fuel)
-{
-    lane_add(cd, key, v, d);
-    lane_add(cf, key, v, fuel);
-}
+/* x into the lanes mask selects of acc; the other lanes get +0. Vectors go by pointer: passing one by value would
+ * depend on the target's vector ABI. */
+static inline void lane_add(V4 *acc, const M4 *mask, V4 x) { *acc += (V4)((M4)x & *mask); }
 
 /* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, with nv class vectors
- * (a constant at each call: the vectors stay in registers). The common case, a step inside one cell (d = span,
+ * or packed (nv = 0; a constant at each call: the vectors stay in registers). The common case, a step inside one cell (d = span,
  * w = span / span = 1 exactly), adds the same values as edie_vehicle through the cell's running sums. */
 static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, const CorLane *ln, long step,
                                                              int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
@@ -1202,19 +1202,25 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
     const uint16_t *cls = vh->class_id;
     double sd = 0.0, st = 0.0, sf = 0.0;
     V4 cd0 = {0}, cd1 = {0}, cd2 = {0}, cd3 = {0}, cf0 = {0}, cf1 = {0}, cf2 = {0}, cf3 = {0};
+    M4 mk[WF_MAX_CLASSES][4];
+    lane_masks(mk, nc, nv, in_window);
 #define FLUSH()                                                                                                     \
     do {                                                                                                            \
         if (held == SIZE_MAX) break;                                                                                \
         row_d[held] = sd, row_t[held] = st, row_f[held] = sf;                                                       \
-        lanes_store(&cd0, cdist, nx, held, 0, nc), lanes_store(&cf0, cfuel, nx, held, 0, nc);                         \
-        if (nv > 1) lanes_store(&cd1, cdist, nx, held, 1, nc), lanes_store(&cf1, cfuel, nx, held, 1, nc);             \
-        if (nv > 2) lanes_store(&cd2, cdist, nx, held, 2, nc), lanes_store(&cf2, cfuel, nx, held, 2, nc);             \
-        if (nv > 2) lanes_store(&cd3, cdist, nx, held, 3, nc), lanes_store(&cf3, cfuel, nx, held, 3, nc);             \
+        if (nv == 0) {                                                                                              \
+            cdist[held] = cd0[0], cfuel[held] = cd0[2];                                                             \
+            if (nc > 1) cdist[nx + held] = cd0[1], cfuel[nx + held] = cd0[3];                                       \
+        } else {                                                                                                    \
+            lanes_store(&cd0, cdist, nx, held, 0, nc), lanes_store(&cf0, cfuel, nx, held, 0, nc);                   \
+        }                                                                                                           \
+        if (nv > 1) lanes_store(&cd1, cdist, nx, held, 1, nc), lanes_store(&cf1, cfuel, nx, held, 1, nc);           \
+        if (nv > 2) lanes_store(&cd2, cdist, nx, held, 2, nc), lanes_store(&cf2, cfuel, nx, held, 2, nc);           \
+        if (nv > 2) lanes_store(&cd3, cdist, nx, held, 3, nc), lanes_store(&cf3, cfuel, nx, held, 3, nc);           \
         held = SIZE_MAX;                                                                                            \
     } while (0)
     size_t k0, k1;
     measure_span(c, ln, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
-    int64_t out = in_window ? 0 : -1; /* the key of class cl: cl | out (-1 outside the window: no lane) */
     /* Road order is descending slot order, wrapping from slot 0 to the last: at most two segments of slots
      * [lo, hi) visited from hi - 1 down. Along one segment a cell's one-cell steps are consecutive (positions fall
      * along road order), so each run of them is summed by the tight inner loop. */
@@ -1236,7 +1242,10 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
             if (i != held) {
                 FLUSH();
                 held = i, sd = row_d[i], st = row_t[i], sf = row_f[i];
-                lanes_load(&cd0, cdist, nx, i, 0, nc), lanes_load(&cf0, cfuel, nx, i, 0, nc);
+                if (nv == 0)
+                    cd0 = (V4){cdist[i], nc > 1 ? cdist[nx + i] : 0.0, cfuel[i], nc > 1 ? cfuel[nx + i] : 0.0};
+                else
+                    lanes_load(&cd0, cdist, nx, i, 0, nc), lanes_load(&cf0, cfuel, nx, i, 0, nc);
                 if (nv > 1) lanes_load(&cd1, cdist, nx, i, 1, nc), lanes_load(&cf1, cfuel, nx, i, 1, nc);
                 if (nv > 2) lanes_load(&cd2, cdist, nx, i, 2, nc), lanes_load(&cf2, cfuel, nx, i, 2, nc);
                 if (nv > 2) lanes_load(&cd3, cdist, nx, i, 3, nc), lanes_load(&cf3, cfuel, nx, i, 3, nc);
@@ -1245,10 +1254,16 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
                 s--;
                 double d = x[s] - xold[s], fuel = rate[s] * dt;
                 sd += d, st += dt, sf += fuel;
-                int64_t key = (int64_t)cls[s] | out;
-                lanes_add(&cd0, &cf0, key, 0, d, fuel);
-                if (nv > 1) lanes_add(&cd1, &cf1, key, 1, d, fuel);
-                if (nv > 2) lanes_add(&cd2, &cf2, key, 2, d, fuel), lanes_add(&cd3, &cf3, key, 3, d, fuel);
+                const M4 *m4 = mk[cls[s]];
+                if (nv == 0) {
+                    lane_add(&cd0, m4, (V4){d, d, fuel, fuel});
+                } else {
+                    V4 dv = {d, d, d, d}, fv = {fuel, fuel, fuel, fuel};
+                    lane_add(&cd0, m4, dv), lane_add(&cf0, m4, fv);
+                    if (nv > 1) lane_add(&cd1, m4 + 1, dv), lane_add(&cf1, m4 + 1, fv);
+                    if (nv > 2) lane_add(&cd2, m4 + 2, dv), lane_add(&cf2, m4 + 2, fv);
+                    if (nv > 2) lane_add(&cd3, m4 + 3, dv), lane_add(&cf3, m4 + 3, fv);
+                }
             } while (s > lo && cell[s - 1] == i);
         }
     }
@@ -1265,7 +1280,8 @@ static void measure_range(WfCorridor *c, const CorLane *ln, long step, int in_wi
                           size_t q_lo, size_t q_hi)
 {
     size_t nc = c->sc->n_classes;
-    if (nc <= 4) measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 1);
+    if (nc <= 2) measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 0);
+    else if (nc <= 4) measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 1);
     else if (nc <= 8) measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 2);
     else measure_nv(c, ln, step, in_window, i_lo, i_hi, q_lo, q_hi, 4);
 }
@@ -1503,7 +1519,7 @@ static int corridor_lanes(const void *eng, WfLaneObs *out)
 typedef struct RecordSums {
     double sv, sg, vmin, vmax, gmin;
     size_t n, ngap, stopped, waves; /* counts: the same values as the sums of 1.0 they replace */
-    V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_add) */
+    V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_masks) */
 } RecordSums;
 
 /* One lane into the record's sums, front first, with nv class vectors (a constant at each call). Every sum is a
@@ -1511,7 +1527,7 @@ typedef struct RecordSums {
  * reload per vehicle; the minimum and maximum are fmin(m, x) and fmax(m, x) as glibc gives them (m when equal or
  * when x is NaN), written as comparisons because each call of fmin cost more than the rest of the vehicle. */
 static inline __attribute__((always_inline)) void record_lane(const WfScenario *sc, const WfCorridorVehicles *vh,
-                                                              RecordSums *r, const int nv)
+                                                              const M4 mk[][4], RecordSums *r, const int nv)
 {
     double sv = r->sv, sg = r->sg, vmin = r->vmin, vmax = r->vmax, gmin = r->gmin;
     double v_stop = sc->v_stop_mps, v_wave = sc->wave_speed_mps;
@@ -1520,16 +1536,17 @@ static inline __attribute__((always_inline)) void record_lane(const WfScenario *
     int prev_slow = 0;
     for (size_t k = 0, s = n ? wf_corridor_slot(vh, 0) : 0; k < n; k++, s = s ? s - 1 : vh->cap - 1) {
         double v = vh->v_mps[s], rate = vh->fuel_rate_gps[s];
-        int64_t key = vh->class_id[s];
+        const M4 *m4 = mk[vh->class_id[s]];
         sv += v;
         stopped += v < v_stop;
         int slow = v < v_wave;
         waves += slow && !prev_slow;
         prev_slow = slow;
         vmin = v < vmin ? v : vmin, vmax = v > vmax ? v : vmax;
-        lane_add(&cf0, key, 0, rate);
-        if (nv > 1) lane_add(&cf1, key, 1, rate);
-        if (nv > 2) lane_add(&cf2, key, 2, rate), lane_add(&cf3, key, 3, rate);
+        V4 rv = {rate, rate, rate, rate};
+        lane_add(&cf0, m4, rv);
+        if (nv > 1) lane_add(&cf1, m4 + 1, rv);
+        if (nv > 2) lane_add(&cf2, m4 + 2, rv), lane_add(&cf3, m4 + 3, rv);
         if (k > 0) {
             double g = vh->gap_m[s];
             sg += g, gmin = g < gmin ? g : gmin;
@@ -1544,10 +1561,13 @@ WF_SIMD_CLONES
 static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, RecordSums *r)
 {
     size_t nc = c->sc->n_classes;
+    int nv = nc <= 4 ? 1 : nc <= 8 ? 2 : 4;
+    M4 mk[WF_MAX_CLASSES][4];
+    lane_masks(mk, nc, nv, 1);
     for (size_t l = l0; l < l1; l++) {
-        if (nc <= 4) record_lane(c->sc, &c->ln[l].veh, r, 1);
-        else if (nc <= 8) record_lane(c->sc, &c->ln[l].veh, r, 2);
-        else record_lane(c->sc, &c->ln[l].veh, r, 4);
+        if (nv == 1) record_lane(c->sc, &c->ln[l].veh, (const M4(*)[4])mk, r, 1);
+        else if (nv == 2) record_lane(c->sc, &c->ln[l].veh, (const M4(*)[4])mk, r, 2);
+        else record_lane(c->sc, &c->ln[l].veh, (const M4(*)[4])mk, r, 4);
     }
 }
 
