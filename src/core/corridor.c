@@ -730,17 +730,18 @@ WF_SIMD_CLONES
 static void cells_of(const WfCorridor *c, const double *restrict xa, const double *restrict xb,
                      uint32_t *restrict cell, size_t m)
 {
-    double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx;
-    uint32_t last = (uint32_t)(c->edie.nx - 1);
+    /* in doubles until the store (the scenario caps the grid at 5e7 cells, so cell numbers fit in 31 bits): the
+     * conversions between 32-bit integers and doubles and the narrowing of the masks cost more than the test */
+    double dx = c->edie.dx_m, L = c->L, nxd = (double)c->edie.nx, last = nxd - 1.0;
     for (size_t k = 0; k < m; k++) {
-        double q = (xa[k] > 0.0 ? xa[k] : 0.0) / dx;
-        uint32_t i = q < nxd ? (uint32_t)(int32_t)q : last; /* (size_t)q, clamped to the last cell */
-        double edge = i == last ? L : (double)(i + 1) * dx;
-        int one = (xb[k] > xa[k]) & (xa[k] >= 0.0) & (xb[k] <= L) & !(edge < xb[k]);
+        double a = xa[k], b = xb[k], q = (a > 0.0 ? a : 0.0) / dx;
+        double i = q < nxd ? trunc(q) : last; /* (size_t)q, clamped to the last cell */
+        double edge = i == last ? L : (i + 1.0) * dx;
+        int one = (b > a) & (a >= 0.0) & (b <= L) & !(edge < b);
         /* a standing vehicle: edie_vehicle adds dt and its fuel to the cell of xa (in [0, L)) and no distance; the
          * running sums add its d = +0, which leaves every distance sum (+0 or more) unchanged */
-        int still = (xb[k] == xa[k]) & (xa[k] >= 0.0) & (xa[k] < L);
-        cell[k] = one | still ? i : UINT32_MAX;
+        int still = (b == a) & (a >= 0.0) & (a < L);
+        cell[k] = (uint32_t)(int32_t)(one | still ? i : -1.0); /* -1: UINT32_MAX */
     }
 }
 
