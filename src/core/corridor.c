@@ -158,6 +158,13 @@ struct WfCorridor {
     double  *queue_t;       /* arrival time of each waiting vehicle (FIFO ring) */
     size_t   q_cap;
     double   free_share[WF_MAX_CLASSES]; /* class shares among vehicles whose group fixes no class */
+    /* each lane's queue head's free speed, kept while it waits (a pure function of its model, parameters and speed
+     * cap: not saved, computed again after a resume) */
+    struct CorFree {
+        int      valid;
+        uint16_t group;
+        double   v_hi, v_free, params[WF_MAX_MODEL_PARAMS];
+    } vfree[WF_MAX_LANES];
     int      has_vl;        /* a virtual leader (outflow leader or speed) */
     long     meas_step;     /* the step being stepped, for measure_after_step */
     int      meas_in_window;
@@ -571,6 +578,19 @@ static int arrivals(WfCorridor *c, double t, WfError *err)
     return 0;
 }
 
+/* The equilibrium speed at the far gap of group g's model with parameters p, capped at v_hi: a bisection, computed
+ * once for a queue head that waits many steps at the entrance (1 % of a saturated corridor's step). */
+static double free_speed(WfCorridor *c, size_t l, size_t g, const double *p, double v_hi)
+{
+    const WfCfModel *m = c->sc->groups[g].model;
+    size_t np = m->param_size / sizeof(double);
+    struct CorFree *f = &c->vfree[l];
+    if (f->valid && f->group == g && f->v_hi == v_hi && !memcmp(f->params, p, np * sizeof *p)) return f->v_free;
+    f->valid = 1, f->group = (uint16_t)g, f->v_hi = v_hi;
+    memcpy(f->params, p, np * sizeof *p);
+    return f->v_free = wf_cf_equilibrium_speed(m, p, WF_CORRIDOR_FREE_GAP_M, v_hi);
+}
+
 /* Insertion rule (docs/corridors.md): the queue's head enters at x = 0 with the speed v_in = min(entry cap,
  * limit at 0, leader speed, own free speed) when its gap g to the last vehicle's rear (or to the virtual leader) is
  * >= 0 and its own model, at (g, v_in, leader speed), does not brake harder than b =
@@ -616,7 +636,7 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
     if (!(gap >= 0.0)) return 0;
     /* Never faster than the vehicle's own free speed (its model's equilibrium speed at the far gap), or a driver
      * slower than the stream could never join it; on an empty road the far leader drives at that speed. */
-    double vfree = wf_cf_equilibrium_speed(grp->model, p, WF_CORRIDOR_FREE_GAP_M, v_hi);
+    double vfree = free_speed(c, l, en->cand_group, p, v_hi);
     double vin = fmin(obstacle ? vcap : fmin(vcap, vl), vfree), b = c->cs->insert_decel_mps2;
     if (free_road) vl = vin;
     if (obstacle && !(grp->model->accel(p, NULL, gap, vin, vl) >= -b)) {
