@@ -1204,8 +1204,9 @@ static void lane_masks(M4 mk[][4], size_t nc, int nv, int on)
 static inline void lane_add(V4 *acc, const M4 *mask, V4 x) { *acc += (V4)((M4)x & *mask); }
 
 /* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, with nv class vectors
- * or packed (nv = 0; a constant at each call: the vectors stay in registers). The common case, a step inside one cell (d = span,
- * w = span / span = 1 exactly), adds the same values as edie_vehicle through the cell's running sums. */
+ * or packed (nv = 0; a constant at each call: the vectors stay in registers). The common case, a step inside one
+ * cell (d = span, w = span / span = 1 exactly), adds the same values as edie_vehicle through the cell's running
+ * sums. */
 static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, const CorLane *ln, long step,
                                                              int in_window, size_t i_lo, size_t i_hi, size_t q_lo,
                                                              size_t q_hi, const int nv)

@@ -33,6 +33,26 @@ static inline V FN(vselect)(M m, V x, V y) { return (V)((m & (M)x) | (~m & (M)y)
 static inline V FN(vmin)(V x, V y) { return FN(vselect)(x < y, x, y); }                  /* min1 per lane */
 static inline V FN(vmax)(V x, V y) { return FN(vselect)(x > y, x, y); }                  /* max1 per lane */
 #endif
+#if WF_LANES == 4 && defined(__x86_64__)
+/* The flags' bytes (2 where v < 0, else 1 where a > a_max, else 0) from the masks' sign bits (vmovmskpd): one
+ * multiplication spreads bit l to byte l (the four shifted copies of the 4 bits do not overlap, so nothing carries),
+ * little-endian byte l being lane l. The generic conversion of 64-bit lanes to bytes took 16 instructions. */
+static inline void FN(flag_bytes)(M negative, M above, uint8_t *out)
+{
+    uint32_t nb = (uint32_t)_mm256_movemask_pd((__m256d)negative);
+    uint32_t ab = (uint32_t)_mm256_movemask_pd((__m256d)above) & ~nb;
+    uint32_t b = ((nb * 0x204081u) & 0x01010101u) * WF_NEGATIVE_SPEED |
+                 ((ab * 0x204081u) & 0x01010101u) * WF_INFEASIBLE_ACCEL;
+    memcpy(out, &b, sizeof b);
+}
+#else
+static inline void FN(flag_bytes)(M negative, M above, uint8_t *out)
+{
+    FN(Flags) fb = __builtin_convertvector((negative & WF_NEGATIVE_SPEED) | (above & ~negative & WF_INFEASIBLE_ACCEL),
+                                           FN(Flags));
+    memcpy(out, &fb, sizeof fb);
+}
+#endif
 static inline V FN(vmin_nan)(V x, V y) { return FN(vselect)((x < y) | (y != y), x, y); } /* min_nan */
 static inline V FN(vmax_nan)(V x, V y) { return FN(vselect)((x > y) | (y != y), x, y); } /* max_nan */
 
@@ -70,7 +90,6 @@ static void WF_KERNEL(const WfCirclesParams *restrict p, size_t n, const double 
         /* 1-2. a_max from the raw v; flag from the original a: 2 if v < 0, else 1 if a > a_max. */
         V amax = FN(vmin)(b1, b2 / FN(vmax)(v, v_floor) - b3 * v * v) - FN(vmin)(b4, b5 + b6 * v) * th;
         M negative = v < zero, above = a > amax;
-        M fl = (negative & WF_NEGATIVE_SPEED) | (above & ~negative & WF_INFEASIBLE_ACCEL);
         /* 3-5. Projection, v >= 0, a+ (v floored at 1e-12 inside Q keeps Q off 0 at rest when q0 = 0). */
         a = FN(vselect)(proj, FN(vmin_nan)(a, amax), a);
         v = FN(vmax)(v, zero);
@@ -92,13 +111,14 @@ static void WF_KERNEL(const WfCirclesParams *restrict p, size_t n, const double 
         f = FN(vselect)((v < idle_v) & (abs_a < idle_a), f_idle, f);
         if (lanes == WF_LANES) { /* vector stores: lane by lane, the stores cost a fifth of the kernel */
             memcpy(fuel + i, &f, sizeof f);
-            if (flag) {
-                FN(Flags) fb = __builtin_convertvector(fl, FN(Flags));
-                memcpy(flag + i, &fb, sizeof fb);
-            }
+            if (flag) FN(flag_bytes)(negative, above, flag + i);
         } else {
             for (size_t l = 0; l < lanes; l++) fuel[i + l] = f[l];
-            for (size_t l = 0; flag && l < lanes; l++) flag[i + l] = (uint8_t)fl[l];
+            if (flag) {
+                uint8_t fb[WF_LANES];
+                FN(flag_bytes)(negative, above, fb);
+                memcpy(flag + i, fb, lanes);
+            }
         }
     }
 }
