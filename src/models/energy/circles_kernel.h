@@ -76,17 +76,21 @@ static void WF_KERNEL(const WfCirclesParams *restrict p, size_t n, const double 
     for (int l = 0; l < WF_LANES; l++) proj[l] = project ? -1 : 0, abs_bits[l] = INT64_MAX;
     for (size_t i = 0; i < n; i += WF_LANES) {
         size_t lanes = n - i < WF_LANES ? n - i : WF_LANES;
-        V v, a, th;
-        if (lanes == WF_LANES) {
-            memcpy(&v, v_in + i, sizeof v);
-            memcpy(&a, a_in + i, sizeof a);
-            memcpy(&th, th_in + i, sizeof th);
-        } else { /* the tail: the last point fills the missing lanes, which are not stored */
+        /* The tail's lanes go through arrays: a vector written lane by lane would live in memory, stored and
+         * reloaded in every iteration. */
+        const double *pv = v_in + i, *pa = a_in + i, *pt = th_in + i;
+        double tv[WF_LANES], ta[WF_LANES], tt[WF_LANES];
+        if (lanes < WF_LANES) { /* the tail: the last point fills the missing lanes, which are not stored */
             for (size_t l = 0; l < WF_LANES; l++) {
                 size_t j = i + (l < lanes ? l : lanes - 1);
-                v[l] = v_in[j], a[l] = a_in[j], th[l] = th_in[j];
+                tv[l] = v_in[j], ta[l] = a_in[j], tt[l] = th_in[j];
             }
+            pv = tv, pa = ta, pt = tt;
         }
+        V v, a, th;
+        memcpy(&v, pv, sizeof v);
+        memcpy(&a, pa, sizeof a);
+        memcpy(&th, pt, sizeof th);
         /* 1-2. a_max from the raw v; flag from the original a: 2 if v < 0, else 1 if a > a_max. */
         V amax = FN(vmin)(b1, b2 / FN(vmax)(v, v_floor) - b3 * v * v) - FN(vmin)(b4, b5 + b6 * v) * th;
         M negative = v < zero, above = a > amax;
@@ -113,9 +117,11 @@ static void WF_KERNEL(const WfCirclesParams *restrict p, size_t n, const double 
             memcpy(fuel + i, &f, sizeof f);
             if (flag) FN(flag_bytes)(negative, above, flag + i);
         } else {
-            for (size_t l = 0; l < lanes; l++) fuel[i + l] = f[l];
+            double tf[WF_LANES];
+            uint8_t fb[WF_LANES];
+            memcpy(tf, &f, sizeof f);
+            memcpy(fuel + i, tf, lanes * sizeof *tf);
             if (flag) {
-                uint8_t fb[WF_LANES];
                 FN(flag_bytes)(negative, above, fb);
                 memcpy(flag + i, fb, lanes);
             }
