@@ -15,8 +15,7 @@ CFLAGS   ?= -O2 -g
 # inline sqrt and if-convert selects so that loops vectorise, and change no computed value); the dynamic
 # vectoriser cost model (that of -O3) because -O2's very-cheap one skips loops of unknown trip count.
 override CFLAGS += -std=c11 -D_GNU_SOURCE -Wall -Wextra -Wpedantic -Wshadow -Wstrict-prototypes \
-            -ffp-contract=off -fno-fast-math -fno-math-errno -fno-trapping-math -Iinclude -Isrc $(HDF5_CFLAGS) -MMD -MP \
-            -DWF_GIT_HASH='"$(GIT_HASH)"'
+            -ffp-contract=off -fno-fast-math -fno-math-errno -fno-trapping-math -Iinclude -Isrc $(HDF5_CFLAGS) -MMD -MP
 ifeq ($(WERROR),1)
 override CFLAGS += -Werror
 endif
@@ -71,6 +70,13 @@ $(BUILD)/%.o: %.c Makefile
 # Tests, benchmarks and fuzz targets find the repository's files (vehicles/, tests/data/, ../shared/data) by its
 # source path; the library and the programs have no build-tree path compiled in (docs/energy.md: search paths).
 $(BUILD)/tests/%.o $(BUILD)/bench/%.o $(BUILD)/fuzz/%.o: override CFLAGS += -DWF_REPO_DIR='"$(CURDIR)"'
+
+# `git describe` goes to src/util/version.c alone (wf_git_hash), which depends on a file holding it, rewritten only
+# when it changes: an incremental build recompiles that one file, and results never record an older tree's hash.
+GIT_STAMP := $(BUILD)/git_hash
+$(shell mkdir -p $(BUILD) && (echo '$(GIT_HASH)' | cmp -s - $(GIT_STAMP) || echo '$(GIT_HASH)' > $(GIT_STAMP)))
+$(BUILD)/src/util/version.o $(BUILD)/pic/src/util/version.o: $(GIT_STAMP)
+$(BUILD)/src/util/version.o $(BUILD)/pic/src/util/version.o: override CFLAGS += -DWF_GIT_HASH='"$(GIT_HASH)"'
 
 # The 4-lane noise kernel (AVX) and the 8-lane Philox (AVX2): called only on CPUs that have them (src/core/rng.c
 # checks at run time).

@@ -863,7 +863,7 @@ int wf_fit_write_class(const WfFitResult *r, const WfFitClassInfo *info, const c
     yaml_str(f, r->table_source);
     fprintf(f, "\n  table_checksum: \"%016llx\"\n  fitted_by: ", (unsigned long long)r->table_checksum);
     char by[128];
-    snprintf(by, sizeof by, "wavefuel %s (%s)", WF_VERSION, WF_GIT_HASH);
+    snprintf(by, sizeof by, "wavefuel %s (%s)", WF_VERSION, wf_git_hash());
     yaml_str(f, by);
     if (info->command) {
         fputs("\n  command: ", f);

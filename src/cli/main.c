@@ -48,7 +48,7 @@ int main(int argc, char **argv)
         return 0;
     }
     if (!strcmp(argv[1], "--version") || !strcmp(argv[1], "-V")) {
-        printf("wavefuel %s (%s)\n", WF_VERSION, WF_GIT_HASH);
+        printf("wavefuel %s (%s)\n", WF_VERSION, wf_git_hash());
         return 0;
     }
     for (int i = 0; i < N_COMMANDS; i++)

@@ -59,7 +59,7 @@ int wf_cli_getopt(WfCliOpts *o, int argc, char **argv, int quiet)
     }
     if (c == ':') return usage(o, quiet, "a value is needed after", name_of(o, optopt ? optopt : '?', a, sizeof a));
     if (c == 'V') {
-        if (!quiet) printf("wavefuel %s (%s)\n", WF_VERSION, WF_GIT_HASH);
+        if (!quiet) printf("wavefuel %s (%s)\n", WF_VERSION, wf_git_hash());
         return WF_CLI_DONE;
     }
     unsigned char u = (unsigned char)c;

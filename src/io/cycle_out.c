@@ -25,7 +25,7 @@ int wf_cycle_out_create(const char *path, int force, const char *command_line, W
         return rc;
     }
     char created[128];
-    snprintf(created, sizeof created, "wavefuel %s (%s)", WF_VERSION, WF_GIT_HASH);
+    snprintf(created, sizeof created, "wavefuel %s (%s)", WF_VERSION, wf_git_hash());
     if ((rc = wf_h5_attr_str(o->f->fid, "created_by", created, err)) ||
         (rc = wf_h5_attr_str(o->f->fid, "command", command_line ? command_line : "", err)) ||
         (rc = wf_h5_attr_str(o->f->fid, "layout",

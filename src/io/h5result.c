@@ -150,7 +150,7 @@ static int write_meta(WfH5Result *w, const WfH5Run *r, WfError *err)
              wf_h5_scalar_str(g, "scenario_path", sc->path, "scenario file as given", err) ||
              wf_h5_scalar_str(g, "overrides", sc->overrides, "--set assignments applied, one per line", err) ||
              wf_h5_scalar_str(g, "version", WF_VERSION, "wavefuel version", err) ||
-             wf_h5_scalar_str(g, "git_hash", WF_GIT_HASH, "git describe of the source tree", err) ||
+             wf_h5_scalar_str(g, "git_hash", wf_git_hash(), "git describe of the source tree", err) ||
              wf_h5_scalar_i64(g, "seed", (int64_t)sc->seed, "1", "random seed", err) ||
              wf_h5_scalar_i64(g, "threads", r->threads, "1", "OpenMP threads available to the run", err) ||
              wf_h5_scalar_str(g, "start_time", w->started, "wall-clock start, UTC ISO 8601", err) ||

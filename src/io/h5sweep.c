@@ -36,7 +36,7 @@ static int write_meta(hid_t fid, const WfSweep *sw, const WfSweepResult *res, Wf
              wf_h5_scalar_str(g, "scenario_text", sw->scenario_text,
                               "the base scenario, verbatim, as every run used it", err) ||
              wf_h5_scalar_str(g, "version", WF_VERSION, "wavefuel version", err) ||
-             wf_h5_scalar_str(g, "git_hash", WF_GIT_HASH, "git describe of the source tree", err) ||
+             wf_h5_scalar_str(g, "git_hash", wf_git_hash(), "git describe of the source tree", err) ||
              wf_h5_scalar_str(g, "written", when, "time of this snapshot, UTC ISO 8601", err) ||
              wf_h5_scalar_i64(g, "runs", (int64_t)sw->n_runs, "1", "rows of the table", err) ||
              wf_h5_scalar_i64(g, "runs_ok", n_ok, "1", "runs completed", err) ||

@@ -364,7 +364,7 @@ int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *er
     char hex_src[32], hex_data[32], created[128];
     snprintf(hex_src, sizeof hex_src, "%016llx", (unsigned long long)t->source_fnv1a64);
     snprintf(hex_data, sizeof hex_data, "%016llx", (unsigned long long)t->data_fnv1a64);
-    snprintf(created, sizeof created, "wavefuel %s (%s)", WF_VERSION, WF_GIT_HASH);
+    snprintf(created, sizeof created, "wavefuel %s (%s)", WF_VERSION, wf_git_hash());
     hsize_t dv = nv, da = na, dt = nt, dvals[2] = {nv * na, nt}, damax[2] = {nv, nt};
     hid_t root = f->fid;
     if ((rc = wf_h5_attr_str(root, "format", TABLE_FORMAT, err)) ||
