@@ -362,19 +362,20 @@ AI void accum_moments(const WfAccum *ac, size_t lo, size_t m, const double *rest
         }                                                                                                           \
     } while (0)
 
-/* Left-point accumulation over a block into gate g1 and, when g2 is not NULL, gate g2. */
+/* Left-point accumulation over a block into gate g1 and, when g2 is not NULL, gate g2; onset: 1 where hard braking
+ * begins. */
 AI void accum_before(const WfAccum *g1, const WfAccum *g2, const WfScenario *sc, size_t lo, size_t m,
                      const double *restrict v, const double *restrict a, const double *restrict fr,
-                     const uint8_t *restrict fl, const uint8_t *restrict mode, int with_fuel)
+                     const uint8_t *restrict fl, const uint8_t *restrict onset, int with_fuel)
 {
-    double dt = sc->dt_s, v_stop = sc->v_stop_mps, hard = -sc->hard_brake_mps2;
+    double dt = sc->dt_s, v_stop = sc->v_stop_mps;
     if (with_fuel) GATES_ADD(g1, g2, double, fuel_g, fr[k] * dt);
     GATES_ADD(g1, g2, double, stopped_s, v[k] < v_stop ? dt : 0.0);
     accum_moments(g1, lo, m, v, a);
     accum_moments(g2, lo, m, v, a);
     GATES_ADD(g1, g2, uint32_t, stopped_steps, (uint32_t)(v[k] < v_stop));
     GATES_ADD(g1, g2, uint32_t, infeasible, (uint32_t)(fl[k] == WF_INFEASIBLE_ACCEL));
-    GATES_ADD(g1, g2, uint32_t, hard_brakes, (uint32_t)((a[k] < hard) & !(mode[k] & WF_MODE_BRAKING)));
+    GATES_ADD(g1, g2, uint32_t, hard_brakes, (uint32_t)onset[k]);
     GATES_ADD(g1, g2, uint32_t, steps, 1u);
 }
 
@@ -393,10 +394,16 @@ AI int finite_all(size_t m, const double *restrict p, const double *restrict q)
 AI int stats_before(WfLane *ln, size_t lo, size_t m, const double *restrict v, const double *restrict a,
                     const double *restrict fr, const uint8_t *restrict fl, int in_window, int with_fuel)
 {
-    uint8_t *restrict mode = ln->mode + lo;
+    uint8_t *restrict mode = ln->mode + lo, onset[B];
     double hard = -ln->sc->hard_brake_mps2;
-    accum_before(&ln->always, in_window ? &ln->window : NULL, ln->sc, lo, m, v, a, fr, fl, mode, with_fuel);
-    for (size_t k = 0; k < m; k++) mode[k] = (uint8_t)((mode[k] & ~WF_MODE_BRAKING) | (a[k] < hard) * WF_MODE_BRAKING);
+    /* the onsets of hard braking (braking harder than hard_brake_mps2 now, not at the step before) and the new
+     * braking bits, in one loop of bytes */
+    for (size_t k = 0; k < m; k++) {
+        uint8_t md = mode[k], br = (uint8_t)(a[k] < hard);
+        onset[k] = (uint8_t)(br & !(md & WF_MODE_BRAKING));
+        mode[k] = (uint8_t)((md & ~WF_MODE_BRAKING) | br * WF_MODE_BRAKING);
+    }
+    accum_before(&ln->always, in_window ? &ln->window : NULL, ln->sc, lo, m, v, a, fr, fl, onset, with_fuel);
     if (finite_all(m, a, fr)) return 0;
     /* Rare: mark the vehicles (the step then ends in a numerical-fault error naming the first). */
     for (size_t k = 0; k < m; k++)
