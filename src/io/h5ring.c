@@ -125,10 +125,14 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
             char name[160];
             snprintf(name, sizeof name, "param_%s", m->spec[p].key);
             if (H5Lexists(g, name, H5P_DEFAULT) > 0) continue;
+            const WfParamSpec *sp_of[WF_MAX_GROUPS]; /* the key in each group's model (NULL: none) */
+            for (size_t gj = 0; gj < sc->n_groups; gj++) {
+                const WfCfModel *mj = sc->groups[gj].model;
+                sp_of[gj] = wf_param_find(mj->spec, mj->n_spec, m->spec[p].key);
+            }
             for (size_t id = 0; id < n; id++) {
                 size_t i = f->pos ? f->pos[id] : id; /* its slot */
-                const WfCfModel *mi = sc->groups[f->group_id[i]].model;
-                const WfParamSpec *sp = wf_param_find(mi->spec, mi->n_spec, m->spec[p].key);
+                const WfParamSpec *sp = sp_of[f->group_id[i]];
                 d[id] = sp ? wf_param_get(wf_fleet_params(f, sc, i), sp) : NAN;
             }
             rc = wf_h5_write_f64(g, name, 1, &dn, d, m->spec[p].unit, m->spec[p].doc, err);

@@ -364,7 +364,7 @@ static int write_any(hid_t loc, const char *name, int rank, const hsize_t *dims,
         if (max_rows < 1) max_rows = 1;
         if (chunk[0] > max_rows) chunk[0] = max_rows;
         if (rank > 1 && chunk[1] * 8 > (1u << 20)) chunk[1] = (1u << 20) / 8, chunk[0] = 1;
-        if (H5Pset_chunk(dcpl, rank, chunk) < 0 || H5Pset_deflate(dcpl, 4) < 0) rc = 1;
+        if (H5Pset_chunk(dcpl, rank, chunk) < 0 || H5Pset_shuffle(dcpl) < 0 || H5Pset_deflate(dcpl, 1) < 0) rc = 1;
     }
     if (!rc && (d = H5Dcreate2(loc, name, file_type, sp, H5P_DEFAULT, dcpl, H5P_DEFAULT)) < 0) rc = 1;
     if (!rc && total && H5Dwrite(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) rc = 1;
