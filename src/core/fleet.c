@@ -27,6 +27,15 @@ void wf_fleet_destroy(WfFleet **pf)
     *pf = NULL;
 }
 
+/* The partner of slot i in the Fisher-Yates shuffle: a counter-based draw in [0, i]. */
+static size_t shuffle_partner(uint64_t seed, uint32_t stream, size_t i)
+{
+    double u[2];
+    wf_rng_uniform2(seed, stream, i, 0, u);
+    size_t j = (size_t)(u[0] * (double)(i + 1));
+    return j > i ? i : j;
+}
+
 /* Category of each vehicle from counts. Interleaved: vehicle i goes to the category furthest behind its
  * proportional share (i+1) count_c / n, which spreads every category evenly. Random: that sequence shuffled
  * (Fisher-Yates) with counter-based draws. Explicit: from the index lists. */
@@ -50,16 +59,25 @@ static void place(size_t n, size_t m, const long *count, long *const *indices, W
         cat[i] = (uint16_t)best;
         assigned[best]++;
     }
-    if (how == WF_PLACE_RANDOM) {
-        for (size_t i = n; i-- > 1;) {
-            double u[2];
-            wf_rng_uniform2(seed, stream, i, 0, u);
-            size_t j = (size_t)(u[0] * (double)(i + 1));
-            if (j > i) j = i;
-            uint16_t t = cat[i];
-            cat[i] = cat[j];
-            cat[j] = t;
+    if (how != WF_PLACE_RANDOM || n < 2) return;
+    /* The swaps in order, each partner drawn AHEAD swaps early and its slot prefetched: at 10^7 vehicles the
+     * partners' cache misses were nearly all of the fleet's setup. */
+    enum { AHEAD = 32 };
+    size_t partner[AHEAD];
+    for (size_t k = 0; k < AHEAD && k < n - 1; k++) {
+        partner[k] = shuffle_partner(seed, stream, n - 1 - k);
+        __builtin_prefetch(&cat[partner[k]], 1);
+    }
+    for (size_t k = 0; k < n - 1; k++) {
+        size_t i = n - 1 - k, j = partner[k % AHEAD];
+        if (k + AHEAD < n - 1) {
+            size_t *next = &partner[k % AHEAD];
+            *next = shuffle_partner(seed, stream, i - AHEAD);
+            __builtin_prefetch(&cat[*next], 1);
         }
+        uint16_t t = cat[i];
+        cat[i] = cat[j];
+        cat[j] = t;
     }
 }
 
