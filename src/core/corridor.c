@@ -1201,7 +1201,7 @@ static void lane_masks(M4 mk[][4], size_t nc, int nv, int on)
 
 /* x into the lanes mask selects of acc; the other lanes get +0. Vectors go by pointer: passing one by value would
  * depend on the target's vector ABI. */
-static inline void lane_add(V4 *acc, const M4 *mask, V4 x) { *acc += (V4)((M4)x & *mask); }
+static inline void lane_add(V4 *acc, const M4 *mask, const V4 *x) { *acc += (V4)((M4)*x & *mask); }
 
 /* Edie cells [i_lo, i_hi) and detectors [q_lo, q_hi) from every vehicle's step, in road order, with nv class vectors
  * or packed (nv = 0; a constant at each call: the vectors stay in registers). The common case, a step inside one
@@ -1278,13 +1278,14 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
                 sd += d, st += dt, sf += fuel;
                 const M4 *m4 = mk[cls[s]];
                 if (nv == 0) {
-                    lane_add(&cd0, m4, (V4){d, d, fuel, fuel});
+                    V4 df = {d, d, fuel, fuel};
+                    lane_add(&cd0, m4, &df);
                 } else {
                     V4 dv = {d, d, d, d}, fv = {fuel, fuel, fuel, fuel};
-                    lane_add(&cd0, m4, dv), lane_add(&cf0, m4, fv);
-                    if (nv > 1) lane_add(&cd1, m4 + 1, dv), lane_add(&cf1, m4 + 1, fv);
-                    if (nv > 2) lane_add(&cd2, m4 + 2, dv), lane_add(&cf2, m4 + 2, fv);
-                    if (nv > 2) lane_add(&cd3, m4 + 3, dv), lane_add(&cf3, m4 + 3, fv);
+                    lane_add(&cd0, m4, &dv), lane_add(&cf0, m4, &fv);
+                    if (nv > 1) lane_add(&cd1, m4 + 1, &dv), lane_add(&cf1, m4 + 1, &fv);
+                    if (nv > 2) lane_add(&cd2, m4 + 2, &dv), lane_add(&cf2, m4 + 2, &fv);
+                    if (nv > 2) lane_add(&cd3, m4 + 3, &dv), lane_add(&cf3, m4 + 3, &fv);
                 }
             } while (s > lo && cell[s - 1] == i);
         }
@@ -1566,9 +1567,9 @@ static inline __attribute__((always_inline)) void record_lane(const WfScenario *
         prev_slow = slow;
         vmin = v < vmin ? v : vmin, vmax = v > vmax ? v : vmax;
         V4 rv = {rate, rate, rate, rate};
-        lane_add(&cf0, m4, rv);
-        if (nv > 1) lane_add(&cf1, m4 + 1, rv);
-        if (nv > 2) lane_add(&cf2, m4 + 2, rv), lane_add(&cf3, m4 + 3, rv);
+        lane_add(&cf0, m4, &rv);
+        if (nv > 1) lane_add(&cf1, m4 + 1, &rv);
+        if (nv > 2) lane_add(&cf2, m4 + 2, &rv), lane_add(&cf3, m4 + 3, &rv);
         if (k > 0) {
             double g = vh->gap_m[s];
             sg += g, gmin = g < gmin ? g : gmin;
