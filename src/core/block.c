@@ -345,7 +345,8 @@ AI void accum_moments(const WfAccum *ac, size_t lo, size_t m, const double *rest
 }
 
 /* Adds expr (a value of vehicle k) to array f of gate g1 and, when g2 is not NULL, of gate g2 (the statistics
- * window) over a block, computing it once for both: each array gets the value it would get alone. */
+ * window) over the caller's block (slots lo + k, k < m), computing it once for both: each array gets the value it
+ * would get alone. */
 #define GATES_ADD(g1, g2, T, f, expr)                                                                               \
     do {                                                                                                            \
         T *p1_ = (g1)->f ? (g1)->f + lo : NULL, *p2_ = (g2) && (g2)->f ? (g2)->f + lo : NULL;                        \

@@ -61,7 +61,7 @@ static void place(size_t n, size_t m, const long *count, long *const *indices, W
     }
     if (how != WF_PLACE_RANDOM || n < 2) return;
     /* The swaps in order, each partner drawn AHEAD swaps early and its slot prefetched: at 10^7 vehicles the
-     * partners' cache misses were nearly all of the fleet's setup. */
+     * partners' cache misses were nearly all of this function's time (14 % of a one-step run). */
     enum { AHEAD = 32 };
     size_t partner[AHEAD];
     for (size_t k = 0; k < AHEAD && k < n - 1; k++) {
