@@ -1587,10 +1587,11 @@ static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, RecordSums *
     int nv = nc <= 4 ? 1 : nc <= 8 ? 2 : 4;
     M4 mk[WF_MAX_CLASSES][4];
     lane_masks(mk, nc, nv, 1);
+    const M4(*masks)[4] = (const M4(*)[4])mk;
     for (size_t l = l0; l < l1; l++) {
-        if (nv == 1) record_lane(c->sc, &c->ln[l].veh, (const M4(*)[4])mk, r, 1);
-        else if (nv == 2) record_lane(c->sc, &c->ln[l].veh, (const M4(*)[4])mk, r, 2);
-        else record_lane(c->sc, &c->ln[l].veh, (const M4(*)[4])mk, r, 4);
+        if (nv == 1) record_lane(c->sc, &c->ln[l].veh, masks, r, 1);
+        else if (nv == 2) record_lane(c->sc, &c->ln[l].veh, masks, r, 2);
+        else record_lane(c->sc, &c->ln[l].veh, masks, r, 4);
     }
 }
 
