@@ -2,7 +2,9 @@
  * starts on all threads, probes one thread soon (after 8 steps) and then every `every` steps for every/16
  * steps, switches when the probe did 5 % more work per second, backs off (doubling the interval, up to 64 times) while
  * probes lose, cuts short a probe whose steps took twice as long as the chosen count's, and never probes with one
- * thread or every = 0. tests/test_engine_paths.c checks that switching threads every step keeps the bits. */
+ * thread or every = 0; a load that arrives in a stretch ends it after a chunk of WF_GOV_CHUNK steps at under a
+ * quarter of the chunk before, an interrupt does not. tests/test_engine_paths.c checks that switching threads every
+ * step keeps the bits. */
 #include <stdio.h>
 
 #include "core/governor.h"
@@ -32,10 +34,21 @@ static void test_keeps_the_faster(void)
     /* within 5 %: no switch */
     drive(&g, 128, 1.0e-3, 1.04e-3);
     CHECK(g.switches == 0 && g.interval == 256, "%ld switches at 4 %%, interval %ld", g.switches, g.interval);
-    /* a loaded machine: two threads now 8 times slower; the next probe (after 256 - 16 steps) wins */
-    drive(&g, 256, 2e-3, 16e-3);
-    CHECK(g.switches == 1 && wf_governor_threads(&g) == 1 && g.interval == 64,
-          "after the load: %ld switches, %d threads, interval %ld", g.switches, wf_governor_threads(&g), g.interval);
+    /* a loaded machine: two threads now 8 times slower. The first chunk of WF_GOV_CHUNK such steps, at a fifteenth
+     * of the quiet chunk's rate before it, ends the stretch (without it, the interval would: 256 - 16 steps); the
+     * probe of one thread (16 steps) wins; two threads, probed 8 steps later and again after the interval less a
+     * probe, lose both (cut short after a step), so the interval is 256 again */
+    long to_switch = 0;
+    for (long s = 0; s < 256; s++) {
+        int n = wf_governor_threads(&g);
+        wf_governor_done(&g, n == 1 ? 2e-3 : 16e-3, 1000.0);
+        to_switch += !g.switches;
+    }
+    CHECK(g.switches == 1 && wf_governor_threads(&g) == 1 && g.interval == 256 && g.alarms == 1,
+          "after the load: %ld switches, %d threads, interval %ld, %ld alarms", g.switches, wf_governor_threads(&g),
+          g.interval, g.alarms);
+    CHECK(to_switch == WF_GOV_CHUNK + 15, "switched after %ld loaded steps (a chunk on two threads and the probe's "
+          "16, decided at its last)", to_switch);
     /* still loaded, two threads now a hundred times slower: each probe of them is cut short after its first step,
      * and probes come ever more rarely */
     long probes0 = g.probes, slow = 0;
@@ -44,9 +57,11 @@ static void test_keeps_the_faster(void)
         slow += n == 2;
         wf_governor_done(&g, n == 1 ? 2e-3 : 0.2, 1000.0);
     }
-    CHECK(g.interval == 64 * 64 && g.probes - probes0 == 13 && slow == g.probes - probes0,
-          "interval %ld (64 x 64 expected), %ld probes (13: 6 while the interval doubles, then one every 4096), %ld "
-          "steps on two threads (one per probe)", g.interval, g.probes - probes0, slow);
+    /* probes after 193 steps (the stretch's rest), then at intervals 512, 1024, 2048 and 4096 every interval less
+     * a sixteenth plus the probe's step: steps 194, 675, 1636, 3557, then every 3841 steps up to 30444 */
+    CHECK(g.interval == 64 * 64 && g.probes - probes0 == 11 && slow == g.probes - probes0 && g.alarms == 1,
+          "interval %ld (64 x 64 expected), %ld probes (11: 4 while the interval doubles, then one every 3841 steps), "
+          "%ld steps on two threads (one per probe), %ld alarms (1)", g.interval, g.probes - probes0, slow, g.alarms);
     /* the load goes: the next probe of two threads wins and the run goes back to them */
     drive(&g, 64 * 64 * 2, 2e-3, 1e-3);
     CHECK((wf_governor_threads(&g) == 2 || g.probing) && g.switches == 2, "%d threads, %ld switches after the load went",
@@ -99,6 +114,35 @@ static void test_settle(void)
           "%ld (every probe of two threads lost by its warm-up)", back[1], back[0]);
 }
 
+/* A load that arrives in the middle of a long stretch: after a quiet hour the interval is 64 times `every`, and
+ * without the chunks' check the run would keep its two threads, now 30 times slower, until the next probe. */
+static void test_load_arrives(void)
+{
+    WfGovernor g;
+    wf_governor_init(&g, 2, 1024, 0);
+    drive(&g, 200000, 2e-3, 1e-3); /* quiet: every probe of one thread loses */
+    CHECK(g.interval == 64 * 1024 && g.switches == 0 && wf_governor_threads(&g) == 2 && !g.probing,
+          "quiet: interval %ld, %ld switches", g.interval, g.switches);
+    long left = g.left, alarms0 = g.alarms;
+    CHECK(left > 1000, "the stretch ends in %ld steps: the test needs a long one", left);
+    /* one step 100 times slower (an interrupt) moves its chunk's mean by (63 + 100) / 64 < 4: no alarm */
+    for (long s = 0; s < 4 * WF_GOV_CHUNK; s++) wf_governor_done(&g, s == 20 ? 100e-3 : 1e-3, 1000.0);
+    CHECK(g.alarms == alarms0 && !g.probing && g.left == left - 4 * WF_GOV_CHUNK, "an interrupt raised %ld alarms",
+          g.alarms - alarms0);
+    /* the load: two threads 30 times slower, one thread twice; an alarm after at most two chunks, then the probe of
+     * one thread (a sixteenth of the interval, 4096 steps: the faster count, so never cut short) wins */
+    long steps = 0, on_two = 0;
+    while (g.switches == 0 && steps < 10000) {
+        int n = wf_governor_threads(&g);
+        on_two += n == 2;
+        wf_governor_done(&g, n == 1 ? 4e-3 : 30e-3, 1000.0);
+        steps++;
+    }
+    CHECK(g.switches == 1 && g.alarms == alarms0 + 1 && on_two <= 2 * WF_GOV_CHUNK && steps == on_two + 4096,
+          "switched after %ld loaded steps, %ld of them on two threads (at most two chunks), %ld alarms", steps, on_two,
+          g.alarms - alarms0);
+}
+
 static void test_never_probes(void)
 {
     WfGovernor g;
@@ -112,6 +156,7 @@ int main(void)
 {
     RUN(test_keeps_the_faster);
     RUN(test_settle);
+    RUN(test_load_arrives);
     RUN(test_never_probes);
     TEST_EXIT();
 }

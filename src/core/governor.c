@@ -9,6 +9,22 @@ static long probe_steps(const WfGovernor *g)
     return p > 0 ? p : 1;
 }
 
+/* Whether the chosen count's last WF_GOV_CHUNK steps, this one included, did less than a quarter of the work per second of
+ * the WF_GOV_CHUNK steps of it before them (on this count since the last switch; none yet: no). Chunks hold the
+ * chosen count's steps only, across the probes between them. */
+static int slow_chunk(WfGovernor *g, double wall_s, double work)
+{
+    g->chunk_wall_s += wall_s, g->chunk_work += work;
+    if (++g->chunk_steps < WF_GOV_CHUNK) return 0;
+    /* chunk_work / chunk_wall_s < ref_work / ref_wall_s / 4, without dividing */
+    int slow = g->ref_work > 0.0 && 4.0 * g->chunk_work * g->ref_wall_s < g->ref_work * g->chunk_wall_s;
+    g->ref_wall_s = g->chunk_wall_s, g->ref_work = g->chunk_work; /* a load that stays alarms once */
+    /* the probe then measures itself against this chunk, not against the quiet steps of the stretch before it */
+    if (slow) g->wall_s[0] = g->chunk_wall_s, g->work[0] = g->chunk_work, g->steps[0] = WF_GOV_CHUNK;
+    g->chunk_wall_s = g->chunk_work = 0.0, g->chunk_steps = 0;
+    return slow;
+}
+
 void wf_governor_init(WfGovernor *g, int n_max, long every, long settle)
 {
     *g = (WfGovernor){.n_max = n_max, .now = n_max, .every = n_max > 1 ? every : 0, .interval = every,
@@ -29,6 +45,7 @@ void wf_governor_done(WfGovernor *g, double wall_s, double work)
     }
     int p = g->probing;
     g->wall_s[p] += wall_s, g->work[p] += work, g->steps[p]++;
+    if (!p && slow_chunk(g, wall_s, work)) g->alarms++, g->left = 1; /* the load changed: probe now */
     /* a probe whose steps so far took twice as long as the chosen count's has lost */
     int lost = p && g->steps[0] && g->wall_s[1] > 2.0 * (double)g->steps[1] * g->wall_s[0] / (double)g->steps[0];
     if (--g->left > 0 && !lost) return;
@@ -41,6 +58,7 @@ void wf_governor_done(WfGovernor *g, double wall_s, double work)
     int probe_won = !lost && g->work[1] * g->wall_s[0] > 1.05 * g->work[0] * g->wall_s[1];
     if (probe_won) {
         g->switches++, g->interval = g->every; /* g->now stays the probe's count */
+        g->chunk_wall_s = g->chunk_work = g->ref_wall_s = g->ref_work = 0.0, g->chunk_steps = 0;
     } else {
         g->now = other, g->unsettled = g->settle;
         if (g->interval < WF_GOV_BACKOFF_MAX * g->every) g->interval *= 2;

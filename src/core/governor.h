@@ -11,12 +11,22 @@
  * soon as its steps so far took twice as long as the chosen count's: on a loaded machine a step whose thread was
  * descheduled can take a hundred times longer, and a whole probe of them would cost more than it could save.
  *
+ * A load that arrives while the chosen count runs ends its stretch at once: the chosen count's steps are timed in
+ * chunks of WF_GOV_CHUNK, and a chunk at less than a quarter of the rate of the chunk before it (a process started
+ * beside the run, say) starts the probe now instead of after the interval, which after a quiet hour is 64 times
+ * `every` (65 536 steps, minutes of steps ten to a hundred times slower), and the probe is measured against that
+ * chunk. A load that stays alarms once (the slow chunk becomes the reference); one slow step among a chunk's (an
+ * interrupt) does not unless it took some 190 times the others. (Chunks of 16 at half the rate alarmed some 30 times
+ * in 50 000 steps of an idle but noisy VM, each alarm a probe of one thread that cost more than it could save.)
+ *
  * `settle` steps after every change of the count are taken on the new count but neither timed nor counted: where a
  * step lasts microseconds (a batch of RL environments), the first one on another count wakes the team's threads and
  * moves half the state to another core's cache, and alone it lost every probe of two threads on an idle machine. A
  * corridor's steps last milliseconds: 0 there, so that a probe on a loaded machine costs one slow step, not two. */
 #ifndef WAVEFUEL_CORE_GOVERNOR_H
 #define WAVEFUEL_CORE_GOVERNOR_H
+
+enum { WF_GOV_CHUNK = 64 }; /* steps of the chosen count timed together, each chunk against the one before */
 
 typedef struct WfGovernor {
     int    n_max, now;          /* the run's threads; the threads of the next step */
@@ -26,7 +36,11 @@ typedef struct WfGovernor {
     double wall_s[2], work[2];  /* wall time and vehicle-steps of the chosen count's stretch [0] and the probe [1] */
     long   steps[2];            /* and their steps */
     long   settle, unsettled;   /* steps not timed after a change of the count; those still to come */
+    double chunk_wall_s, chunk_work; /* the chosen count's last steps, up to WF_GOV_CHUNK of them */
+    double ref_wall_s, ref_work;     /* its WF_GOV_CHUNK steps before them (0: none since the last switch) */
+    long   chunk_steps;
     long   probes, switches;    /* what it did (tests, benchmarks) */
+    long   alarms;              /* stretches ended early by a slow chunk */
 } WfGovernor;
 
 /* n_max threads; every: time.thread_check_steps (0: always n_max); settle: steps not timed after a change. */

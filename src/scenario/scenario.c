@@ -347,7 +347,8 @@ static const WfKeySpec time_rows[] = {
      .off_msg = "time.thread_check_steps applies to corridors: a ring's threads meet once per time-blocked window",
      .doc = "corridor on more than one thread: every `thread_check_steps` steps that threads can share (a lane of "
             "at least 4096 vehicles) the run times 1/16 of them (at least one) on the other thread count (one thread, or all of them) and keeps whichever steps more vehicles per "
-            "second of wall time; a probe that loses doubles the interval (up to 64 times), a switch sets it back. "
+            "second of wall time; a probe that loses doubles the interval (up to 64 times), a switch sets it back, "
+            "and 64 steps at under a quarter of the rate of the 64 before them (a load that arrived) probe at once. "
             "On a machine whose cores other processes also use, a step whose threads meet at a barrier waits for "
             "whichever thread was descheduled, and two threads can be several times slower than one. Results do "
             "not depend on it (a step gives the same bits on any number of threads). 0: always all threads"},
