@@ -501,6 +501,76 @@ done:
  * rounding error of a few ulp of the sum of |terms| (the reference's `scale`, at most ~50 g/s), so
  * tol = 64 eps scale ~ 1e-13 separates rounding from any real concavity by seven orders. Where no branch
  * fires the second difference must also equal 2 Q h^2 (f is exactly quadratic). */
+/* Points of eval_flat's contract: finite v of every sign and size (zeros of both signs, the idle and fuel-cut
+ * corners, 1e200), any a (NaN, infinities and signed zeros among them). */
+static void flat_points(uint64_t *seed, size_t n, double v_c, double *v, double *a)
+{
+    const double odd_a[] = {NAN, INFINITY, -INFINITY, 0.0, -0.0, 1e300, -1e300, 5e-324};
+    for (size_t i = 0; i < n; i++) {
+        v[i] = mix_uniform(seed, -5, 40);
+        a[i] = mix_uniform(seed, -6, 6);
+        if (i % 97 == 0) v[i] = 0.0;
+        if (i % 89 == 0) v[i] = -0.0;
+        if (i % 83 == 0) a[i] = odd_a[(i / 83) % 8];
+        if (i % 79 == 0) v[i] = v_c;
+        if (i % 73 == 0) v[i] = mix_uniform(seed, -0.2, 0.2), a[i] = mix_uniform(seed, -0.02, 0.02);
+        if (i % 71 == 0) v[i] = (i / 71) % 2 ? 1e200 : -1e200;
+        if (i % 67 == 0) v[i] = 5e-324;
+    }
+}
+
+/* n points of p through eval_flat against eval with theta = +0 and project 0: the same bits, flags included. */
+static size_t flat_mismatches(const WfCirclesParams *p, const char *name, size_t n, const double *v, const double *a,
+                              const double *zero, double *f, double *f2, uint8_t *fl, uint8_t *fl2)
+{
+    wf_energy_circles.eval_flat(p, n, v, a, f, fl);
+    wf_energy_circles.eval(p, n, v, a, zero, 0, f2, fl2);
+    size_t bad = 0;
+    for (size_t i = 0; i < n; i++)
+        if (!same_bits(f[i], f2[i]) || fl[i] != fl2[i])
+            if (bad++ < 3)
+                CHECK(0, "%s: point %zu (v %.17g, a %.17g): flat %.17g/%d, theta = +0 %.17g/%d", name, i, v[i], a[i],
+                      f[i], fl[i], f2[i], fl2[i]);
+    return bad;
+}
+
+/* The flat road's form (WfEnergyModel.eval_flat, which the engine's fused step uses without grades) gives eval's bits
+ * at theta = +0 for every finite v and any a: each class, and a made-up one whose fuel polynomial is a signed zero
+ * below a negative lower bound (all its coefficients -0, and z0..z2 -0 or +0), where the sign of the theta terms'
+ * zero shows. Odd sizes exercise the kernel's tail. */
+static void test_flat_equals_zero_grade(void)
+{
+    enum { N = 20011 };
+    double *v = malloc(N * sizeof *v), *a = malloc(N * sizeof *a), *zero = calloc(N, sizeof *zero);
+    double *f = malloc(N * sizeof *f), *f2 = malloc(N * sizeof *f2);
+    uint8_t *fl = malloc(N), *fl2 = malloc(N);
+    CHECK(v && a && zero && f && f2 && fl && fl2, "out of memory");
+    CHECK(wf_energy_circles.eval_flat != NULL, "the CIRCLES model has no flat form");
+    if (!(v && a && zero && f && f2 && fl && fl2) || !wf_energy_circles.eval_flat) goto done;
+    uint64_t seed = 20261203;
+    for (int k = 0; k < N_CLASSES; k++) {
+        if (!loaded_ok[k]) continue;
+        flat_points(&seed, N, ref_classes[k].heavy ? 20.0 : ref_classes[k].v_c, v, a);
+        for (size_t n = N - 3; n <= N; n++)
+            CHECK(flat_mismatches(params_of(k), ref_classes[k].name, n, v, a, zero, f, f2, fl, fl2) == 0,
+                  "%s: flat form differs at n = %zu", ref_classes[k].name, n);
+    }
+    for (int zsign = 0; zsign < 2; zsign++) {
+        WfCirclesParams p = *params_of(0);
+        double *all[] = {&p.c0, &p.c1, &p.c2, &p.c3, &p.p0, &p.p1, &p.p2, &p.q0, &p.q1};
+        for (size_t i = 0; i < sizeof all / sizeof *all; i++) *all[i] = -0.0;
+        p.z0 = p.z1 = p.z2 = zsign ? -0.0 : 0.0;
+        p.cut_v = INFINITY, p.lb_beta = 0.0, p.lb_h0 = -1.0, p.lb_h1 = 0.0; /* f = max(f, -1): f's zero shows */
+        for (size_t i = 0; i < 64; i++) v[i] = (double)(i % 8), a[i] = i % 3 ? 0.5 * (double)(i % 5) : 0.0;
+        double want = zsign ? -0.0 : 0.0;
+        CHECK(flat_mismatches(&p, zsign ? "z -0" : "z +0", 64, v, a, zero, f, f2, fl, fl2) == 0, "signed zeros");
+        CHECK(same_bits(f[9], want), "z %s: f = %g (sign %d), expected %s0", zsign ? "-0" : "+0", f[9],
+              signbit(f[9]) != 0, zsign ? "-" : "+");
+    }
+done:
+    free(v), free(a), free(zero), free(f), free(f2), free(fl), free(fl2);
+}
+
 static void test_convex_in_a(void)
 {
     const double h = 0.01;
@@ -706,6 +776,7 @@ int main(void)
     RUN(test_branch_points);
     RUN(test_hand_computed);
     RUN(test_array_equals_scalar);
+    RUN(test_flat_equals_zero_grade);
     RUN(test_convex_in_a);
     RUN(test_convex_in_v);
     RUN(test_nonnegative);

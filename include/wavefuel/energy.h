@@ -45,6 +45,11 @@ typedef struct WfEnergyModel {
     /* project value callers use when the user did not choose: 1 for the tabulated model (as the release's
      * wrappers), 0 for the explicit one. */
     int project_default;
+    /* Optional: n evaluations on a flat road, as eval with theta_rad all +0 and project 0, the same bits for every
+     * finite v_mps (the engine's states, which it checks finite every step; a_mps2 any). NULL: callers pass eval an
+     * array of zeros. The engine's fused step uses it on roads without grade. */
+    void (*eval_flat)(const void *params, size_t n, const double *v_mps, const double *a_mps2, double *fuel_gps,
+                      uint8_t *flag);
 } WfEnergyModel;
 
 /* The registry: NULL-terminated list of every energy model family. */

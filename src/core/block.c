@@ -178,14 +178,24 @@ AI void accel_group(const WfLane *ln, size_t g, size_t lo, const uint32_t *k, si
     }
 }
 
+/* Class c's fuel rates and flags of n points: on a flat road (th NULL) through its model's flat form when it has
+ * one, else with the grades th (a flat road's: zeros). */
+AI void energy_eval(const WfScenario *sc, size_t c, size_t n, const double *v, const double *a, const double *th,
+                    const double *zeros, double *fr, uint8_t *fl)
+{
+    const WfVehicleClass *vc = &sc->classes[c].vc;
+    if (!th && vc->model->eval_flat) vc->model->eval_flat(vc->params, n, v, a, fr, fl);
+    else vc->model->eval(vc->params, n, v, a, th ? th : zeros, 0, fr, fl);
+}
+
+/* th: the grades, or NULL on a flat road (zeros: n zeros for the models without a flat form). */
 AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
-                    double *fr, uint8_t *fl)
+                    const double *zeros, double *fr, uint8_t *fl)
 {
     const WfScenario *sc = ln->sc;
     const uint16_t *cid = ln->class_id + lo;
     if (sc->n_classes == 1) {
-        const WfVehicleClass *vc = &sc->classes[0].vc;
-        vc->model->eval(vc->params, n, v, a, th, 0, fr, fl);
+        energy_eval(sc, 0, n, v, a, th, zeros, fr, fl);
         return;
     }
     double gv[B], ga[B], gt[B], gf[B];
@@ -206,14 +216,13 @@ AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, con
         /* The block's largest class over the whole block, in place, then each other class gathered and written
          * over its vehicles: the fewest gathers. A vehicle's fuel rate does not depend on the others evaluated with
          * it (an energy model's eval is element-wise), so the bits are those of evaluating each class alone. */
-        const WfVehicleClass *vm = &sc->classes[major].vc;
-        vm->model->eval(vm->params, m, v + b0, a + b0, th + b0, 0, fr + b0, fl + b0);
+        energy_eval(sc, major, m, v + b0, a + b0, th ? th + b0 : NULL, zeros, fr + b0, fl + b0);
         for (size_t c = 0; c < sc->n_classes; c++) {
             if (c == major || !count[c]) continue;
             size_t cnt = wf_select_eq16(cid + b0, m, (uint16_t)c, (uint32_t)b0, idx);
-            for (size_t j = 0; j < cnt; j++) gv[j] = v[idx[j]], ga[j] = a[idx[j]], gt[j] = th[idx[j]];
-            const WfVehicleClass *vc = &sc->classes[c].vc;
-            vc->model->eval(vc->params, cnt, gv, ga, gt, 0, gf, gfl);
+            for (size_t j = 0; j < cnt; j++) gv[j] = v[idx[j]], ga[j] = a[idx[j]];
+            for (size_t j = 0; th && j < cnt; j++) gt[j] = th[idx[j]];
+            energy_eval(sc, c, cnt, gv, ga, th ? gt : NULL, zeros, gf, gfl);
             for (size_t j = 0; j < cnt; j++) fr[idx[j]] = gf[j], fl[idx[j]] = gfl[j];
         }
     }
@@ -222,7 +231,7 @@ AI void energy_block(const WfLane *ln, size_t lo, size_t n, const double *v, con
 void wf_lane_energy(const WfLane *ln, size_t lo, size_t n, const double *v, const double *a, const double *th,
                     double *fr, uint8_t *fl)
 {
-    energy_block(ln, lo, n, v, a, th, fr, fl);
+    energy_block(ln, lo, n, v, a, th, NULL, fr, fl);
 }
 
 /* Whether group g's accelerations can be computed over a whole block in place, its vehicles and the others alike
@@ -291,6 +300,21 @@ static void lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
     memcpy(z, all + off, m * sizeof *z);
 }
 
+/* ll[k] = the length of vehicle k + 1's class, k < pairs: a select per class over the block (exact), which
+ * vectorises where a lookup by 16-bit class number cannot (gcc 12 emits no gather: 4 instructions a vehicle). */
+AI void leader_lengths(const WfLane *ln, const uint16_t *restrict cid, size_t pairs, double *restrict ll)
+{
+    const double *len = ln->class_length_m;
+    size_t nc = ln->sc->n_classes;
+    double l0 = len[0], l1 = nc > 1 ? len[1] : l0;
+    for (size_t k = 0; k < pairs; k++) ll[k] = cid[k + 1] == 1 ? l1 : l0;
+    for (size_t c = 2; c < nc; c++) {
+        double lc = len[c];
+        uint16_t c16 = (uint16_t)c;
+        for (size_t k = 0; k < pairs; k++) ll[k] = cid[k + 1] == c16 ? lc : ll[k];
+    }
+}
+
 /* Inputs at the step's start, accelerations and (WF_PASS_ENERGY) fuel rates of the block in slots [lo, lo + m);
  * its last vehicle's leader is ld; co: where a counting pass counts the safety filters' interventions, or NULL. */
 AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass,
@@ -302,10 +326,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     double z[B], cap[B];
     if (ln->noisy) lane_noise(sc->seed, ln->key0 + lo, m, step, z);
     size_t pairs = m ? m - 1 : 0;
-    const double *len = ln->class_length_m;
-    /* under omp simd gcc 12 emits no gather instruction, but unrolls the lookup: 4 instructions a vehicle, from 7 */
-#pragma omp simd
-    for (size_t k = 0; k < pairs; k++) b->ll[k] = len[cid[k + 1]];
+    leader_lengths(ln, cid, pairs, b->ll);
     for (size_t k = 0; k + 1 < m; k++) {
         b->gap[k] = x[k + 1] - b->ll[k] - x[k];
         b->vl[k] = v[k + 1];
@@ -324,7 +345,8 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     int capped = ln->ops->cap && ln->ops->cap(ln->ctx, lo, m, x, v, cap);
     accel_block(ln, lo, m, x, v, z, capped ? cap : NULL, b, co);
     if (pass & WF_PASS_ENERGY) {
-        energy_block(ln, lo, m, v, b->a, b->th, b->fr, b->fl);
+        /* a flat road's b->th are the zeros of the models without a flat form */
+        energy_block(ln, lo, m, v, b->a, ln->ops->grade ? b->th : NULL, b->th, b->fr, b->fl);
         if (rec) wf_stats_block(m, v, b->gap, b->fr, cid, sc->n_classes, sc, rec);
     }
 }
@@ -442,7 +464,7 @@ AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, c
     accum_after(&ln->always, in_window ? &ln->window : NULL, lo, m, x, xo, stop);
     int bad = !finite_all(m, x, v);
     if (!lead_len) {
-        for (size_t k = 0; k + 1 < m; k++) ll[k] = ln->class_length_m[cid[k + 1]];
+        leader_lengths(ln, cid, m ? m - 1 : 0, ll);
         lead_len = ll;
     }
     /* a count of overlaps in doubles: 0 and 1 added in any order give the same exact sum */

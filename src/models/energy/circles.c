@@ -145,6 +145,8 @@ double wf_circles_a_max(const WfCirclesParams *p, double v, double theta)
 #pragma GCC pop_options
 #endif
 
+typedef void CirclesFlat(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
+                         const double *restrict a_in, double *restrict fuel, uint8_t *restrict flag);
 typedef void CirclesKernel(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag);
@@ -163,6 +165,20 @@ static void circles_kernel(const WfCirclesParams *restrict p, size_t n, const do
     CirclesKernel *k = circles_kernel2;
 #endif
     k(p, n, v_in, a_in, th_in, project, fuel, flag);
+}
+
+/* The flat road's form (WfEnergyModel.eval_flat) at the same width. */
+static void circles_eval_flat(const void *params, size_t n, const double *restrict v, const double *restrict a,
+                              double *restrict fuel, uint8_t *restrict flag)
+{
+#ifdef WF_HAVE_WIDE_KERNELS
+    WfSimdLevel level = wf_simd_level();
+    CirclesFlat *k = level >= WF_SIMD_AVX512 ? circles_kernel8_flat : level >= WF_SIMD_AVX2 ? circles_kernel4_flat
+                                                                                            : circles_kernel2_flat;
+#else
+    CirclesFlat *k = circles_kernel2_flat;
+#endif
+    k(params, n, v, a, fuel, flag);
 }
 
 /* One point, the same operations in the same order as a lane of circles_kernel(). A separate scalar body
@@ -210,4 +226,5 @@ const WfEnergyModel wf_energy_circles = {
     .check = circles_check,
     .eval = circles_eval,
     .a_max = circles_a_max,
+    .eval_flat = circles_eval_flat,
 };

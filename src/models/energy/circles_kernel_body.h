@@ -1,0 +1,133 @@
+/* The body of the CIRCLES array kernel (circles_kernel.h, which defines its vector type V, mask type M and helpers
+ * FN(...) for one width and includes this file twice): WF_KBODY is the function's name; with WF_FLAT defined, the
+ * flat road's form (no theta, project 0), which WfEnergyModel.eval_flat is. */
+#ifdef WF_FLAT
+/* The flat road's form (theta = +0, project 0, v finite): every term with theta is a signed zero, v >= +0 where the
+ * fuel terms use it, so z0 th + z1 th v + z2 th v^2 adds +0, or -0 when z0, z1 and z2 are all -0, which changes
+ * only the sign of a zero f; a_max and a_cut lose a zero that changes only the sign of a zero, which their
+ * comparisons ignore. So the bits are the full form's. */
+static void WF_KBODY(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
+                      const double *restrict a_in, double *restrict fuel, uint8_t *restrict flag)
+{
+    const double zfix_s = signbit(p->z0) && signbit(p->z1) && signbit(p->z2) ? -0.0 : 0.0;
+#else
+static void WF_KBODY(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
+                      const double *restrict a_in, const double *restrict th_in, int project, double *restrict fuel,
+                      uint8_t *restrict flag)
+{
+#endif
+#ifdef WF_FLAT
+    const V b1 = FN(vsplat)(p->b1), b2 = FN(vsplat)(p->b2), b3 = FN(vsplat)(p->b3);
+#else
+    const V b1 = FN(vsplat)(p->b1), b2 = FN(vsplat)(p->b2), b3 = FN(vsplat)(p->b3), b4 = FN(vsplat)(p->b4),
+            b5 = FN(vsplat)(p->b5), b6 = FN(vsplat)(p->b6);
+#endif
+    const V c0 = FN(vsplat)(p->c0), c1 = FN(vsplat)(p->c1), c2 = FN(vsplat)(p->c2), c3 = FN(vsplat)(p->c3);
+    const V p0 = FN(vsplat)(p->p0), p1 = FN(vsplat)(p->p1), p2 = FN(vsplat)(p->p2), q0 = FN(vsplat)(p->q0),
+            q1 = FN(vsplat)(p->q1);
+#ifdef WF_FLAT
+    const V zfix = FN(vsplat)(zfix_s), f_idle = FN(vsplat)(p->f_idle);
+#else
+    const V z0 = FN(vsplat)(p->z0), z1 = FN(vsplat)(p->z1), z2 = FN(vsplat)(p->z2), f_idle = FN(vsplat)(p->f_idle);
+#endif
+#ifdef WF_FLAT
+    const V a0 = FN(vsplat)(p->a0), a1 = FN(vsplat)(p->a1), a3 = FN(vsplat)(p->a3);
+#else
+    const V a0 = FN(vsplat)(p->a0), a1 = FN(vsplat)(p->a1), a2 = FN(vsplat)(p->a2), a3 = FN(vsplat)(p->a3),
+            a4 = FN(vsplat)(p->a4);
+#endif
+    const V cut_v = FN(vsplat)(p->cut_v), lb_beta = FN(vsplat)(p->lb_beta), lb_h0 = FN(vsplat)(p->lb_h0),
+            lb_h1 = FN(vsplat)(p->lb_h1);
+    const V zero = FN(vsplat)(0.0), v_floor = FN(vsplat)(1e-12), two = FN(vsplat)(2.0);
+    const V idle_v = FN(vsplat)(0.1), idle_a = FN(vsplat)(0.01);
+    M abs_bits;
+    for (int l = 0; l < WF_LANES; l++) abs_bits[l] = INT64_MAX;
+#ifndef WF_FLAT
+    M proj;
+    for (int l = 0; l < WF_LANES; l++) proj[l] = project ? -1 : 0;
+#endif
+    for (size_t i = 0; i < n; i += WF_LANES) {
+        size_t lanes = n - i < WF_LANES ? n - i : WF_LANES;
+        /* The tail's lanes go through arrays: a vector written lane by lane would live in memory, stored and
+         * reloaded in every iteration. */
+#ifdef WF_FLAT
+        const double *pv = v_in + i, *pa = a_in + i;
+        double tv[WF_LANES], ta[WF_LANES];
+        if (lanes < WF_LANES) { /* the tail: the last point fills the missing lanes, which are not stored */
+            for (size_t l = 0; l < WF_LANES; l++) {
+                size_t j = i + (l < lanes ? l : lanes - 1);
+                tv[l] = v_in[j], ta[l] = a_in[j];
+            }
+            pv = tv, pa = ta;
+        }
+        V v, a;
+        memcpy(&v, pv, sizeof v);
+        memcpy(&a, pa, sizeof a);
+#else
+        const double *pv = v_in + i, *pa = a_in + i, *pt = th_in + i;
+        double tv[WF_LANES], ta[WF_LANES], tt[WF_LANES];
+        if (lanes < WF_LANES) { /* the tail: the last point fills the missing lanes, which are not stored */
+            for (size_t l = 0; l < WF_LANES; l++) {
+                size_t j = i + (l < lanes ? l : lanes - 1);
+                tv[l] = v_in[j], ta[l] = a_in[j], tt[l] = th_in[j];
+            }
+            pv = tv, pa = ta, pt = tt;
+        }
+        V v, a, th;
+        memcpy(&v, pv, sizeof v);
+        memcpy(&a, pa, sizeof a);
+        memcpy(&th, pt, sizeof th);
+#endif
+        /* 1-2. a_max from the raw v; flag from the original a: 2 if v < 0, else 1 if a > a_max. */
+#ifdef WF_FLAT
+        V amax = FN(vmin)(b1, b2 / FN(vmax)(v, v_floor) - b3 * v * v);
+#else
+        V amax = FN(vmin)(b1, b2 / FN(vmax)(v, v_floor) - b3 * v * v) - FN(vmin)(b4, b5 + b6 * v) * th;
+#endif
+        M negative = v < zero, above = a > amax;
+        /* 3-5. Projection, v >= 0, a+ (v floored at 1e-12 inside Q keeps Q off 0 at rest when q0 = 0). */
+#ifndef WF_FLAT
+        a = FN(vselect)(proj, FN(vmin_nan)(a, amax), a);
+#endif
+        v = FN(vmax)(v, zero);
+        V P = p0 + p1 * v + p2 * v * v;
+        V Q = q0 + q1 * FN(vmax)(v, v_floor);
+        V ap = FN(vmax_nan)(a, -P / (two * Q));
+        /* 6. Only the two squared terms use a+. */
+#ifdef WF_FLAT
+        V f = c0 + c1 * v + c2 * v * v + c3 * v * v * v + p0 * a + p1 * a * v + p2 * a * v * v + q0 * ap * ap +
+              q1 * ap * ap * v + zfix;
+#else
+        V f = c0 + c1 * v + c2 * v * v + c3 * v * v * v + p0 * a + p1 * a * v + p2 * a * v * v + q0 * ap * ap +
+              q1 * ap * ap * v + z0 * th + z1 * th * v + z2 * th * v * v;
+#endif
+        /* 7. Light duty: beta below v_c, 0 above (lb_h0 = lb_h1 = 0 add exact zeros).
+         *    Heavy duty: h0 + h1 v (lb_beta = 0, cut_v = inf). */
+        V lb = FN(vselect)(v <= cut_v, lb_beta, zero) + lb_h0 + lb_h1 * v;
+        f = FN(vmax)(f, lb);
+        /* 8. Fuel cut (never for heavy duty: v > inf is false). */
+#ifdef WF_FLAT
+        V a_cut = a0 + a1 * v + a3 * v * v;
+#else
+        V a_cut = a0 + a1 * v + a2 * th + a3 * v * v + a4 * v * th;
+#endif
+        f = FN(vselect)((v > cut_v) & (a <= a_cut), zero, f);
+        /* 9. Idle, with the v of step 4 and the a of step 3. */
+        V abs_a = (V)((M)a & abs_bits);
+        f = FN(vselect)((v < idle_v) & (abs_a < idle_a), f_idle, f);
+        if (lanes == WF_LANES) { /* vector stores: lane by lane, the stores cost a fifth of the kernel */
+            memcpy(fuel + i, &f, sizeof f);
+            if (flag) FN(flag_bytes)(negative, above, flag + i);
+        } else {
+            double tf[WF_LANES];
+            uint8_t fb[WF_LANES];
+            memcpy(tf, &f, sizeof f);
+            memcpy(fuel + i, tf, lanes * sizeof *tf);
+            if (flag) {
+                FN(flag_bytes)(negative, above, fb);
+                memcpy(flag + i, fb, lanes);
+            }
+        }
+    }
+}
+
