@@ -136,6 +136,15 @@ size_t wf_rl_batch_rows(const WfRlBatch *b) { return b->n_rows; }
 double *wf_rl_batch_prev_accel(WfRlBatch *b) { return b->a_prev; }
 void wf_rl_batch_observe(const WfRlBatch *b, double *obs) { memcpy(obs, b->obs0, 3 * b->n_rows * sizeof *obs); }
 
+/* Class vc's fuel rates at speeds v (finite: states) and accelerations a on a flat road: its model's flat form when
+ * it has one (the same bits as theta = +0), else eval with zeros. */
+static void flat_fuel(const WfVehicleClass *vc, size_t n, const double *v, const double *a, const double *zero,
+                      double *fuel, uint8_t *flag)
+{
+    if (vc->model->eval_flat) vc->model->eval_flat(vc->params, n, v, a, fuel, flag);
+    else vc->model->eval(vc->params, n, v, a, zero, 0, fuel, flag);
+}
+
 /* Every vehicle's fuel rate of run k over the action (its class model at v0 and (v1 - v0) / dt, flat road): the
  * vehicles gathered by class, one array evaluation per class, scattered back (a road of one class: in place). */
 static void run_fuel(WfRlBatch *b, size_t k)
@@ -149,15 +158,14 @@ static void run_fuel(WfRlBatch *b, size_t k)
         if (lo == hi) continue;
         const WfVehicleClass *vc = &sc->classes[c].vc;
         if (hi - lo == ru->n) { /* one class on the road: in place (an evaluation is element-wise) */
-            vc->model->eval(vc->params, ru->n, b->v0 + o, b->a + o, b->zero + o, 0, b->fuel + o, b->flag + o);
+            flat_fuel(vc, ru->n, b->v0 + o, b->a + o, b->zero + o, b->fuel + o, b->flag + o);
             break;
         }
         for (size_t j = lo; j < hi; j++) {
             size_t i = o + b->order[o + j];
             b->cv[o + j] = b->v0[i], b->ca[o + j] = b->a[i];
         }
-        vc->model->eval(vc->params, hi - lo, b->cv + o + lo, b->ca + o + lo, b->zero + o + lo, 0, b->cf + o + lo,
-                        b->flag + o + lo);
+        flat_fuel(vc, hi - lo, b->cv + o + lo, b->ca + o + lo, b->zero + o + lo, b->cf + o + lo, b->flag + o + lo);
         for (size_t j = lo; j < hi; j++) b->fuel[o + b->order[o + j]] = b->cf[o + j];
     }
 }
@@ -171,7 +179,9 @@ static int run_reward(WfRlBatch *b, size_t k, double *reward, double *info, WfEr
         return wf_err(err, WF_EINPUT, "%zu vehicles on the road, the batch was made with %zu (vehicles entered or "
                       "left)", r.n, ru->n);
     size_t o = ru->veh;
-    for (size_t i = 0; i < r.n; i++) b->v1[o + i] = speed(&r, i);
+    if (r.f) memcpy(b->v1 + o, r.f->v_mps, r.n * sizeof *b->v1); /* a ring: road order is fleet order */
+    else
+        for (size_t i = 0; i < r.n; i++) b->v1[o + i] = speed(&r, i);
     run_fuel(b, k);
     double fuel = 0.0, vsum = 0.0;
     for (size_t i = 0; i < r.n; i++) {
