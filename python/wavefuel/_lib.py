@@ -62,7 +62,7 @@ class WfEnergyModel(C.Structure):
     _fields_ = [("name", C.c_char_p), ("param_size", C.c_size_t), ("spec", C.POINTER(WfParamSpec)),
                 ("n_spec", C.c_size_t), ("check", C.c_void_p), ("eval", EVAL_FN), ("a_max", AMAX_FN),
                 ("load", C.c_void_p), ("release", C.c_void_p), ("n_outside", C.c_void_p),
-                ("project_default", C.c_int)]
+                ("project_default", C.c_int), ("eval_flat", C.c_void_p)]
 
 
 class WfVehicleClass(C.Structure):
