@@ -8,8 +8,13 @@ Each binary is copied first (a rebuild during the runs cannot mix versions) and 
 classes through WAVEFUEL_VEHICLES. A NAME=PATH may carry environment settings after a comma, e.g.
 --bin narrow=bin/wavefuel,WAVEFUEL_SIMD=4 (the hand-written kernels capped at 4 lanes, docs/energy.md).
 
+With --steady the rate is that of the steps after the first: each case runs steps_for(N) steps and five times as
+many, and the rate is N x (the difference of the steps) / (the difference of the loops' wall times). At 10^7 vehicles
+the first of a run's 48 steps pay some 2-3 s of first writes to the arrays the step keeps (page faults of 2 GB):
+a run of hours does not, and the plain rate counts them.
+
 Usage: /usr/bin/python3 bench/ab/run.py --bin old=/tmp/wavefuel_old --bin new=bin/wavefuel
-           [--sizes 100000,1000000,10000000] [--threads 1,2] [--repeats 3] [--json FILE]
+           [--sizes 100000,1000000,10000000] [--threads 1,2] [--repeats 3] [--steady] [--json FILE]
 """
 import argparse
 import json
@@ -32,18 +37,31 @@ def steps_for(n):
     return max(48, int(1.6e8 / n) // 16 * 16)
 
 
-def one_run(binary, env, n, threads, tmp):
+def loop_time(binary, env, n, threads, steps, tmp):
+    """(steps done, wall time of the step loop) of one run of `steps` steps."""
     out = os.path.join(tmp, "r.h5")
     cmd = [binary, "run", SCENARIO, "-q", "-o", out, "--threads", str(threads),
            "--set", f"fleet.vehicles={n}", "--set", f"road.length_m={25 * n}",
-           "--set", f"time.duration_s={steps_for(n) / 10:g}"]
+           "--set", f"time.duration_s={steps / 10:g}"]
     p = subprocess.run(cmd, capture_output=True, text=True, env=env)
     if p.returncode:
         sys.exit(f"{' '.join(cmd)} failed: {p.stderr}")
     with h5py.File(out) as f:
-        rate = n * int(f["meta/steps_done"][()]) / float(f["meta/wall_time_s"][()])
+        done, wall = int(f["meta/steps_done"][()]), float(f["meta/wall_time_s"][()])
     os.unlink(out)
-    return rate
+    return done, wall
+
+
+def one_run(binary, env, n, threads, tmp, steady):
+    """Vehicle-steps per second of the step loop; steady: of the steps between a run of steps_for(n) steps and one of
+    five times as many (the difference of the two loops' times: what the first steps pay once, the first touch of
+    the arrays the step writes, cancels)."""
+    s1 = steps_for(n)
+    d1, w1 = loop_time(binary, env, n, threads, s1, tmp)
+    if not steady:
+        return n * d1 / w1
+    d2, w2 = loop_time(binary, env, n, threads, 5 * s1, tmp)
+    return n * (d2 - d1) / (w2 - w1)
 
 
 def main():
@@ -53,6 +71,8 @@ def main():
     ap.add_argument("--threads", default="1,2")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--json", help="write every run here")
+    ap.add_argument("--steady", action="store_true",
+                    help="the rate of the steps after the first steps_for(N) (runs of 1 and 5 times as many)")
     a = ap.parse_args()
     tmp = tempfile.mkdtemp(prefix="wf_ab_")
     bins = []
@@ -72,7 +92,7 @@ def main():
             for n in sizes:
                 for th in threads:
                     for name, copy, env in bins:
-                        runs.append({"bin": name, "n": n, "threads": th, "rate": one_run(copy, env, n, th, tmp),
+                        runs.append({"bin": name, "n": n, "threads": th, "rate": one_run(copy, env, n, th, tmp, a.steady),
                                      "load": os.getloadavg()[0]})
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
