@@ -92,8 +92,8 @@ def main():
             for n in sizes:
                 for th in threads:
                     for name, copy, env in bins:
-                        runs.append({"bin": name, "n": n, "threads": th, "rate": one_run(copy, env, n, th, tmp, a.steady),
-                                     "load": os.getloadavg()[0]})
+                        rate = one_run(copy, env, n, th, tmp, a.steady)
+                        runs.append({"bin": name, "n": n, "threads": th, "rate": rate, "load": os.getloadavg()[0]})
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     if a.json:

@@ -9,9 +9,9 @@ static long probe_steps(const WfGovernor *g)
     return p > 0 ? p : 1;
 }
 
-/* Whether the chosen count's last WF_GOV_CHUNK steps, this one included, did less than a quarter of the work per second of
- * the WF_GOV_CHUNK steps of it before them (on this count since the last switch; none yet: no). Chunks hold the
- * chosen count's steps only, across the probes between them. */
+/* Whether the chosen count's last WF_GOV_CHUNK steps, this one included, did less than a quarter of the work per
+ * second of the WF_GOV_CHUNK steps of it before them (on this count since the last switch; none yet: no). Chunks hold
+ * the chosen count's steps only, across the probes between them. */
 static int slow_chunk(WfGovernor *g, double wall_s, double work)
 {
     g->chunk_wall_s += wall_s, g->chunk_work += work;
