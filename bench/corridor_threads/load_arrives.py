@@ -15,7 +15,6 @@ other. Needs `make python`; run with /usr/bin/python3."""
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
@@ -25,6 +24,7 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 SCENARIO = os.path.join(ROOT, "bench", "corridor_vs_ring", "corridor.yaml")
 sys.path.insert(0, os.path.dirname(HERE))
 from busy_load import start_load  # noqa: E402
+import lib_child  # noqa: E402
 
 
 def child(args):
@@ -68,14 +68,10 @@ def main():
     if args.child:
         child(args)
         return
-    libs = [x.split("=", 1) for x in args.lib] or [["this", os.path.join(ROOT, "lib/libwavefuel.so")]]
     print("| library | threads | loaded slices, M veh-steps/s each | whole loaded stretch, M veh-steps/s |")
     print("|---|---|---|---|")
-    for name, path in libs:
-        env = dict(os.environ, WAVEFUEL_LIB=os.path.abspath(path))
-        out = subprocess.run([sys.executable, os.path.abspath(__file__), "--child"] + sys.argv[1:], env=env,
-                             check=True, capture_output=True, text=True).stdout
-        for th, sl in sorted(json.loads(out).items()):
+    for name, path in lib_child.libs(args.lib):
+        for th, sl in sorted(lib_child.run_child(__file__, path).items()):
             each = " ".join("%.1f" % (w / t / 1e6) for w, t in sl)
             total = sum(w for w, _ in sl) / sum(t for _, t in sl)
             print("| %s | %s | %s | %.1f |" % (name, th, each, total / 1e6))

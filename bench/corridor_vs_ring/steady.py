@@ -17,13 +17,14 @@ other, --rounds times (A B A B ...). Needs `make python`; run with /usr/bin/pyth
 import argparse
 import json
 import os
-import subprocess
 import sys
 import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.abspath(os.path.join(HERE, "../.."))
+sys.path.insert(0, os.path.dirname(HERE))
+import lib_child  # noqa: E402
 
 
 def child(args):
@@ -83,15 +84,12 @@ def main():
     if args.child:
         child(args)
         return
-    libs = [x.split("=", 1) for x in args.lib] or [["this", os.path.join(ROOT, "lib/libwavefuel.so")]]
+    libs = lib_child.libs(args.lib)
     got = {name: {} for name, _ in libs}
     n = {}
     for _ in range(args.rounds):
         for name, path in libs:
-            env = dict(os.environ, WAVEFUEL_LIB=os.path.abspath(path))
-            out = subprocess.run([sys.executable, os.path.abspath(__file__), "--child"] + sys.argv[1:],
-                                 env=env, check=True, capture_output=True, text=True).stdout
-            r = json.loads(out)
+            r = lib_child.run_child(__file__, path)
             n[name] = r["vehicles"]
             for k, v in r["rates"].items():
                 got[name].setdefault(k, []).extend(v)

@@ -151,34 +151,38 @@ typedef void CirclesKernel(const WfCirclesParams *restrict p, size_t n, const do
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag);
 
-/* The widest kernel of the library's SIMD level (core/simd.h: at most 2 or 4 lanes when WAVEFUEL_SIMD=2 or 4;
- * tests compare them). */
+/* The kernels by width, 2, 4 and 8 lanes, and the widest of the library's SIMD level (core/simd.h: at most 2 or 4
+ * lanes when WAVEFUEL_SIMD=2 or 4; tests compare them). */
+#ifdef WF_HAVE_WIDE_KERNELS
+static CirclesKernel *const kernels[] = {circles_kernel2, circles_kernel4, circles_kernel8};
+static CirclesFlat *const flat_kernels[] = {circles_kernel2_flat, circles_kernel4_flat, circles_kernel8_flat};
+#else
+static CirclesKernel *const kernels[] = {circles_kernel2};
+static CirclesFlat *const flat_kernels[] = {circles_kernel2_flat};
+#endif
+
+static size_t widest(void)
+{
+#ifdef WF_HAVE_WIDE_KERNELS
+    WfSimdLevel level = wf_simd_level();
+    return level >= WF_SIMD_AVX512 ? 2 : level >= WF_SIMD_AVX2 ? 1 : 0;
+#else
+    return 0;
+#endif
+}
+
 static void circles_kernel(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
                            const double *restrict a_in, const double *restrict th_in, int project,
                            double *restrict fuel, uint8_t *restrict flag)
 {
-#ifdef WF_HAVE_WIDE_KERNELS
-    WfSimdLevel level = wf_simd_level();
-    CirclesKernel *k = level >= WF_SIMD_AVX512 ? circles_kernel8 : level >= WF_SIMD_AVX2 ? circles_kernel4
-                                                                                          : circles_kernel2;
-#else
-    CirclesKernel *k = circles_kernel2;
-#endif
-    k(p, n, v_in, a_in, th_in, project, fuel, flag);
+    kernels[widest()](p, n, v_in, a_in, th_in, project, fuel, flag);
 }
 
 /* The flat road's form (WfEnergyModel.eval_flat) at the same width. */
 static void circles_eval_flat(const void *params, size_t n, const double *restrict v, const double *restrict a,
                               double *restrict fuel, uint8_t *restrict flag)
 {
-#ifdef WF_HAVE_WIDE_KERNELS
-    WfSimdLevel level = wf_simd_level();
-    CirclesFlat *k = level >= WF_SIMD_AVX512 ? circles_kernel8_flat : level >= WF_SIMD_AVX2 ? circles_kernel4_flat
-                                                                                            : circles_kernel2_flat;
-#else
-    CirclesFlat *k = circles_kernel2_flat;
-#endif
-    k(params, n, v, a, fuel, flag);
+    flat_kernels[widest()](params, n, v, a, fuel, flag);
 }
 
 /* One point, the same operations in the same order as a lane of circles_kernel(). A separate scalar body
