@@ -5,36 +5,28 @@
 /* The flat road's form (theta = +0, project 0, v finite): every term with theta is a signed zero, v >= +0 where the
  * fuel terms use it, so z0 th + z1 th v + z2 th v^2 adds +0, or -0 when z0, z1 and z2 are all -0, which changes
  * only the sign of a zero f; a_max and a_cut lose a zero that changes only the sign of a zero, which their
- * comparisons ignore. So the bits are the full form's. */
+ * comparisons ignore. So the bits are the full form's. Only the lines marked WF_FLAT differ between the forms. */
 static void WF_KBODY(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
-                      const double *restrict a_in, double *restrict fuel, uint8_t *restrict flag)
-{
-    const double zfix_s = signbit(p->z0) && signbit(p->z1) && signbit(p->z2) ? -0.0 : 0.0;
+                     const double *restrict a_in, double *restrict fuel, uint8_t *restrict flag)
 #else
 static void WF_KBODY(const WfCirclesParams *restrict p, size_t n, const double *restrict v_in,
-                      const double *restrict a_in, const double *restrict th_in, int project, double *restrict fuel,
-                      uint8_t *restrict flag)
-{
+                     const double *restrict a_in, const double *restrict th_in, int project, double *restrict fuel,
+                     uint8_t *restrict flag)
 #endif
-#ifdef WF_FLAT
+{
     const V b1 = FN(vsplat)(p->b1), b2 = FN(vsplat)(p->b2), b3 = FN(vsplat)(p->b3);
-#else
-    const V b1 = FN(vsplat)(p->b1), b2 = FN(vsplat)(p->b2), b3 = FN(vsplat)(p->b3), b4 = FN(vsplat)(p->b4),
-            b5 = FN(vsplat)(p->b5), b6 = FN(vsplat)(p->b6);
-#endif
     const V c0 = FN(vsplat)(p->c0), c1 = FN(vsplat)(p->c1), c2 = FN(vsplat)(p->c2), c3 = FN(vsplat)(p->c3);
     const V p0 = FN(vsplat)(p->p0), p1 = FN(vsplat)(p->p1), p2 = FN(vsplat)(p->p2), q0 = FN(vsplat)(p->q0),
-            q1 = FN(vsplat)(p->q1);
-#ifdef WF_FLAT
-    const V zfix = FN(vsplat)(zfix_s), f_idle = FN(vsplat)(p->f_idle);
-#else
-    const V z0 = FN(vsplat)(p->z0), z1 = FN(vsplat)(p->z1), z2 = FN(vsplat)(p->z2), f_idle = FN(vsplat)(p->f_idle);
-#endif
-#ifdef WF_FLAT
+            q1 = FN(vsplat)(p->q1), f_idle = FN(vsplat)(p->f_idle);
     const V a0 = FN(vsplat)(p->a0), a1 = FN(vsplat)(p->a1), a3 = FN(vsplat)(p->a3);
+#ifdef WF_FLAT
+    const V zfix = FN(vsplat)(signbit(p->z0) && signbit(p->z1) && signbit(p->z2) ? -0.0 : 0.0);
 #else
-    const V a0 = FN(vsplat)(p->a0), a1 = FN(vsplat)(p->a1), a2 = FN(vsplat)(p->a2), a3 = FN(vsplat)(p->a3),
-            a4 = FN(vsplat)(p->a4);
+    const V b4 = FN(vsplat)(p->b4), b5 = FN(vsplat)(p->b5), b6 = FN(vsplat)(p->b6);
+    const V z0 = FN(vsplat)(p->z0), z1 = FN(vsplat)(p->z1), z2 = FN(vsplat)(p->z2);
+    const V a2 = FN(vsplat)(p->a2), a4 = FN(vsplat)(p->a4);
+    M proj;
+    for (int l = 0; l < WF_LANES; l++) proj[l] = project ? -1 : 0;
 #endif
     const V cut_v = FN(vsplat)(p->cut_v), lb_beta = FN(vsplat)(p->lb_beta), lb_h0 = FN(vsplat)(p->lb_h0),
             lb_h1 = FN(vsplat)(p->lb_h1);
@@ -42,40 +34,34 @@ static void WF_KBODY(const WfCirclesParams *restrict p, size_t n, const double *
     const V idle_v = FN(vsplat)(0.1), idle_a = FN(vsplat)(0.01);
     M abs_bits;
     for (int l = 0; l < WF_LANES; l++) abs_bits[l] = INT64_MAX;
-#ifndef WF_FLAT
-    M proj;
-    for (int l = 0; l < WF_LANES; l++) proj[l] = project ? -1 : 0;
-#endif
     for (size_t i = 0; i < n; i += WF_LANES) {
         size_t lanes = n - i < WF_LANES ? n - i : WF_LANES;
         /* The tail's lanes go through arrays: a vector written lane by lane would live in memory, stored and
          * reloaded in every iteration. */
-#ifdef WF_FLAT
         const double *pv = v_in + i, *pa = a_in + i;
         double tv[WF_LANES], ta[WF_LANES];
+#ifndef WF_FLAT
+        const double *pt = th_in + i;
+        double tt[WF_LANES];
+#endif
         if (lanes < WF_LANES) { /* the tail: the last point fills the missing lanes, which are not stored */
             for (size_t l = 0; l < WF_LANES; l++) {
                 size_t j = i + (l < lanes ? l : lanes - 1);
                 tv[l] = v_in[j], ta[l] = a_in[j];
+#ifndef WF_FLAT
+                tt[l] = th_in[j];
+#endif
             }
             pv = tv, pa = ta;
+#ifndef WF_FLAT
+            pt = tt;
+#endif
         }
         V v, a;
         memcpy(&v, pv, sizeof v);
         memcpy(&a, pa, sizeof a);
-#else
-        const double *pv = v_in + i, *pa = a_in + i, *pt = th_in + i;
-        double tv[WF_LANES], ta[WF_LANES], tt[WF_LANES];
-        if (lanes < WF_LANES) { /* the tail: the last point fills the missing lanes, which are not stored */
-            for (size_t l = 0; l < WF_LANES; l++) {
-                size_t j = i + (l < lanes ? l : lanes - 1);
-                tv[l] = v_in[j], ta[l] = a_in[j], tt[l] = th_in[j];
-            }
-            pv = tv, pa = ta, pt = tt;
-        }
-        V v, a, th;
-        memcpy(&v, pv, sizeof v);
-        memcpy(&a, pa, sizeof a);
+#ifndef WF_FLAT
+        V th;
         memcpy(&th, pt, sizeof th);
 #endif
         /* 1-2. a_max from the raw v; flag from the original a: 2 if v < 0, else 1 if a > a_max. */
