@@ -26,6 +26,7 @@
 #include "core/sim.h"
 #include "core/simd.h"
 #include "core/window.h"
+#include "util/mem.h"
 
 #define TRIP_BUF 1024 /* trips handed to the output per call */
 
@@ -1805,6 +1806,7 @@ static int window_init(WfCorridor *c, WfError *err)
     size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(2 * cw->slot_bytes);
     int rc = wf_window_create(&cw->w, &ln->lane, cap, 0, cap / WF_BLOCK, k, tile, c->out_every, bytes, err);
     if (rc) return rc;
+    wf_mem_prefault(cw->w.backup, bytes, 0, 1); /* every slot may be in a window: the whole copy's pages now */
     ALLOC(cw->x, ((size_t)k + 1) * cap);
     ALLOC(cw->rate, (size_t)k * cap);
     ALLOC(cw->cell, (size_t)c->nthreads * cap);

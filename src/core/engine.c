@@ -14,6 +14,7 @@
 #include "core/sim.h"
 #include "core/window.h"
 #include "observe/columns.h"
+#include "util/mem.h"
 
 typedef struct WfRing {
     WfSim              *sim;  /* the run this engine is the boundary of (outputs, threads, summary) */
@@ -502,6 +503,25 @@ static int members_init(WfRing *s, WfError *err)
     return 0;
 }
 
+/* The pages of the per-vehicle state this process steps (and of its windows' copy), taken at creation rather than
+ * by the step loop (util/mem.h): the sums are first touched by `+=`, which would map the zero page and fault again
+ * on the write. Only this process's share of a ring split across processes (docs/mpi.md, Memory). */
+static void prefault_share(WfRing *s)
+{
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), n = s->f->n;
+    size_t lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < n ? s->b_hi * WF_BLOCK : n;
+    if (nv > WF_MAX_STATE_VARS) nv = WF_MAX_STATE_VARS;
+    int nt = wf_lane_threads(hi - lo, s->nthreads); /* the kernel clears new pages: split between the threads */
+    WF_PAR_FOR(nt > 1, "omp parallel for schedule(static, 1) num_threads(nt) default(none) shared(s, vars, nv, lo, hi, nt)",
+    for (int t = 0; t < nt; t++) {
+        for (size_t j = 0; j < nv; j++)
+            if (vars[j].stride)
+                wf_mem_prefault((char *)vars[j].data + lo * vars[j].stride, (hi - lo) * vars[j].stride, t, nt);
+        if (s->win.backup) wf_window_prefault(&s->win, vars, nv, t, nt);
+    });
+}
+
 static int ring_create(WfSim *sim, WfError *err)
 {
     const WfScenario *sc = sim->sc;
@@ -544,6 +564,7 @@ static int ring_create(WfSim *sim, WfError *err)
     if (!rc) lane_views(s);
     if (!rc) rc = window_init(s, err);
     if (!rc) rc = members_init(s, err);
+    if (!rc) prefault_share(s);
     return rc;
 }
 

@@ -8,6 +8,8 @@
 #include <omp.h>
 #endif
 
+#include "util/mem.h"
+
 #define B WF_BLOCK
 
 /* One chunk's scratch: the halo (a copy of the k + 1 vehicles ahead of the chunk, stepped as a lane of its own),
@@ -82,9 +84,8 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_
     w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
     w->halo = calloc(w->n_chunks, sizeof *w->halo);
     w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
-    w->backup = malloc(state_bytes);
+    w->backup = calloc(state_bytes, 1); /* its pages are taken by wf_window_prefault, of a share only */
     int ok = w->halo && w->rec && w->backup;
-    if (ok) memset(w->backup, 0, state_bytes); /* its pages now, not in the first window */
     for (size_t c = 0; ok && c < w->n_chunks; c++) ok = halo_alloc(&w->halo[c], ln, (size_t)k_max);
     if (ok) return 0;
     wf_window_destroy(w);
@@ -209,6 +210,17 @@ static void backup_blocks(WfWindow *w, const WfLane *ln, const WfStateVar *vars,
             if (restore) memcpy(d + off, bk + off, len);
             else memcpy(bk + off, d + off, len);
         }
+    }
+}
+
+void wf_window_prefault(WfWindow *w, const WfStateVar *vars, size_t n_vars, int part, int parts)
+{
+    unsigned char *bk = w->backup;
+    size_t lo = w->b_lo * B, hi = w->b_hi * B < w->n ? w->b_hi * B : w->n;
+    for (size_t j = 0; bk && j < n_vars; bk += vars[j++].size) {
+        size_t st = vars[j].stride;
+        if (st) wf_mem_prefault(bk + lo * st, (hi - lo) * st, part, parts);
+        else wf_mem_prefault(bk, vars[j].size, part, parts);
     }
 }
 

@@ -86,6 +86,11 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_
                      size_t tile_vehicles, long out_every, size_t state_bytes, WfError *err);
 void wf_window_destroy(WfWindow *w);
 
+/* The backup's pages of the state variables vars (the same list and order as every window's) for the blocks
+ * [b_lo, b_hi) this window steps, taken now (util/mem.h), not in the first window; a process stepping a share of a
+ * ring (docs/mpi.md) takes only its share's. Part `part` of `parts` of each (threads may take the parts at once). */
+void wf_window_prefault(WfWindow *w, const WfStateVar *vars, size_t n_vars, int part, int parts);
+
 /* Steps a window may take from `step` (1: one step at a time): at most k_max and max_steps; none across the opening
  * of the statistics window (warm_steps), a trajectory step (traj_every; 0: none), a record step (rec_every; 0: the
  * window records them, as a ring's does) or the final instant (n_steps), which step one at a time; none before

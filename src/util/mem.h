@@ -1,0 +1,19 @@
+/* First touch of the large per-vehicle arrays. Internal to wavefuel.
+ *
+ * A road of 10^7 vehicles keeps some 2 GB of arrays. The step's sums are first touched by `+=`: each 4 KiB page is
+ * then mapped to the shared zero page on the read and faults again, copy-on-write, on the write, with the other
+ * threads' TLB entries flushed; at 10^7 vehicles that took 2.5-3 s of the first steps on this project's machine.
+ * Taking the pages writable before the run, split between the threads, costs a third of that (bench/README.md,
+ * "First touch"). The call is advice: where the kernel refuses it (before Linux 5.14) the pages are taken by the
+ * step as before, and no value ever changes. */
+#ifndef WAVEFUEL_MEM_H
+#define WAVEFUEL_MEM_H
+
+#include <stddef.h>
+
+/* Take now, writable, the pages of [p, p + bytes) not yet in memory (madvise MADV_POPULATE_WRITE), without
+ * changing their contents: part `part` of `parts` of them, cut at 2 MiB-aligned addresses, so that threads taking
+ * the parts at once share no page (the kernel's clearing of new pages is then split between them). */
+void wf_mem_prefault(void *p, size_t bytes, int part, int parts);
+
+#endif
