@@ -9,9 +9,9 @@ classes through WAVEFUEL_VEHICLES. A NAME=PATH may carry environment settings af
 --bin narrow=bin/wavefuel,WAVEFUEL_SIMD=4 (the hand-written kernels capped at 4 lanes, docs/energy.md).
 
 With --steady the rate is that of the steps after the first: each case runs steps_for(N) steps and five times as
-many, and the rate is N x (the difference of the steps) / (the difference of the loops' wall times). At 10^7 vehicles
-the first of a run's 48 steps pay some 2-3 s of first writes to the arrays the step keeps (page faults of 2 GB):
-a run of hours does not, and the plain rate counts them.
+many, and the rate is N x (the difference of the steps) / (the difference of the loops' wall times): what the first
+steps pay once cancels (before 1aa3996, some 2-3 s of page faults of the step's 2 GB of arrays at 10^7 vehicles, which
+a ring now takes at its creation: src/util/mem.h).
 
 Usage: /usr/bin/python3 bench/ab/run.py --bin old=/tmp/wavefuel_old --bin new=bin/wavefuel
            [--sizes 100000,1000000,10000000] [--threads 1,2] [--repeats 3] [--steady] [--json FILE]
