@@ -505,12 +505,15 @@ static int members_init(WfRing *s, WfError *err)
 
 /* The pages of the per-vehicle state this process steps (and of its windows' copy), taken at creation rather than
  * by the step loop (util/mem.h): the sums are first touched by `+=`, which would map the zero page and fault again
- * on the write. Only this process's share of a ring split across processes (docs/mpi.md, Memory). */
+ * on the write. Only this process's share of a ring split across processes (docs/mpi.md, Memory). A share of fewer
+ * than WF_PAR_MIN vehicles (arrays of at most 32 kB: a few pages) is left to the step, without the system calls (an
+ * RL environment's ring is created every episode). */
 static void prefault_share(WfRing *s)
 {
     WfStateVar vars[WF_MAX_STATE_VARS];
-    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), n = s->f->n;
-    size_t lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < n ? s->b_hi * WF_BLOCK : n;
+    size_t n = s->f->n, lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < n ? s->b_hi * WF_BLOCK : n;
+    if (hi - lo < WF_PAR_MIN) return;
+    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
     if (nv > WF_MAX_STATE_VARS) nv = WF_MAX_STATE_VARS;
     int nt = wf_lane_threads(hi - lo, s->nthreads); /* the kernel clears new pages: split between the threads */
     WF_PAR_FOR(nt > 1, "omp parallel for schedule(static, 1) num_threads(nt) default(none) shared(s, vars, nv, lo, hi, nt)",
