@@ -53,6 +53,42 @@ static inline void FN(flag_bytes)(M negative, M above, uint8_t *out)
     memcpy(out, &fb, sizeof fb);
 }
 #endif
+/* lanes (<= WF_LANES) points from src + i; a tail's missing lanes repeat its last point (they are not stored). The
+ * tail goes through an array: a vector written lane by lane would live in memory, stored and reloaded in every
+ * iteration. */
+static inline __attribute__((always_inline)) V FN(vload)(const double *src, size_t i, size_t lanes)
+{
+    double t[WF_LANES];
+    const double *p = src + i;
+    if (lanes < WF_LANES) {
+        for (size_t l = 0; l < WF_LANES; l++) t[l] = src[i + (l < lanes ? l : lanes - 1)];
+        p = t;
+    }
+    V x;
+    memcpy(&x, p, sizeof x);
+    return x;
+}
+
+/* The fuel rates of lanes (<= WF_LANES) points, and their flags when flag is not NULL: a whole vector by vector
+ * stores (stored lane by lane, the stores cost a fifth of the kernel), a tail through arrays. */
+static inline __attribute__((always_inline)) void FN(vstore)(V f, M negative, M above, size_t lanes, double *fuel,
+                                                             uint8_t *flag)
+{
+    if (lanes == WF_LANES) {
+        memcpy(fuel, &f, sizeof f);
+        if (flag) FN(flag_bytes)(negative, above, flag);
+        return;
+    }
+    double tf[WF_LANES];
+    uint8_t fb[WF_LANES];
+    memcpy(tf, &f, sizeof f);
+    memcpy(fuel, tf, lanes * sizeof *tf);
+    if (flag) {
+        FN(flag_bytes)(negative, above, fb);
+        memcpy(flag, fb, lanes);
+    }
+}
+
 static inline V FN(vmin_nan)(V x, V y) { return FN(vselect)((x < y) | (y != y), x, y); } /* min_nan */
 static inline V FN(vmax_nan)(V x, V y) { return FN(vselect)((x > y) | (y != y), x, y); } /* max_nan */
 

@@ -36,33 +36,9 @@ static void WF_KBODY(const WfCirclesParams *restrict p, size_t n, const double *
     for (int l = 0; l < WF_LANES; l++) abs_bits[l] = INT64_MAX;
     for (size_t i = 0; i < n; i += WF_LANES) {
         size_t lanes = n - i < WF_LANES ? n - i : WF_LANES;
-        /* The tail's lanes go through arrays: a vector written lane by lane would live in memory, stored and
-         * reloaded in every iteration. */
-        const double *pv = v_in + i, *pa = a_in + i;
-        double tv[WF_LANES], ta[WF_LANES];
+        V v = FN(vload)(v_in, i, lanes), a = FN(vload)(a_in, i, lanes);
 #ifndef WF_FLAT
-        const double *pt = th_in + i;
-        double tt[WF_LANES];
-#endif
-        if (lanes < WF_LANES) { /* the tail: the last point fills the missing lanes, which are not stored */
-            for (size_t l = 0; l < WF_LANES; l++) {
-                size_t j = i + (l < lanes ? l : lanes - 1);
-                tv[l] = v_in[j], ta[l] = a_in[j];
-#ifndef WF_FLAT
-                tt[l] = th_in[j];
-#endif
-            }
-            pv = tv, pa = ta;
-#ifndef WF_FLAT
-            pt = tt;
-#endif
-        }
-        V v, a;
-        memcpy(&v, pv, sizeof v);
-        memcpy(&a, pa, sizeof a);
-#ifndef WF_FLAT
-        V th;
-        memcpy(&th, pt, sizeof th);
+        V th = FN(vload)(th_in, i, lanes);
 #endif
         /* 1-2. a_max from the raw v; flag from the original a: 2 if v < 0, else 1 if a > a_max. */
 #ifdef WF_FLAT
@@ -101,19 +77,6 @@ static void WF_KBODY(const WfCirclesParams *restrict p, size_t n, const double *
         /* 9. Idle, with the v of step 4 and the a of step 3. */
         V abs_a = (V)((M)a & abs_bits);
         f = FN(vselect)((v < idle_v) & (abs_a < idle_a), f_idle, f);
-        if (lanes == WF_LANES) { /* vector stores: lane by lane, the stores cost a fifth of the kernel */
-            memcpy(fuel + i, &f, sizeof f);
-            if (flag) FN(flag_bytes)(negative, above, flag + i);
-        } else {
-            double tf[WF_LANES];
-            uint8_t fb[WF_LANES];
-            memcpy(tf, &f, sizeof f);
-            memcpy(fuel + i, tf, lanes * sizeof *tf);
-            if (flag) {
-                FN(flag_bytes)(negative, above, fb);
-                memcpy(flag + i, fb, lanes);
-            }
-        }
+        FN(vstore)(f, negative, above, lanes, fuel + i, flag ? flag + i : NULL);
     }
 }
-
