@@ -1170,7 +1170,10 @@ static void measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, si
  * cell in memory. The class sums are vectors with a lane per class: a vehicle adds its distance and fuel to its
  * class's lane and +0 to the others, which leaves them unchanged (these sums start at +0 and never become -0), so
  * no branch depends on the class. With nv vectors, vector v holds classes 4 v .. 4 v + 3; packed (nv = 0, at most
- * two classes), one vector holds {distance of class 0, of class 1, fuel of class 0, of class 1}. */
+ * two classes), one vector holds {distance of class 0, fuel of class 0, distance of class 1, fuel of class 1}. The
+ * cell's distance and fuel sums are the two lanes of one vector too: a vehicle's {distance, fuel} is added to them
+ * by one instruction and, repeated into four lanes, to the packed class sums. */
+typedef double  V2 __attribute__((vector_size(16)));
 typedef double  V4 __attribute__((vector_size(32)));
 typedef int64_t M4 __attribute__((vector_size(32)));
 
@@ -1197,7 +1200,7 @@ static void lane_masks(M4 mk[][4], size_t nc, int nv, int on)
     for (size_t c = 0; c < nc; c++)
         for (int v = 0; v < (nv ? nv : 1); v++)
             for (int j = 0; j < 4; j++)
-                mk[c][v][j] = on && (nv ? (size_t)(4 * v + j) == c : (size_t)(j & 1) == c) ? -1 : 0;
+                mk[c][v][j] = on && (nv ? (size_t)(4 * v + j) == c : (size_t)(j >> 1) == c) ? -1 : 0;
 }
 
 /* x into the lanes mask selects of acc; the other lanes get +0. Vectors go by pointer: passing one by value would
@@ -1223,17 +1226,18 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
     const double *xold = ln->xold, *x = vh->x_m, *rate = vh->fuel_rate_gps;
     const uint32_t *cell = ln->cell;
     const uint16_t *cls = vh->class_id;
-    double sd = 0.0, st = 0.0, sf = 0.0;
+    double st = 0.0;
+    V2 sdf = {0.0, 0.0}; /* the cell's distance and fuel */
     V4 cd0 = {0}, cd1 = {0}, cd2 = {0}, cd3 = {0}, cf0 = {0}, cf1 = {0}, cf2 = {0}, cf3 = {0};
     M4 mk[WF_MAX_CLASSES][4];
     lane_masks(mk, nc, nv, in_window);
 #define FLUSH()                                                                                                     \
     do {                                                                                                            \
         if (held == SIZE_MAX) break;                                                                                \
-        row_d[held] = sd, row_t[held] = st, row_f[held] = sf;                                                       \
+        row_d[held] = sdf[0], row_t[held] = st, row_f[held] = sdf[1];                                               \
         if (nv == 0) {                                                                                              \
-            cdist[held] = cd0[0], cfuel[held] = cd0[2];                                                             \
-            if (nc > 1) cdist[nx + held] = cd0[1], cfuel[nx + held] = cd0[3];                                       \
+            cdist[held] = cd0[0], cfuel[held] = cd0[1];                                                             \
+            if (nc > 1) cdist[nx + held] = cd0[2], cfuel[nx + held] = cd0[3];                                       \
         } else {                                                                                                    \
             lanes_store(&cd0, cdist, nx, held, 0, nc), lanes_store(&cf0, cfuel, nx, held, 0, nc);                   \
         }                                                                                                           \
@@ -1264,9 +1268,9 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
             }
             if (i != held) {
                 FLUSH();
-                held = i, sd = row_d[i], st = row_t[i], sf = row_f[i];
+                held = i, sdf = (V2){row_d[i], row_f[i]}, st = row_t[i];
                 if (nv == 0)
-                    cd0 = (V4){cdist[i], nc > 1 ? cdist[nx + i] : 0.0, cfuel[i], nc > 1 ? cfuel[nx + i] : 0.0};
+                    cd0 = (V4){cdist[i], cfuel[i], nc > 1 ? cdist[nx + i] : 0.0, nc > 1 ? cfuel[nx + i] : 0.0};
                 else
                     lanes_load(&cd0, cdist, nx, i, 0, nc), lanes_load(&cf0, cfuel, nx, i, 0, nc);
                 if (nv > 1) lanes_load(&cd1, cdist, nx, i, 1, nc), lanes_load(&cf1, cfuel, nx, i, 1, nc);
@@ -1276,10 +1280,11 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
             do {
                 s--;
                 double d = x[s] - xold[s], fuel = rate[s] * dt;
-                sd += d, st += dt, sf += fuel;
+                V2 df2 = {d, fuel};
+                sdf += df2, st += dt;
                 const M4 *m4 = mk[cls[s]];
                 if (nv == 0) {
-                    V4 df = {d, d, fuel, fuel};
+                    V4 df = {d, fuel, d, fuel};
                     lane_add(&cd0, m4, &df);
                 } else {
                     V4 dv = {d, d, d, d}, fv = {fuel, fuel, fuel, fuel};
