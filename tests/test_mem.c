@@ -118,7 +118,24 @@ static size_t pages_in(const void *a, size_t stride, size_t n, size_t lo, size_t
 
 static int no_call(void *ctx, WfError *err) { (void)ctx, (void)err; return 0; }
 
-static void check_share(const char *what, int size, int rank)
+/* Whether calloc leaves a large array's pages untouched (glibc's mappings do; a sanitizer's allocator may clear or
+ * reuse them): only then can pages outside a share show what the run took. */
+static int calloc_untouched(void)
+{
+    size_t bytes = (size_t)1 << 20, pg = page_bytes(), np = bytes / pg;
+    unsigned char *a = calloc(bytes, 1), *in = malloc(np);
+    size_t taken = 0;
+    if (a && in) {
+        uintptr_t base = ((uintptr_t)a + pg - 1) & ~(uintptr_t)(pg - 1);
+        resident((unsigned char *)base, 0, np - 1, in);
+        for (size_t k = 0; k + 1 < np; k++) taken += in[k];
+    }
+    free(a), free(in);
+    if (taken) printf("  this allocator touches calloc'd memory: pages outside a share are not checked\n");
+    return a && !taken;
+}
+
+static void check_share(const char *what, int size, int rank, int check_outside)
 {
     char dir[] = "/tmp/wf_mem_XXXXXX", path[64];
     WfError err = {0};
@@ -143,8 +160,8 @@ static void check_share(const char *what, int size, int rank)
             size_t missing, outside, pages = pages_in(sums[j].a, sums[j].stride, n, lo, hi, &missing, &outside);
             CHECK(missing == 0, "%s: %s: %zu of the share's %zu pages not taken at creation", what, sums[j].name,
                   missing, pages);
-            CHECK(outside == 0, "%s: %s: %zu pages outside the share [%zu, %zu) taken", what, sums[j].name, outside,
-                  lo, hi);
+            CHECK(outside == 0 || !check_outside, "%s: %s: %zu pages outside the share [%zu, %zu) taken", what,
+                  sums[j].name, outside, lo, hi);
         }
     }
     wf_sim_destroy(&sim);
@@ -155,8 +172,9 @@ static void check_share(const char *what, int size, int rank)
 static void test_ring_takes_its_share(void)
 {
     if (!populate_supported()) return;
-    check_share("one process", 1, 0);
-    check_share("rank 1 of 3", 3, 1);
+    int outside = calloc_untouched();
+    check_share("one process", 1, 0, outside);
+    check_share("rank 1 of 3", 3, 1, outside);
 }
 
 int main(void)
