@@ -84,13 +84,13 @@ static void test_prefault_parts(void)
     munmap(map, span);
 }
 
-/* A ring of 20 000 vehicles with noise and two classes: every per-vehicle sum of its step resident right after
+/* A ring of 100 000 vehicles with noise and two classes: every per-vehicle sum of its step resident right after
  * creation, before any step; split in three, the middle share's sums alone. */
 static const char *ring_yaml =
     "seed: 3\n"
-    "road: {length_m: 500000}\n"
+    "road: {length_m: 2500000}\n"
     "time: {duration_s: 1, dt_s: 0.1, output_interval_s: 0.1, warmup_s: 0}\n"
-    "fleet:\n  vehicles: 20000\n  placement: random\n"
+    "fleet:\n  vehicles: 100000\n  placement: random\n"
     "  classes:\n    - {class: midsize_sedan, fraction: 0.9}\n    - {class: class8_tractor, fraction: 0.1}\n"
     "  drivers:\n    - {model: idm, fraction: 1.0, noise_mps2: 0.1}\n"
     "initial: {state: equilibrium}\n";
@@ -118,11 +118,11 @@ static size_t pages_in(const void *a, size_t stride, size_t n, size_t lo, size_t
 
 static int no_call(void *ctx, WfError *err) { (void)ctx, (void)err; return 0; }
 
-/* Whether calloc leaves a large array's pages untouched (glibc's mappings do; a sanitizer's allocator may clear or
- * reuse them): only then can pages outside a share show what the run took. */
-static int calloc_untouched(void)
+/* Whether calloc leaves the pages of an array of `bytes` untouched (glibc's mappings do; a sanitizer's allocator may
+ * clear or reuse them): only then can pages outside a share show what the run took. */
+static int calloc_untouched(size_t bytes)
 {
-    size_t bytes = (size_t)1 << 20, pg = page_bytes(), np = bytes / pg;
+    size_t pg = page_bytes(), np = bytes / pg;
     unsigned char *a = calloc(bytes, 1), *in = malloc(np);
     size_t taken = 0;
     if (a && in) {
@@ -172,7 +172,7 @@ static void check_share(const char *what, int size, int rank, int check_outside)
 static void test_ring_takes_its_share(void)
 {
     if (!populate_supported()) return;
-    int outside = calloc_untouched();
+    int outside = calloc_untouched(100000 * sizeof(uint32_t)); /* the smallest of the sums checked */
     check_share("one process", 1, 0, outside);
     check_share("rank 1 of 3", 3, 1, outside);
 }
