@@ -84,7 +84,7 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_
     w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
     w->halo = calloc(w->n_chunks, sizeof *w->halo);
     w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
-    w->backup = calloc(state_bytes, 1); /* its pages are taken by wf_window_prefault, of a share only */
+    w->backup = calloc(state_bytes, 1); /* untouched: the caller takes the pages it will use (wf_window_prefault) */
     int ok = w->halo && w->rec && w->backup;
     for (size_t c = 0; ok && c < w->n_chunks; c++) ok = halo_alloc(&w->halo[c], ln, (size_t)k_max);
     if (ok) return 0;

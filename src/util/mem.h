@@ -3,9 +3,10 @@
  * A road of 10^7 vehicles keeps some 2 GB of arrays. The step's sums are first touched by `+=`: each 4 KiB page is
  * then mapped to the shared zero page on the read and faults again, copy-on-write, on the write, with the other
  * threads' TLB entries flushed; at 10^7 vehicles that took 2.5-3 s of the first steps on this project's machine.
- * Taking the pages writable before the run, split between the threads, costs a third of that (bench/README.md,
- * "First touch"). The call is advice: where the kernel refuses it (before Linux 5.14) the pages are taken by the
- * step as before, and no value ever changes. */
+ * Taking the pages writable when the run is created, split between the threads, brought the whole run of 48 steps
+ * on two threads from 13.7 to 11.9 s (bench/README.md, "Session 18: first touch of the step's arrays"). The call is
+ * advice: where the kernel refuses it (before Linux 5.14) the pages are taken by the step as before, and no value
+ * ever changes. */
 #ifndef WAVEFUEL_MEM_H
 #define WAVEFUEL_MEM_H
 
