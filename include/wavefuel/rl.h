@@ -60,6 +60,11 @@ void wf_rl_batch_observe(const WfRlBatch *b, double *obs);
  * several times slower than one. The results never depend on it. */
 int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
                      WfError *errs);
+/* Calls so far whose steps the runs took side by side: rings of at most 256 vehicles (the kernel's block) with the
+ * same kernel (integrator, classes, driver groups and their parameters; flat, no speed limit, zone or safety filter;
+ * src/core/gang.h) packed into shared blocks, when none of their steps records, ends the run or meets a fault. The
+ * same bits as the runs stepped one by one. */
+long wf_rl_batch_gang_calls(const WfRlBatch *b);
 /* The thread governor's interval: calls between its probes of the other thread count (WF_RL_THREAD_CHECK by
  * default; 0: always `threads`), set and read. Its probes and switches so far into *probes and *switches (either
  * may be NULL). */

@@ -246,6 +246,7 @@ _SIGNATURES = {
     "wf_rl_batch_step": (C.c_int, [_vp, _vp, C.c_int, _vp, _vp, _vp, _vp]),
     "wf_rl_batch_set_thread_check": (None, [_vp, C.c_long]),
     "wf_rl_batch_thread_check": (C.c_long, [_vp]),
+    "wf_rl_batch_gang_calls": (C.c_long, [_vp]),
     "wf_rl_batch_governor": (None, [_vp, C.POINTER(C.c_long), C.POINTER(C.c_long)]),
     "wf_corridor_vehicles": (C.POINTER(WfCorridorVehicles), [_vp]),
     "wf_corridor_n_lanes": (C.c_size_t, [_vp]),

@@ -81,6 +81,11 @@ class RlBatch:
         """Calls between the thread governor's probes (0: never probes)."""
         return lib.wf_rl_batch_thread_check(self._b)
 
+    def gang_calls(self):
+        """Calls so far whose steps the runs took side by side in shared blocks of the kernel (rings of at most 256
+        vehicles with the same kernel; include/wavefuel/rl.h): the same bits as one by one."""
+        return lib.wf_rl_batch_gang_calls(self._b)
+
     def governor(self):
         """(probes, switches) of the thread governor so far."""
         p, s = C.c_long(), C.c_long()

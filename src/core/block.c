@@ -318,18 +318,31 @@ AI void leader_lengths(const WfLane *ln, const uint16_t *restrict cid, size_t pa
 /* Inputs at the step's start, accelerations and (WF_PASS_ENERGY) fuel rates of the block in slots [lo, lo + m);
  * its last vehicle's leader is ld; co: where a counting pass counts the safety filters' interventions, or NULL. */
 AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, long step, int pass,
-                     WfStatsBlock *rec, Blk *b, WfChunkOut *co)
+                     WfStatsBlock *rec, Blk *b, WfChunkOut *co, const WfSeg *sg, size_t ns)
 {
     const WfScenario *sc = ln->sc;
     const double *x = ln->x_m + lo, *v = ln->v_mps + lo;
     const uint16_t *cid = ln->class_id + lo;
     double z[B], cap[B];
-    if (ln->noisy) lane_noise(sc->seed, ln->key0 + lo, m, step, z);
+    if (ln->noisy && !sg) lane_noise(sc->seed, ln->key0 + lo, m, step, z);
+    /* rings side by side (wf_lane_gang_block): each ring's draws are those of its block 0 at its step */
+    for (size_t r = 0; ln->noisy && r < ns; r++)
+        wf_rng_normal_block(sg[r].seed, WF_RNG_NOISE_BLOCK, 0, (uint64_t)sg[r].step, sg[r].n, z + (sg[r].lo - lo));
     size_t pairs = m ? m - 1 : 0;
     leader_lengths(ln, cid, pairs, b->ll);
     for (size_t k = 0; k + 1 < m; k++) {
         b->gap[k] = x[k + 1] - b->ll[k] - x[k];
         b->vl[k] = v[k + 1];
+    }
+    /* Side by side, the last vehicle of each ring but the block's last follows its ring's first one lap ahead
+     * (front_lead's expression), and is not its neighbour's follower: a leader length of -inf leaves that pair out
+     * of the block's overlap count (stats_after; wf_lane_gang_block checks each ring's own edge). */
+    for (size_t r = 0; r + 1 < ns; r++) {
+        size_t k = sg[r].lo + sg[r].n - 1 - lo, f = sg[r].lo - lo;
+        double rear = (x[f] + sg[r].period_m) - ln->class_length_m[cid[f]];
+        b->gap[k] = rear - x[k];
+        b->vl[k] = v[f];
+        b->ll[k] = -INFINITY;
     }
     if (ld->free_gap_m > 0.0) {
         b->gap[m - 1] = ld->free_gap_m;
@@ -521,7 +534,7 @@ static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long ste
     if (!(pass & WF_PASS_ACCEL))
         return advance_block(ln, lo, m, ln->out.a_mps2 + lo, ln->out.gap_m + lo, ln->out.v_lead_mps + lo, ln->out.fuel_rate_gps + lo,
                              ln->out.flag + lo, NULL, in_window);
-    inputs_block(ln, lo, m, ld, step, pass, rec, &b, co);
+    inputs_block(ln, lo, m, ld, step, pass, rec, &b, co, NULL, 0);
     if (ln->out.a_mps2) memcpy(ln->out.a_mps2 + lo, b.a, m * sizeof *b.a);
     if (ln->out.gap_m) memcpy(ln->out.gap_m + lo, b.gap, m * sizeof *b.gap);
     if (ln->out.v_lead_mps) memcpy(ln->out.v_lead_mps + lo, b.vl, m * sizeof *b.vl);
@@ -607,6 +620,26 @@ static int run_chunk(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, s
     WfLead ld = b1 == nb ? front_lead(ln, first, xs, vs, front)
                          : (WfLead){xs - ln->class_length_m[ln->class_id[nx]], vs, 0.0};
     return wf_lane_tile(ln, first, n, b0, b1, step, 1, &ld, NULL, NULL, pass, in_window, &rec, co);
+}
+
+/* Rings side by side: the inputs with each ring's own noise and leaders, the fused advance of the whole block. */
+WF_SIMD_CLONES
+static int gang_block(WfLane *ln, const WfSeg *sg, size_t ns, int in_window, WfChunkOut *co)
+{
+    Blk b;
+    const WfSeg *l = &sg[ns - 1];
+    size_t lo = sg[0].lo, m = l->lo + l->n - lo;
+    WfLead ld = {(ln->x_m[l->lo] + l->period_m) - ln->class_length_m[ln->class_id[l->lo]], ln->v_mps[l->lo], 0.0};
+    inputs_block(ln, lo, m, &ld, 0, WF_PASS_FUSED | WF_PASS_COUNT, NULL, &b, co, sg, ns);
+    return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, b.ll, in_window);
+}
+
+int wf_lane_gang_block(WfLane *ln, const WfSeg *sg, size_t ns, int in_window, WfChunkOut *co, int *edge)
+{
+    int fl = gang_block(ln, sg, ns, in_window, co);
+    for (size_t r = 0; r < ns; r++)
+        edge[r] = sg[r].n > 1 ? edge_overlap(ln, sg[r].lo + sg[r].n - 1, sg[r].lo, sg[r].period_m) : 0;
+    return fl;
 }
 
 int wf_lane_chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_t nb)

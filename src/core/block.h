@@ -42,6 +42,10 @@ typedef struct WfAccum {
     double   *fuel_g, *stopped_s, *dist_m, *sum_v, *sum_v2, *sum_a, *sum_a2;
     uint32_t *stopped_steps, *steps, *stops, *hard_brakes, *infeasible;
 } WfAccum;
+/* X(field) for every array of a WfAccum: the code that moves or views all of them. */
+#define WF_ACCUM_FIELDS(X)                                                                                         \
+    X(fuel_g) X(stopped_s) X(dist_m) X(sum_v) X(sum_v2) X(sum_a) X(sum_a2) X(stopped_steps) X(steps) X(stops)      \
+    X(hard_brakes) X(infeasible)
 
 /* What one thread's chunk of a pass reports: its WF_STEP_* flags and, in a counting pass, per driver group, the
  * vehicle-steps under a safety filter and those whose acceleration the filter changed. */
@@ -163,6 +167,19 @@ int wf_lane_step_part(WfLane *ln, size_t first, size_t n, size_t bb0, size_t bb1
  * once the vehicle ahead has moved. co: the safety counts of a counting pass, or NULL. Returns WF_STEP_* flags. */
 int wf_lane_tile(WfLane *ln, size_t first, size_t n, size_t b0, size_t b1, long step0, int k, const WfLead *lead,
                  double *tx, double *tv, int pass, int in_window, WfStatsBlock *const *recs, WfChunkOut *co);
+/* One ring of a gang block (src/core/gang.c): its vehicles in slots [lo, lo + n) of the gang's lane, its length,
+ * its noise seed (the scenario's) and the step it takes. */
+typedef struct WfSeg {
+    size_t   lo, n;
+    double   period_m;
+    uint64_t seed;
+    long     step;
+} WfSeg;
+/* A fused, counting step of the rings sg[0 .. ns), which fill consecutive slots of ln (at most WF_BLOCK in all), each
+ * as it steps alone on its own periodic lane (the same draws, leaders, accumulators and bits); ln's period_m, seed
+ * and key0 are not used. Returns the WF_STEP_* flags of the block (overlaps inside any of its rings, faults) and sets
+ * edge[r] to WF_STEP_OVERLAP when ring r's last vehicle overlaps its first one lap ahead, else 0. */
+int wf_lane_gang_block(WfLane *ln, const WfSeg *sg, size_t ns, int in_window, WfChunkOut *co, int *edge);
 /* WF_STEP_OVERLAP when the last vehicle of the chunk of blocks ending at b1 overlaps the vehicle ahead (the next
  * chunk's first, or on a periodic lane the back vehicle one period ahead), once both have moved. */
 int wf_lane_chunk_edge(const WfLane *ln, size_t first, size_t n, size_t b1, size_t nb);

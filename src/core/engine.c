@@ -174,10 +174,11 @@ static void lane_views(WfRing *s)
         v->group_id = OFF(a->group_id), v->slot = OFF(a->slot), v->sslot = OFF(a->sslot);
         v->grade_seg = OFF(a->grade_seg), v->mode = OFF(a->mode), v->x_old_m = OFF(a->x_old_m);
         WfAccum *ac[2] = {&v->always, &v->window};
-        for (int q = 0; q < 2; q++)
-            *ac[q] = (WfAccum){OFF(ac[q]->fuel_g), OFF(ac[q]->stopped_s), OFF(ac[q]->dist_m), OFF(ac[q]->sum_v),
-                               OFF(ac[q]->sum_v2), OFF(ac[q]->sum_a), OFF(ac[q]->sum_a2), OFF(ac[q]->stopped_steps),
-                               OFF(ac[q]->steps), OFF(ac[q]->stops), OFF(ac[q]->hard_brakes), OFF(ac[q]->infeasible)};
+#define SHIFT(fld) ac[q]->fld = OFF(ac[q]->fld);
+        for (int q = 0; q < 2; q++) {
+            WF_ACCUM_FIELDS(SHIFT)
+        }
+#undef SHIFT
         WfLaneValues *o = &v->out;
         *o = (WfLaneValues){OFF(o->a_mps2), OFF(o->gap_m), OFF(o->v_lead_mps), OFF(o->theta_rad),
                             OFF(o->fuel_rate_gps), OFF(o->flag)};
@@ -1026,6 +1027,39 @@ static int ring_restored(void *eng, WfError *err)
         wf_ode_reinit(s->ode, (double)s->steps_done * s->sc->dt_s, s->f->x_m, s->f->v_mps, &e);
     }
     return 0;
+}
+
+/* ------------------------------------------------------------- rings stepped side by side (src/core/gang.c) */
+
+WfLane *wf_ring_gang_lane(WfSim *sim)
+{
+    if (sim->b != &wf_boundary_periodic) return NULL;
+    WfRing *s = sim->eng;
+    return s->ode || s->part || s->f->n_lanes > 1 ? NULL : &s->lane;
+}
+
+/* Whether step `step` .. step + k - 1 record nothing: no multiple of `every` among them. */
+static int none_due(long step, long k, long every)
+{
+    long next = (step + every - 1) / every * every;
+    return next >= step + k;
+}
+
+int wf_ring_gang_plain(const WfSim *sim, long k)
+{
+    const WfRing *s = sim->eng;
+    long step = s->steps_done;
+    return wf_ring_gang_lane((WfSim *)sim) && s->sc->fused_step && s->f->window_open && step >= s->warm_steps &&
+           step + k <= s->n_steps && s->fault_vehicle < 0 && none_due(step, k, s->out_every) &&
+           (!s->sc->trajectories || none_due(step, k, s->traj_every));
+}
+
+int wf_ring_gang_settle(WfSim *sim, long step, int flags, WfError *err)
+{
+    WfRing *s = sim->eng;
+    s->cur_step = step;
+    s->repaired = flags ? phase_overlaps(s) > 0 : 0;
+    return s->fault_vehicle >= 0 ? numerical_fault(s, step, err) : 0;
 }
 
 /* Vehicle i of group g, the k-th in ring order: its inputs of the next step to fn. */

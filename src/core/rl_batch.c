@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "core/batch.h"
+#include "core/gang.h"
 #include "core/governor.h"
 #include "core/sim.h"
 #include "util/clock.h"
@@ -32,6 +33,9 @@ struct WfRlBatch {
     long          action_steps;
     double        dt_s;                   /* of an action */
     WfGovernor    gov;                    /* the threads of each call, for the threads asked (gov.n_max) */
+    WfGang       *gang;                   /* the runs stepped side by side, when they can be (gang.h); NULL */
+    WfError      *gerr;                   /* per run: the gang's errors of a call */
+    long          gang_calls;             /* calls the gang stepped */
     long          gov_every;              /* calls between its probes */
     /* per vehicle, runs one after the other, each in road order */
     double       *v0, *v1, *a, *fuel, *cv, *ca, *cf, *zero;
@@ -65,7 +69,8 @@ void wf_rl_batch_destroy(WfRlBatch **pb)
 {
     if (!pb || !*pb) return;
     WfRlBatch *b = *pb;
-    void *arrays[] = {b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
+    wf_gang_destroy(&b->gang);
+    void *arrays[] = {b->gerr, b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
                       b->scope, b->flag, b->obs0, b->obs1, b->a_prev};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(b);
@@ -126,6 +131,8 @@ int wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, c
     /* The first observation validates the groups (external, sizes). */
     if (!rc) rc = wf_sims_observe(sims, n_runs, b->group, b->obs0, b->n_rows, err);
     for (size_t k = 0; !rc && k < n_runs; k++) layout_run(b, k);
+    if (!rc && !(b->gerr = calloc(n_runs, sizeof *b->gerr))) rc = wf_err(err, WF_ESYS, "out of memory");
+    if (!rc) rc = wf_gang_create(sims, n_runs, &b->gang, err);
     for (size_t j = 0; !rc && j < b->n_rows; j++) b->a_prev[j] = NAN; /* no previous action: no jerk */
     if (rc) wf_rl_batch_destroy(&b);
     *out = b;
@@ -233,6 +240,32 @@ static int step_run(void *ctx, size_t k, WfError *err)
     return rc;
 }
 
+/* Run k after the gang's steps: its error, or its observation and reward. */
+static int reward_run(void *ctx, size_t k, WfError *err)
+{
+    const RlStep *c = ctx;
+    int rc = c->b->gerr[k].code;
+    if (rc) *err = c->b->gerr[k];
+    else rc = run_reward(c->b, k, c->reward, c->info, err);
+    if (rc) wf_err_prefix(err, "run %zu of the batch: ", k);
+    return rc;
+}
+
+/* Every run's commands, then the gang's steps and each run's reward, when the runs' next steps are plain ones and
+ * every command is valid; else 0 and nothing stepped (the commands set are set again by step_run). */
+static int gang_step(const RlStep *c, int nt, WfError *errs, int *rc)
+{
+    WfRlBatch *b = c->b;
+    if (!b->gang || !wf_gang_ready(b->gang, b->action_steps)) return 0;
+    for (size_t k = 0; k < b->n_runs; k++)
+        if (wf_sim_set_actions(b->sims[k], b->group[k], c->actions + b->run[k].row, b->run[k].m, &errs[k]))
+            return 0;
+    wf_gang_step(b->gang, b->action_steps, nt, b->gerr);
+    b->gang_calls++;
+    *rc = wf_runs_each(b->n_runs, nt, reward_run, (void *)c, errs);
+    return 1;
+}
+
 int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
                      WfError *errs)
 {
@@ -240,10 +273,10 @@ int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *o
     if (threads < 1) threads = 1;
     /* A call lasts some 50 us: the first on another thread count is not timed (governor.h, settle). */
     if (b->gov.n_max != threads) wf_governor_init(&b->gov, threads, b->gov_every, 1);
-    int nt = wf_governor_threads(&b->gov);
+    int nt = wf_governor_threads(&b->gov), rc = 0;
     /* not timed: a call on one run or one thread (nothing to choose) */
     double t0 = threads > 1 && b->n_runs > 1 ? wf_wall_now() : 0.0;
-    int rc = wf_runs_each(b->n_runs, nt, step_run, &c, errs);
+    if (!gang_step(&c, nt, errs, &rc)) rc = wf_runs_each(b->n_runs, nt, step_run, &c, errs);
     if (t0 > 0.0) wf_governor_done(&b->gov, wf_wall_now() - t0, (double)b->n_veh * (double)b->action_steps);
     if (!rc && obs) wf_rl_batch_observe(b, obs);
     return rc;
@@ -256,6 +289,7 @@ void wf_rl_batch_set_thread_check(WfRlBatch *b, long calls)
 }
 
 long wf_rl_batch_thread_check(const WfRlBatch *b) { return b->gov_every; }
+long wf_rl_batch_gang_calls(const WfRlBatch *b) { return b->gang_calls; }
 
 void wf_rl_batch_governor(const WfRlBatch *b, long *probes, long *switches)
 {

@@ -127,9 +127,22 @@ static int sim_step(WfSim *s, long n, int timed, WfError *err)
         return wf_err(err, WF_EINPUT, "%s: %s", s->sc->path,
                       s->finished ? "the run has ended: no step is left" : "wf_sim_begin first");
     s->loop.wall_s = timed ? &s->wall_s : NULL;
+    s->epoch++;
     int rc = wf_loop_advance(&s->loop, &s->ls, n, err);
     return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
 }
+
+int wf_sim_gang_ready(const WfSim *s, long k)
+{
+    const WfLoop *lp = &s->loop;
+    return s->begun && !s->finished && !s->mlp_rows && !lp->progress && !lp->stop &&
+           !(lp->checkpoint && lp->checkpoint_every_s > 0) && !s->ls.reason && !s->ls.at_end &&
+           s->b == &wf_boundary_periodic && wf_ring_gang_plain(s, k);
+}
+
+void wf_sim_gang_done(WfSim *s, long k) { *s->steps_done += k; }
+
+int wf_sim_gang_fail(WfSim *s, int rc, WfError *err) { return finish(s, rc, err); }
 
 int wf_sim_step(WfSim *s, long n, WfError *err) { return sim_step(s, n, 1, err); }
 int wf_sim_step_untimed(WfSim *s, long n, WfError *err) { return sim_step(s, n, 0, err); }
@@ -168,7 +181,11 @@ void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s)
     s->checkpoint_every_s = s->loop.checkpoint_every_s = wall_s;
 }
 size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max) { return s->b->state(s->eng, vars, max); }
-int wf_sim_restored(WfSim *s, WfError *err) { return s->b->restored(s->eng, err); }
+int wf_sim_restored(WfSim *s, WfError *err)
+{
+    s->epoch++;
+    return s->b->restored(s->eng, err);
+}
 
 /* ---- external controllers (models with `external` set: src/models/cf/external.c) ---- */
 

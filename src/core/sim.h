@@ -45,6 +45,20 @@ extern const WfBoundary wf_boundary_periodic, wf_boundary_open;
  * rings. */
 int wf_sim_step_untimed(WfSim *s, long n, WfError *err);
 
+/* Rings stepped side by side (src/core/gang.c), one ring's part. wf_ring_gang_lane: a single-lane ring's lane as
+ * the kernel sees it (fixed-step, not split across processes), else NULL. wf_ring_gang_plain: whether its next k
+ * steps are plain fused steps (its statistics window open, no record, trajectory frame or final instant among them,
+ * no fault). wf_ring_gang_settle: what ring_step does after a plain step's pass, whose flags were `flags` (the
+ * overlap repair, the numerical fault's error). wf_sim_gang_ready: the run's next k steps can be taken so (begun,
+ * not ended, no mlp group, no progress, checkpoint or stop flag to serve, a plain ring); wf_sim_gang_done: they
+ * were; wf_sim_gang_fail: the run ends with the error rc (as the step loop ends it). */
+WfLane *wf_ring_gang_lane(WfSim *sim);
+int     wf_ring_gang_plain(const WfSim *sim, long k);
+int     wf_ring_gang_settle(WfSim *sim, long step, int flags, WfError *err);
+int     wf_sim_gang_ready(const WfSim *s, long k);
+void    wf_sim_gang_done(WfSim *s, long k);
+int     wf_sim_gang_fail(WfSim *s, int rc, WfError *err);
+
 struct WfSim {
     const WfScenario *sc;       /* borrowed */
     const WfBoundary *b;
@@ -58,6 +72,9 @@ struct WfSim {
     WfLoop            loop;     /* set by wf_sim_begin */
     WfLoopState       ls;
     int               begun, finished;
+    /* Counts the changes of the state by anything but a gang (src/core/gang.c): steps through the step loop,
+     * restores from a checkpoint. A gang that holds a copy of the state knows it is still the run's. */
+    unsigned long     epoch;
     /* `model: mlp` groups (src/core/sim.c: mlp_command): the observation rows and commands of one group's batch,
      * room for the most vehicles a group can have on the road; NULL when no group is mlp. Owned. */
     double           *mlp_rows, *mlp_cmd;

@@ -10,6 +10,8 @@
 - VectorEnv: the bits of the same environments stepped one by one (observations, rewards and their terms,
   truncations, autoresets), on 1 and 2 threads, rings of different lengths and trajectories of different traces; an
   environment's observations equal a plain Simulation's driven by set_actions / step / observe.
+- VectorEnv's small rings stepped side by side in shared blocks of the kernel: the bits of the rings alone, across a
+  record step and overlap repairs.
 - The library's batch calls (wf_sims_set_actions, wf_sims_step, wf_sims_observe) equal the runs stepped alone.
 - Refusals: commands to a group that is not external, the wrong count, an infinite command, an unknown group."""
 import os
@@ -347,6 +349,43 @@ def test_vector_env(tmp):
           and refused(lambda: wf.envs.Reward(w_jerk=-1), "w_jerk"))
 
 
+def test_vector_env_side_by_side():
+    """VectorEnv's rings stepped side by side in shared blocks of the kernel (src/core/gang.c) against the same
+    environments alone: 12 rings of 22 vehicles (two blocks), every other one automated (vehicle 21 among them, the
+    follower of vehicle 0 one lap ahead), 1000 actions across every run's record step (step 1000: that action the
+    runs step one by one), ring 0's automated vehicles driving into their leaders (overlap repairs inside the shared
+    blocks, across the ring's wrap too), ring 1's braking to rest; every observation and reward, and at the end every
+    run's positions, speeds and fuel, the same bits, on 1 and 2 threads."""
+    n, acts = 12, 1000
+    per_env = [{"length_range_m": (230.0 + 3 * i, 231.0 + 3 * i)} for i in range(n)]
+    kw = dict(warmup_s=2.0, horizon_s=200.0, n_av=11)
+    actions = np.random.default_rng(7).uniform(-1.0, 1.0, (acts, n, 11))
+    actions[:, 0], actions[:, 1] = 3.0, -3.0
+    alone = [wf.envs.RingEnv(**kw, **per_env[i]) for i in range(n)]
+    for i, e in enumerate(alone):
+        e.reset(seed=30 + i)
+    ref = []
+    for u in actions:
+        rows = [e.step(u[i]) for i, e in enumerate(alone)]
+        ref.append((np.stack([r[0] for r in rows]), np.array([r[1] for r in rows])))
+    keys = ("x_m", "v_mps", "fuel_g")
+    final = [{k: e.sim.state()[k].copy() for k in keys} for e in alone]
+    # a repaired follower stands at its leader's rear: vehicle 21 (the last row) behind vehicle 0 too
+    repaired = min(o[0][0, 0, 2] for o in ref) == 0.0 and min(o[0][0, -1, 2] for o in ref) == 0.0
+    for e in alone:
+        e.close()
+    for threads in (1, 2):
+        venv = wf.envs.VectorEnv(n, threads=threads, thread_check=0, per_env=per_env, **kw)
+        venv.reset(seed=30)
+        bad = [k for k, u in enumerate(actions) if (lambda o: o[0].tobytes() != ref[k][0].tobytes()
+                                                    or o[1].tobytes() != ref[k][1].tobytes())(venv.step(u))]
+        same = all(venv.envs[i].sim.state()[k].tobytes() == final[i][k].tobytes() for i in range(n) for k in keys)
+        gang = venv._batch.gang_calls()
+        check(f"vector_env_side_by_side_equals_alone_threads_{threads}",
+              not bad and same and gang == acts - 1 and repaired, (bad[:5], same, gang, repaired))
+        venv.close()
+
+
 def test_sims_batch():
     """The library's batch calls (engine.h: wf_sims_set_actions, wf_sims_step on 2 threads, wf_sims_observe) on two
     rings of different lengths and seeds against each run stepped alone through Simulation."""
@@ -398,6 +437,7 @@ def main():
         test_trajectory_env(tmp)
         test_reward_terms()
         test_vector_env(tmp)
+        test_vector_env_side_by_side()
         test_sims_batch()
     return 1 if failures else 0
 

@@ -1,0 +1,255 @@
+/* Small rings stepped side by side (gang.h). A ring of 22 vehicles is one short block of the kernel, whose loops'
+ * set-up, the engine's step and the step loop then cost more than its vehicles (64 RL rings: some 3 k instructions
+ * a ring-step of fixed costs against 1.3 k of its vehicles' own work, bench/README.md). Here the rings' vehicles are
+ * copied into one lane, run after run, and whole rings are packed into blocks of at most WF_BLOCK vehicles; each
+ * block steps as one (wf_lane_gang_block), every ring with its own noise stream, its last vehicle following its
+ * first one lap ahead, its own accumulators: the bits of the ring stepped alone. The rings' state is copied in at
+ * the start of a call and out at its end (the runs stay what Python and the checkpoints read between calls). */
+#include "core/gang.h"
+
+#include <limits.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "core/batch.h"
+#include "core/block.h"
+#include "core/sim.h"
+#include "wavefuel/fleet.h"
+
+struct WfGang {
+    WfSim *const *sims;      /* borrowed */
+    size_t        n_runs, n_blocks;
+    WfLane        ln;        /* the rings' vehicles in one lane, run after run (owned arrays) */
+    WfRoadOps     ops;       /* a flat road without limits: no hooks */
+    size_t       *off;       /* n_runs + 1: run r's vehicles are slots [off[r], off[r + 1]) */
+    size_t       *first;     /* n_blocks + 1: block j holds runs [first[j], first[j + 1]) */
+    size_t       *sbase;     /* [r * WF_MAX_GROUPS + q]: run r's first member of group q in ln.state[q] */
+    WfSeg        *seg;       /* per run: its slots, length, seed and step */
+    int          *edge;      /* per run: its last vehicle's overlap with its first, of the last block step */
+    WfError      *berr;      /* per block (wf_runs_each's; the blocks report through errs) */
+    WfError      *errs;      /* the call's, per run */
+    unsigned long *seen;     /* per run: its WfSim.epoch when its state last went out (ULONG_MAX: never) */
+    long          k;         /* the call's steps */
+};
+
+/* Whether ring lane b steps with the kernel of ring lane a: what the kernel reads of the scenario and the lane,
+ * but the noise seed, the length and the state. */
+static int same_kernel(const WfLane *a, const WfLane *b)
+{
+    if (!b || b->cap < 1 || b->cap > WF_BLOCK || a->ig != b->ig || b->ops->grade || b->ops->cap || b->safe ||
+        b->grade_seg || b->x_old_m || b->sslot || a->noisy != b->noisy || a->stateful != b->stateful ||
+        !a->slot != !b->slot)
+        return 0;
+    const WfScenario *p = a->sc, *q = b->sc;
+    if (p->dt_s != q->dt_s || p->v_stop_mps != q->v_stop_mps || p->v_go_mps != q->v_go_mps ||
+        p->hard_brake_mps2 != q->hard_brake_mps2 || p->n_classes != q->n_classes || p->n_groups != q->n_groups)
+        return 0;
+    for (size_t c = 0; c < p->n_classes; c++) {
+        const WfVehicleClass *u = &p->classes[c].vc, *w = &q->classes[c].vc;
+        if (a->class_length_m[c] != b->class_length_m[c] || u->model != w->model ||
+            memcmp(u->params, w->params, u->model->param_size))
+            return 0;
+    }
+    for (size_t g = 0; g < p->n_groups; g++) {
+        const WfDriverGroup *u = &p->groups[g], *w = &q->groups[g];
+        if (u->model != w->model || u->noise_mps2 != w->noise_mps2 || u->accel_max_mps2 != w->accel_max_mps2 ||
+            u->decel_max_mps2 != w->decel_max_mps2 || u->clip_feasible != w->clip_feasible || u->safety ||
+            w->safety || a->zoned[g] || b->zoned[g] || a->pstride[g] || b->pstride[g] ||
+            a->sstride[g] != b->sstride[g] || memcmp(a->params[g], b->params[g], u->model->param_size))
+            return 0;
+    }
+#define SAME(fld)                                                                                                   \
+    if (!a->always.fld != !b->always.fld || !a->window.fld != !b->window.fld) return 0;
+    WF_ACCUM_FIELDS(SAME)
+#undef SAME
+    return 1;
+}
+
+/* Run r's per-vehicle state between its ring's lane and the gang's: in (ring to gang) or out. Only the controllers'
+ * memory (an external group's commands) comes in when the gang's copy of the rest is the ring's: the ring has not
+ * stepped or been restored since this copy went out (WfSim.epoch) and `all` is not asked. */
+static void move_run(WfGang *g, size_t r, int in, int all)
+{
+    WfSim *sim = g->sims[r];
+    const WfLane *rl = wf_ring_gang_lane(sim);
+    WfLane *gl = &g->ln;
+    size_t o = g->off[r], n = g->off[r + 1] - o;
+    int rest = !in || all || g->seen[r] != sim->epoch;
+    if (!in) g->seen[r] = sim->epoch;
+#define MOVE(gang, ring, cnt)                                                                                       \
+    memcpy(in ? (void *)(gang) : (void *)(ring), in ? (const void *)(ring) : (const void *)(gang),                  \
+           (cnt) * sizeof *(ring))
+    const WfFleet *f = wf_sim_fleet(sim);
+    for (size_t q = 0; q < f->n_groups; q++)
+        if (gl->sstride[q])
+            MOVE(gl->state[q] + g->sbase[r * WF_MAX_GROUPS + q] * gl->sstride[q], rl->state[q],
+                 f->group_n[q] * gl->sstride[q]);
+    if (!rest) return;
+    MOVE(gl->x_m + o, rl->x_m, n);
+    MOVE(gl->v_mps + o, rl->v_mps, n);
+    MOVE(gl->mode + o, rl->mode, n);
+#define ACC(fld)                                                                                                    \
+    if (rl->always.fld) MOVE(gl->always.fld + o, rl->always.fld, n);                                                \
+    if (rl->window.fld) MOVE(gl->window.fld + o, rl->window.fld, n);
+    WF_ACCUM_FIELDS(ACC)
+#undef ACC
+#undef MOVE
+}
+
+void wf_gang_destroy(WfGang **pg)
+{
+    if (!pg || !*pg) return;
+    WfGang *g = *pg;
+    WfLane *l = &g->ln;
+    free(l->x_m), free(l->v_mps), free(l->mode), free((void *)l->class_id), free((void *)l->group_id);
+    free((void *)l->slot);
+#define FREE(fld) free(l->always.fld), free(l->window.fld);
+    WF_ACCUM_FIELDS(FREE)
+#undef FREE
+    for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
+    free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->edge), free(g->berr), free(g->seen);
+    free(g);
+    *pg = NULL;
+}
+
+/* The gang's lane: run 0's kernel (scenario, integrator, groups' parameters) over arrays of every run's vehicles,
+ * the class, group and member index of each copied once (a ring's vehicles keep them). */
+static int lane_build(WfGang *g)
+{
+    const WfLane *l0 = wf_ring_gang_lane(g->sims[0]);
+    size_t n = g->off[g->n_runs];
+    WfLane *l = &g->ln;
+    *l = (WfLane){.sc = l0->sc, .ig = l0->ig, .ops = &g->ops, .cap = n, .noisy = l0->noisy,
+                  .stateful = l0->stateful, .nthreads = 1};
+    memcpy(l->class_length_m, l0->class_length_m, sizeof l->class_length_m);
+    int ok = (l->x_m = malloc(n * sizeof *l->x_m)) && (l->v_mps = malloc(n * sizeof *l->v_mps)) &&
+             (l->mode = malloc(n)) && (l->class_id = malloc(n * sizeof *l->class_id)) &&
+             (l->group_id = malloc(n * sizeof *l->group_id)) &&
+             (!l0->slot || (l->slot = malloc(n * sizeof *l->slot)));
+#define ALLOC(fld)                                                                                                  \
+    if (ok && l0->always.fld) ok = (l->always.fld = malloc(n * sizeof *l0->always.fld)) != NULL;                   \
+    if (ok && l0->window.fld) ok = (l->window.fld = malloc(n * sizeof *l0->window.fld)) != NULL;
+    WF_ACCUM_FIELDS(ALLOC)
+#undef ALLOC
+    const WfScenario *sc = l0->sc;
+    for (size_t q = 0; ok && q < sc->n_groups; q++) {
+        l->params[q] = l0->params[q];
+        l->sstride[q] = l0->sstride[q];
+        size_t members = 0;
+        for (size_t r = 0; r < g->n_runs; r++) {
+            g->sbase[r * WF_MAX_GROUPS + q] = members;
+            members += wf_sim_fleet(g->sims[r])->group_n[q];
+        }
+        if (l->sstride[q] && members) ok = (l->state[q] = malloc(members * l->sstride[q])) != NULL;
+    }
+    for (size_t r = 0; ok && r < g->n_runs; r++) {
+        const WfFleet *f = wf_sim_fleet(g->sims[r]);
+        size_t o = g->off[r];
+        memcpy((uint16_t *)l->class_id + o, f->class_id, f->n * sizeof *f->class_id);
+        memcpy((uint16_t *)l->group_id + o, f->group_id, f->n * sizeof *f->group_id);
+        for (size_t i = 0; l->slot && i < f->n; i++)
+            ((uint32_t *)l->slot)[o + i] = (uint32_t)(g->sbase[r * WF_MAX_GROUPS + f->group_id[i]] + f->slot[i]);
+    }
+    return ok;
+}
+
+int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err)
+{
+    *out = NULL;
+    if (n_runs < 2) return 0;
+    const WfLane *l0 = wf_ring_gang_lane(sims[0]);
+    if (!l0) return 0;
+    for (size_t r = 0; r < n_runs; r++)
+        if (!same_kernel(l0, wf_ring_gang_lane(sims[r]))) return 0;
+    WfGang *g = calloc(1, sizeof *g);
+    if (!g) return wf_err(err, WF_ESYS, "out of memory");
+    g->sims = sims, g->n_runs = n_runs;
+    int ok = (g->off = malloc((n_runs + 1) * sizeof *g->off)) && (g->first = malloc((n_runs + 1) * sizeof *g->first)) &&
+             (g->sbase = calloc(n_runs * WF_MAX_GROUPS, sizeof *g->sbase)) &&
+             (g->seg = malloc(n_runs * sizeof *g->seg)) && (g->edge = malloc(n_runs * sizeof *g->edge)) &&
+             (g->berr = malloc(n_runs * sizeof *g->berr)) && (g->seen = malloc(n_runs * sizeof *g->seen));
+    for (size_t r = 0; ok && r < n_runs; r++) g->seen[r] = ULONG_MAX;
+    /* whole rings, in run order, into blocks of at most WF_BLOCK vehicles */
+    for (size_t r = 0, in_block = 0; ok && r < n_runs; r++) {
+        size_t n = wf_ring_gang_lane(sims[r])->cap;
+        g->off[r + 1] = (r ? g->off[r] : (g->off[0] = 0)) + n;
+        if (!r || in_block + n > WF_BLOCK) g->first[g->n_blocks++] = r, in_block = 0;
+        in_block += n;
+    }
+    if (ok) g->first[g->n_blocks] = n_runs;
+    if (!ok || !lane_build(g)) {
+        wf_gang_destroy(&g);
+        return wf_err(err, WF_ESYS, "out of memory for %zu rings side by side", n_runs);
+    }
+    *out = g;
+    return 0;
+}
+
+int wf_gang_ready(const WfGang *g, long k)
+{
+    for (size_t r = 0; r < g->n_runs; r++)
+        if (!wf_sim_gang_ready(g->sims[r], k)) return 0;
+    return 1;
+}
+
+/* Some ring of block j's runs r0 .. r1 failed to settle step s of the call: each such ring ends with its error
+ * after the s steps before (as the step loop ends a run), the others keep step s and take the rest one by one. */
+static void block_fault(WfGang *g, size_t r0, size_t r1, long s)
+{
+    for (size_t r = r0; r < r1; r++) {
+        WfSim *sim = g->sims[r];
+        move_run(g, r, 0, 1);
+        if (g->errs[r].code) {
+            wf_sim_gang_done(sim, s);
+            wf_sim_gang_fail(sim, g->errs[r].code, &g->errs[r]);
+            continue;
+        }
+        wf_sim_gang_done(sim, s + 1);
+        if (s + 1 < g->k) wf_sim_step_untimed(sim, g->k - s - 1, &g->errs[r]);
+    }
+}
+
+/* Block j's rings: in, k steps, out. A ring whose step flagged an overlap or a fault is settled at once on its own
+ * arrays (the repair moves its vehicles), as ring_step settles it. */
+static int step_block(void *ctx, size_t j, WfError *unused)
+{
+    (void)unused;
+    WfGang *g = ctx;
+    size_t r0 = g->first[j], r1 = g->first[j + 1];
+    for (size_t r = r0; r < r1; r++) {
+        const WfScenario *sc = wf_sim_scenario(g->sims[r]);
+        g->seg[r] = (WfSeg){g->off[r], g->off[r + 1] - g->off[r], sc->road.length_m, sc->seed,
+                            wf_sim_steps_done(g->sims[r])};
+        move_run(g, r, 1, 0);
+    }
+    for (long s = 0; s < g->k; s++) {
+        int fl = wf_lane_gang_block(&g->ln, g->seg + r0, r1 - r0, 1, NULL, g->edge + r0);
+        int bad = 0;
+        for (size_t r = r0; r < r1; r++) {
+            int f = fl | g->edge[r];
+            if (f) move_run(g, r, 0, 1);
+            if (f || s + 1 == g->k) bad |= wf_ring_gang_settle(g->sims[r], g->seg[r].step, f, &g->errs[r]) != 0;
+            if (f) move_run(g, r, 1, 1);
+            g->seg[r].step++;
+        }
+        if (bad) {
+            block_fault(g, r0, r1, s);
+            return 0;
+        }
+    }
+    for (size_t r = r0; r < r1; r++) {
+        move_run(g, r, 0, 1);
+        wf_sim_gang_done(g->sims[r], g->k);
+    }
+    return 0;
+}
+
+int wf_gang_step(WfGang *g, long k, int threads, WfError *errs)
+{
+    g->k = k, g->errs = errs;
+    for (size_t r = 0; r < g->n_runs; r++) errs[r].code = 0, errs[r].msg[0] = '\0';
+    wf_runs_each(g->n_blocks, threads, step_block, g, g->berr);
+    for (size_t r = 0; r < g->n_runs; r++)
+        if (errs[r].code) return errs[r].code;
+    return 0;
+}
