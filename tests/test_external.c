@@ -3,7 +3,8 @@
  * On a ring, a group commanded with IDM's acceleration (wf_cf_idm.accel on the observed speed, leader speed and
  * gap) gives the bits of the same group driving IDM: every record and the final state, with noise. On a corridor,
  * an external_speed group commanded with acc's set speed gives the bits of the acc group, entries and trips
- * included. And the refusals: a group that is not external, a wrong count, an infinite command. */
+ * included. RL batches of small rings stepped side by side give the bits of each ring alone. And the refusals: a
+ * group that is not external, a wrong count, an infinite command. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -237,10 +238,80 @@ static void test_rl_batch_lifetime(void)
     wf_scenario_destroy(&sc);
 }
 
+/* Rings stepped side by side (src/core/gang.c): five such rings of different seeds and lengths in one batch on two
+ * threads against each alone in a batch of its own (stepped by the engine one run at a time): every observation,
+ * reward and info, and the final positions, speeds and fuel, bit for bit; the actions cross records (the batch
+ * then steps them one by one) and drive one ring's automated vehicles into their leaders (overlap repairs in the
+ * shared blocks). Under make tsan, the shared blocks' parallel region. */
+static void test_rl_batch_side_by_side(void)
+{
+    enum { R = 5, M = 6, ACTS = 400 };
+    WfScenario *sc[R] = {NULL};
+    WfSim *sims[R] = {NULL}, *alone[R] = {NULL};
+    WfRlBatch *b = NULL, *one[R] = {NULL};
+    WfError err = {0}, errs[R];
+    const WfRlReward rw = {.w_fuel = 1.0, .gap_min_m = 5.0, .gap_max_m = 60.0, .w_gap = 1.0, .w_accel = 0.1};
+    int rc = 0;
+    for (int k = 0; !rc && k < R; k++) {
+        char seed[64], len[64];
+        snprintf(seed, sizeof seed, "seed=%d", 40 + k);
+        snprintf(len, sizeof len, "road.length_m=%d", 560 + 17 * k);
+        const char *sets[] = {"fleet.drivers[1].model=external", seed, len};
+        rc = wf_scenario_load_text("external.yaml", ring, sets, 3, &sc[k], &err);
+        for (int copy = 0; copy < 2 && !rc; copy++) {
+            WfSim **s = copy ? &alone[k] : &sims[k];
+            rc = wf_sim_create(sc[k], s, &err);
+            if (!rc) rc = wf_sim_begin(*s, NULL, &err);
+            if (!rc) rc = wf_sim_step(*s, 105, &err); /* past the warm-up: the statistics window is open */
+        }
+    }
+    size_t group[R] = {1, 1, 1, 1, 1};
+    if (!rc) rc = wf_rl_batch_create(sims, R, group, &rw, 1, 0.1, &b, &err);
+    for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_create(&alone[k], 1, group, &rw, 1, 0.1, &one[k], &err);
+    double u[R * M], obs[R * M * 3], reward[R], info[R * WF_RL_N_INFO], o1[M * 3], r1, i1[WF_RL_N_INFO];
+    size_t bad = 0;
+    for (int a = 0; !rc && a < ACTS; a++) {
+        for (int j = 0; j < R * M; j++) u[j] = j < M ? 3.0 : sin(0.37 * a + j);
+        rc = wf_rl_batch_step(b, u, 2, obs, reward, info, errs);
+        for (int k = 0; !rc && k < R; k++) {
+            rc = wf_rl_batch_step(one[k], u + k * M, 1, o1, &r1, i1, &err);
+            bad += memcmp(o1, obs + k * M * 3, sizeof o1) || memcmp(&r1, reward + k, sizeof r1) ||
+                   memcmp(i1, info + k * WF_RL_N_INFO, sizeof i1);
+        }
+    }
+    CHECK(rc == 0, "%s %s", err.msg, errs[0].msg);
+    for (int k = 0; !rc && k < R; k++) {
+        const WfFleet *f = wf_sim_fleet(sims[k]), *g = wf_sim_fleet(alone[k]);
+        bad += memcmp(f->x_m, g->x_m, f->n * sizeof *f->x_m) || memcmp(f->v_mps, g->v_mps, f->n * sizeof *f->v_mps) ||
+               memcmp(f->fuel_g, g->fuel_g, f->n * sizeof *f->fuel_g) || wf_sim_steps_done(sims[k]) != 105 + ACTS;
+    }
+    long gang = rc ? 0 : wf_rl_batch_gang_calls(b), repaired = 0;
+    for (int k = 0; !rc && k < R; k++) repaired += wf_rl_batch_gang_calls(one[k]);
+    WfSummary sum = {0};
+    if (!rc) { /* ended by the caller: WF_EINTR, the summary written */
+        WfError fin = {0};
+        wf_sim_finish(sims[0], &fin);
+        sum = *wf_sim_summary(sims[0]);
+    }
+    CHECK(!rc && bad == 0 && gang > ACTS / 2 && gang < ACTS && repaired == 0 && sum.overlaps > 0,
+          "%zu differences; %ld of %d actions side by side (%ld by batches of one); ring 0 repaired %lld overlaps",
+          bad, gang, ACTS, repaired, (long long)sum.overlaps);
+    printf("  %d rings, %d actions: %ld side by side, the others at records; ring 0: %lld overlaps repaired\n", R, ACTS,
+           gang, (long long)sum.overlaps);
+    wf_rl_batch_destroy(&b);
+    for (int k = 0; k < R; k++) {
+        wf_rl_batch_destroy(&one[k]);
+        wf_sim_destroy(&sims[k]);
+        wf_sim_destroy(&alone[k]);
+        wf_scenario_destroy(&sc[k]);
+    }
+}
+
 int main(void)
 {
     RUN(test_ring_idm_commands);
     RUN(test_rl_batch_lifetime);
+    RUN(test_rl_batch_side_by_side);
     RUN(test_ring_rows_in_order);
     RUN(test_corridor_set_speed);
     RUN(test_refusals);

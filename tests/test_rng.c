@@ -136,9 +136,37 @@ static void test_vector_philox(void)
 #endif
 }
 
+/* Rings drawn together (wf_rng_normal_rings, a gang block's noise) against each ring's own wf_rng_normal_block, bit
+ * for bit: random seeds (high words included), steps past 2^32, odd and even counts, up to the most pairs a block
+ * can ask for. */
+static void test_normal_rings(void)
+{
+    uint64_t s = 0xD1B54A32D192ED03ull, seed[64], step[64];
+    size_t n[64], bad = 0, total = 0;
+    double got[600], want[600];
+    for (int trial = 0; trial < 300; trial++) {
+        size_t nr = 0, pairs = 0, sum = 0;
+        for (; nr < 64; nr++) {
+            s = s * 6364136223846793005ull + 1442695040888963407ull;
+            size_t m = 1 + (size_t)(s >> 59) + (trial % 3 == 0 ? 20 : 0);
+            if (pairs + (m + 1) / 2 > WF_RNG_RINGS_PAIRS || (size_t)trial % 40 < nr) break;
+            seed[nr] = s ^ (s << 17), step[nr] = (s >> 20) + (nr % 3 == 0 ? (1ull << 32) : 0), n[nr] = m;
+            pairs += (m + 1) / 2, sum += m;
+        }
+        uint64_t block = trial % 2 ? 0 : 7;
+        wf_rng_normal_rings(nr, seed, WF_RNG_NOISE_BLOCK, block, step, n, got);
+        for (size_t r = 0, o = 0; r < nr; o += n[r++])
+            wf_rng_normal_block(seed[r], WF_RNG_NOISE_BLOCK, block, step[r], n[r], want + o);
+        for (size_t i = 0; i < sum; i++) bad += memcmp(&got[i], &want[i], sizeof got[i]) != 0;
+        total += sum;
+    }
+    CHECK(bad == 0 && total > 10000, "%zu of %zu deviates differ from the rings' own blocks", bad, total);
+}
+
 int main(void)
 {
     RUN(test_vector_philox);
+    RUN(test_normal_rings);
     RUN(test_moments_and_tails);
     RUN(test_kolmogorov_smirnov);
     RUN(test_pure_function);

@@ -30,8 +30,9 @@ typedef struct WfRlReward {
     double w_jerk;                /* per (m/s^3)^2 */
 } WfRlReward;
 
-/* What wf_rl_batch_step reports per run, n_runs x WF_RL_N_INFO, in this order. */
-enum { WF_RL_FUEL, WF_RL_GAP, WF_RL_COMFORT, WF_RL_FUEL_RATE_GPS, WF_RL_MEAN_SPEED_MPS, WF_RL_N_INFO };
+/* What wf_rl_batch_step reports per run, n_runs x WF_RL_N_INFO, in this order; the last, WF_RL_T_S, is the run's
+ * time after the action (s, wf_sim_time_s). */
+enum { WF_RL_FUEL, WF_RL_GAP, WF_RL_COMFORT, WF_RL_FUEL_RATE_GPS, WF_RL_MEAN_SPEED_MPS, WF_RL_T_S, WF_RL_N_INFO };
 
 typedef struct WfRlBatch WfRlBatch;
 

@@ -10,7 +10,7 @@ from . import _lib
 from ._lib import WfError, check, lib
 
 # Columns of info (rl.h: WF_RL_FUEL ...).
-INFO = ("fuel", "gap", "comfort", "fuel_rate_gps", "mean_speed_mps")
+INFO = ("fuel", "gap", "comfort", "fuel_rate_gps", "mean_speed_mps", "t_s")
 
 
 class RlBatch:

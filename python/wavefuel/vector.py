@@ -62,6 +62,13 @@ class VectorEnv:
         self._all.flags.writeable = False
         self._batch = None
         self._governed = (0, 0)
+        self._side = 0
+
+    @property
+    def side_by_side(self):
+        """Actions so far whose steps the environments' rings took side by side in shared blocks of the kernel
+        (docs/python.md); the others were stepped one run at a time. The same bits either way."""
+        return self._side + (self._batch.gang_calls() if self._batch is not None else 0)
 
     @property
     def thread_governor(self):
@@ -76,6 +83,7 @@ class VectorEnv:
         if self._batch is not None:
             prev = self._batch.prev_accel.reshape(self.num_envs, self.n_av).copy()
             self._governed = self.thread_governor
+            self._side = self.side_by_side
             self._batch.close()
         self._batch = RlBatch([e.sim for e in self.envs], [e.AV for e in self.envs], self.envs[0].reward,
                               self.action_every, self.dt_s, self.thread_check)
@@ -131,13 +139,13 @@ class VectorEnv:
         self._step_batch()
         b = self._batch
         obs, r = b.obs.reshape(self.num_envs, self.n_av, 3).copy(), b.reward.copy()
-        self._steps += self.action_every
-        t = self._steps * self.dt_s  # as Simulation.t: steps done x dt
         cols = b.info.T.copy()  # one copy: the batch's buffers are overwritten by the next step
+        t = cols[5]  # each run's time, as Simulation.t: steps done x dt
         infos = _infos(t, cols, self._all)
         self._left -= 1
         if self._left > 0:
             return obs, r, np.zeros(self.num_envs, bool), np.zeros(self.num_envs, bool), infos
+        self._steps = np.array([e.sim.steps_done for e in self.envs], np.int64)
         truncated = self._truncated()
         if truncated.any():
             infos.update(self._autoreset(np.flatnonzero(truncated), obs, t, cols))

@@ -12,6 +12,7 @@
 
 #include "wavefuel/fleet.h"
 #include "wavefuel/rng.h"
+#include "core/noise.h"
 #include "core/par.h"
 #include "core/select.h"
 #include "core/simd.h"
@@ -300,6 +301,16 @@ static void lane_noise(uint64_t seed, size_t lo, size_t m, long step, double *z)
     memcpy(z, all + off, m * sizeof *z);
 }
 
+/* The noise of the rings sg[0 .. ns) of a gang block, ring after ring: ring r's is lane_noise's of its slots 0 ..
+ * n - 1 alone (its block 0, its seed and step), drawn for all at once. */
+static void seg_noise(const WfSeg *sg, size_t ns, double *z)
+{
+    uint64_t seed[B], step[B];
+    size_t n[B];
+    for (size_t r = 0; r < ns; r++) seed[r] = sg[r].seed, step[r] = (uint64_t)sg[r].step, n[r] = sg[r].n;
+    wf_rng_normal_rings(ns, seed, WF_RNG_NOISE_BLOCK, 0, step, n, z);
+}
+
 /* ll[k] = the length of vehicle k + 1's class, k < pairs: a select per class over the block (exact), which
  * vectorises where a lookup by 16-bit class number cannot (gcc 12 emits no gather: 4 instructions a vehicle). */
 AI void leader_lengths(const WfLane *ln, const uint16_t *restrict cid, size_t pairs, double *restrict ll)
@@ -326,8 +337,7 @@ AI void inputs_block(const WfLane *ln, size_t lo, size_t m, const WfLead *ld, lo
     double z[B], cap[B];
     if (ln->noisy && !sg) lane_noise(sc->seed, ln->key0 + lo, m, step, z);
     /* rings side by side (wf_lane_gang_block): each ring's draws are those of its block 0 at its step */
-    for (size_t r = 0; ln->noisy && r < ns; r++)
-        wf_rng_normal_block(sg[r].seed, WF_RNG_NOISE_BLOCK, 0, (uint64_t)sg[r].step, sg[r].n, z + (sg[r].lo - lo));
+    if (ln->noisy && sg) seg_noise(sg, ns, z + (sg[0].lo - lo));
     size_t pairs = m ? m - 1 : 0;
     leader_lengths(ln, cid, pairs, b->ll);
     for (size_t k = 0; k + 1 < m; k++) {

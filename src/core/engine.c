@@ -1038,20 +1038,22 @@ WfLane *wf_ring_gang_lane(WfSim *sim)
     return s->ode || s->part || s->f->n_lanes > 1 ? NULL : &s->lane;
 }
 
-/* Whether step `step` .. step + k - 1 record nothing: no multiple of `every` among them. */
-static int none_due(long step, long k, long every)
-{
-    long next = (step + every - 1) / every * every;
-    return next >= step + k;
-}
+/* Steps from `step` before the next multiple of `every` (0 when step is one). */
+static long until_due(long step, long every) { return (step + every - 1) / every * every - step; }
 
-int wf_ring_gang_plain(const WfSim *sim, long k)
+long wf_ring_gang_plain(const WfSim *sim)
 {
     const WfRing *s = sim->eng;
-    long step = s->steps_done;
-    return wf_ring_gang_lane((WfSim *)sim) && s->sc->fused_step && s->f->window_open && step >= s->warm_steps &&
-           step + k <= s->n_steps && s->fault_vehicle < 0 && none_due(step, k, s->out_every) &&
-           (!s->sc->trajectories || none_due(step, k, s->traj_every));
+    long step = s->steps_done, k = s->n_steps - step, rec = until_due(step, s->out_every);
+    if (!wf_ring_gang_lane((WfSim *)sim) || !s->sc->fused_step || !s->f->window_open || step < s->warm_steps ||
+        s->fault_vehicle >= 0)
+        return 0;
+    k = rec < k ? rec : k;
+    if (s->sc->trajectories) {
+        long tr = until_due(step, s->traj_every);
+        k = tr < k ? tr : k;
+    }
+    return k > 0 ? k : 0;
 }
 
 int wf_ring_gang_settle(WfSim *sim, long step, int flags, WfError *err)

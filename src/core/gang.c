@@ -21,14 +21,15 @@ struct WfGang {
     size_t        n_runs, n_blocks;
     WfLane        ln;        /* the rings' vehicles in one lane, run after run (owned arrays) */
     WfRoadOps     ops;       /* a flat road without limits: no hooks */
-    size_t       *off;       /* n_runs + 1: run r's vehicles are slots [off[r], off[r + 1]) */
+    size_t       *off, *nv;  /* run r's vehicles are slots [off[r], off[r] + nv[r]); off[n_runs]: the lane's slots */
     size_t       *first;     /* n_blocks + 1: block j holds runs [first[j], first[j + 1]) */
     size_t       *sbase;     /* [r * WF_MAX_GROUPS + q]: run r's first member of group q in ln.state[q] */
     WfSeg        *seg;       /* per run: its slots, length, seed and step */
-    int          *edge;      /* per run: its last vehicle's overlap with its first, of the last block step */
     WfError      *berr;      /* per block (wf_runs_each's; the blocks report through errs) */
     WfError      *errs;      /* the call's, per run */
+    const WfGangHooks *h;    /* the call's */
     unsigned long *seen;     /* per run: its WfSim.epoch when its state last went out (ULONG_MAX: never) */
+    long         *until;     /* per run, while seen is its epoch: its steps are plain up to this one (excluded) */
     long          k;         /* the call's steps */
 };
 
@@ -73,7 +74,7 @@ static void move_run(WfGang *g, size_t r, int in, int all)
     WfSim *sim = g->sims[r];
     const WfLane *rl = wf_ring_gang_lane(sim);
     WfLane *gl = &g->ln;
-    size_t o = g->off[r], n = g->off[r + 1] - o;
+    size_t o = g->off[r], n = g->nv[r];
     int rest = !in || all || g->seen[r] != sim->epoch;
     if (!in) g->seen[r] = sim->epoch;
 #define MOVE(gang, ring, cnt)                                                                                       \
@@ -107,10 +108,15 @@ void wf_gang_destroy(WfGang **pg)
     WF_ACCUM_FIELDS(FREE)
 #undef FREE
     for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
-    free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->edge), free(g->berr), free(g->seen);
+    free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv), free(g->until);
     free(g);
     *pg = NULL;
 }
+
+/* Bytes on whole cache lines of their own (free() releases them). A block's first slot is a multiple of LINE, so it
+ * starts a cache line in every array of the lane, whatever its element's size. */
+enum { LINE = 64 };
+static void *lines(size_t bytes) { return aligned_alloc(LINE, (bytes + LINE - 1) / LINE * LINE); }
 
 /* The gang's lane: run 0's kernel (scenario, integrator, groups' parameters) over arrays of every run's vehicles,
  * the class, group and member index of each copied once (a ring's vehicles keep them). */
@@ -122,13 +128,13 @@ static int lane_build(WfGang *g)
     *l = (WfLane){.sc = l0->sc, .ig = l0->ig, .ops = &g->ops, .cap = n, .noisy = l0->noisy,
                   .stateful = l0->stateful, .nthreads = 1};
     memcpy(l->class_length_m, l0->class_length_m, sizeof l->class_length_m);
-    int ok = (l->x_m = malloc(n * sizeof *l->x_m)) && (l->v_mps = malloc(n * sizeof *l->v_mps)) &&
-             (l->mode = malloc(n)) && (l->class_id = malloc(n * sizeof *l->class_id)) &&
-             (l->group_id = malloc(n * sizeof *l->group_id)) &&
-             (!l0->slot || (l->slot = malloc(n * sizeof *l->slot)));
+    int ok = (l->x_m = lines(n * sizeof *l->x_m)) && (l->v_mps = lines(n * sizeof *l->v_mps)) &&
+             (l->mode = lines(n)) && (l->class_id = lines(n * sizeof *l->class_id)) &&
+             (l->group_id = lines(n * sizeof *l->group_id)) &&
+             (!l0->slot || (l->slot = lines(n * sizeof *l->slot)));
 #define ALLOC(fld)                                                                                                  \
-    if (ok && l0->always.fld) ok = (l->always.fld = malloc(n * sizeof *l0->always.fld)) != NULL;                   \
-    if (ok && l0->window.fld) ok = (l->window.fld = malloc(n * sizeof *l0->window.fld)) != NULL;
+    if (ok && l0->always.fld) ok = (l->always.fld = lines(n * sizeof *l0->always.fld)) != NULL;                    \
+    if (ok && l0->window.fld) ok = (l->window.fld = lines(n * sizeof *l0->window.fld)) != NULL;
     WF_ACCUM_FIELDS(ALLOC)
 #undef ALLOC
     const WfScenario *sc = l0->sc;
@@ -166,15 +172,18 @@ int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err
     g->sims = sims, g->n_runs = n_runs;
     int ok = (g->off = malloc((n_runs + 1) * sizeof *g->off)) && (g->first = malloc((n_runs + 1) * sizeof *g->first)) &&
              (g->sbase = calloc(n_runs * WF_MAX_GROUPS, sizeof *g->sbase)) &&
-             (g->seg = malloc(n_runs * sizeof *g->seg)) && (g->edge = malloc(n_runs * sizeof *g->edge)) &&
-             (g->berr = malloc(n_runs * sizeof *g->berr)) && (g->seen = malloc(n_runs * sizeof *g->seen));
+             (g->seg = malloc(n_runs * sizeof *g->seg)) && (g->berr = malloc(n_runs * sizeof *g->berr)) &&
+             (g->seen = malloc(n_runs * sizeof *g->seen)) && (g->nv = malloc(n_runs * sizeof *g->nv)) &&
+             (g->until = malloc(n_runs * sizeof *g->until));
     for (size_t r = 0; ok && r < n_runs; r++) g->seen[r] = ULONG_MAX;
-    /* whole rings, in run order, into blocks of at most WF_BLOCK vehicles */
-    for (size_t r = 0, in_block = 0; ok && r < n_runs; r++) {
+    /* whole rings, in run order, into blocks of at most WF_BLOCK vehicles, each block from a multiple of LINE slots
+     * (the blocks of two threads share no cache line) */
+    for (size_t r = 0, in_block = 0, slot = 0; ok && r < n_runs; r++) {
         size_t n = wf_ring_gang_lane(sims[r])->cap;
-        g->off[r + 1] = (r ? g->off[r] : (g->off[0] = 0)) + n;
-        if (!r || in_block + n > WF_BLOCK) g->first[g->n_blocks++] = r, in_block = 0;
-        in_block += n;
+        if (!r || in_block + n > WF_BLOCK) g->first[g->n_blocks++] = r, in_block = 0, slot = (slot + LINE - 1) / LINE * LINE;
+        g->off[r] = slot, g->nv[r] = n;
+        slot += n, in_block += n;
+        g->off[n_runs] = slot;
     }
     if (ok) g->first[g->n_blocks] = n_runs;
     if (!ok || !lane_build(g)) {
@@ -185,19 +194,32 @@ int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err
     return 0;
 }
 
-int wf_gang_ready(const WfGang *g, long k)
+int wf_gang_ready(WfGang *g, long k)
 {
-    for (size_t r = 0; r < g->n_runs; r++)
-        if (!wf_sim_gang_ready(g->sims[r], k)) return 0;
+    for (size_t r = 0; r < g->n_runs; r++) {
+        WfSim *sim = g->sims[r];
+        long now = wf_sim_steps_done(sim);
+        if (g->seen[r] == sim->epoch && now + k <= g->until[r]) continue;
+        g->until[r] = now + wf_sim_gang_plain(sim); /* the run changed, or its known plain steps ran out */
+        if (now + k > g->until[r]) return 0;
+    }
     return 1;
 }
 
+/* Run r after its steps: its `after` hook. */
+static void after(WfGang *g, size_t r)
+{
+    if (!g->errs[r].code && g->h && g->h->after) g->h->after(g->h->ctx, r, &g->errs[r]);
+}
+
 /* Some ring of block j's runs r0 .. r1 failed to settle step s of the call: each such ring ends with its error
- * after the s steps before (as the step loop ends a run), the others keep step s and take the rest one by one. */
-static void block_fault(WfGang *g, size_t r0, size_t r1, long s)
+ * after the s steps before (as the step loop ends a run), the others keep step s and take the rest one by one.
+ * skip[r - r0]: run r is not stepped in this call. */
+static void block_fault(WfGang *g, size_t r0, size_t r1, long s, const uint8_t *skip)
 {
     for (size_t r = r0; r < r1; r++) {
         WfSim *sim = g->sims[r];
+        if (skip[r - r0]) continue;
         move_run(g, r, 0, 1);
         if (g->errs[r].code) {
             wf_sim_gang_done(sim, s);
@@ -206,48 +228,61 @@ static void block_fault(WfGang *g, size_t r0, size_t r1, long s)
         }
         wf_sim_gang_done(sim, s + 1);
         if (s + 1 < g->k) wf_sim_step_untimed(sim, g->k - s - 1, &g->errs[r]);
+        after(g, r);
     }
 }
 
-/* Block j's rings: in, k steps, out. A ring whose step flagged an overlap or a fault is settled at once on its own
- * arrays (the repair moves its vehicles), as ring_step settles it. */
+/* Block j's rings: before, in, k steps, out, after. A ring whose step flagged an overlap or a fault is settled at
+ * once on its own arrays (the repair moves its vehicles), as ring_step settles it. A ring whose `before` failed is
+ * stepped in the gang's arrays with the others but not taken out (its state stays as it was). What a thread writes
+ * per run of its blocks stays in its blocks' cache lines (the flags here on its stack, its runs' errors cleared
+ * here): two threads writing neighbouring flags of one line cost more than the rings' steps. */
 static int step_block(void *ctx, size_t j, WfError *unused)
 {
     (void)unused;
     WfGang *g = ctx;
     size_t r0 = g->first[j], r1 = g->first[j + 1];
+    int edge[WF_BLOCK];
+    uint8_t skip[WF_BLOCK];
     for (size_t r = r0; r < r1; r++) {
         const WfScenario *sc = wf_sim_scenario(g->sims[r]);
-        g->seg[r] = (WfSeg){g->off[r], g->off[r + 1] - g->off[r], sc->road.length_m, sc->seed,
+        g->errs[r].code = 0, g->errs[r].msg[0] = '\0';
+        skip[r - r0] = g->h && g->h->before && g->h->before(g->h->ctx, r, &g->errs[r]);
+        g->seg[r] = (WfSeg){g->off[r], g->nv[r], sc->road.length_m, sc->seed,
                             wf_sim_steps_done(g->sims[r])};
         move_run(g, r, 1, 0);
+        if (skip[r - r0]) g->seen[r] = ULONG_MAX; /* the gang's copy will not be the ring's */
     }
     for (long s = 0; s < g->k; s++) {
-        int fl = wf_lane_gang_block(&g->ln, g->seg + r0, r1 - r0, 1, NULL, g->edge + r0);
+        int fl = wf_lane_gang_block(&g->ln, g->seg + r0, r1 - r0, 1, NULL, edge);
         int bad = 0;
         for (size_t r = r0; r < r1; r++) {
-            int f = fl | g->edge[r];
-            if (f) move_run(g, r, 0, 1);
-            if (f || s + 1 == g->k) bad |= wf_ring_gang_settle(g->sims[r], g->seg[r].step, f, &g->errs[r]) != 0;
-            if (f) move_run(g, r, 1, 1);
+            int f = fl | edge[r - r0];
             g->seg[r].step++;
+            if (skip[r - r0]) continue;
+            if (f) move_run(g, r, 0, 1);
+            if (f || s + 1 == g->k) bad |= wf_ring_gang_settle(g->sims[r], g->seg[r].step - 1, f, &g->errs[r]) != 0;
+            if (f) move_run(g, r, 1, 1);
         }
         if (bad) {
-            block_fault(g, r0, r1, s);
+            block_fault(g, r0, r1, s, skip);
             return 0;
         }
     }
     for (size_t r = r0; r < r1; r++) {
+        if (skip[r - r0]) continue;
         move_run(g, r, 0, 1);
         wf_sim_gang_done(g->sims[r], g->k);
     }
+    if (g->h && g->h->after_block) g->h->after_block(g->h->ctx, r0, r1);
+    for (size_t r = r0; r < r1; r++)
+        if (!skip[r - r0]) after(g, r);
     return 0;
 }
 
-int wf_gang_step(WfGang *g, long k, int threads, WfError *errs)
+int wf_gang_step(WfGang *g, long k, int threads, const WfGangHooks *h, WfError *errs)
 {
-    g->k = k, g->errs = errs;
-    for (size_t r = 0; r < g->n_runs; r++) errs[r].code = 0, errs[r].msg[0] = '\0';
+    g->k = k, g->errs = errs, g->h = h;
     wf_runs_each(g->n_blocks, threads, step_block, g, g->berr);
     for (size_t r = 0; r < g->n_runs; r++)
         if (errs[r].code) return errs[r].code;

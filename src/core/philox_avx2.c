@@ -33,11 +33,44 @@ static inline __m256d top53(__m256i w0, __m256i w1, int half)
     return _mm256_add_pd(_mm256_mul_pd(hi, _mm256_set1_pd(0x1p21)), _mm256_cvtepi32_pd(h1));
 }
 
+/* The two uniforms of each lane's words: u1 from words 0 and 1, u2 from words 2 and 3. */
+static inline void store_uniforms(__m256i x0, __m256i x1, __m256i x2, __m256i x3, double *u1, double *u2)
+{
+    const __m256d half = _mm256_set1_pd(0.5), scale = _mm256_set1_pd(0x1p-53);
+    for (int h = 0; h < 2; h++) {
+        _mm256_storeu_pd(u1 + 4 * h, _mm256_mul_pd(_mm256_add_pd(top53(x0, x1, h), half), scale));
+        _mm256_storeu_pd(u2 + 4 * h, _mm256_mul_pd(_mm256_add_pd(top53(x2, x3, h), half), scale));
+    }
+}
+
+void wf_philox_uniforms_lanes_avx2(const uint32_t *const k[2], const uint32_t *const c[4], size_t calls, double *u1,
+                                   double *u2)
+{
+    const __m256i m0 = _mm256_set1_epi64x(PHILOX_M4x32_0), m1 = _mm256_set1_epi64x(PHILOX_M4x32_1);
+    const __m256i w0 = _mm256_set1_epi32((int)PHILOX_W32_0), w1 = _mm256_set1_epi32((int)PHILOX_W32_1);
+#define LOAD(p) _mm256_loadu_si256((const __m256i *)(p + j))
+    for (size_t j = 0; j + 8 <= calls; j += 8) {
+        __m256i x0 = LOAD(c[0]), x1 = LOAD(c[1]), x2 = LOAD(c[2]), x3 = LOAD(c[3]), key0 = LOAD(k[0]),
+                key1 = LOAD(k[1]), lo0, hi0, lo1, hi1;
+#pragma GCC unroll 10
+        for (int r = 0; r < 10; r++) {
+            mulhilo8(m0, x0, &lo0, &hi0);
+            mulhilo8(m1, x2, &lo1, &hi1);
+            x0 = _mm256_xor_si256(_mm256_xor_si256(hi1, x1), key0);
+            x1 = lo1;
+            x2 = _mm256_xor_si256(_mm256_xor_si256(hi0, x3), key1);
+            x3 = lo0;
+            key0 = _mm256_add_epi32(key0, w0), key1 = _mm256_add_epi32(key1, w1);
+        }
+        store_uniforms(x0, x1, x2, x3, u1 + j, u2 + j);
+    }
+#undef LOAD
+}
+
 void wf_philox_uniforms_avx2(uint32_t k0, uint32_t k1, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first,
                              size_t calls, double *u1, double *u2)
 {
     const __m256i m0 = _mm256_set1_epi64x(PHILOX_M4x32_0), m1 = _mm256_set1_epi64x(PHILOX_M4x32_1);
-    const __m256d half = _mm256_set1_pd(0.5), scale = _mm256_set1_pd(0x1p-53);
     /* the ten rounds' keys, each in every lane: the key is bumped between rounds */
     __m256i rk0[10], rk1[10];
     for (uint32_t r = 0, key0 = k0, key1 = k1; r < 10; r++, key0 += PHILOX_W32_0, key1 += PHILOX_W32_1)
@@ -88,10 +121,7 @@ void wf_philox_uniforms_avx2(uint32_t k0, uint32_t k1, uint32_t c0, uint32_t c1,
             x2 = _mm256_xor_si256(_mm256_xor_si256(hi0, x3), rk1[r]);
             x3 = lo0;
         }
-        for (int h = 0; h < 2; h++) {
-            _mm256_storeu_pd(u1 + j + 4 * h, _mm256_mul_pd(_mm256_add_pd(top53(x0, x1, h), half), scale));
-            _mm256_storeu_pd(u2 + j + 4 * h, _mm256_mul_pd(_mm256_add_pd(top53(x2, x3, h), half), scale));
-        }
+        store_uniforms(x0, x1, x2, x3, u1 + j, u2 + j);
     }
 }
 #endif

@@ -22,6 +22,7 @@ typedef struct RlRun {
     size_t veh, row;                      /* offsets of its vehicles and its group's rows */
     size_t n_scope;                       /* vehicles whose fuel counts */
     size_t cls_off[WF_MAX_CLASSES + 1];   /* its vehicles by class: order[veh + cls_off[c] ..] */
+    int    fuel_set;                      /* its fuel rates of this action are computed (gang_fuel) */
 } RlRun;
 
 struct WfRlBatch {
@@ -34,7 +35,6 @@ struct WfRlBatch {
     double        dt_s;                   /* of an action */
     WfGovernor    gov;                    /* the threads of each call, for the threads asked (gov.n_max) */
     WfGang       *gang;                   /* the runs stepped side by side, when they can be (gang.h); NULL */
-    WfError      *gerr;                   /* per run: the gang's errors of a call */
     long          gang_calls;             /* calls the gang stepped */
     long          gov_every;              /* calls between its probes */
     /* per vehicle, runs one after the other, each in road order */
@@ -70,7 +70,7 @@ void wf_rl_batch_destroy(WfRlBatch **pb)
     if (!pb || !*pb) return;
     WfRlBatch *b = *pb;
     wf_gang_destroy(&b->gang);
-    void *arrays[] = {b->gerr, b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
+    void *arrays[] = {b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
                       b->scope, b->flag, b->obs0, b->obs1, b->a_prev};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(b);
@@ -131,7 +131,6 @@ int wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, c
     /* The first observation validates the groups (external, sizes). */
     if (!rc) rc = wf_sims_observe(sims, n_runs, b->group, b->obs0, b->n_rows, err);
     for (size_t k = 0; !rc && k < n_runs; k++) layout_run(b, k);
-    if (!rc && !(b->gerr = calloc(n_runs, sizeof *b->gerr))) rc = wf_err(err, WF_ESYS, "out of memory");
     if (!rc) rc = wf_gang_create(sims, n_runs, &b->gang, err);
     for (size_t j = 0; !rc && j < b->n_rows; j++) b->a_prev[j] = NAN; /* no previous action: no jerk */
     if (rc) wf_rl_batch_destroy(&b);
@@ -186,10 +185,13 @@ static int run_reward(WfRlBatch *b, size_t k, double *reward, double *info, WfEr
         return wf_err(err, WF_EINPUT, "%zu vehicles on the road, the batch was made with %zu (vehicles entered or "
                       "left)", r.n, ru->n);
     size_t o = ru->veh;
-    if (r.f) memcpy(b->v1 + o, r.f->v_mps, r.n * sizeof *b->v1); /* a ring: road order is fleet order */
-    else
-        for (size_t i = 0; i < r.n; i++) b->v1[o + i] = speed(&r, i);
-    run_fuel(b, k);
+    if (!ru->fuel_set) {
+        if (r.f) memcpy(b->v1 + o, r.f->v_mps, r.n * sizeof *b->v1); /* a ring: road order is fleet order */
+        else
+            for (size_t i = 0; i < r.n; i++) b->v1[o + i] = speed(&r, i);
+        run_fuel(b, k);
+    }
+    b->run[k].fuel_set = 0;
     double fuel = 0.0, vsum = 0.0;
     for (size_t i = 0; i < r.n; i++) {
         fuel += b->scope[o + i] ? b->fuel[o + i] : 0.0;
@@ -210,6 +212,7 @@ static int run_reward(WfRlBatch *b, size_t k, double *reward, double *info, WfEr
     double m = (double)ru->m, *in = info + WF_RL_N_INFO * k;
     in[WF_RL_FUEL_RATE_GPS] = ru->n_scope ? fuel / (double)ru->n_scope : 0.0;
     in[WF_RL_MEAN_SPEED_MPS] = vsum / (double)r.n;
+    in[WF_RL_T_S] = wf_sim_time_s(b->sims[k]);
     in[WF_RL_FUEL] = -w->w_fuel * in[WF_RL_FUEL_RATE_GPS];
     in[WF_RL_GAP] = -w->w_gap * (viol / m);
     in[WF_RL_COMFORT] = -(w->w_accel * (a2 / m) + w->w_jerk * (j2 / m));
@@ -232,6 +235,7 @@ static int step_run(void *ctx, size_t k, WfError *err)
     const RlStep *c = ctx;
     const RlRun *ru = &c->b->run[k];
     WfSim *sim = c->b->sims[k];
+    c->b->run[k].fuel_set = 0;
     int rc = wf_sim_set_actions(sim, c->b->group[k], c->actions + ru->row, ru->m, err);
     /* not timed one by one: the batch's call is (wf_sim_wall_s leaves these steps out) */
     if (!rc) rc = wf_sim_step_untimed(sim, c->b->action_steps, err);
@@ -240,30 +244,41 @@ static int step_run(void *ctx, size_t k, WfError *err)
     return rc;
 }
 
-/* Run k after the gang's steps: its error, or its observation and reward. */
-static int reward_run(void *ctx, size_t k, WfError *err)
+/* A run of the gang (gang.h): its commands before its steps, its observation and reward after them. */
+static int gang_before(void *ctx, size_t k, WfError *err)
 {
     const RlStep *c = ctx;
-    int rc = c->b->gerr[k].code;
-    if (rc) *err = c->b->gerr[k];
-    else rc = run_reward(c->b, k, c->reward, c->info, err);
+    const RlRun *ru = &c->b->run[k];
+    c->b->run[k].fuel_set = 0; /* a run whose steps fail keeps it so until its next call */
+    int rc = wf_sim_set_actions(c->b->sims[k], c->b->group[k], c->actions + ru->row, ru->m, err);
     if (rc) wf_err_prefix(err, "run %zu of the batch: ", k);
     return rc;
 }
 
-/* Every run's commands, then the gang's steps and each run's reward, when the runs' next steps are plain ones and
- * every command is valid; else 0 and nothing stepped (the commands set are set again by step_run). */
-static int gang_step(const RlStep *c, int nt, WfError *errs, int *rc)
+/* The fuel rates of a gang block's runs r0 .. r1 - 1 in one evaluation when every vehicle of them is of class 0 (the
+ * gang's runs share their classes), their vehicles consecutive in the batch's arrays: the bits of each run's own
+ * (run_fuel's: an evaluation is element-wise). Else each run evaluates its own. */
+static void gang_fuel(void *ctx, size_t r0, size_t r1)
 {
+    const RlStep *c = ctx;
     WfRlBatch *b = c->b;
-    if (!b->gang || !wf_gang_ready(b->gang, b->action_steps)) return 0;
-    for (size_t k = 0; k < b->n_runs; k++)
-        if (wf_sim_set_actions(b->sims[k], b->group[k], c->actions + b->run[k].row, b->run[k].m, &errs[k]))
-            return 0;
-    wf_gang_step(b->gang, b->action_steps, nt, b->gerr);
-    b->gang_calls++;
-    *rc = wf_runs_each(b->n_runs, nt, reward_run, (void *)c, errs);
-    return 1;
+    for (size_t k = r0; k < r1; k++)
+        if (b->run[k].cls_off[1] != b->run[k].n) return;
+    size_t lo = b->run[r0].veh, hi = b->run[r1 - 1].veh + b->run[r1 - 1].n;
+    for (size_t k = r0; k < r1; k++)
+        memcpy(b->v1 + b->run[k].veh, wf_sim_fleet(b->sims[k])->v_mps, b->run[k].n * sizeof *b->v1);
+    for (size_t i = lo; i < hi; i++) b->a[i] = (b->v1[i] - b->v0[i]) / b->dt_s;
+    flat_fuel(&wf_sim_scenario(b->sims[r0])->classes[0].vc, hi - lo, b->v0 + lo, b->a + lo, b->zero + lo,
+              b->fuel + lo, b->flag + lo);
+    for (size_t k = r0; k < r1; k++) b->run[k].fuel_set = 1;
+}
+
+static int gang_after(void *ctx, size_t k, WfError *err)
+{
+    const RlStep *c = ctx;
+    int rc = run_reward(c->b, k, c->reward, c->info, err);
+    if (rc) wf_err_prefix(err, "run %zu of the batch: ", k);
+    return rc;
 }
 
 int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
@@ -276,7 +291,14 @@ int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *o
     int nt = wf_governor_threads(&b->gov), rc = 0;
     /* not timed: a call on one run or one thread (nothing to choose) */
     double t0 = threads > 1 && b->n_runs > 1 ? wf_wall_now() : 0.0;
-    if (!gang_step(&c, nt, errs, &rc)) rc = wf_runs_each(b->n_runs, nt, step_run, &c, errs);
+    if (b->gang && wf_gang_ready(b->gang, b->action_steps)) {
+        /* one parallel region: each thread sets, steps and rewards the rings of its blocks */
+        WfGangHooks h = {gang_before, gang_fuel, gang_after, &c};
+        rc = wf_gang_step(b->gang, b->action_steps, nt, &h, errs);
+        b->gang_calls++;
+    } else {
+        rc = wf_runs_each(b->n_runs, nt, step_run, &c, errs);
+    }
     if (t0 > 0.0) wf_governor_done(&b->gov, wf_wall_now() - t0, (double)b->n_veh * (double)b->action_steps);
     if (!rc && obs) wf_rl_batch_observe(b, obs);
     return rc;

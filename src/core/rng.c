@@ -83,6 +83,12 @@ static BoxMuller *box_muller(void)
 #endif
 }
 
+/* Word 2 of the counter of (stream, block, step): the high halves of block and step folded in, as draw() does. */
+static uint32_t word2(uint32_t stream, uint64_t block, uint64_t step)
+{
+    return stream ^ (uint32_t)(block >> 32) * 0x9E3779B9u ^ (uint32_t)(step >> 32) * 0x85EBCA6Bu;
+}
+
 #define NB_CHUNK 128 /* pairs per chunk: the buffers below stay on the stack (4 kB) */
 _Static_assert(NB_CHUNK % 8 == 0, "the vector Philox fills whole groups of 8 calls");
 
@@ -90,8 +96,7 @@ void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_
 {
     philox4x32_key_t key = {{(uint32_t)seed, (uint32_t)(seed >> 32)}};
     /* Word 3 counts the pairs; the high halves of block and step are folded into word 2 as in draw(). */
-    uint32_t c0 = (uint32_t)block, c1 = (uint32_t)step;
-    uint32_t c2 = stream ^ (uint32_t)(block >> 32) * 0x9E3779B9u ^ (uint32_t)(step >> 32) * 0x85EBCA6Bu;
+    uint32_t c0 = (uint32_t)block, c1 = (uint32_t)step, c2 = word2(stream, block, step);
     BoxMuller *bm = box_muller();
 #if defined(__x86_64__)
     int avx2 = wf_simd_level() >= WF_SIMD_AVX2;
@@ -111,5 +116,45 @@ void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_
         bm(padded, u1, u2, z);
         size_t lo = 2 * p0, m = n - lo < 2 * cnt ? n - lo : 2 * cnt;
         memcpy(out + lo, z, m * sizeof *z);
+    }
+}
+
+void wf_rng_normal_rings(size_t nr, const uint64_t *seed, uint32_t stream, uint64_t block, const uint64_t *step,
+                         const size_t *n, double *out)
+{
+    enum { P = WF_RNG_RINGS_PAIRS + 8 };
+    /* one Philox call a pair, each with its ring's key and counter (block, step, word 2, pair); padded to 8 calls
+     * with copies of the last (independent calls: the padding's uniforms are not used) */
+    uint32_t kw[2][P], cw[4][P];
+    size_t calls = 0;
+    for (size_t r = 0; r < nr; r++)
+        for (size_t p = 0; p < (n[r] + 1) / 2; p++, calls++) {
+            kw[0][calls] = (uint32_t)seed[r], kw[1][calls] = (uint32_t)(seed[r] >> 32);
+            cw[0][calls] = (uint32_t)block, cw[1][calls] = (uint32_t)step[r];
+            cw[2][calls] = word2(stream, block, step[r]), cw[3][calls] = (uint32_t)p;
+        }
+    double u1[P], u2[P], z[2 * P];
+    size_t padded = (calls + 7) & ~(size_t)7;
+    for (size_t j = calls; j < padded; j++) {
+        for (int w = 0; w < 2; w++) kw[w][j] = kw[w][calls - 1];
+        for (int w = 0; w < 4; w++) cw[w][j] = cw[w][calls - 1];
+    }
+#if defined(__x86_64__)
+    if (wf_simd_level() >= WF_SIMD_AVX2) {
+        const uint32_t *const k[2] = {kw[0], kw[1]}, *const c[4] = {cw[0], cw[1], cw[2], cw[3]};
+        wf_philox_uniforms_lanes_avx2(k, c, padded, u1, u2);
+    } else
+#endif
+        for (size_t j = 0; j < calls; j++) {
+            philox4x32_key_t key = {{kw[0][j], kw[1][j]}};
+            philox4x32_ctr_t ctr = {{cw[0][j], cw[1][j], cw[2][j], cw[3][j]}}, w = philox4x32(ctr, key);
+            u1[j] = uniform53(w.v[0], w.v[1]), u2[j] = uniform53(w.v[2], w.v[3]);
+        }
+    size_t quads = (calls + 3) & ~(size_t)3;
+    for (size_t j = calls; j < quads; j++) u1[j] = 0.5, u2[j] = 0.5;
+    box_muller()(quads, u1, u2, z);
+    for (size_t r = 0, p0 = 0; r < nr; p0 += (n[r] + 1) / 2, r++) {
+        memcpy(out, z + 2 * p0, n[r] * sizeof *out);
+        out += n[r];
     }
 }

@@ -106,6 +106,7 @@ int wf_sim_begin(WfSim *s, const WfOutput *out, WfError *err)
     if (rc) return rc;
     s->out = out;
     s->begun = 1;
+    s->epoch++;
     s->loop = (WfLoop){.ctx = s, .step = step_cb, .checkpoint = out && out->checkpoint ? checkpoint_cb : NULL,
                        .close = close_cb, .end = out && out->end ? end_cb : NULL, .steps_done = s->steps_done,
                        .wall_s = &s->wall_s, .n_steps = wf_scenario_n_steps(sc), .dt_s = sc->dt_s,
@@ -132,17 +133,22 @@ static int sim_step(WfSim *s, long n, int timed, WfError *err)
     return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
 }
 
-int wf_sim_gang_ready(const WfSim *s, long k)
+long wf_sim_gang_plain(const WfSim *s)
 {
     const WfLoop *lp = &s->loop;
-    return s->begun && !s->finished && !s->mlp_rows && !lp->progress && !lp->stop &&
-           !(lp->checkpoint && lp->checkpoint_every_s > 0) && !s->ls.reason && !s->ls.at_end &&
-           s->b == &wf_boundary_periodic && wf_ring_gang_plain(s, k);
+    if (!s->begun || s->finished || s->mlp_rows || lp->progress || lp->stop ||
+        (lp->checkpoint && lp->checkpoint_every_s > 0) || s->ls.reason || s->ls.at_end || s->b != &wf_boundary_periodic)
+        return 0;
+    return wf_ring_gang_plain(s);
 }
 
 void wf_sim_gang_done(WfSim *s, long k) { *s->steps_done += k; }
 
-int wf_sim_gang_fail(WfSim *s, int rc, WfError *err) { return finish(s, rc, err); }
+int wf_sim_gang_fail(WfSim *s, int rc, WfError *err)
+{
+    s->epoch++;
+    return finish(s, rc, err);
+}
 
 int wf_sim_step(WfSim *s, long n, WfError *err) { return sim_step(s, n, 1, err); }
 int wf_sim_step_untimed(WfSim *s, long n, WfError *err) { return sim_step(s, n, 0, err); }
@@ -151,6 +157,7 @@ int wf_sim_finish(WfSim *s, WfError *err)
 {
     if (!s->begun || s->finished) return 0;
     s->ls.reason = "stopped by the caller";
+    s->epoch++;
     return finish(s, 0, err);
 }
 
@@ -179,6 +186,7 @@ const double *wf_sim_phase_times(const WfSim *s) { return s->phase_s; }
 void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s)
 {
     s->checkpoint_every_s = s->loop.checkpoint_every_s = wall_s;
+    s->epoch++;
 }
 size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max) { return s->b->state(s->eng, vars, max); }
 int wf_sim_restored(WfSim *s, WfError *err)

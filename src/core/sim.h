@@ -46,16 +46,16 @@ extern const WfBoundary wf_boundary_periodic, wf_boundary_open;
 int wf_sim_step_untimed(WfSim *s, long n, WfError *err);
 
 /* Rings stepped side by side (src/core/gang.c), one ring's part. wf_ring_gang_lane: a single-lane ring's lane as
- * the kernel sees it (fixed-step, not split across processes), else NULL. wf_ring_gang_plain: whether its next k
+ * the kernel sees it (fixed-step, not split across processes), else NULL. wf_ring_gang_plain: how many of its next
  * steps are plain fused steps (its statistics window open, no record, trajectory frame or final instant among them,
  * no fault). wf_ring_gang_settle: what ring_step does after a plain step's pass, whose flags were `flags` (the
- * overlap repair, the numerical fault's error). wf_sim_gang_ready: the run's next k steps can be taken so (begun,
- * not ended, no mlp group, no progress, checkpoint or stop flag to serve, a plain ring); wf_sim_gang_done: they
- * were; wf_sim_gang_fail: the run ends with the error rc (as the step loop ends it). */
+ * overlap repair, the numerical fault's error). wf_sim_gang_plain: the same for the run (0 unless begun, not ended,
+ * no mlp group, no progress, checkpoint or stop flag to serve, a ring); wf_sim_gang_done: k of them were taken;
+ * wf_sim_gang_fail: the run ends with the error rc (as the step loop ends it). */
 WfLane *wf_ring_gang_lane(WfSim *sim);
-int     wf_ring_gang_plain(const WfSim *sim, long k);
+long    wf_ring_gang_plain(const WfSim *sim);
 int     wf_ring_gang_settle(WfSim *sim, long step, int flags, WfError *err);
-int     wf_sim_gang_ready(const WfSim *s, long k);
+long    wf_sim_gang_plain(const WfSim *s);
 void    wf_sim_gang_done(WfSim *s, long k);
 int     wf_sim_gang_fail(WfSim *s, int rc, WfError *err);
 
@@ -72,8 +72,9 @@ struct WfSim {
     WfLoop            loop;     /* set by wf_sim_begin */
     WfLoopState       ls;
     int               begun, finished;
-    /* Counts the changes of the state by anything but a gang (src/core/gang.c): steps through the step loop,
-     * restores from a checkpoint. A gang that holds a copy of the state knows it is still the run's. */
+    /* Counts the changes of the run by anything but a gang (src/core/gang.c): its beginning, steps through the step
+     * loop, restores from a checkpoint, its end, a new checkpoint interval. A gang that holds a copy of the state
+     * (and knows how many plain steps follow) knows it is still the run's. */
     unsigned long     epoch;
     /* `model: mlp` groups (src/core/sim.c: mlp_command): the observation rows and commands of one group's batch,
      * room for the most vehicles a group can have on the road; NULL when no group is mlp. Owned. */

@@ -305,8 +305,9 @@ def test_vector_env(tmp):
             check(f"vector_env_thread_check_default_quoted_{threads}", quoted == {str(venv._batch.thread_check())},
                   (quoted, venv._batch.thread_check()))
         name = f"vector_env_equals_single_envs_threads_{threads}" + ("_governor" if thread_check else "")
-        check(name, not bad and resets == 7 and (probes >= 5 if thread_check else not probes or threads > 1),
-              (bad[:5], resets, probes))
+        # the rings side by side in every action (records come every 1000 steps; autoresets rebuild the batch)
+        check(name, not bad and resets == 7 and (probes >= 5 if thread_check else not probes or threads > 1)
+              and venv.side_by_side == len(actions), (bad[:5], resets, probes, venv.side_by_side))
         if threads == 2:
             print(f"  3 rings, {len(actions)} actions, {resets} autoresets: the bits of the environments alone"
                   + (f" ({probes} probes of the thread governor, {switches} switches)" if thread_check else ""))
@@ -380,10 +381,37 @@ def test_vector_env_side_by_side():
         bad = [k for k, u in enumerate(actions) if (lambda o: o[0].tobytes() != ref[k][0].tobytes()
                                                     or o[1].tobytes() != ref[k][1].tobytes())(venv.step(u))]
         same = all(venv.envs[i].sim.state()[k].tobytes() == final[i][k].tobytes() for i in range(n) for k in keys)
-        gang = venv._batch.gang_calls()
+        gang = venv.side_by_side
         check(f"vector_env_side_by_side_equals_alone_threads_{threads}",
               not bad and same and gang == acts - 1 and repaired, (bad[:5], same, gang, repaired))
         venv.close()
+    # A refused command (infinite) inside the shared blocks: that run fails untouched, the others step as alone.
+    envs = [wf.envs.RingEnv(**per_env[i]) for i in range(6)]
+    twins = [wf.envs.RingEnv(**per_env[i]) for i in range(6)]
+    for i, e in enumerate(envs + twins):
+        e.reset(seed=50 + i % 6)
+    batch = wf.batch.RlBatch([e.sim for e in envs], ["av"] * 6, wf.envs.Reward(), 1, 0.1)
+    u = np.full(6, 0.5)
+    u[2] = np.inf
+    try:
+        batch.step(u, 2)
+        msg = ""
+    except wf.WavefuelError as e:
+        msg = str(e)
+    t_before = twins[2].sim.t
+    for i in (0, 1, 3, 4, 5):
+        twins[i].step(np.array([0.5]))
+    same = all(envs[i].sim.state()["x_m"].tobytes() == twins[i].sim.state()["x_m"].tobytes() for i in range(6))
+    same &= envs[2].sim.t == t_before
+    # the next call steps all six: run 2's reward is its own action's (nothing of the refused call is left)
+    _, reward, _ = batch.step(np.full(6, 0.5), 2)
+    want = np.array([twins[i].step(np.array([0.5]))[1] for i in range(6)])
+    check("vector_env_side_by_side_refused_command", msg.startswith("run 2 of the batch: ") and "command 0 is inf"
+          in msg and same and batch.gang_calls() == 2
+          and reward.tobytes() == want.tobytes(), (msg, same, batch.gang_calls(), reward - want))
+    batch.close()
+    for e in envs + twins:
+        e.close()
 
 
 def test_sims_batch():
