@@ -43,6 +43,7 @@ struct WfRlBatch {
     uint8_t      *scope, *flag;
     /* per row of the groups */
     double       *obs0, *obs1, *a_prev;
+    unsigned char **cmd;                  /* per row of a batch with a gang: where its command goes (its state) */
 };
 
 /* A run's vehicles in road order (a ring: fleet order, vehicle i + 1 leading i; a corridor: front first). */
@@ -71,7 +72,7 @@ void wf_rl_batch_destroy(WfRlBatch **pb)
     WfRlBatch *b = *pb;
     wf_gang_destroy(&b->gang);
     void *arrays[] = {b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
-                      b->scope, b->flag, b->obs0, b->obs1, b->a_prev};
+                      b->scope, b->flag, b->obs0, b->obs1, b->a_prev, b->cmd};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(b);
     *pb = NULL;
@@ -132,6 +133,8 @@ int wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, c
     if (!rc) rc = wf_sims_observe(sims, n_runs, b->group, b->obs0, b->n_rows, err);
     for (size_t k = 0; !rc && k < n_runs; k++) layout_run(b, k);
     if (!rc) rc = wf_gang_create(sims, n_runs, &b->gang, err);
+    if (!rc && b->gang && !(b->cmd = malloc(b->n_rows * sizeof *b->cmd))) rc = wf_err(err, WF_ESYS, "out of memory");
+    for (size_t k = 0; !rc && b->gang && k < n_runs; k++) wf_sim_group_states(sims[k], group[k], b->cmd + b->run[k].row);
     for (size_t j = 0; !rc && j < b->n_rows; j++) b->a_prev[j] = NAN; /* no previous action: no jerk */
     if (rc) wf_rl_batch_destroy(&b);
     *out = b;
@@ -249,10 +252,18 @@ static int gang_before(void *ctx, size_t k, WfError *err)
 {
     const RlStep *c = ctx;
     const RlRun *ru = &c->b->run[k];
+    const double *u = c->actions + ru->row;
     c->b->run[k].fuel_set = 0; /* a run whose steps fail keeps it so until its next call */
-    int rc = wf_sim_set_actions(c->b->sims[k], c->b->group[k], c->actions + ru->row, ru->m, err);
-    if (rc) wf_err_prefix(err, "run %zu of the batch: ", k);
-    return rc;
+    /* the commands into the members' state, where wf_sim_set_actions puts them (a ring's members stay); a refused
+     * one through it, for its message */
+    for (size_t j = 0; j < ru->m; j++)
+        if (isinf(u[j])) {
+            int rc = wf_sim_set_actions(c->b->sims[k], c->b->group[k], u, ru->m, err);
+            wf_err_prefix(err, "run %zu of the batch: ", k);
+            return rc;
+        }
+    for (size_t j = 0; j < ru->m; j++) memcpy(c->b->cmd[ru->row + j], u + j, sizeof *u);
+    return 0;
 }
 
 /* The fuel rates of a gang block's runs r0 .. r1 - 1 in one evaluation when every vehicle of them is of class 0 (the

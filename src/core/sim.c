@@ -224,6 +224,14 @@ static void put_command(void *ctx, size_t k, unsigned char *state, double v, dou
     memcpy(state, (const double *)ctx + k, sizeof(double));
 }
 
+static void put_state(void *ctx, size_t k, unsigned char *state, double v, double vl, double gap)
+{
+    (void)v, (void)vl, (void)gap;
+    ((unsigned char **)ctx)[k] = state;
+}
+
+size_t wf_sim_group_states(WfSim *s, size_t g, unsigned char **out) { return s->b->group(s->eng, g, put_state, out); }
+
 int wf_sim_set_actions(WfSim *s, size_t g, const double *u, size_t n, WfError *err)
 {
     int rc = check_group(s, g, n, wf_sim_group_size(s, g), 1, err);

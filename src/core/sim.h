@@ -52,6 +52,10 @@ int wf_sim_step_untimed(WfSim *s, long n, WfError *err);
  * overlap repair, the numerical fault's error). wf_sim_gang_plain: the same for the run (0 unless begun, not ended,
  * no mlp group, no progress, checkpoint or stop flag to serve, a ring); wf_sim_gang_done: k of them were taken;
  * wf_sim_gang_fail: the run ends with the error rc (as the step loop ends it). */
+/* Where group g's vehicles keep their controller state (an external group's command: the first 8 bytes), in road
+ * order as wf_sim_set_actions sets them, into out; returns their number. A single-lane ring's stay where they are
+ * while the run lives. */
+size_t  wf_sim_group_states(WfSim *s, size_t g, unsigned char **out);
 WfLane *wf_ring_gang_lane(WfSim *sim);
 long    wf_ring_gang_plain(const WfSim *sim);
 int     wf_ring_gang_settle(WfSim *sim, long step, int flags, WfError *err);
