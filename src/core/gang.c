@@ -29,7 +29,7 @@ struct WfGang {
     WfError      *errs;      /* the call's, per run */
     const WfGangHooks *h;    /* the call's */
     unsigned long *seen;     /* per run: its WfSim.epoch when its state last went out (ULONG_MAX: never) */
-    long         *until;     /* per run, while seen is its epoch: its steps are plain up to this one (excluded) */
+    long         *left;      /* per run, while seen is its epoch: its plain steps left (wf_gang_ready) */
     long          k;         /* the call's steps */
 };
 
@@ -82,7 +82,7 @@ static void move_run(WfGang *g, size_t r, int in, int all)
            (cnt) * sizeof *(ring))
     const WfFleet *f = wf_sim_fleet(sim);
     for (size_t q = 0; q < f->n_groups; q++)
-        if (gl->sstride[q])
+        if (gl->sstride[q] && f->group_n[q])
             MOVE(gl->state[q] + g->sbase[r * WF_MAX_GROUPS + q] * gl->sstride[q], rl->state[q],
                  f->group_n[q] * gl->sstride[q]);
     if (!rest) return;
@@ -108,7 +108,8 @@ void wf_gang_destroy(WfGang **pg)
     WF_ACCUM_FIELDS(FREE)
 #undef FREE
     for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
-    free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv), free(g->until);
+    free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv);
+    free(g->left);
     free(g);
     *pg = NULL;
 }
@@ -174,13 +175,14 @@ int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err
              (g->sbase = calloc(n_runs * WF_MAX_GROUPS, sizeof *g->sbase)) &&
              (g->seg = malloc(n_runs * sizeof *g->seg)) && (g->berr = malloc(n_runs * sizeof *g->berr)) &&
              (g->seen = malloc(n_runs * sizeof *g->seen)) && (g->nv = malloc(n_runs * sizeof *g->nv)) &&
-             (g->until = malloc(n_runs * sizeof *g->until));
+             (g->left = malloc(n_runs * sizeof *g->left));
     for (size_t r = 0; ok && r < n_runs; r++) g->seen[r] = ULONG_MAX;
     /* whole rings, in run order, into blocks of at most WF_BLOCK vehicles, each block from a multiple of LINE slots
      * (the blocks of two threads share no cache line) */
     for (size_t r = 0, in_block = 0, slot = 0; ok && r < n_runs; r++) {
         size_t n = wf_ring_gang_lane(sims[r])->cap;
-        if (!r || in_block + n > WF_BLOCK) g->first[g->n_blocks++] = r, in_block = 0, slot = (slot + LINE - 1) / LINE * LINE;
+        if (!r || in_block + n > WF_BLOCK)
+            g->first[g->n_blocks++] = r, in_block = 0, slot = (slot + LINE - 1) / LINE * LINE;
         g->off[r] = slot, g->nv[r] = n;
         slot += n, in_block += n;
         g->off[n_runs] = slot;
@@ -196,13 +198,15 @@ int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err
 
 int wf_gang_ready(WfGang *g, long k)
 {
+    /* The runs' own counters are written by the threads that step them: read only when a run changed (its epoch)
+     * or its known plain steps ran out, so that a call does not fetch a cache line of every run from the other
+     * core. */
     for (size_t r = 0; r < g->n_runs; r++) {
         WfSim *sim = g->sims[r];
-        long now = wf_sim_steps_done(sim);
-        if (g->seen[r] == sim->epoch && now + k <= g->until[r]) continue;
-        g->until[r] = now + wf_sim_gang_plain(sim); /* the run changed, or its known plain steps ran out */
-        if (now + k > g->until[r]) return 0;
+        if (g->seen[r] == sim->epoch && g->left[r] >= k) continue;
+        if ((g->left[r] = wf_sim_gang_plain(sim)) < k) return 0;
     }
+    for (size_t r = 0; r < g->n_runs; r++) g->left[r] -= k;
     return 1;
 }
 
@@ -230,6 +234,15 @@ static void block_fault(WfGang *g, size_t r0, size_t r1, long s, const uint8_t *
         if (s + 1 < g->k) wf_sim_step_untimed(sim, g->k - s - 1, &g->errs[r]);
         after(g, r);
     }
+}
+
+/* The first error of runs r0 .. r1 - 1 (0: none): the block's report, so that the caller need not read every run's
+ * error from the other core. */
+static int first_error(const WfGang *g, size_t r0, size_t r1)
+{
+    for (size_t r = r0; r < r1; r++)
+        if (g->errs[r].code) return g->errs[r].code;
+    return 0;
 }
 
 /* Block j's rings: before, in, k steps, out, after. A ring whose step flagged an overlap or a fault is settled at
@@ -266,7 +279,7 @@ static int step_block(void *ctx, size_t j, WfError *unused)
         }
         if (bad) {
             block_fault(g, r0, r1, s, skip);
-            return 0;
+            return first_error(g, r0, r1);
         }
     }
     for (size_t r = r0; r < r1; r++) {
@@ -277,14 +290,12 @@ static int step_block(void *ctx, size_t j, WfError *unused)
     if (g->h && g->h->after_block) g->h->after_block(g->h->ctx, r0, r1);
     for (size_t r = r0; r < r1; r++)
         if (!skip[r - r0]) after(g, r);
-    return 0;
+    return first_error(g, r0, r1);
 }
 
 int wf_gang_step(WfGang *g, long k, int threads, const WfGangHooks *h, WfError *errs)
 {
     g->k = k, g->errs = errs, g->h = h;
-    wf_runs_each(g->n_blocks, threads, step_block, g, g->berr);
-    for (size_t r = 0; r < g->n_runs; r++)
-        if (errs[r].code) return errs[r].code;
-    return 0;
+    /* the blocks in run order, each reporting its runs' first error */
+    return wf_runs_each(g->n_blocks, threads, step_block, g, g->berr);
 }

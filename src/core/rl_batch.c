@@ -134,7 +134,8 @@ int wf_rl_batch_create(WfSim *const *sims, size_t n_runs, const size_t *group, c
     for (size_t k = 0; !rc && k < n_runs; k++) layout_run(b, k);
     if (!rc) rc = wf_gang_create(sims, n_runs, &b->gang, err);
     if (!rc && b->gang && !(b->cmd = malloc(b->n_rows * sizeof *b->cmd))) rc = wf_err(err, WF_ESYS, "out of memory");
-    for (size_t k = 0; !rc && b->gang && k < n_runs; k++) wf_sim_group_states(sims[k], group[k], b->cmd + b->run[k].row);
+    for (size_t k = 0; !rc && b->gang && k < n_runs; k++)
+        wf_sim_group_states(sims[k], group[k], b->cmd + b->run[k].row);
     for (size_t j = 0; !rc && j < b->n_rows; j++) b->a_prev[j] = NAN; /* no previous action: no jerk */
     if (rc) wf_rl_batch_destroy(&b);
     *out = b;
