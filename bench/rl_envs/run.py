@@ -27,7 +27,7 @@
    the sumo processes: /proc/<pid>/stat), and the ratio of VectorEnv on 1 thread to each.
 OpenMP reads OMP_WAIT_POLICY when the process starts: run the script once per policy (bench/README.md).
 Usage: PYTHONPATH=python WAVEFUEL_LIB=lib/libwavefuel.so /usr/bin/python3 bench/rl_envs/run.py
-       [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600] [--sumo-envs 1,4,64]
+       [--envs 64] [--steps 2000] [--traj-steps 500] [--repeats 3] [--check-steps 600] [--sumo-envs 1,4,64 | 0]
        [--sumo-steps 500] [--load]"""
 import argparse
 import os
@@ -176,10 +176,17 @@ def main():
     ap.add_argument("--traj-steps", type=int, default=500)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--check-steps", type=int, default=600)
-    ap.add_argument("--sumo-envs", default="1,4,64", help="numbers of SUMO environments stepped in turn")
+    ap.add_argument("--sumo-envs", default="1,4,64",
+                    help="numbers of SUMO environments stepped in turn (each at least 1); 0: no SUMO cases")
     ap.add_argument("--sumo-steps", type=int, default=500)
     ap.add_argument("--load", action="store_true", help="two CPU-bound processes beside the timed cases")
     a = ap.parse_args()
+    try:
+        a.sumo_counts = [int(x) for x in a.sumo_envs.split(",")]
+    except ValueError:
+        a.sumo_counts = [-1]
+    if a.sumo_counts != [0] and min(a.sumo_counts) < 1:
+        ap.error(f"--sumo-envs: a comma-separated list of counts of at least 1, or 0 for none (got {a.sumo_envs!r})")
     print("machine:", machine())
     ok = agreement(4, a.check_steps)
     load = start_load(600.0) if a.load else []
@@ -210,11 +217,11 @@ def timed_cases(a, ok):
         print(f"| {k} | {wall:.3g} | {wall * 200:.3g} | {cpu:.3g} | {reset_s:.1f} |")
     cases = [(k, (wall, cpu)) for k, (wall, cpu, _) in
              list(rings.items()) + [(f"traj {k}", v) for k, v in traj.items()]]
-    why = sumo_ring.available()
+    why = "--sumo-envs 0" if a.sumo_counts == [0] else sumo_ring.available()
     if why:
         print(f"\nSUMO + TraCI: not run: {why}")
     else:
-        sumo, sumo_ok = bench_sumo(a.envs, [int(x) for x in a.sumo_envs.split(",")], a.sumo_steps, a.repeats,
+        sumo, sumo_ok = bench_sumo(a.envs, a.sumo_counts, a.sumo_steps, a.repeats,
                                    rings["VectorEnv, 1 thread"][:2])
         cases += list(sumo.items())
         ok = ok and sumo_ok

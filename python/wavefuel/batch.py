@@ -41,8 +41,11 @@ class RlBatch:
             lib.wf_rl_batch_set_thread_check(self._b, int(thread_check))
         self.n_rows = lib.wf_rl_batch_rows(self._b)
         self._errs = (WfError * n)()
-        self.obs, self.reward = np.empty((self.n_rows, 3)), np.empty(n)
-        self.info = np.empty((n, len(INFO)))
+        # obs, reward and info as views of one buffer: a caller keeping a step's results copies it once (out)
+        k = 3 * self.n_rows
+        self.out = np.empty(k + n + n * len(INFO))
+        self.obs, self.reward = self.out[:k].reshape(self.n_rows, 3), self.out[k:k + n]
+        self.info = self.out[k + n:].reshape(n, len(INFO))
         self._args = (self.obs.ctypes.data, self.reward.ctypes.data, self.info.ctypes.data, C.addressof(self._errs))
         lib.wf_rl_batch_observe(self._b, self.obs.ctypes.data)
         # The previous action's accelerations (NaN: none), a view of the batch's array: writable.

@@ -137,9 +137,9 @@ class VectorEnv:
         # np.minimum/np.maximum into one buffer: np.clip costs several times more on arrays this small.
         np.minimum(np.maximum(u, self._low, out=self._u), self._high, out=self._u)
         self._step_batch()
-        b = self._batch
-        obs, r = b.obs.reshape(self.num_envs, self.n_av, 3).copy(), b.reward.copy()
-        cols = b.info.T.copy()  # one copy: the batch's buffers are overwritten by the next step
+        # one copy of the batch's results (overwritten by the next step), then views of it
+        out, n, k = self._batch.out.copy(), self.num_envs, self._batch.n_rows * 3
+        obs, r, cols = out[:k].reshape(n, self.n_av, 3), out[k:k + n], out[k + n:].reshape(n, len(INFO)).T
         t = cols[5]  # each run's time, as Simulation.t: steps done x dt
         infos = _infos(t, cols, self._all)
         self._left -= 1
