@@ -52,9 +52,10 @@ size_t wf_rl_batch_rows(const WfRlBatch *b);
 double *wf_rl_batch_prev_accel(WfRlBatch *b);
 /* The observation now (n_rows x 3, wf_sims_observe's rows). */
 void wf_rl_batch_observe(const WfRlBatch *b, double *obs);
-/* One action: for every run, in parallel over runs on up to `threads` OpenMP threads, its commands set (its rows of
- * actions, n_rows in all, as wf_sims_set_actions), action_steps steps, then its rows of obs (n_rows x 3, may be
- * NULL), reward (n_runs) and info (n_runs x WF_RL_N_INFO) written. errs: n_runs entries, as wf_sims_step's
+/* One action: for every run, in parallel over runs (or over blocks of rings stepped side by side:
+ * wf_rl_batch_gang_calls) on up to `threads` OpenMP threads, its commands set (its rows of actions, n_rows in all, as
+ * wf_sims_set_actions), action_steps steps, then its rows of obs (n_rows x 3, may be NULL), reward (n_runs) and info
+ * (n_runs x WF_RL_N_INFO) written. errs: n_runs entries, as wf_sims_step's
  * (messages prefixed with the run's index); returns the first failure's status (0 on success); a run whose vehicles
  * on the road changed fails with WF_EINPUT. How many of the threads a call takes is chosen by timing the calls, as a
  * corridor's steps are (src/core/governor.h): on a machine whose cores other processes also use, all threads can be
