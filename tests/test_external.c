@@ -240,9 +240,9 @@ static void test_rl_batch_lifetime(void)
 
 /* Rings stepped side by side (src/core/gang.c): five such rings of different seeds and lengths in one batch on two
  * threads against each alone in a batch of its own (stepped by the engine one run at a time): every observation,
- * reward and info, and the final positions, speeds and fuel, bit for bit; the actions cross records (the batch
+ * reward and info, every block of the final state and the summaries, bit for bit; the actions cross records (the batch
  * then steps them one by one) and drive one ring's automated vehicles into their leaders (overlap repairs in the
- * shared blocks). Under make tsan, the shared blocks' parallel region. */
+ * shared blocks); one command refused inside the shared blocks. Under make tsan, the shared blocks' parallel region. */
 static void test_rl_batch_side_by_side(void)
 {
     enum { R = 5, M = 6, ACTS = 400 };
@@ -270,34 +270,65 @@ static void test_rl_batch_side_by_side(void)
     for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_create(&alone[k], 1, group, &rw, 1, 0.1, &one[k], &err);
     double u[R * M], obs[R * M * 3], reward[R], info[R * WF_RL_N_INFO], o1[M * 3], r1, i1[WF_RL_N_INFO];
     size_t bad = 0;
+    /* At action REFUSE (side by side, as the one before it) ring 2's first command is infinite: refused, that ring
+     * not stepped (its twin neither), the others stepped; the call fails and returns no observation. */
+    enum { REFUSE = 211 };
+    long gang_before = 0;
+    int refused = 0;
     for (int a = 0; !rc && a < ACTS; a++) {
         for (int j = 0; j < R * M; j++) u[j] = j < M ? 3.0 : sin(0.37 * a + j);
+        if (a == REFUSE - 1) gang_before = wf_rl_batch_gang_calls(b);
+        if (a == REFUSE) u[2 * M] = INFINITY;
         rc = wf_rl_batch_step(b, u, 2, obs, reward, info, errs);
+        if (a == REFUSE) refused = rc == WF_EINPUT && errs[2].code && !errs[1].code, rc = 0;
         for (int k = 0; !rc && k < R; k++) {
             rc = wf_rl_batch_step(one[k], u + k * M, 1, o1, &r1, i1, &err);
+            if (a == REFUSE) {
+                refused &= (rc != 0) == (k == 2), rc = 0;
+                continue;
+            }
             bad += memcmp(o1, obs + k * M * 3, sizeof o1) || memcmp(&r1, reward + k, sizeof r1) ||
                    memcmp(i1, info + k * WF_RL_N_INFO, sizeof i1);
         }
     }
     CHECK(rc == 0, "%s %s", err.msg, errs[0].msg);
+    CHECK(refused && wf_rl_batch_gang_calls(b) > gang_before + 1,
+          "action %d: ring 2's infinite command not refused alone, or actions %d and %d not side by side", REFUSE,
+          REFUSE - 1, REFUSE);
+    /* Every block of the runs' state, as a checkpoint saves it (the stop modes and statistics sums the gang holds
+     * until asked included), then each run's summary once ended by the caller (its statistics), the first ring's
+     * with the batch still alive, the others' after it is gone */
     for (int k = 0; !rc && k < R; k++) {
-        const WfFleet *f = wf_sim_fleet(sims[k]), *g = wf_sim_fleet(alone[k]);
-        bad += memcmp(f->x_m, g->x_m, f->n * sizeof *f->x_m) || memcmp(f->v_mps, g->v_mps, f->n * sizeof *f->v_mps) ||
-               memcmp(f->fuel_g, g->fuel_g, f->n * sizeof *f->fuel_g) || wf_sim_steps_done(sims[k]) != 105 + ACTS;
+        WfStateVar va[WF_MAX_STATE_VARS], vb[WF_MAX_STATE_VARS];
+        size_t na = wf_sim_state(sims[k], va, WF_MAX_STATE_VARS), nb = wf_sim_state(alone[k], vb, WF_MAX_STATE_VARS);
+        bad += na != nb || wf_sim_steps_done(sims[k]) != 105 + ACTS - (k == 2) ||
+               wf_sim_steps_done(sims[k]) != wf_sim_steps_done(alone[k]);
+        for (size_t j = 0; j < na && j < nb; j++)
+            bad += va[j].size != vb[j].size || memcmp(va[j].data, vb[j].data, va[j].size);
     }
     long gang = rc ? 0 : wf_rl_batch_gang_calls(b), repaired = 0;
     for (int k = 0; !rc && k < R; k++) repaired += wf_rl_batch_gang_calls(one[k]);
-    WfSummary sum = {0};
-    if (!rc) { /* ended by the caller: WF_EINTR, the summary written */
-        WfError fin = {0};
-        wf_sim_finish(sims[0], &fin);
-        sum = *wf_sim_summary(sims[0]);
+    /* every automated vehicle brakes to a stop (the stopped time counts every step), the last action side by side:
+     * what the gang holds is again newer than the rings' arrays */
+    for (int j = 0; j < R * M; j++) u[j] = -3.0;
+    for (long a = 0, before = 0; !rc && (a < 60 || wf_rl_batch_gang_calls(b) == before); a++) {
+        before = wf_rl_batch_gang_calls(b);
+        rc = wf_rl_batch_step(b, u, 2, obs, reward, info, errs);
+        for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_step(one[k], u + k * M, 1, o1, &r1, i1, &err);
     }
-    CHECK(!rc && bad == 0 && gang > ACTS / 2 && gang < ACTS && repaired == 0 && sum.overlaps > 0,
+    WfSummary sum[R], twin[R];
+    for (int k = 0; !rc && k < R; k++) { /* ended by the caller: WF_EINTR, the summary written */
+        WfError fin = {0};
+        if (k == 1) wf_rl_batch_destroy(&b);
+        wf_sim_finish(sims[k], &fin), wf_sim_finish(alone[k], &fin);
+        sum[k] = *wf_sim_summary(sims[k]), twin[k] = *wf_sim_summary(alone[k]);
+        bad += memcmp(&sum[k], &twin[k], sizeof sum[k]) != 0 || !(sum[k].time_stopped_share > 0.0);
+    }
+    CHECK(!rc && bad == 0 && gang > ACTS / 2 && gang < ACTS && repaired == 0 && sum[0].overlaps > 0,
           "%zu differences; %ld of %d actions side by side (%ld by batches of one); ring 0 repaired %lld overlaps",
-          bad, gang, ACTS, repaired, (long long)sum.overlaps);
+          bad, gang, ACTS, repaired, rc ? 0LL : (long long)sum[0].overlaps);
     printf("  %d rings, %d actions: %ld side by side, the others at records; ring 0: %lld overlaps repaired\n", R, ACTS,
-           gang, (long long)sum.overlaps);
+           gang, rc ? 0LL : (long long)sum[0].overlaps);
     wf_rl_batch_destroy(&b);
     for (int k = 0; k < R; k++) {
         wf_rl_batch_destroy(&one[k]);

@@ -120,8 +120,9 @@ int wf_sims_set_actions(WfSim *const *sims, size_t n_sims, const size_t *group, 
 const WfScenario *wf_sim_scenario(const WfSim *sim);
 /* "ring" or "corridor": the boundary (checkpoints and /meta/road_type name it). */
 const char       *wf_sim_kind(const WfSim *sim);
-/* The ring's fleet (NULL on a corridor); the corridor's engine for its accessors (wavefuel/corridor.h; NULL on a
- * ring). Borrowed from the run. */
+/* The ring's fleet (NULL on a corridor), its arrays as the run's last step left them (what an RL batch stepping it
+ * side by side still held comes back first); the corridor's engine for its accessors (wavefuel/corridor.h; NULL on
+ * a ring). Borrowed from the run. */
 const WfFleet    *wf_sim_fleet(const WfSim *sim);
 const struct WfCorridor *wf_sim_corridor(const WfSim *sim);
 const WfSummary  *wf_sim_summary(const WfSim *sim); /* valid after wf_sim_run */

@@ -894,9 +894,15 @@ static int ring_close(void *eng, WfError *err)
     return 0;
 }
 
-const WfFleet *wf_sim_fleet(const WfSim *sim)
+const WfFleet *wf_ring_fleet(const WfSim *sim)
 {
     return sim->b == &wf_boundary_periodic ? ((const WfRing *)sim->eng)->f : NULL;
+}
+
+const WfFleet *wf_sim_fleet(const WfSim *sim)
+{
+    wf_sim_sync((WfSim *)sim); /* the arrays' values as a step leaves them (the run itself is not const) */
+    return wf_ring_fleet(sim);
 }
 
 static int ring_windows(const void *eng, long *windows, long *redone)

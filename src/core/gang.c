@@ -4,7 +4,8 @@
  * copied into one lane, run after run, and whole rings are packed into blocks of at most WF_BLOCK vehicles; each
  * block steps as one (wf_lane_gang_block), every ring with its own noise stream, its last vehicle following its
  * first one lap ahead, its own accumulators: the bits of the ring stepped alone. The rings' state is copied in at
- * the start of a call and out at its end (the runs stay what Python and the checkpoints read between calls). */
+ * the start of a call when the run changed since, and what callers view of it goes out at its end (the rest when
+ * the run asks: WfSim.held). */
 #include "core/gang.h"
 
 #include <limits.h>
@@ -17,7 +18,8 @@
 #include "wavefuel/fleet.h"
 
 struct WfGang {
-    WfSim *const *sims;      /* borrowed */
+    WfSim *const *sims;      /* borrowed: alive while the gang steps them */
+    uint8_t      *holds;     /* per run: the gang holds the newest of its arrays nobody views (WfSim.held) */
     size_t        n_runs, n_blocks;
     WfLane        ln;        /* the rings' vehicles in one lane, run after run (owned arrays) */
     WfRoadOps     ops;       /* a flat road without limits: no hooks */
@@ -66,41 +68,82 @@ static int same_kernel(const WfLane *a, const WfLane *b)
     return 1;
 }
 
-/* Run r's per-vehicle state between its ring's lane and the gang's: in (ring to gang) or out. Only the controllers'
- * memory (an external group's commands) comes in when the gang's copy of the rest is the ring's: the ring has not
- * stepped or been restored since this copy went out (WfSim.epoch) and `all` is not asked. */
+/* Run r's arrays between its ring's lane and the gang's, in (ring to gang) or out: `viewed` those a caller may
+ * hold views of between calls (positions, speeds, fuel: wavefuel.Simulation.state()), else the others (stop modes,
+ * the other statistics sums). */
+static void move_arrays(WfGang *g, size_t r, int in, int viewed)
+{
+    const WfLane *rl = wf_ring_gang_lane(g->sims[r]);
+    WfLane *gl = &g->ln;
+    size_t o = g->off[r], n = g->nv[r];
+#define MOVE(gang, ring)                                                                                            \
+    if (ring) memcpy(in ? (void *)((gang) + o) : (void *)(ring), in ? (const void *)(ring) : (const void *)((gang) + o), \
+                     n * sizeof *(ring));
+    if (viewed) {
+        MOVE(gl->x_m, rl->x_m);
+        MOVE(gl->v_mps, rl->v_mps);
+        MOVE(gl->always.fuel_g, rl->always.fuel_g);
+        MOVE(gl->window.fuel_g, rl->window.fuel_g);
+        return;
+    }
+    MOVE(gl->mode, rl->mode);
+#define ACC(fld)                                                                                                    \
+    if (strcmp(#fld, "fuel_g")) {                                                                                   \
+        MOVE(gl->always.fld, rl->always.fld);                                                                       \
+        MOVE(gl->window.fld, rl->window.fld);                                                                       \
+    }
+    WF_ACCUM_FIELDS(ACC)
+#undef ACC
+#undef MOVE
+}
+
+/* What the gang holds of run r back into its arrays (WfSim.held), or dropped (the run is gone, or restored). */
+static void give_back(void *ctx, size_t r, int drop)
+{
+    WfGang *g = ctx;
+    g->sims[r]->held = (struct WfHeld){0};
+    g->holds[r] = 0;
+    if (!drop) move_arrays(g, r, 0, 0);
+}
+
+/* Run r's per-vehicle state between its ring's lane and the gang's. In: the controllers' memory (an external
+ * group's commands), and the rest unless the gang's copy is the ring's (the ring has not stepped or been restored
+ * since this copy went out: WfSim.epoch) and `all` is not asked. Out: everything when `all` is asked, else what
+ * callers view, the rest held by the gang until the run asks for it (wf_sim_sync: a copy a call of the arrays
+ * nobody reads between calls cost a tenth of a 22-vehicle ring's action). */
 static void move_run(WfGang *g, size_t r, int in, int all)
 {
     WfSim *sim = g->sims[r];
     const WfLane *rl = wf_ring_gang_lane(sim);
     WfLane *gl = &g->ln;
-    size_t o = g->off[r], n = g->nv[r];
-    int rest = !in || all || g->seen[r] != sim->epoch;
-    if (!in) g->seen[r] = sim->epoch;
-#define MOVE(gang, ring, cnt)                                                                                       \
-    memcpy(in ? (void *)(gang) : (void *)(ring), in ? (const void *)(ring) : (const void *)(gang),                  \
-           (cnt) * sizeof *(ring))
-    const WfFleet *f = wf_sim_fleet(sim);
+    const WfFleet *f = wf_ring_fleet(sim);
     for (size_t q = 0; q < f->n_groups; q++)
-        if (gl->sstride[q] && f->group_n[q])
-            MOVE(gl->state[q] + g->sbase[r * WF_MAX_GROUPS + q] * gl->sstride[q], rl->state[q],
-                 f->group_n[q] * gl->sstride[q]);
-    if (!rest) return;
-    MOVE(gl->x_m + o, rl->x_m, n);
-    MOVE(gl->v_mps + o, rl->v_mps, n);
-    MOVE(gl->mode + o, rl->mode, n);
-#define ACC(fld)                                                                                                    \
-    if (rl->always.fld) MOVE(gl->always.fld + o, rl->always.fld, n);                                                \
-    if (rl->window.fld) MOVE(gl->window.fld + o, rl->window.fld, n);
-    WF_ACCUM_FIELDS(ACC)
-#undef ACC
-#undef MOVE
+        if (gl->sstride[q] && f->group_n[q]) {
+            unsigned char *gs = gl->state[q] + g->sbase[r * WF_MAX_GROUPS + q] * gl->sstride[q];
+            size_t bytes = f->group_n[q] * gl->sstride[q];
+            memcpy(in ? gs : rl->state[q], in ? rl->state[q] : gs, bytes);
+        }
+    if (in) {
+        if (all || g->seen[r] != sim->epoch) move_arrays(g, r, 1, 1), move_arrays(g, r, 1, 0);
+        return;
+    }
+    g->seen[r] = sim->epoch;
+    move_arrays(g, r, 0, 1);
+    if (all) {
+        move_arrays(g, r, 0, 0);
+        if (g->holds[r]) sim->held = (struct WfHeld){0}, g->holds[r] = 0;
+    } else if (!g->holds[r]) {
+        sim->held = (struct WfHeld){give_back, g, r};
+        g->holds[r] = 1;
+    }
 }
 
 void wf_gang_destroy(WfGang **pg)
 {
     if (!pg || !*pg) return;
     WfGang *g = *pg;
+    for (size_t r = 0; g->holds && r < g->n_runs; r++) /* a run whose arrays the gang holds is alive (give_back) */
+        if (g->holds[r]) give_back(g, r, 0);
     WfLane *l = &g->ln;
     free(l->x_m), free(l->v_mps), free(l->mode), free((void *)l->class_id), free((void *)l->group_id);
     free((void *)l->slot);
@@ -108,7 +151,7 @@ void wf_gang_destroy(WfGang **pg)
     WF_ACCUM_FIELDS(FREE)
 #undef FREE
     for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
-    free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv);
+    free(g->holds), free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv);
     free(g->left);
     free(g);
     *pg = NULL;
@@ -145,12 +188,12 @@ static int lane_build(WfGang *g)
         size_t members = 0;
         for (size_t r = 0; r < g->n_runs; r++) {
             g->sbase[r * WF_MAX_GROUPS + q] = members;
-            members += wf_sim_fleet(g->sims[r])->group_n[q];
+            members += wf_ring_fleet(g->sims[r])->group_n[q];
         }
         if (l->sstride[q] && members) ok = (l->state[q] = malloc(members * l->sstride[q])) != NULL;
     }
     for (size_t r = 0; ok && r < g->n_runs; r++) {
-        const WfFleet *f = wf_sim_fleet(g->sims[r]);
+        const WfFleet *f = wf_ring_fleet(g->sims[r]);
         size_t o = g->off[r];
         memcpy((uint16_t *)l->class_id + o, f->class_id, f->n * sizeof *f->class_id);
         memcpy((uint16_t *)l->group_id + o, f->group_id, f->n * sizeof *f->group_id);
@@ -171,12 +214,15 @@ int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err
     WfGang *g = calloc(1, sizeof *g);
     if (!g) return wf_err(err, WF_ESYS, "out of memory");
     g->sims = sims, g->n_runs = n_runs;
-    int ok = (g->off = malloc((n_runs + 1) * sizeof *g->off)) && (g->first = malloc((n_runs + 1) * sizeof *g->first)) &&
+    int ok = (g->holds = calloc(n_runs, 1)) && (g->off = malloc((n_runs + 1) * sizeof *g->off)) && (g->first = malloc((n_runs + 1) * sizeof *g->first)) &&
              (g->sbase = calloc(n_runs * WF_MAX_GROUPS, sizeof *g->sbase)) &&
              (g->seg = malloc(n_runs * sizeof *g->seg)) && (g->berr = malloc(n_runs * sizeof *g->berr)) &&
              (g->seen = malloc(n_runs * sizeof *g->seen)) && (g->nv = malloc(n_runs * sizeof *g->nv)) &&
              (g->left = malloc(n_runs * sizeof *g->left));
-    for (size_t r = 0; ok && r < n_runs; r++) g->seen[r] = ULONG_MAX;
+    for (size_t r = 0; ok && r < n_runs; r++) {
+        g->seen[r] = ULONG_MAX;
+        wf_sim_sync(sims[r]); /* what another gang held: its copy in is this one's first */
+    }
     /* whole rings, in run order, into blocks of at most WF_BLOCK vehicles, each block from a multiple of LINE slots
      * (the blocks of two threads share no cache line) */
     for (size_t r = 0, in_block = 0, slot = 0; ok && r < n_runs; r++) {
@@ -263,8 +309,11 @@ static int step_block(void *ctx, size_t j, WfError *unused)
         skip[r - r0] = g->h && g->h->before && g->h->before(g->h->ctx, r, &g->errs[r]);
         g->seg[r] = (WfSeg){g->off[r], g->nv[r], sc->road.length_m, sc->seed,
                             wf_sim_steps_done(g->sims[r])};
+        if (skip[r - r0]) {
+            wf_sim_sync(g->sims[r]); /* the gang's copy steps with the block: what it held goes back first */
+            g->seen[r] = ULONG_MAX;  /* and will not be the ring's */
+        }
         move_run(g, r, 1, 0);
-        if (skip[r - r0]) g->seen[r] = ULONG_MAX; /* the gang's copy will not be the ring's */
     }
     for (long s = 0; s < g->k; s++) {
         int fl = wf_lane_gang_block(&g->ln, g->seg + r0, r1 - r0, 1, NULL, edge);
@@ -284,7 +333,7 @@ static int step_block(void *ctx, size_t j, WfError *unused)
     }
     for (size_t r = r0; r < r1; r++) {
         if (skip[r - r0]) continue;
-        move_run(g, r, 0, 1);
+        move_run(g, r, 0, 0);
         wf_sim_gang_done(g->sims[r], g->k);
     }
     if (g->h && g->h->after_block) g->h->after_block(g->h->ctx, r0, r1);

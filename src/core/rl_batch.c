@@ -55,7 +55,7 @@ typedef struct Road {
 
 static Road road_of(const WfSim *sim)
 {
-    Road r = {wf_sim_fleet(sim), NULL, 0};
+    Road r = {wf_ring_fleet(sim), NULL, 0};
     if (r.f) r.n = r.f->n;
     else r.vh = wf_corridor_vehicles(wf_sim_corridor(sim)), r.n = r.vh->n;
     return r;
@@ -278,7 +278,7 @@ static void gang_fuel(void *ctx, size_t r0, size_t r1)
         if (b->run[k].cls_off[1] != b->run[k].n) return;
     size_t lo = b->run[r0].veh, hi = b->run[r1 - 1].veh + b->run[r1 - 1].n;
     for (size_t k = r0; k < r1; k++)
-        memcpy(b->v1 + b->run[k].veh, wf_sim_fleet(b->sims[k])->v_mps, b->run[k].n * sizeof *b->v1);
+        memcpy(b->v1 + b->run[k].veh, wf_ring_fleet(b->sims[k])->v_mps, b->run[k].n * sizeof *b->v1);
     for (size_t i = lo; i < hi; i++) b->a[i] = (b->v1[i] - b->v0[i]) / b->dt_s;
     flat_fuel(&wf_sim_scenario(b->sims[r0])->classes[0].vc, hi - lo, b->v0 + lo, b->a + lo, b->zero + lo,
               b->fuel + lo, b->flag + lo);

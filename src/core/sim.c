@@ -59,9 +59,15 @@ int wf_sim_create_part(const WfScenario *sc, WfPartition *part, WfSim **out, WfE
     return rc;
 }
 
+void wf_sim_sync(WfSim *s)
+{
+    if (s->held.fn) s->held.fn(s->held.gang, s->held.r, 0);
+}
+
 void wf_sim_destroy(WfSim **ps)
 {
     if (!ps || !*ps) return;
+    if ((*ps)->held.fn) (*ps)->held.fn((*ps)->held.gang, (*ps)->held.r, 1); /* the gang forgets it */
     if ((*ps)->eng) (*ps)->b->destroy((*ps)->eng);
     free((*ps)->mlp_rows);
     free((*ps)->mlp_cmd);
@@ -118,6 +124,7 @@ int wf_sim_begin(WfSim *s, const WfOutput *out, WfError *err)
 /* The run's end: a stop, an error or the final instant closes it (summary, output end). */
 static int finish(WfSim *s, int rc, WfError *err)
 {
+    wf_sim_sync(s);
     s->finished = 1;
     return wf_loop_finish(&s->loop, &s->ls, rc, err);
 }
@@ -129,6 +136,7 @@ static int sim_step(WfSim *s, long n, int timed, WfError *err)
                       s->finished ? "the run has ended: no step is left" : "wf_sim_begin first");
     s->loop.wall_s = timed ? &s->wall_s : NULL;
     s->epoch++;
+    wf_sim_sync(s);
     int rc = wf_loop_advance(&s->loop, &s->ls, n, err);
     return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
 }
@@ -188,10 +196,15 @@ void wf_sim_set_checkpoint_interval(WfSim *s, double wall_s)
     s->checkpoint_every_s = s->loop.checkpoint_every_s = wall_s;
     s->epoch++;
 }
-size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max) { return s->b->state(s->eng, vars, max); }
+size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
+{
+    wf_sim_sync(s);
+    return s->b->state(s->eng, vars, max);
+}
 int wf_sim_restored(WfSim *s, WfError *err)
 {
     s->epoch++;
+    if (s->held.fn) s->held.fn(s->held.gang, s->held.r, 1); /* the restored arrays are the run's: a gang copies them in */
     return s->b->restored(s->eng, err);
 }
 

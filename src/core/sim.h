@@ -57,6 +57,11 @@ int wf_sim_step_untimed(WfSim *s, long n, WfError *err);
  * while the run lives. */
 size_t  wf_sim_group_states(WfSim *s, size_t g, unsigned char **out);
 WfLane *wf_ring_gang_lane(WfSim *sim);
+/* The ring's fleet as wf_sim_fleet gives it, without bringing back what a gang holds (WfSim.held): for the gang and
+ * its batch, which read only what comes back after every call. */
+const WfFleet *wf_ring_fleet(const WfSim *sim);
+/* What a gang holds of the run back into its arrays (WfSim.held), if anything. */
+void    wf_sim_sync(WfSim *s);
 long    wf_ring_gang_plain(const WfSim *sim);
 int     wf_ring_gang_settle(WfSim *sim, long step, int flags, WfError *err);
 long    wf_sim_gang_plain(const WfSim *s);
@@ -80,6 +85,17 @@ struct WfSim {
      * loop, restores from a checkpoint, its end, a new checkpoint interval. A gang that holds a copy of the state
      * (and knows how many plain steps follow) knows it is still the run's. */
     unsigned long     epoch;
+    /* After a gang's call (src/core/gang.c) the gang may still hold the newest copy of what no caller views between
+     * calls (the stop modes and the statistics sums but the fuel: the positions, speeds, window fuel and controller
+     * memory come back at the end of every call). fn(gang, r, 0) brings it back into the run's arrays, fn(gang, r, 1)
+     * drops it (the run is gone, or restored from a checkpoint); each clears `held`. Every function that reads or
+     * writes those arrays outside the gang calls wf_sim_sync first: the steps, the end, the checkpoints' state,
+     * wf_sim_fleet. */
+    struct WfHeld {
+        void (*fn)(void *gang, size_t r, int drop);
+        void  *gang;
+        size_t r;
+    } held;
     /* `model: mlp` groups (src/core/sim.c: mlp_command): the observation rows and commands of one group's batch,
      * room for the most vehicles a group can have on the road; NULL when no group is mlp. Owned. */
     double           *mlp_rows, *mlp_cmd;
