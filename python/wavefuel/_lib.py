@@ -201,10 +201,15 @@ class WfRlReward(C.Structure):
                                                                       "w_accel", "w_jerk")]
 
 
+class WfRlCall(C.Structure):
+    _fields_ = [("b", C.c_void_p), ("actions", C.c_void_p), ("threads", C.c_int), ("obs", C.c_void_p),
+                ("reward", C.c_void_p), ("info", C.c_void_p), ("errs", C.c_void_p)]
+
+
 # The structures whose layout tests/python/layout.py compares with the C compiler's.
 MIRRORS = (WfError, WfParamSpec, WfEnergyModel, WfVehicleClass, WfRoad, WfOdeConfig, WfClassShare, WfDriverGroup,
            WfFleet, WfCorridorVehicles, WfCorridorCounts, WfClassSummary, WfGroupSummary, WfSummary, WfSummaryPrint,
-           WfSummaryField, WfOutput, WfScenario, WfRlReward)
+           WfSummaryField, WfOutput, WfScenario, WfRlReward, WfRlCall)
 # Prefix mirrors: only their fields' offsets are compared, not their sizes.
 PREFIXES = (WfCfModel,)
 
@@ -244,6 +249,8 @@ _SIGNATURES = {
     "wf_rl_batch_observe": (None, [_vp, _vp]),
     "wf_rl_batch_prev_accel": (C.POINTER(C.c_double), [_vp]),
     "wf_rl_batch_step": (C.c_int, [_vp, _vp, C.c_int, _vp, _vp, _vp, _vp]),
+    "wf_rl_batch_call": (C.c_int, [_vp]),
+    "wf_rl_batch_set_bounds": (C.c_int, [_vp, _vp, _vp, C.POINTER(WfError)]),
     "wf_rl_batch_set_thread_check": (None, [_vp, C.c_long]),
     "wf_rl_batch_thread_check": (C.c_long, [_vp]),
     "wf_rl_batch_gang_calls": (C.c_long, [_vp]),

@@ -19,9 +19,10 @@ class RlBatch:
     `reward` a wavefuel.envs.Reward, an action lasting action_steps steps of dt_s. The vehicles on each road must
     stay the same while the batch lives. step() returns arrays that the next call overwrites (copy to keep).
     thread_check: calls between the thread governor's probes of the other thread count (None: the library's
-    default, WF_RL_THREAD_CHECK in rl.h; 0: always the threads asked)."""
+    default, WF_RL_THREAD_CHECK in rl.h; 0: always the threads asked). bounds: (low, high), n_rows values each (or
+    numbers): every command is clipped to them in C as np.minimum(np.maximum(u, low), high) would (None: none)."""
 
-    def __init__(self, sims, groups, reward, action_steps, dt_s, thread_check=None):
+    def __init__(self, sims, groups, reward, action_steps, dt_s, thread_check=None, bounds=None):
         self.sims = list(sims)
         for s in self.sims:
             s._alive()
@@ -40,6 +41,15 @@ class RlBatch:
                 raise ValueError(f"thread_check must be >= 0 (got {thread_check})")
             lib.wf_rl_batch_set_thread_check(self._b, int(thread_check))
         self.n_rows = lib.wf_rl_batch_rows(self._b)
+        if bounds is not None:
+            low, high = (np.ascontiguousarray(a.reshape(-1) if a.size == self.n_rows else
+                                              np.broadcast_to(a, (self.n_rows,)))
+                         for a in (np.asarray(x, np.float64) for x in bounds))
+            e = WfError()
+            rc = lib.wf_rl_batch_set_bounds(self._b, low.ctypes.data, high.ctypes.data, C.byref(e))
+            if rc:
+                self.close()
+                check(rc, e)
         self._errs = (WfError * n)()
         # obs, reward and info as views of one buffer: a caller keeping a step's results copies it once (out)
         k = 3 * self.n_rows
@@ -66,13 +76,15 @@ class RlBatch:
         self.obs, self.reward and self.info. Valid while the batch lives (close() ends it)."""
         if not (isinstance(u, np.ndarray) and u.dtype == np.float64 and u.flags.c_contiguous and u.size == self.n_rows):
             raise ValueError(f"stepper: the commands must be a C-contiguous float64 array of {self.n_rows} values")
-        call = functools.partial(lib.wf_rl_batch_step, self._b, u.ctypes.data, int(threads), *self._args)
+        # the arguments as one struct (rl.h: WfRlCall): ctypes converts one argument instead of seven
+        args = _lib.WfRlCall(self._b.value, u.ctypes.data, int(threads), *self._args)
+        call = functools.partial(lib.wf_rl_batch_call, C.addressof(args))
 
         def step():
             rc = call()
             if rc:
                 self._raise(rc)
-        step.commands = u  # the array whose address the call holds stays alive with it
+        step.commands, step.args = u, args  # what the call's addresses point to stays alive with it
         return step
 
     def _raise(self, rc):

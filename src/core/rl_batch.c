@@ -43,6 +43,7 @@ struct WfRlBatch {
     uint8_t      *scope, *flag;
     /* per row of the groups */
     double       *obs0, *obs1, *a_prev;
+    double       *low, *high, *u;         /* the commands' bounds (NULL: none) and the clipped commands */
     unsigned char **cmd;                  /* per row of a batch with a gang: where its command goes (its state) */
 };
 
@@ -72,7 +73,7 @@ void wf_rl_batch_destroy(WfRlBatch **pb)
     WfRlBatch *b = *pb;
     wf_gang_destroy(&b->gang);
     void *arrays[] = {b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
-                      b->scope, b->flag, b->obs0, b->obs1, b->a_prev, b->cmd};
+                      b->scope, b->flag, b->obs0, b->obs1, b->a_prev, b->cmd, b->low, b->high, b->u};
     for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
     free(b);
     *pb = NULL;
@@ -293,9 +294,42 @@ static int gang_after(void *ctx, size_t k, WfError *err)
     return rc;
 }
 
+int wf_rl_batch_set_bounds(WfRlBatch *b, const double *low, const double *high, WfError *err)
+{
+    if (!low || !high) {
+        free(b->low), free(b->high), free(b->u);
+        b->low = b->high = b->u = NULL;
+        return 0;
+    }
+    for (size_t j = 0; j < b->n_rows; j++)
+        if (!(low[j] <= high[j]))
+            return wf_err(err, WF_EINPUT, "rl batch: command %zu's bounds [%g, %g] (need low <= high, not NaN)", j,
+                          low[j], high[j]);
+    size_t bytes = b->n_rows * sizeof(double);
+    double *lo = b->low ? b->low : malloc(bytes), *hi = b->high ? b->high : malloc(bytes), *u = b->u ? b->u : malloc(bytes);
+    b->low = lo, b->high = hi, b->u = u; /* kept even when one failed: freed with the batch */
+    if (!lo || !hi || !u) return wf_err(err, WF_ESYS, "out of memory");
+    memcpy(lo, low, b->n_rows * sizeof *lo);
+    memcpy(hi, high, b->n_rows * sizeof *hi);
+    return 0;
+}
+
+/* numpy's maximum and minimum of two doubles: a NaN in either gives NaN, a tie gives b. */
+static double np_maximum(double a, double b) { return a > b || a != a ? a : b; }
+static double np_minimum(double a, double b) { return a < b || a != a ? a : b; }
+
+int wf_rl_batch_call(const WfRlCall *c)
+{
+    return wf_rl_batch_step(c->b, c->actions, c->threads, c->obs, c->reward, c->info, c->errs);
+}
+
 int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *obs, double *reward, double *info,
                      WfError *errs)
 {
+    if (b->u) { /* the commands clipped to their bounds */
+        for (size_t j = 0; j < b->n_rows; j++) b->u[j] = np_minimum(np_maximum(actions[j], b->low[j]), b->high[j]);
+        actions = b->u;
+    }
     RlStep c = {b, actions, reward, info};
     if (threads < 1) threads = 1;
     /* A call lasts some 50 us: the first on another thread count is not timed (governor.h, settle). */

@@ -153,6 +153,31 @@ def test_ring_env():
     env.close()
 
 
+def test_actions_clipped():
+    """Actions outside the action space (beyond its bounds, infinite, exactly on them, NaN for none) are clipped in
+    C (RlBatch's bounds) as numpy's minimum(maximum(u, low), high): a RingEnv given them, and its twin without bounds
+    (an action space without bounds) given numpy's clipped values, step the same bits, alone and in a VectorEnv."""
+    kw = dict(n_av=3, horizon_s=30.0, warmup_s=2.0, accel_range_mps2=(-1.0, 0.5))
+    rng = np.random.default_rng(3)
+    acts = rng.uniform(-4.0, 4.0, (250, 3))
+    acts[::7, 0], acts[::11, 1], acts[::13, 2] = np.inf, -np.inf, 0.5
+    acts[::17, 0], acts[5::19, 2] = -1.0, np.nan
+    clipped = np.minimum(np.maximum(acts, -1.0), 0.5)
+    env, twin = wf.envs.RingEnv(**kw), wf.envs.RingEnv(**dict(kw, accel_range_mps2=(-np.inf, np.inf)))
+    env.reset(seed=8), twin.reset(seed=8)
+    same = all(a[0].tobytes() == b[0].tobytes() and a[1] == b[1]
+               for a, b in ((env.step(u), twin.step(c)) for u, c in zip(acts, clipped)))
+    venv = wf.envs.VectorEnv(2, threads=2, thread_check=0, **kw)
+    venv.reset(seed=8)
+    both = np.stack([acts, acts[::-1]], axis=1)
+    out = [venv.step(u)[0][0].copy() for u in both]
+    twin.reset(seed=8)
+    same_vec = all(o.tobytes() == twin.step(c)[0].tobytes() for o, c in zip(out, clipped))
+    check("actions_clipped_as_numpy", same and same_vec and np.isnan(acts).any(), (same, same_vec))
+    for e in (env, twin, venv):
+        e.close()
+
+
 def reward_by_hand(rw, st0, st1, av, dt, length_m, ring, a_prev, cls="midsize_sedan"):
     """The reward's terms recomputed from two states (sim.state() at an action's start and end) with numpy and the
     class's energy model: fuel of the vehicles in scope, the automated vehicles' gaps from their positions, their
@@ -462,6 +487,7 @@ def main():
         test_idm_from_python(tmp)
         test_refusals()
         test_ring_env()
+        test_actions_clipped()
         test_trajectory_env(tmp)
         test_reward_terms()
         test_vector_env(tmp)
