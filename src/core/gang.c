@@ -19,6 +19,8 @@
 
 struct WfGang {
     WfSim *const *sims;      /* borrowed: alive while the gang steps them */
+    WfLane      **rl;        /* per run: its ring's lane (the run's, fixed for its life) */
+    const WfFleet **fl;      /* per run: its fleet (the same) */
     uint8_t      *holds;     /* per run: the gang holds the newest of its arrays nobody views (WfSim.held) */
     size_t        n_runs, n_blocks;
     WfLane        ln;        /* the rings' vehicles in one lane, run after run (owned arrays) */
@@ -73,7 +75,7 @@ static int same_kernel(const WfLane *a, const WfLane *b)
  * the other statistics sums). */
 static void move_arrays(WfGang *g, size_t r, int in, int viewed)
 {
-    const WfLane *rl = wf_ring_gang_lane(g->sims[r]);
+    const WfLane *rl = g->rl[r];
     WfLane *gl = &g->ln;
     size_t o = g->off[r], n = g->nv[r];
 #define MOVE(gang, ring)                                                                                            \
@@ -114,9 +116,9 @@ static void give_back(void *ctx, size_t r, int drop)
 static void move_run(WfGang *g, size_t r, int in, int all)
 {
     WfSim *sim = g->sims[r];
-    const WfLane *rl = wf_ring_gang_lane(sim);
+    const WfLane *rl = g->rl[r];
     WfLane *gl = &g->ln;
-    const WfFleet *f = wf_ring_fleet(sim);
+    const WfFleet *f = g->fl[r];
     for (size_t q = 0; q < f->n_groups; q++)
         if (gl->sstride[q] && f->group_n[q]) {
             unsigned char *gs = gl->state[q] + g->sbase[r * WF_MAX_GROUPS + q] * gl->sstride[q];
@@ -151,7 +153,7 @@ void wf_gang_destroy(WfGang **pg)
     WF_ACCUM_FIELDS(FREE)
 #undef FREE
     for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
-    free(g->holds), free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv);
+    free(g->holds), free(g->rl), free(g->fl), free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv);
     free(g->left);
     free(g);
     *pg = NULL;
@@ -188,12 +190,12 @@ static int lane_build(WfGang *g)
         size_t members = 0;
         for (size_t r = 0; r < g->n_runs; r++) {
             g->sbase[r * WF_MAX_GROUPS + q] = members;
-            members += wf_ring_fleet(g->sims[r])->group_n[q];
+            members += g->fl[r]->group_n[q];
         }
         if (l->sstride[q] && members) ok = (l->state[q] = malloc(members * l->sstride[q])) != NULL;
     }
     for (size_t r = 0; ok && r < g->n_runs; r++) {
-        const WfFleet *f = wf_ring_fleet(g->sims[r]);
+        const WfFleet *f = g->fl[r];
         size_t o = g->off[r];
         memcpy((uint16_t *)l->class_id + o, f->class_id, f->n * sizeof *f->class_id);
         memcpy((uint16_t *)l->group_id + o, f->group_id, f->n * sizeof *f->group_id);
@@ -201,6 +203,43 @@ static int lane_build(WfGang *g)
             ((uint32_t *)l->slot)[o + i] = (uint32_t)(g->sbase[r * WF_MAX_GROUPS + f->group_id[i]] + f->slot[i]);
     }
     return ok;
+}
+
+/* Whole rings, in run order, into blocks of at most WF_BLOCK vehicles, as few as a greedy fill needs, the rings then
+ * spread so that the blocks hold about as many vehicles each (the blocks are shared out to the threads in halves:
+ * 64 rings of 22 give the two threads 32 each, the greedy fill 33 and 31), unless that overfills a block. Each
+ * block starts at a multiple of LINE slots (the blocks of two threads share no cache line). */
+static void pack(WfGang *g)
+{
+    size_t n_runs = g->n_runs, total = 0, in_block = 0;
+    for (size_t r = 0; r < n_runs; r++) {
+        g->nv[r] = g->rl[r]->cap;
+        if (!r || in_block + g->nv[r] > WF_BLOCK) g->first[g->n_blocks++] = r, in_block = 0;
+        in_block += g->nv[r], total += g->nv[r];
+    }
+    g->first[g->n_blocks] = n_runs;
+    /* block j's first ring: the ring boundary nearest j x total / n_blocks vehicles */
+    size_t *even = g->off, r = 0, cum = 0, ok = 1; /* off is filled below: scratch until then */
+    even[0] = 0;
+    for (size_t j = 1; j < g->n_blocks; j++) {
+        double target = (double)j * (double)total / (double)g->n_blocks;
+        while (r < n_runs && (double)(cum + g->nv[r]) <= target) cum += g->nv[r++];
+        if (r < n_runs && (double)(cum + g->nv[r]) - target < target - (double)cum) cum += g->nv[r++];
+        even[j] = r;
+        ok &= r > even[j - 1];
+    }
+    even[g->n_blocks] = n_runs;
+    for (size_t j = 0; ok && j < g->n_blocks; j++) {
+        size_t n = 0;
+        for (size_t q = even[j]; q < even[j + 1]; q++) n += g->nv[q];
+        ok &= even[j + 1] > even[j] && n <= WF_BLOCK;
+    }
+    if (ok) memcpy(g->first, even, (g->n_blocks + 1) * sizeof *even);
+    for (size_t j = 0, slot = 0; j < g->n_blocks; j++) {
+        slot = (slot + LINE - 1) / LINE * LINE;
+        for (size_t q = g->first[j]; q < g->first[j + 1]; q++) g->off[q] = slot, slot += g->nv[q];
+        g->off[n_runs] = slot;
+    }
 }
 
 int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err)
@@ -214,26 +253,23 @@ int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err
     WfGang *g = calloc(1, sizeof *g);
     if (!g) return wf_err(err, WF_ESYS, "out of memory");
     g->sims = sims, g->n_runs = n_runs;
-    int ok = (g->holds = calloc(n_runs, 1)) && (g->off = malloc((n_runs + 1) * sizeof *g->off)) && (g->first = malloc((n_runs + 1) * sizeof *g->first)) &&
+    int ok = (g->holds = calloc(n_runs, 1)) && (g->rl = malloc(n_runs * sizeof *g->rl)) &&
+             (g->fl = malloc(n_runs * sizeof *g->fl)) && (g->off = malloc((n_runs + 1) * sizeof *g->off)) &&
+             (g->first = malloc((n_runs + 1) * sizeof *g->first)) &&
              (g->sbase = calloc(n_runs * WF_MAX_GROUPS, sizeof *g->sbase)) &&
              (g->seg = malloc(n_runs * sizeof *g->seg)) && (g->berr = malloc(n_runs * sizeof *g->berr)) &&
              (g->seen = malloc(n_runs * sizeof *g->seen)) && (g->nv = malloc(n_runs * sizeof *g->nv)) &&
              (g->left = malloc(n_runs * sizeof *g->left));
     for (size_t r = 0; ok && r < n_runs; r++) {
         g->seen[r] = ULONG_MAX;
+        g->rl[r] = wf_ring_gang_lane(sims[r]), g->fl[r] = wf_ring_fleet(sims[r]);
         wf_sim_sync(sims[r]); /* what another gang held: its copy in is this one's first */
     }
-    /* whole rings, in run order, into blocks of at most WF_BLOCK vehicles, each block from a multiple of LINE slots
-     * (the blocks of two threads share no cache line) */
-    for (size_t r = 0, in_block = 0, slot = 0; ok && r < n_runs; r++) {
-        size_t n = wf_ring_gang_lane(sims[r])->cap;
-        if (!r || in_block + n > WF_BLOCK)
-            g->first[g->n_blocks++] = r, in_block = 0, slot = (slot + LINE - 1) / LINE * LINE;
-        g->off[r] = slot, g->nv[r] = n;
-        slot += n, in_block += n;
-        g->off[n_runs] = slot;
+    if (ok) pack(g);
+    for (size_t r = 0; ok && r < n_runs; r++) {
+        const WfScenario *sc = wf_sim_scenario(sims[r]);
+        g->seg[r] = (WfSeg){g->off[r], g->nv[r], sc->road.length_m, sc->seed, 0};
     }
-    if (ok) g->first[g->n_blocks] = n_runs;
     if (!ok || !lane_build(g)) {
         wf_gang_destroy(&g);
         return wf_err(err, WF_ESYS, "out of memory for %zu rings side by side", n_runs);
@@ -304,11 +340,9 @@ static int step_block(void *ctx, size_t j, WfError *unused)
     int edge[WF_BLOCK];
     uint8_t skip[WF_BLOCK];
     for (size_t r = r0; r < r1; r++) {
-        const WfScenario *sc = wf_sim_scenario(g->sims[r]);
         g->errs[r].code = 0, g->errs[r].msg[0] = '\0';
         skip[r - r0] = g->h && g->h->before && g->h->before(g->h->ctx, r, &g->errs[r]);
-        g->seg[r] = (WfSeg){g->off[r], g->nv[r], sc->road.length_m, sc->seed,
-                            wf_sim_steps_done(g->sims[r])};
+        g->seg[r].step = wf_sim_steps_done(g->sims[r]);
         if (skip[r - r0]) {
             wf_sim_sync(g->sims[r]); /* the gang's copy steps with the block: what it held goes back first */
             g->seen[r] = ULONG_MAX;  /* and will not be the ring's */
