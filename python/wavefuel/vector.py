@@ -100,6 +100,7 @@ class VectorEnv:
         # until then step() skips the test, and its array arithmetic (a third of a 64-ring call's Python time).
         self._left = min(self._actions_left(i) for i in range(self.num_envs))
         self._step_batch = self._batch.stepper(self._u, self.threads)
+        self._obs_size, self._obs_shape = self._batch.n_rows * 3, (self.num_envs, self.n_av, 3)
 
     def _truncated(self):
         return episode_ended(self._steps * self.dt_s, self._t0, self._horizon)
@@ -140,10 +141,10 @@ class VectorEnv:
             self._u[...] = np.asarray(actions, np.float64).reshape(self._u.shape)
         self._step_batch()  # the commands clipped to the action space in C (RlBatch's bounds)
         # one copy of the batch's results (overwritten by the next step), then views of it
-        out, n, k = self._batch.out.copy(), self.num_envs, self._batch.n_rows * 3
-        obs, r, cols = out[:k].reshape(n, self.n_av, 3), out[k:k + n], out[k + n:].reshape(n, len(INFO)).T
-        t = cols[5]  # each run's time, as Simulation.t: steps done x dt
-        infos = _infos(t, cols, self._all)
+        out, n, k = self._batch.out.copy(), self.num_envs, self._obs_size
+        obs, r, cols = out[:k].reshape(self._obs_shape), out[k:k + n], out[k + n:].reshape(n, len(INFO)).T
+        infos = _infos(*cols, self._all)
+        t = infos["t"]  # each run's time, as Simulation.t: steps done x dt
         self._left -= 1
         if self._left > 0:
             return obs, r, self._none, self._none, infos
@@ -179,11 +180,11 @@ class VectorEnv:
             e.close()
 
 
-def _infos(t, cols, every):
+def _infos(fuel, gap, comfort, fuel_rate, mean_speed, t, every):
     """Gymnasium's vector infos of a step: "t", "fuel_rate_gps", "mean_speed_mps" (n_envs,) and "reward_terms" (a dict
-    of such arrays) from t and the batch's info columns (INFO), each key K with its boolean mask "_K" (every: a
-    read-only all-True mask, shared)."""
-    return {"t": t, "_t": every, "fuel_rate_gps": cols[3], "_fuel_rate_gps": every,
-            "mean_speed_mps": cols[4], "_mean_speed_mps": every,
-            "reward_terms": {"fuel": cols[0], "_fuel": every, "gap": cols[1], "_gap": every,
-                             "comfort": cols[2], "_comfort": every}, "_reward_terms": every}
+    of such arrays) from the batch's info columns (INFO, in its order), each key K with its boolean mask "_K" (every:
+    a read-only all-True mask, shared)."""
+    return {"t": t, "_t": every, "fuel_rate_gps": fuel_rate, "_fuel_rate_gps": every,
+            "mean_speed_mps": mean_speed, "_mean_speed_mps": every,
+            "reward_terms": {"fuel": fuel, "_fuel": every, "gap": gap, "_gap": every,
+                             "comfort": comfort, "_comfort": every}, "_reward_terms": every}

@@ -198,8 +198,9 @@ static int run_reward(WfRlBatch *b, size_t k, double *reward, double *info, WfEr
     }
     b->run[k].fuel_set = 0;
     double fuel = 0.0, vsum = 0.0;
+    const uint8_t *scope = ru->n_scope < r.n ? b->scope + o : NULL; /* NULL: every vehicle (the loop's lighter form) */
     for (size_t i = 0; i < r.n; i++) {
-        fuel += b->scope[o + i] ? b->fuel[o + i] : 0.0;
+        fuel += !scope || scope[i] ? b->fuel[o + i] : 0.0;
         vsum += b->v1[o + i];
     }
     double *obs = b->obs1 + 3 * ru->row, *obs0 = b->obs0 + 3 * ru->row, *ap = b->a_prev + ru->row;
