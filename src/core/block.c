@@ -473,29 +473,33 @@ AI int stats_after(WfLane *ln, size_t lo, size_t m, const double *restrict xo, c
     const double *restrict x = ln->x_m + lo, *restrict v = ln->v_mps + lo;
     const uint16_t *cid = ln->class_id + lo;
     uint8_t *restrict mode = ln->mode + lo;
-    uint8_t stop[B], slow[B], fast[B];
+    uint8_t stop[B];
     double v_stop = sc->v_stop_mps, v_go = sc->v_go_mps, ll[B];
-    /* The hysteresis in bytes (the moving bit is bit 0), so that both loops vectorise: a moving vehicle stops below
-     * v_stop, a stopped one moves again above v_go. */
+    /* The hysteresis in bytes (the moving bit is bit 0), one vectorised loop: a moving vehicle stops below v_stop, a
+     * stopped one moves again above v_go. */
     _Static_assert(WF_MODE_MOVING == 1, "the stop hysteresis below takes the moving bit as bit 0");
-    for (size_t k = 0; k < m; k++) slow[k] = (uint8_t)(v[k] < v_stop), fast[k] = (uint8_t)(v[k] > v_go);
     for (size_t k = 0; k < m; k++) {
-        uint8_t md = mode[k], moving = md & 1u, st = moving & slow[k], go = (uint8_t)(moving ^ 1u) & fast[k];
+        uint8_t sl = (uint8_t)(v[k] < v_stop), fa = (uint8_t)(v[k] > v_go);
+        uint8_t md = mode[k], moving = md & 1u, st = moving & sl, go = (uint8_t)(moving ^ 1u) & fa;
         stop[k] = st;
         mode[k] = (uint8_t)((md & ~1u) | (moving ^ st) | go);
     }
     accum_after(&ln->always, in_window ? &ln->window : NULL, lo, m, x, xo, stop);
-    int bad = !finite_all(m, x, v);
     if (!lead_len) {
         leader_lengths(ln, cid, m ? m - 1 : 0, ll);
         lead_len = ll;
     }
-    /* a count of overlaps in doubles: 0 and 1 added in any order give the same exact sum */
-    double over = 0.0;
+    /* a count of overlaps in doubles (0 and 1 added in any order give the same exact sum), and finite_all's test of
+     * the new positions and speeds in the same loop (x loaded once) */
+    double over = 0.0, nonfinite = 0.0;
     size_t pairs = m ? m - 1 : 0;
-#pragma omp simd reduction(+ : over)
-    for (size_t k = 0; k < pairs; k++) over += x[k + 1] - lead_len[k] - x[k] < 0.0 ? 1.0 : 0.0;
-    return (over > 0.0 ? WF_STEP_OVERLAP : 0) | (bad ? WF_STEP_FAULT : 0);
+#pragma omp simd reduction(+ : over, nonfinite)
+    for (size_t k = 0; k < pairs; k++) {
+        over += x[k + 1] - lead_len[k] - x[k] < 0.0 ? 1.0 : 0.0;
+        nonfinite += (x[k] - x[k]) + (v[k] - v[k]);
+    }
+    if (m) nonfinite += (x[m - 1] - x[m - 1]) + (v[m - 1] - v[m - 1]);
+    return (over > 0.0 ? WF_STEP_OVERLAP : 0) | (nonfinite == 0.0 ? 0 : WF_STEP_FAULT);
 }
 
 void wf_lane_controllers(WfLane *ln, size_t lo, size_t n, const double *v)
