@@ -10,7 +10,8 @@
 2. rings: --envs rings of 22 vehicles (1 automated, RingEnv's defaults: IDM humans with 0.2 m/s^2 noise, ring
    length drawn in [220, 270] m, dt 0.1 s, an action every step), a constant action (0 m/s^2): env-steps per
    second = envs x steps / time of the step calls, wall and CPU (the process's, all threads), best of --repeats
-   (each repeat times every case in turn), for VectorEnv on 1 thread, on 2 threads (its thread governor choosing
+   (each repeat times every case in turn), and the median over the repeats of the baseline's time / the case's in
+   the same repeat, for VectorEnv on 1 thread, on 2 threads (its thread governor choosing
    each action's count: the default) and on 2 threads always (thread_check=0), and the baseline; no episode ends
    inside the timed steps (horizon 1e4 s), resets are timed apart; --load adds two CPU-bound processes beside
    every timed case (busy loops that stop themselves after 600 s and are killed at the end);
@@ -98,9 +99,11 @@ def timed(step, steps):
 
 
 def bench_vector(n_envs, steps, repeats, baseline=False, **env_kw):
-    """{case: (env-steps per wall second, per CPU second, reset of all environments s)} for VectorEnv on 1 and 2
-    threads (and the numpy baseline of the same rings): each repeat times every case in turn, so that all meet the
-    same load; the best wall and the best CPU time of the repeats."""
+    """{case: (env-steps per wall second, per CPU second, reset of all environments s, median ratio)} for VectorEnv
+    on 1 and 2 threads (and the numpy baseline of the same rings): each repeat times every case in turn, so that all
+    meet the same load; the best wall and the best CPU time of the repeats, and (with the baseline) the median over
+    the repeats of the baseline's wall time / the case's in the same repeat (on a VM whose speed changes from one
+    minute to the next, the pairs' ratios are steadier than the best times)."""
     venvs, rows, cases = {}, {}, {}
     for threads, check in ((1, None), (2, None), (2, 0)):
         name = f"VectorEnv, {threads} thread{'s' if threads > 1 else ''}" + (", always" if check == 0 else "")
@@ -114,11 +117,17 @@ def bench_vector(n_envs, steps, repeats, baseline=False, **env_kw):
         cases["numpy baseline"] = lambda a=np.zeros((n_envs, int(base.av.sum()))): base.step(a)
         rows["numpy baseline"] = float("nan")
     best = {k: np.array([np.inf, np.inf]) for k in cases}
+    walls = {k: [] for k in cases}
     for _ in range(repeats):
-        best = {k: np.minimum(best[k], timed(f, steps)) for k, f in cases.items()}
+        for k, f in cases.items():
+            t = timed(f, steps)
+            best[k] = np.minimum(best[k], t)
+            walls[k].append(t[0])
     for v in venvs.values():
         v.close()
-    return {k: (n_envs * steps / best[k][0], n_envs * steps / best[k][1], rows[k]) for k in cases}
+    ratio = {k: float(np.median(np.array(walls["numpy baseline"]) / np.array(walls[k]))) if baseline else float("nan")
+             for k in cases}
+    return {k: (n_envs * steps / best[k][0], n_envs * steps / best[k][1], rows[k], ratio[k]) for k in cases}
 
 
 def bench_sumo(n_envs, counts, steps, repeats, vector_1thread):
@@ -203,19 +212,22 @@ def timed_cases(a, ok):
         print("beside two CPU-bound processes (--load)")
     rings = bench_vector(a.envs, a.steps, a.repeats, baseline=True, horizon_s=1e4)
     base = rings["numpy baseline"]
-    print(f"\n{a.envs} rings of 22 vehicles, {a.steps} steps, best of {a.repeats}:")
-    print("| | env-steps/s (wall) | vs numpy | env-steps per CPU-second | vs numpy | reset of all environments, s |")
-    print("|---|---|---|---|---|---|")
-    for k, (wall, cpu, reset_s) in rings.items():
-        print(f"| {k} | {wall:.3g} | {wall / base[0]:.2f}x | {cpu:.3g} | {cpu / base[1]:.2f}x | {reset_s:.2f} |")
+    print(f"\n{a.envs} rings of 22 vehicles, {a.steps} steps, best of {a.repeats} (and the median of the repeats' "
+          f"ratios):")
+    print("| | env-steps/s (wall) | vs numpy | vs numpy, median of the repeats | env-steps per CPU-second | vs numpy "
+          "| reset of all environments, s |")
+    print("|---|---|---|---|---|---|---|")
+    for k, (wall, cpu, reset_s, ratio) in rings.items():
+        print(f"| {k} | {wall:.3g} | {wall / base[0]:.2f}x | {ratio:.2f}x | {cpu:.3g} | {cpu / base[1]:.2f}x "
+              f"| {reset_s:.2f} |")
     traj = bench_vector(a.envs, a.traj_steps, a.repeats, env=wf.envs.TrajectoryEnv, trace=stop_and_go(),
                         n_vehicles=200, humans_per_av=4)
     print(f"\n{a.envs} trajectory environments of 200 vehicles, {a.traj_steps} steps, best of {a.repeats}:")
     print("| | env-steps/s (wall) | vehicle-steps/s (wall) | env-steps per CPU-second | reset of all environments, s |")
     print("|---|---|---|---|---|")
-    for k, (wall, cpu, reset_s) in traj.items():
+    for k, (wall, cpu, reset_s, _) in traj.items():
         print(f"| {k} | {wall:.3g} | {wall * 200:.3g} | {cpu:.3g} | {reset_s:.1f} |")
-    cases = [(k, (wall, cpu)) for k, (wall, cpu, _) in
+    cases = [(k, (wall, cpu)) for k, (wall, cpu, _, _) in
              list(rings.items()) + [(f"traj {k}", v) for k, v in traj.items()]]
     why = "--sumo-envs 0" if a.sumo_counts == [0] else sumo_ring.available()
     if why:
