@@ -238,6 +238,44 @@ static void test_rl_batch_lifetime(void)
     wf_scenario_destroy(&sc);
 }
 
+/* The commands' bounds (wf_rl_batch_set_bounds): refused when low > high or NaN (the bounds kept), an infinite
+ * command clipped to them and stepped where without bounds it is refused, and NULL removing them. */
+static void test_rl_batch_bounds(void)
+{
+    const char *ext[] = {"fleet.drivers[1].model=external"};
+    WfScenario *sc = NULL;
+    WfSim *sim = NULL;
+    WfRlBatch *b = NULL;
+    WfError err = {0}, e1 = {0}, e2 = {0}, errs[1] = {{0}};
+    int rc = wf_scenario_load_text("external.yaml", ring, ext, 1, &sc, &err);
+    if (!rc) rc = wf_sim_create(sc, &sim, &err);
+    if (!rc) rc = wf_sim_begin(sim, NULL, &err);
+    const size_t group[1] = {1};
+    const WfRlReward rw = {.scope_all = 1, .w_fuel = 1.0, .gap_min_m = 5.0, .gap_max_m = 60.0, .w_gap = 1.0};
+    if (!rc) rc = wf_rl_batch_create(&sim, 1, group, &rw, 1, 0.1, &b, &err);
+    CHECK(rc == 0, "%s", err.msg);
+    if (rc) return;
+    size_t m = wf_rl_batch_rows(b);
+    double low[64], high[64], u[64], obs[192], reward[1], info[WF_RL_N_INFO];
+    for (size_t j = 0; j < m && j < 64; j++) low[j] = -1.0, high[j] = 0.5, u[j] = INFINITY;
+    high[m - 1] = -2.0;
+    int bad_order = wf_rl_batch_set_bounds(b, low, high, &e1);
+    high[m - 1] = 0.5, low[0] = NAN;
+    int bad_nan = wf_rl_batch_set_bounds(b, low, high, &e2);
+    int unbounded = wf_rl_batch_step(b, u, 1, obs, reward, info, errs); /* both refused: still no bounds */
+    low[0] = -1.0;
+    int ok = wf_rl_batch_set_bounds(b, low, high, &err) || wf_rl_batch_step(b, u, 1, obs, reward, info, errs);
+    int removed = wf_rl_batch_set_bounds(b, NULL, NULL, &err) ? 1 : wf_rl_batch_step(b, u, 1, obs, reward, info, errs);
+    CHECK(bad_order == WF_EINPUT && strstr(e1.msg, "bounds [-1, -2]") && bad_nan == WF_EINPUT &&
+          strstr(e2.msg, "command 0's bounds [nan, 0.5]") && unbounded == WF_EINPUT && ok == 0 && removed == WF_EINPUT &&
+          strstr(errs[0].msg, "is inf"),
+          "order %d (%s), NaN %d (%s), unbounded %d, bounded %d, removed %d (%s)", bad_order, e1.msg, bad_nan, e2.msg,
+          unbounded, ok, removed, errs[0].msg);
+    wf_rl_batch_destroy(&b);
+    wf_sim_destroy(&sim);
+    wf_scenario_destroy(&sc);
+}
+
 /* Rings stepped side by side (src/core/gang.c): five such rings of different seeds and lengths in one batch on two
  * threads against each alone in a batch of its own (stepped by the engine one run at a time): every observation,
  * reward and info, every block of the final state and the summaries, bit for bit; the actions cross records (the batch
@@ -342,6 +380,7 @@ int main(void)
 {
     RUN(test_ring_idm_commands);
     RUN(test_rl_batch_lifetime);
+    RUN(test_rl_batch_bounds);
     RUN(test_rl_batch_side_by_side);
     RUN(test_ring_rows_in_order);
     RUN(test_corridor_set_speed);

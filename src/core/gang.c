@@ -79,8 +79,9 @@ static void move_arrays(WfGang *g, size_t r, int in, int viewed)
     WfLane *gl = &g->ln;
     size_t o = g->off[r], n = g->nv[r];
 #define MOVE(gang, ring)                                                                                            \
-    if (ring) memcpy(in ? (void *)((gang) + o) : (void *)(ring), in ? (const void *)(ring) : (const void *)((gang) + o), \
-                     n * sizeof *(ring));
+    if (ring)                                                                                                       \
+        memcpy(in ? (void *)((gang) + o) : (void *)(ring), in ? (const void *)(ring) : (const void *)((gang) + o),   \
+               n * sizeof *(ring));
     if (viewed) {
         MOVE(gl->x_m, rl->x_m);
         MOVE(gl->v_mps, rl->v_mps);
@@ -153,8 +154,8 @@ void wf_gang_destroy(WfGang **pg)
     WF_ACCUM_FIELDS(FREE)
 #undef FREE
     for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
-    free(g->holds), free(g->rl), free(g->fl), free(g->off), free(g->first), free(g->sbase), free(g->seg), free(g->berr), free(g->seen), free(g->nv);
-    free(g->left);
+    free(g->holds), free(g->rl), free(g->fl), free(g->off), free(g->first), free(g->sbase), free(g->seg);
+    free(g->berr), free(g->seen), free(g->nv), free(g->left);
     free(g);
     *pg = NULL;
 }

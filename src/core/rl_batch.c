@@ -307,11 +307,15 @@ int wf_rl_batch_set_bounds(WfRlBatch *b, const double *low, const double *high, 
             return wf_err(err, WF_EINPUT, "rl batch: command %zu's bounds [%g, %g] (need low <= high, not NaN)", j,
                           low[j], high[j]);
     size_t bytes = b->n_rows * sizeof(double);
-    double *lo = b->low ? b->low : malloc(bytes), *hi = b->high ? b->high : malloc(bytes), *u = b->u ? b->u : malloc(bytes);
-    b->low = lo, b->high = hi, b->u = u; /* kept even when one failed: freed with the batch */
-    if (!lo || !hi || !u) return wf_err(err, WF_ESYS, "out of memory");
-    memcpy(lo, low, b->n_rows * sizeof *lo);
-    memcpy(hi, high, b->n_rows * sizeof *hi);
+    double *lo = malloc(bytes), *hi = malloc(bytes), *u = malloc(bytes);
+    if (!lo || !hi || !u) {
+        free(lo), free(hi), free(u);
+        return wf_err(err, WF_ESYS, "out of memory");
+    }
+    memcpy(lo, low, bytes);
+    memcpy(hi, high, bytes);
+    free(b->low), free(b->high), free(b->u);
+    b->low = lo, b->high = hi, b->u = u;
     return 0;
 }
 

@@ -204,7 +204,8 @@ size_t wf_sim_state(WfSim *s, WfStateVar *vars, size_t max)
 int wf_sim_restored(WfSim *s, WfError *err)
 {
     s->epoch++;
-    if (s->held.fn) s->held.fn(s->held.gang, s->held.r, 1); /* the restored arrays are the run's: a gang copies them in */
+    /* the restored arrays are the run's: a gang copies them in */
+    if (s->held.fn) s->held.fn(s->held.gang, s->held.r, 1);
     return s->b->restored(s->eng, err);
 }
 
