@@ -276,6 +276,76 @@ static void test_rl_batch_bounds(void)
     wf_scenario_destroy(&sc);
 }
 
+/* Rings side by side across their statistics windows' opening: four rings whose windows open at steps 600, 600, 600
+ * and 150 (the scenario's time.warmup_s), stepped in one batch on two threads from step 5 to 1005 against each alone:
+ * side by side while every window is closed (RingEnv's runs: their windows open after the episode), one by one
+ * while they differ and at each opening, side by side again once all are open; every observation, reward and info,
+ * then every block of the runs' state and their summaries, the same bits. */
+static void test_rl_batch_side_by_side_windows(void)
+{
+    enum { R = 4, M = 6, ACTS = 1000 };
+    WfScenario *sc[R] = {NULL};
+    WfSim *sims[R] = {NULL}, *alone[R] = {NULL};
+    WfRlBatch *b = NULL, *one[R] = {NULL};
+    WfError err = {0}, errs[R];
+    const WfRlReward rw = {.w_fuel = 1.0, .gap_min_m = 5.0, .gap_max_m = 60.0, .w_gap = 1.0, .w_accel = 0.1};
+    int rc = 0;
+    for (int k = 0; !rc && k < R; k++) {
+        char seed[64], warm[64];
+        snprintf(seed, sizeof seed, "seed=%d", 60 + k);
+        snprintf(warm, sizeof warm, "time.warmup_s=%d", k < 3 ? 60 : 15);
+        const char *sets[] = {"fleet.drivers[1].model=external", seed, warm};
+        rc = wf_scenario_load_text("external.yaml", ring, sets, 3, &sc[k], &err);
+        for (int copy = 0; copy < 2 && !rc; copy++) {
+            WfSim **s = copy ? &alone[k] : &sims[k];
+            rc = wf_sim_create(sc[k], s, &err);
+            if (!rc) rc = wf_sim_begin(*s, NULL, &err);
+            if (!rc) rc = wf_sim_step(*s, 5, &err);
+        }
+    }
+    size_t group[R] = {1, 1, 1, 1};
+    if (!rc) rc = wf_rl_batch_create(sims, R, group, &rw, 1, 0.1, &b, &err);
+    for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_create(&alone[k], 1, group, &rw, 1, 0.1, &one[k], &err);
+    double u[R * M], obs[R * M * 3], reward[R], info[R * WF_RL_N_INFO], o1[M * 3], r1, i1[WF_RL_N_INFO];
+    size_t bad = 0;
+    long gang[3] = {0, 0, 0}; /* side by side: windows all closed, some open, all open */
+    for (int a = 0; !rc && a < ACTS; a++) {
+        for (int j = 0; j < R * M; j++) u[j] = 1.5 * sin(0.11 * a + j);
+        long before = wf_rl_batch_gang_calls(b);
+        rc = wf_rl_batch_step(b, u, 2, obs, reward, info, errs);
+        long step = wf_sim_steps_done(sims[0]);
+        gang[step <= 150 ? 0 : step <= 600 ? 1 : 2] += wf_rl_batch_gang_calls(b) - before;
+        for (int k = 0; !rc && k < R; k++) {
+            rc = wf_rl_batch_step(one[k], u + k * M, 1, o1, &r1, i1, &err);
+            bad += memcmp(o1, obs + k * M * 3, sizeof o1) || memcmp(&r1, reward + k, sizeof r1) ||
+                   memcmp(i1, info + k * WF_RL_N_INFO, sizeof i1);
+        }
+    }
+    CHECK(rc == 0, "%s %s", err.msg, errs[0].msg);
+    for (int k = 0; !rc && k < R; k++) {
+        WfStateVar va[WF_MAX_STATE_VARS], vb[WF_MAX_STATE_VARS];
+        size_t na = wf_sim_state(sims[k], va, WF_MAX_STATE_VARS), nb = wf_sim_state(alone[k], vb, WF_MAX_STATE_VARS);
+        bad += na != nb;
+        for (size_t j = 0; j < na && j < nb; j++)
+            bad += va[j].size != vb[j].size || memcmp(va[j].data, vb[j].data, va[j].size);
+        WfError fin = {0};
+        wf_sim_finish(sims[k], &fin), wf_sim_finish(alone[k], &fin);
+        bad += memcmp(wf_sim_summary(sims[k]), wf_sim_summary(alone[k]), sizeof(WfSummary)) != 0;
+    }
+    CHECK(!rc && bad == 0 && gang[0] > 100 && gang[1] == 0 && gang[2] > 300,
+          "%zu differences; side by side %ld / %ld / %ld actions (windows closed / mixed / open)", bad, gang[0],
+          gang[1], gang[2]);
+    printf("  %d rings, %d actions: side by side %ld with the windows closed, %ld mixed, %ld open\n", R, ACTS, gang[0],
+           gang[1], gang[2]);
+    wf_rl_batch_destroy(&b);
+    for (int k = 0; k < R; k++) {
+        wf_rl_batch_destroy(&one[k]);
+        wf_sim_destroy(&sims[k]);
+        wf_sim_destroy(&alone[k]);
+        wf_scenario_destroy(&sc[k]);
+    }
+}
+
 /* Rings stepped side by side (src/core/gang.c): five such rings of different seeds and lengths in one batch on two
  * threads against each alone in a batch of its own (stepped by the engine one run at a time): every observation,
  * reward and info, every block of the final state and the summaries, bit for bit; the actions cross records (the batch
@@ -382,6 +452,7 @@ int main(void)
     RUN(test_rl_batch_lifetime);
     RUN(test_rl_batch_bounds);
     RUN(test_rl_batch_side_by_side);
+    RUN(test_rl_batch_side_by_side_windows);
     RUN(test_ring_rows_in_order);
     RUN(test_corridor_set_speed);
     RUN(test_refusals);

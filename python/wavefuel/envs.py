@@ -143,9 +143,12 @@ class RingEnv(_ExternalEnv):
         return {
             "name": "ring_env", "seed": int(self.np_random.integers(1, 2**31)),
             "road": {"length_m": length},
-            # One step more than the episode: the run never reaches its end inside an episode.
+            # One step more than the episode: the run never reaches its end inside an episode. Its statistics
+            # window opens after the episode: the run never ends and writes no file, so no summary is ever made of
+            # its per-vehicle statistics, and the steps keep none.
             "time": {"duration_s": self.warmup_s + self.horizon_s + 2 * self.dt_s, "dt_s": self.dt_s,
-                     "output_interval_s": _RECORD_STEPS * self.dt_s, "warmup_s": 0},
+                     "output_interval_s": _RECORD_STEPS * self.dt_s,
+                     "warmup_s": self.warmup_s + self.horizon_s + self.dt_s},
             "fleet": {"vehicles": self.n_vehicles, "placement": "interleaved",
                       "classes": [{"class": self.vehicle_class, "fraction": 1.0}],
                       "drivers": [{"name": "human", "model": "idm", "count": self.n_vehicles - self.n_av,

@@ -1047,13 +1047,16 @@ WfLane *wf_ring_gang_lane(WfSim *sim)
 /* Steps from `step` before the next multiple of `every` (0 when step is one). */
 static long until_due(long step, long every) { return (step + every - 1) / every * every - step; }
 
-long wf_ring_gang_plain(const WfSim *sim)
+long wf_ring_gang_plain(const WfSim *sim, int *in_window)
 {
     const WfRing *s = sim->eng;
     long step = s->steps_done, k = s->n_steps - step, rec = until_due(step, s->out_every);
-    if (!wf_ring_gang_lane((WfSim *)sim) || !s->sc->fused_step || !s->f->window_open || step < s->warm_steps ||
+    *in_window = step >= s->warm_steps;
+    /* the statistics window open for all of the steps, or closed for all (the step that opens it is ring_step's) */
+    if (!wf_ring_gang_lane((WfSim *)sim) || !s->sc->fused_step || (*in_window && !s->f->window_open) ||
         s->fault_vehicle >= 0)
         return 0;
+    if (!*in_window) k = s->warm_steps - step < k ? s->warm_steps - step : k;
     k = rec < k ? rec : k;
     if (s->sc->trajectories) {
         long tr = until_due(step, s->traj_every);

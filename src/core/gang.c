@@ -34,6 +34,8 @@ struct WfGang {
     const WfGangHooks *h;    /* the call's */
     unsigned long *seen;     /* per run: its WfSim.epoch when its state last went out (ULONG_MAX: never) */
     long         *left;      /* per run, while seen is its epoch: its plain steps left (wf_gang_ready) */
+    uint8_t      *win;       /* and whether its statistics window is open during them */
+    int           in_window; /* the call's: every run's window open (or every run's closed) */
     long          k;         /* the call's steps */
 };
 
@@ -155,7 +157,7 @@ void wf_gang_destroy(WfGang **pg)
 #undef FREE
     for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
     free(g->holds), free(g->rl), free(g->fl), free(g->off), free(g->first), free(g->sbase), free(g->seg);
-    free(g->berr), free(g->seen), free(g->nv), free(g->left);
+    free(g->berr), free(g->seen), free(g->nv), free(g->left), free(g->win);
     free(g);
     *pg = NULL;
 }
@@ -260,7 +262,7 @@ int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err
              (g->sbase = calloc(n_runs * WF_MAX_GROUPS, sizeof *g->sbase)) &&
              (g->seg = malloc(n_runs * sizeof *g->seg)) && (g->berr = malloc(n_runs * sizeof *g->berr)) &&
              (g->seen = malloc(n_runs * sizeof *g->seen)) && (g->nv = malloc(n_runs * sizeof *g->nv)) &&
-             (g->left = malloc(n_runs * sizeof *g->left));
+             (g->left = malloc(n_runs * sizeof *g->left)) && (g->win = malloc(n_runs));
     for (size_t r = 0; ok && r < n_runs; r++) {
         g->seen[r] = ULONG_MAX;
         g->rl[r] = wf_ring_gang_lane(sims[r]), g->fl[r] = wf_ring_fleet(sims[r]);
@@ -287,8 +289,15 @@ int wf_gang_ready(WfGang *g, long k)
     for (size_t r = 0; r < g->n_runs; r++) {
         WfSim *sim = g->sims[r];
         if (g->seen[r] == sim->epoch && g->left[r] >= k) continue;
-        if ((g->left[r] = wf_sim_gang_plain(sim)) < k) return 0;
+        int w = 0;
+        g->left[r] = wf_sim_gang_plain(sim, &w);
+        g->win[r] = (uint8_t)w;
+        if (g->left[r] < k) return 0;
     }
+    /* one statistics window for all: the blocks step with it open or closed */
+    for (size_t r = 1; r < g->n_runs; r++)
+        if (g->win[r] != g->win[0]) return 0;
+    g->in_window = g->win[0];
     for (size_t r = 0; r < g->n_runs; r++) g->left[r] -= k;
     return 1;
 }
@@ -351,7 +360,7 @@ static int step_block(void *ctx, size_t j, WfError *unused)
         move_run(g, r, 1, 0);
     }
     for (long s = 0; s < g->k; s++) {
-        int fl = wf_lane_gang_block(&g->ln, g->seg + r0, r1 - r0, 1, NULL, edge);
+        int fl = wf_lane_gang_block(&g->ln, g->seg + r0, r1 - r0, g->in_window, NULL, edge);
         int bad = 0;
         for (size_t r = r0; r < r1; r++) {
             int f = fl | edge[r - r0];

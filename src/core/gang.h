@@ -18,8 +18,9 @@ typedef struct WfGang WfGang;
  * (not an error), else the caller's until wf_gang_destroy. Fails only when out of memory. */
 int wf_gang_create(WfSim *const *sims, size_t n_runs, WfGang **out, WfError *err);
 void wf_gang_destroy(WfGang **g);
-/* Whether every run's next k steps are plain fused steps (wf_sim_gang_plain): then the next wf_gang_step takes them
- * (call it next; the count of plain steps known is spent). */
+/* Whether every run's next k steps are plain fused steps (wf_sim_gang_plain), every run's statistics window open
+ * during them or every run's closed: then the next wf_gang_step takes them (call it next; the count of plain steps
+ * known is spent). */
 int wf_gang_ready(WfGang *g, long k);
 /* What a caller does for each run on the thread that steps it, so that a call is one parallel region: before its
  * steps (returning an error: the run is not stepped, the error is its) and after them (not when they failed). */

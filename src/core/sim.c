@@ -141,13 +141,13 @@ static int sim_step(WfSim *s, long n, int timed, WfError *err)
     return rc || s->ls.reason || s->ls.at_end ? finish(s, rc, err) : 0;
 }
 
-long wf_sim_gang_plain(const WfSim *s)
+long wf_sim_gang_plain(const WfSim *s, int *in_window)
 {
     const WfLoop *lp = &s->loop;
     if (!s->begun || s->finished || s->mlp_rows || lp->progress || lp->stop ||
         (lp->checkpoint && lp->checkpoint_every_s > 0) || s->ls.reason || s->ls.at_end || s->b != &wf_boundary_periodic)
         return 0;
-    return wf_ring_gang_plain(s);
+    return wf_ring_gang_plain(s, in_window);
 }
 
 void wf_sim_gang_done(WfSim *s, long k) { *s->steps_done += k; }
