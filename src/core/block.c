@@ -538,6 +538,20 @@ AI int advance_block(WfLane *ln, size_t lo, size_t m, const double *a, const dou
     return flags | stats_after(ln, lo, m, xo, lead_len, in_window);
 }
 
+/* A fused pass without its energy evaluation when nothing would read the fuel rates: no record, no export, no
+ * accumulator of fuel or of infeasible requests (every step's gate, or the statistics window's while it is open):
+ * a ring outside its statistics window between records (an RL environment's whole run). The fault test then sees
+ * zero fuel rates: a fuel model's non-finite value can end a run only where the run keeps it. */
+AI int energy_pass(const WfLane *ln, int pass, int in_window, const WfStatsBlock *rec, Blk *b, size_t m)
+{
+    if ((pass & WF_PASS_FUSED) != WF_PASS_FUSED || rec || ln->out.fuel_rate_gps || ln->out.flag ||
+        ln->always.fuel_g || ln->always.infeasible || (in_window && (ln->window.fuel_g || ln->window.infeasible)))
+        return pass;
+    memset(b->fr, 0, m * sizeof *b->fr);
+    memset(b->fl, 0, m * sizeof *b->fl);
+    return pass & ~WF_PASS_ENERGY;
+}
+
 /* One block of a pass: slots [lo, lo + m), its last vehicle's leader ld, rec its record's partial sums or NULL, co
  * the chunk's safety counts (NULL: not a counting pass). */
 WF_SIMD_CLONES
@@ -548,6 +562,7 @@ static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long ste
     if (!(pass & WF_PASS_ACCEL))
         return advance_block(ln, lo, m, ln->out.a_mps2 + lo, ln->out.gap_m + lo, ln->out.v_lead_mps + lo, ln->out.fuel_rate_gps + lo,
                              ln->out.flag + lo, NULL, in_window);
+    pass = energy_pass(ln, pass, in_window, rec, &b, m);
     inputs_block(ln, lo, m, ld, step, pass, rec, &b, co, NULL, 0);
     if (ln->out.a_mps2) memcpy(ln->out.a_mps2 + lo, b.a, m * sizeof *b.a);
     if (ln->out.gap_m) memcpy(ln->out.gap_m + lo, b.gap, m * sizeof *b.gap);
@@ -644,7 +659,8 @@ static int gang_block(WfLane *ln, const WfSeg *sg, size_t ns, int in_window, WfC
     const WfSeg *l = &sg[ns - 1];
     size_t lo = sg[0].lo, m = l->lo + l->n - lo;
     WfLead ld = {(ln->x_m[l->lo] + l->period_m) - ln->class_length_m[ln->class_id[l->lo]], ln->v_mps[l->lo], 0.0};
-    inputs_block(ln, lo, m, &ld, 0, WF_PASS_FUSED | WF_PASS_COUNT, NULL, &b, co, sg, ns);
+    inputs_block(ln, lo, m, &ld, 0, energy_pass(ln, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL, &b, m), NULL, &b, co,
+                 sg, ns);
     return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, b.ll, in_window);
 }
 

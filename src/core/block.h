@@ -33,7 +33,8 @@ enum { WF_PASS_ACCEL = 1, WF_PASS_ENERGY = 2, WF_PASS_ADVANCE = 4, WF_PASS_FUSED
 /* Added to the pass whose accelerations the step applies (not a final instant's record, nor an adaptive solver's
  * right-hand side): that pass counts the safety filters' interventions. Every pass applies the filters. */
 enum { WF_PASS_COUNT = 8 };
-/* Flags a step returns: some vehicle overlaps its leader, or has a non-finite state, acceleration or fuel rate. */
+/* Flags a step returns: some vehicle overlaps its leader, or has a non-finite state, acceleration or fuel rate (where
+ * the step evaluates it: block.c, energy_pass). */
 enum { WF_STEP_OVERLAP = 1, WF_STEP_FAULT = 2 };
 
 /* Per-vehicle accumulators of one gate (every step, or only inside the statistics window), indexed by slot; NULL
