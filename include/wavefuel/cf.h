@@ -22,7 +22,9 @@ typedef struct WfCfModel {
      * state is NULL when state_size is 0. */
     double (*accel)(const void *params, const void *state, double gap_m, double v_mps, double v_lead_mps);
     /* Per-vehicle memory (0 for memoryless models). init_state() sets it at t = 0; update_state() advances it
-     * by one completed step of dt_s with the inputs seen during that step. Both NULL when state_size is 0. */
+     * by one completed step of dt_s with the inputs seen during that step, NULL when the step does not (an external
+     * model's command, set only from outside: the kernel then skips the per-vehicle visit). Both NULL when
+     * state_size is 0. */
     size_t state_size;
     void (*init_state)(const void *params, void *state, double gap_m, double v_mps, double v_lead_mps);
     void (*update_state)(const void *params, void *state, double gap_m, double v_mps, double v_lead_mps,

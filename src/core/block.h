@@ -132,7 +132,8 @@ typedef struct WfLane {
     WfAccum   always, window;
     WfLaneValues out;               /* where a pass exports the step's values */
     double   *x_old_m;              /* positions at the step's start, per slot (NULL: not kept) */
-    int       noisy, stateful, nthreads;
+    int       noisy, nthreads;
+    int       stateful;             /* some driver model advances its vehicles' memory every step (update_state) */
     size_t    key0;                 /* slot i draws the noise of slot key0 + i (a halo's copy of other vehicles) */
     double   *bound_x, *bound_v;    /* nthreads + 1 each: each chunk's first vehicle at the step's start */
     WfChunkOut *chunks;             /* nthreads + 1 */

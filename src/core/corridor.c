@@ -849,7 +849,7 @@ static int lane_init(WfCorridor *c, WfError *err)
             ln->sstride[g] = c->sstride;
             for (size_t z = 0; z < c->cs->n_zones; z++) ln->zoned[g] |= c->hw_off[g][z] >= 0;
             ln->noisy |= grp->noise_mps2 > 0.0;
-            ln->stateful |= grp->model->state_size > 0;
+            ln->stateful |= grp->model->update_state != NULL;
         }
         ln->always = cl->trip;
         ln->window = cl->win;

@@ -142,10 +142,11 @@ static void lane_init(WfRing *s)
     *ln = (WfLane){.sc = sc, .ig = s->ig, .ops = &s->ops, .ctx = &s->lane_ctx[0], .cap = f->n, .period_m = sc->road.length_m,
                    .x_m = f->x_m, .v_mps = f->v_mps, .class_id = f->class_id, .group_id = f->group_id,
                    .slot = f->slot, .grade_seg = f->grade_seg, .mode = f->mode, .x_old_m = s->xold,
-                   .noisy = s->noisy, .stateful = s->stateful, .nthreads = s->nthreads, .bound_x = s->bound_x,
+                   .noisy = s->noisy, .stateful = 0, .nthreads = s->nthreads, .bound_x = s->bound_x,
                    .bound_v = s->bound_v, .chunks = s->chunks};
     for (size_t k = 0; k < sc->n_classes; k++) ln->class_length_m[k] = sc->classes[k].length_m;
     for (size_t g = 0; g < f->n_groups; g++) {
+        ln->stateful |= sc->groups[g].model->update_state != NULL;
         ln->params[g] = f->group_params[g];
         ln->pstride[g] = f->group_param_stride[g];
         ln->state[g] = f->group_state[g];

@@ -39,13 +39,6 @@ static void external_init(const void *params, void *state, double gap_m, double 
     ((ExternalState *)state)->command = NAN;
 }
 
-/* The command holds until the next one is set. */
-static void external_update(const void *params, void *state, double gap_m, double v_mps, double v_lead_mps,
-                            double dt_s)
-{
-    (void)params, (void)state, (void)gap_m, (void)v_mps, (void)v_lead_mps, (void)dt_s;
-}
-
 const WfCfModel wf_cf_external = {
     .name = "external",
     .doc = "acceleration commanded from outside once per step (wf_sim_set_actions; Python); acc until the first",
@@ -55,7 +48,7 @@ const WfCfModel wf_cf_external = {
     .accel = external_accel,
     .state_size = sizeof(ExternalState),
     .init_state = external_init,
-    .update_state = external_update,
+    .update_state = NULL, /* the command holds until the next one is set */
     .external = 1,
 };
 
@@ -68,6 +61,6 @@ const WfCfModel wf_cf_external_speed = {
     .accel = external_speed_accel,
     .state_size = sizeof(ExternalState),
     .init_state = external_init,
-    .update_state = external_update,
+    .update_state = NULL, /* the command holds until the next one is set */
     .external = 1,
 };
