@@ -276,8 +276,8 @@ static void test_rl_batch_bounds(void)
     wf_scenario_destroy(&sc);
 }
 
-/* Rings side by side across their statistics windows' opening: four rings whose windows open at steps 600, 600, 600
- * and 150 (the scenario's time.warmup_s), stepped in one batch on two threads from step 5 to 1005 against each alone:
+/* Rings side by side across their statistics windows' opening: four rings of PI-with-saturation drivers (memory the
+ * steps advance) and automated vehicles, whose windows open at steps 600, 600, 600 and 150 (time.warmup_s), stepped in one batch on two threads from step 5 to 1005 against each alone:
  * side by side while every window is closed (RingEnv's runs: their windows open after the episode), one by one
  * while they differ and at each opening, side by side again once all are open; every observation, reward and info,
  * then every block of the runs' state and their summaries, the same bits. */
@@ -294,8 +294,9 @@ static void test_rl_batch_side_by_side_windows(void)
         char seed[64], warm[64];
         snprintf(seed, sizeof seed, "seed=%d", 60 + k);
         snprintf(warm, sizeof warm, "time.warmup_s=%d", k < 3 ? 60 : 15);
-        const char *sets[] = {"fleet.drivers[1].model=external", seed, warm};
-        rc = wf_scenario_load_text("external.yaml", ring, sets, 3, &sc[k], &err);
+        /* PI with saturation keeps memory that each step advances: the gang gives it back after every call */
+        const char *sets[] = {"fleet.drivers[1].model=external", "fleet.drivers[0].model=pi_saturation", seed, warm};
+        rc = wf_scenario_load_text("external.yaml", ring, sets, 4, &sc[k], &err);
         for (int copy = 0; copy < 2 && !rc; copy++) {
             WfSim **s = copy ? &alone[k] : &sims[k];
             rc = wf_sim_create(sc[k], s, &err);

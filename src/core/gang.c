@@ -88,7 +88,7 @@ static void move_arrays(WfGang *g, size_t r, int in, int viewed)
         MOVE(gl->x_m, rl->x_m);
         MOVE(gl->v_mps, rl->v_mps);
         MOVE(gl->always.fuel_g, rl->always.fuel_g);
-        MOVE(gl->window.fuel_g, rl->window.fuel_g);
+        if (in || g->in_window) MOVE(gl->window.fuel_g, rl->window.fuel_g); /* a closed window's stays as it came */
         return;
     }
     MOVE(gl->mode, rl->mode);
@@ -122,7 +122,8 @@ static void move_run(WfGang *g, size_t r, int in, int all)
     const WfLane *rl = g->rl[r];
     WfLane *gl = &g->ln;
     const WfFleet *f = g->fl[r];
-    for (size_t q = 0; q < f->n_groups; q++)
+    /* the controllers' memory: in at every call (the commands), out when the steps may have advanced it */
+    for (size_t q = 0; (in || all || gl->stateful) && q < f->n_groups; q++)
         if (gl->sstride[q] && f->group_n[q]) {
             unsigned char *gs = gl->state[q] + g->sbase[r * WF_MAX_GROUPS + q] * gl->sstride[q];
             size_t bytes = f->group_n[q] * gl->sstride[q];
