@@ -198,13 +198,17 @@ static int run_reward(WfRlBatch *b, size_t k, double *reward, double *info, WfEr
     }
     b->run[k].fuel_set = 0;
     double fuel = 0.0, vsum = 0.0;
-    const uint8_t *scope = ru->n_scope < r.n ? b->scope + o : NULL; /* NULL: every vehicle (the loop's lighter form) */
-    for (size_t i = 0; i < r.n; i++) {
-        fuel += !scope || scope[i] ? b->fuel[o + i] : 0.0;
-        vsum += b->v1[o + i];
+    const double *fr = b->fuel + o, *v1 = b->v1 + o;
+    if (ru->n_scope == r.n) { /* every vehicle in scope (a ring): the same sums without the mask */
+#pragma GCC unroll 4
+        for (size_t i = 0; i < r.n; i++) fuel += fr[i], vsum += v1[i];
+    } else {
+        for (size_t i = 0; i < r.n; i++) fuel += b->scope[o + i] ? fr[i] : 0.0, vsum += v1[i];
     }
     double *obs = b->obs1 + 3 * ru->row, *obs0 = b->obs0 + 3 * ru->row, *ap = b->a_prev + ru->row;
-    int rc = wf_sim_observe(b->sims[k], b->group[k], obs, ru->m, err);
+    /* a ring's group keeps its vehicles (checked at the batch's creation); a corridor's is checked every call */
+    int rc = r.f ? (wf_sim_observe_rows(b->sims[k], b->group[k], obs), 0)
+                 : wf_sim_observe(b->sims[k], b->group[k], obs, ru->m, err);
     if (rc) return rc;
     const WfRlReward *w = &b->rw;
     double viol = 0.0, a2 = 0.0, j2 = 0.0;

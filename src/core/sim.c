@@ -264,6 +264,8 @@ static void put_observation(void *ctx, size_t k, unsigned char *state, double v,
     row[0] = v, row[1] = vl, row[2] = gap;
 }
 
+size_t wf_sim_observe_rows(const WfSim *s, size_t g, double *obs) { return s->b->group(s->eng, g, put_observation, obs); }
+
 int wf_sim_observe(const WfSim *s, size_t g, double *obs, size_t n, WfError *err)
 {
     int rc = check_group(s, g, n, wf_sim_group_size(s, g), 0, err);

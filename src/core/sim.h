@@ -56,6 +56,9 @@ int wf_sim_step_untimed(WfSim *s, long n, WfError *err);
  * order as wf_sim_set_actions sets them, into out; returns their number. A single-lane ring's stay where they are
  * while the run lives. */
 size_t  wf_sim_group_states(WfSim *s, size_t g, unsigned char **out);
+/* wf_sim_observe's rows without its checks, for a caller that made them once and whose group cannot change size (a
+ * ring's); returns the rows written. */
+size_t  wf_sim_observe_rows(const WfSim *s, size_t g, double *obs);
 WfLane *wf_ring_gang_lane(WfSim *sim);
 /* The ring's fleet as wf_sim_fleet gives it, without bringing back what a gang holds (WfSim.held): for the gang and
  * its batch, which read only what comes back after every call. */
