@@ -659,8 +659,8 @@ static int gang_block(WfLane *ln, const WfSeg *sg, size_t ns, int in_window, WfC
     const WfSeg *l = &sg[ns - 1];
     size_t lo = sg[0].lo, m = l->lo + l->n - lo;
     WfLead ld = {(ln->x_m[l->lo] + l->period_m) - ln->class_length_m[ln->class_id[l->lo]], ln->v_mps[l->lo], 0.0};
-    inputs_block(ln, lo, m, &ld, 0, energy_pass(ln, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL, &b, m), NULL, &b, co,
-                 sg, ns);
+    int pass = energy_pass(ln, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL, &b, m);
+    inputs_block(ln, lo, m, &ld, 0, pass, NULL, &b, co, sg, ns);
     return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, b.ll, in_window);
 }
 

@@ -264,7 +264,10 @@ static void put_observation(void *ctx, size_t k, unsigned char *state, double v,
     row[0] = v, row[1] = vl, row[2] = gap;
 }
 
-size_t wf_sim_observe_rows(const WfSim *s, size_t g, double *obs) { return s->b->group(s->eng, g, put_observation, obs); }
+size_t wf_sim_observe_rows(const WfSim *s, size_t g, double *obs)
+{
+    return s->b->group(s->eng, g, put_observation, obs);
+}
 
 int wf_sim_observe(const WfSim *s, size_t g, double *obs, size_t n, WfError *err)
 {
