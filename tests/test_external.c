@@ -265,10 +265,11 @@ static void test_rl_batch_bounds(void)
     int unbounded = wf_rl_batch_step(b, u, 1, obs, reward, info, errs); /* both refused: still no bounds */
     low[0] = -1.0;
     int ok = wf_rl_batch_set_bounds(b, low, high, &err) || wf_rl_batch_step(b, u, 1, obs, reward, info, errs);
-    int removed = wf_rl_batch_set_bounds(b, NULL, NULL, &err) ? 1 : wf_rl_batch_step(b, u, 1, obs, reward, info, errs);
+    int removed = wf_rl_batch_set_bounds(b, NULL, NULL, &err);
+    if (!removed) removed = wf_rl_batch_step(b, u, 1, obs, reward, info, errs);
     CHECK(bad_order == WF_EINPUT && strstr(e1.msg, "bounds [-1, -2]") && bad_nan == WF_EINPUT &&
-          strstr(e2.msg, "command 0's bounds [nan, 0.5]") && unbounded == WF_EINPUT && ok == 0 && removed == WF_EINPUT &&
-          strstr(errs[0].msg, "is inf"),
+          strstr(e2.msg, "command 0's bounds [nan, 0.5]") && unbounded == WF_EINPUT && ok == 0 &&
+          removed == WF_EINPUT && strstr(errs[0].msg, "is inf"),
           "order %d (%s), NaN %d (%s), unbounded %d, bounded %d, removed %d (%s)", bad_order, e1.msg, bad_nan, e2.msg,
           unbounded, ok, removed, errs[0].msg);
     wf_rl_batch_destroy(&b);
@@ -276,17 +277,69 @@ static void test_rl_batch_bounds(void)
     wf_scenario_destroy(&sc);
 }
 
+/* Runs side by side in one batch (b) and their twins, each alone in a batch of its own (one[k]): the same scenario
+ * sc[k] for both. Owned; twins_free releases them. */
+enum { TWINS_MAX = 8 };
+typedef struct Twins {
+    int         n;
+    WfScenario *sc[TWINS_MAX];
+    WfSim      *sims[TWINS_MAX], *alone[TWINS_MAX];
+    WfRlBatch  *b, *one[TWINS_MAX];
+} Twins;
+
+/* Run k and its twin: the scenario `ring` with overrides sets[0 .. n_sets), begun and stepped `steps` steps. */
+static int twin_runs(Twins *t, int k, const char *const *sets, size_t n_sets, long steps, WfError *err)
+{
+    int rc = wf_scenario_load_text("external.yaml", ring, sets, n_sets, &t->sc[k], err);
+    for (int copy = 0; copy < 2 && !rc; copy++) {
+        WfSim **s = copy ? &t->alone[k] : &t->sims[k];
+        rc = wf_sim_create(t->sc[k], s, err);
+        if (!rc) rc = wf_sim_begin(*s, NULL, err);
+        if (!rc) rc = wf_sim_step(*s, steps, err);
+    }
+    return rc;
+}
+
+/* The batch of every run's group 1 and each twin's own, an action of one step of 0.1 s. */
+static int twin_batches(Twins *t, const WfRlReward *rw, WfError *err)
+{
+    size_t group[TWINS_MAX] = {1, 1, 1, 1, 1, 1, 1, 1};
+    int rc = wf_rl_batch_create(t->sims, (size_t)t->n, group, rw, 1, 0.1, &t->b, err);
+    for (int k = 0; !rc && k < t->n; k++) rc = wf_rl_batch_create(&t->alone[k], 1, group, rw, 1, 0.1, &t->one[k], err);
+    return rc;
+}
+
+static void twins_free(Twins *t)
+{
+    wf_rl_batch_destroy(&t->b);
+    for (int k = 0; k < t->n; k++) {
+        wf_rl_batch_destroy(&t->one[k]);
+        wf_sim_destroy(&t->sims[k]);
+        wf_sim_destroy(&t->alone[k]);
+        wf_scenario_destroy(&t->sc[k]);
+    }
+}
+
+/* The blocks of two runs' state (as a checkpoint saves them) that differ, 1 more when their lists do. */
+static size_t state_differs(WfSim *a, WfSim *b)
+{
+    WfStateVar va[WF_MAX_STATE_VARS], vb[WF_MAX_STATE_VARS];
+    size_t na = wf_sim_state(a, va, WF_MAX_STATE_VARS), nb = wf_sim_state(b, vb, WF_MAX_STATE_VARS), bad = na != nb;
+    for (size_t j = 0; j < na && j < nb; j++)
+        bad += va[j].size != vb[j].size || memcmp(va[j].data, vb[j].data, va[j].size);
+    return bad;
+}
+
 /* Rings side by side across their statistics windows' opening: four rings of PI-with-saturation drivers (memory the
- * steps advance) and automated vehicles, whose windows open at steps 600, 600, 600 and 150 (time.warmup_s), stepped in one batch on two threads from step 5 to 1005 against each alone:
- * side by side while every window is closed (RingEnv's runs: their windows open after the episode), one by one
- * while they differ and at each opening, side by side again once all are open; every observation, reward and info,
- * then every block of the runs' state and their summaries, the same bits. */
+ * steps advance) and automated vehicles, whose windows open at steps 600, 600, 600 and 150 (time.warmup_s), stepped
+ * in one batch on two threads from step 5 to 1005 against each alone: side by side while every window is closed
+ * (RingEnv's runs: their windows open after the episode), one by one while they differ and at each opening, side by
+ * side again once all are open; every observation, reward and info, then every block of the runs' state and their
+ * summaries, the same bits. */
 static void test_rl_batch_side_by_side_windows(void)
 {
     enum { R = 4, M = 6, ACTS = 1000 };
-    WfScenario *sc[R] = {NULL};
-    WfSim *sims[R] = {NULL}, *alone[R] = {NULL};
-    WfRlBatch *b = NULL, *one[R] = {NULL};
+    Twins t = {.n = R};
     WfError err = {0}, errs[R];
     const WfRlReward rw = {.w_fuel = 1.0, .gap_min_m = 5.0, .gap_max_m = 60.0, .w_gap = 1.0, .w_accel = 0.1};
     int rc = 0;
@@ -296,55 +349,37 @@ static void test_rl_batch_side_by_side_windows(void)
         snprintf(warm, sizeof warm, "time.warmup_s=%d", k < 3 ? 60 : 15);
         /* PI with saturation keeps memory that each step advances: the gang gives it back after every call */
         const char *sets[] = {"fleet.drivers[1].model=external", "fleet.drivers[0].model=pi_saturation", seed, warm};
-        rc = wf_scenario_load_text("external.yaml", ring, sets, 4, &sc[k], &err);
-        for (int copy = 0; copy < 2 && !rc; copy++) {
-            WfSim **s = copy ? &alone[k] : &sims[k];
-            rc = wf_sim_create(sc[k], s, &err);
-            if (!rc) rc = wf_sim_begin(*s, NULL, &err);
-            if (!rc) rc = wf_sim_step(*s, 5, &err);
-        }
+        rc = twin_runs(&t, k, sets, 4, 5, &err);
     }
-    size_t group[R] = {1, 1, 1, 1};
-    if (!rc) rc = wf_rl_batch_create(sims, R, group, &rw, 1, 0.1, &b, &err);
-    for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_create(&alone[k], 1, group, &rw, 1, 0.1, &one[k], &err);
+    if (!rc) rc = twin_batches(&t, &rw, &err);
     double u[R * M], obs[R * M * 3], reward[R], info[R * WF_RL_N_INFO], o1[M * 3], r1, i1[WF_RL_N_INFO];
     size_t bad = 0;
     long gang[3] = {0, 0, 0}; /* side by side: windows all closed, some open, all open */
     for (int a = 0; !rc && a < ACTS; a++) {
         for (int j = 0; j < R * M; j++) u[j] = 1.5 * sin(0.11 * a + j);
-        long before = wf_rl_batch_gang_calls(b);
-        rc = wf_rl_batch_step(b, u, 2, obs, reward, info, errs);
-        long step = wf_sim_steps_done(sims[0]);
-        gang[step <= 150 ? 0 : step <= 600 ? 1 : 2] += wf_rl_batch_gang_calls(b) - before;
+        long before = wf_rl_batch_gang_calls(t.b);
+        rc = wf_rl_batch_step(t.b, u, 2, obs, reward, info, errs);
+        long step = wf_sim_steps_done(t.sims[0]);
+        gang[step <= 150 ? 0 : step <= 600 ? 1 : 2] += wf_rl_batch_gang_calls(t.b) - before;
         for (int k = 0; !rc && k < R; k++) {
-            rc = wf_rl_batch_step(one[k], u + k * M, 1, o1, &r1, i1, &err);
+            rc = wf_rl_batch_step(t.one[k], u + k * M, 1, o1, &r1, i1, &err);
             bad += memcmp(o1, obs + k * M * 3, sizeof o1) || memcmp(&r1, reward + k, sizeof r1) ||
                    memcmp(i1, info + k * WF_RL_N_INFO, sizeof i1);
         }
     }
     CHECK(rc == 0, "%s %s", err.msg, errs[0].msg);
     for (int k = 0; !rc && k < R; k++) {
-        WfStateVar va[WF_MAX_STATE_VARS], vb[WF_MAX_STATE_VARS];
-        size_t na = wf_sim_state(sims[k], va, WF_MAX_STATE_VARS), nb = wf_sim_state(alone[k], vb, WF_MAX_STATE_VARS);
-        bad += na != nb;
-        for (size_t j = 0; j < na && j < nb; j++)
-            bad += va[j].size != vb[j].size || memcmp(va[j].data, vb[j].data, va[j].size);
+        bad += state_differs(t.sims[k], t.alone[k]);
         WfError fin = {0};
-        wf_sim_finish(sims[k], &fin), wf_sim_finish(alone[k], &fin);
-        bad += memcmp(wf_sim_summary(sims[k]), wf_sim_summary(alone[k]), sizeof(WfSummary)) != 0;
+        wf_sim_finish(t.sims[k], &fin), wf_sim_finish(t.alone[k], &fin);
+        bad += memcmp(wf_sim_summary(t.sims[k]), wf_sim_summary(t.alone[k]), sizeof(WfSummary)) != 0;
     }
     CHECK(!rc && bad == 0 && gang[0] > 100 && gang[1] == 0 && gang[2] > 300,
           "%zu differences; side by side %ld / %ld / %ld actions (windows closed / mixed / open)", bad, gang[0],
           gang[1], gang[2]);
     printf("  %d rings, %d actions: side by side %ld with the windows closed, %ld mixed, %ld open\n", R, ACTS, gang[0],
            gang[1], gang[2]);
-    wf_rl_batch_destroy(&b);
-    for (int k = 0; k < R; k++) {
-        wf_rl_batch_destroy(&one[k]);
-        wf_sim_destroy(&sims[k]);
-        wf_sim_destroy(&alone[k]);
-        wf_scenario_destroy(&sc[k]);
-    }
+    twins_free(&t);
 }
 
 /* Rings stepped side by side (src/core/gang.c): five such rings of different seeds and lengths in one batch on two
@@ -355,9 +390,8 @@ static void test_rl_batch_side_by_side_windows(void)
 static void test_rl_batch_side_by_side(void)
 {
     enum { R = 5, M = 6, ACTS = 400 };
-    WfScenario *sc[R] = {NULL};
-    WfSim *sims[R] = {NULL}, *alone[R] = {NULL};
-    WfRlBatch *b = NULL, *one[R] = {NULL};
+    Twins t = {.n = R};
+    WfSim **sims = t.sims, **alone = t.alone;
     WfError err = {0}, errs[R];
     const WfRlReward rw = {.w_fuel = 1.0, .gap_min_m = 5.0, .gap_max_m = 60.0, .w_gap = 1.0, .w_accel = 0.1};
     int rc = 0;
@@ -366,17 +400,9 @@ static void test_rl_batch_side_by_side(void)
         snprintf(seed, sizeof seed, "seed=%d", 40 + k);
         snprintf(len, sizeof len, "road.length_m=%d", 560 + 17 * k);
         const char *sets[] = {"fleet.drivers[1].model=external", seed, len};
-        rc = wf_scenario_load_text("external.yaml", ring, sets, 3, &sc[k], &err);
-        for (int copy = 0; copy < 2 && !rc; copy++) {
-            WfSim **s = copy ? &alone[k] : &sims[k];
-            rc = wf_sim_create(sc[k], s, &err);
-            if (!rc) rc = wf_sim_begin(*s, NULL, &err);
-            if (!rc) rc = wf_sim_step(*s, 105, &err); /* past the warm-up: the statistics window is open */
-        }
+        rc = twin_runs(&t, k, sets, 3, 105, &err); /* past the warm-up: the statistics window is open */
     }
-    size_t group[R] = {1, 1, 1, 1, 1};
-    if (!rc) rc = wf_rl_batch_create(sims, R, group, &rw, 1, 0.1, &b, &err);
-    for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_create(&alone[k], 1, group, &rw, 1, 0.1, &one[k], &err);
+    if (!rc) rc = twin_batches(&t, &rw, &err);
     double u[R * M], obs[R * M * 3], reward[R], info[R * WF_RL_N_INFO], o1[M * 3], r1, i1[WF_RL_N_INFO];
     size_t bad = 0;
     /* At action REFUSE (side by side, as the one before it) ring 2's first command is infinite: refused, that ring
@@ -386,12 +412,12 @@ static void test_rl_batch_side_by_side(void)
     int refused = 0;
     for (int a = 0; !rc && a < ACTS; a++) {
         for (int j = 0; j < R * M; j++) u[j] = j < M ? 3.0 : sin(0.37 * a + j);
-        if (a == REFUSE - 1) gang_before = wf_rl_batch_gang_calls(b);
+        if (a == REFUSE - 1) gang_before = wf_rl_batch_gang_calls(t.b);
         if (a == REFUSE) u[2 * M] = INFINITY;
-        rc = wf_rl_batch_step(b, u, 2, obs, reward, info, errs);
+        rc = wf_rl_batch_step(t.b, u, 2, obs, reward, info, errs);
         if (a == REFUSE) refused = rc == WF_EINPUT && errs[2].code && !errs[1].code, rc = 0;
         for (int k = 0; !rc && k < R; k++) {
-            rc = wf_rl_batch_step(one[k], u + k * M, 1, o1, &r1, i1, &err);
+            rc = wf_rl_batch_step(t.one[k], u + k * M, 1, o1, &r1, i1, &err);
             if (a == REFUSE) {
                 refused &= (rc != 0) == (k == 2), rc = 0;
                 continue;
@@ -401,34 +427,29 @@ static void test_rl_batch_side_by_side(void)
         }
     }
     CHECK(rc == 0, "%s %s", err.msg, errs[0].msg);
-    CHECK(refused && wf_rl_batch_gang_calls(b) > gang_before + 1,
+    CHECK(refused && wf_rl_batch_gang_calls(t.b) > gang_before + 1,
           "action %d: ring 2's infinite command not refused alone, or actions %d and %d not side by side", REFUSE,
           REFUSE - 1, REFUSE);
     /* Every block of the runs' state, as a checkpoint saves it (the stop modes and statistics sums the gang holds
      * until asked included), then each run's summary once ended by the caller (its statistics), the first ring's
      * with the batch still alive, the others' after it is gone */
-    for (int k = 0; !rc && k < R; k++) {
-        WfStateVar va[WF_MAX_STATE_VARS], vb[WF_MAX_STATE_VARS];
-        size_t na = wf_sim_state(sims[k], va, WF_MAX_STATE_VARS), nb = wf_sim_state(alone[k], vb, WF_MAX_STATE_VARS);
-        bad += na != nb || wf_sim_steps_done(sims[k]) != 105 + ACTS - (k == 2) ||
-               wf_sim_steps_done(sims[k]) != wf_sim_steps_done(alone[k]);
-        for (size_t j = 0; j < na && j < nb; j++)
-            bad += va[j].size != vb[j].size || memcmp(va[j].data, vb[j].data, va[j].size);
-    }
-    long gang = rc ? 0 : wf_rl_batch_gang_calls(b), repaired = 0;
-    for (int k = 0; !rc && k < R; k++) repaired += wf_rl_batch_gang_calls(one[k]);
+    for (int k = 0; !rc && k < R; k++)
+        bad += state_differs(sims[k], alone[k]) + (wf_sim_steps_done(sims[k]) != 105 + ACTS - (k == 2)) +
+               (wf_sim_steps_done(sims[k]) != wf_sim_steps_done(alone[k]));
+    long gang = rc ? 0 : wf_rl_batch_gang_calls(t.b), repaired = 0;
+    for (int k = 0; !rc && k < R; k++) repaired += wf_rl_batch_gang_calls(t.one[k]);
     /* every automated vehicle brakes to a stop (the stopped time counts every step), the last action side by side:
      * what the gang holds is again newer than the rings' arrays */
     for (int j = 0; j < R * M; j++) u[j] = -3.0;
-    for (long a = 0, before = 0; !rc && (a < 60 || wf_rl_batch_gang_calls(b) == before); a++) {
-        before = wf_rl_batch_gang_calls(b);
-        rc = wf_rl_batch_step(b, u, 2, obs, reward, info, errs);
-        for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_step(one[k], u + k * M, 1, o1, &r1, i1, &err);
+    for (long a = 0, before = 0; !rc && (a < 60 || wf_rl_batch_gang_calls(t.b) == before); a++) {
+        before = wf_rl_batch_gang_calls(t.b);
+        rc = wf_rl_batch_step(t.b, u, 2, obs, reward, info, errs);
+        for (int k = 0; !rc && k < R; k++) rc = wf_rl_batch_step(t.one[k], u + k * M, 1, o1, &r1, i1, &err);
     }
     WfSummary sum[R], twin[R];
     for (int k = 0; !rc && k < R; k++) { /* ended by the caller: WF_EINTR, the summary written */
         WfError fin = {0};
-        if (k == 1) wf_rl_batch_destroy(&b);
+        if (k == 1) wf_rl_batch_destroy(&t.b);
         wf_sim_finish(sims[k], &fin), wf_sim_finish(alone[k], &fin);
         sum[k] = *wf_sim_summary(sims[k]), twin[k] = *wf_sim_summary(alone[k]);
         bad += memcmp(&sum[k], &twin[k], sizeof sum[k]) != 0 || !(sum[k].time_stopped_share > 0.0);
@@ -438,13 +459,7 @@ static void test_rl_batch_side_by_side(void)
           bad, gang, ACTS, repaired, rc ? 0LL : (long long)sum[0].overlaps);
     printf("  %d rings, %d actions: %ld side by side, the others at records; ring 0: %lld overlaps repaired\n", R, ACTS,
            gang, rc ? 0LL : (long long)sum[0].overlaps);
-    wf_rl_batch_destroy(&b);
-    for (int k = 0; k < R; k++) {
-        wf_rl_batch_destroy(&one[k]);
-        wf_sim_destroy(&sims[k]);
-        wf_sim_destroy(&alone[k]);
-        wf_scenario_destroy(&sc[k]);
-    }
+    twins_free(&t);
 }
 
 int main(void)
