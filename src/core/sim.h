@@ -45,13 +45,14 @@ extern const WfBoundary wf_boundary_periodic, wf_boundary_open;
  * rings. */
 int wf_sim_step_untimed(WfSim *s, long n, WfError *err);
 
-/* Rings stepped side by side (src/core/gang.c), one ring's part. wf_ring_gang_lane: a single-lane ring's lane as
- * the kernel sees it (fixed-step, not split across processes), else NULL. wf_ring_gang_plain: how many of its next
- * steps are plain fused steps (its statistics window open for all of them or closed for all, *in_window which, no
- * record, trajectory frame or final instant among them, no fault). wf_ring_gang_settle: what ring_step does after a
- * plain step's pass, whose flags were `flags` (the overlap repair, the numerical fault's error). wf_sim_gang_plain: the same for the run (0 unless begun, not ended,
- * no mlp group, no progress, checkpoint or stop flag to serve, a ring); wf_sim_gang_done: k of them were taken;
- * wf_sim_gang_fail: the run ends with the error rc (as the step loop ends it). */
+/* Rings stepped side by side (src/core/gang.c), one ring's part. wf_ring_gang_lane: a single-lane ring's lane as the
+ * kernel sees it (fixed-step, not split across processes), else NULL. wf_ring_gang_plain: how many of its next steps
+ * are plain fused steps (its statistics window open for all of them or closed for all, *in_window which, no record,
+ * trajectory frame or final instant among them, no fault). wf_ring_gang_settle: what ring_step does after a plain
+ * step's pass, whose flags were `flags` (the overlap repair, the numerical fault's error). wf_sim_gang_plain: the same
+ * for the run (0 unless begun, not ended, no mlp group, no progress, checkpoint or stop flag to serve, a ring);
+ * wf_sim_gang_done: k of them were taken; wf_sim_gang_fail: the run ends with the error rc (as the step loop ends
+ * it). */
 /* Where group g's vehicles keep their controller state (an external group's command: the first 8 bytes), in road
  * order as wf_sim_set_actions sets them, into out; returns their number. A single-lane ring's stay where they are
  * while the run lives. */
