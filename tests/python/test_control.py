@@ -381,7 +381,8 @@ def test_vector_env_side_by_side():
     follower of vehicle 0 one lap ahead), 1000 actions across every run's record step (step 1000: that action the
     runs step one by one), ring 0's automated vehicles driving into their leaders (overlap repairs inside the shared
     blocks, across the ring's wrap too), ring 1's braking to rest; every observation and reward, and at the end every
-    run's positions, speeds and fuel, the same bits, on 1 and 2 threads."""
+    run's positions and speeds, the same bits, on 1 and 2 threads (RingEnv's runs keep no window fuel: their
+    statistics window opens after the episode; tests/test_external.c compares every state block and summary)."""
     n, acts = 12, 1000
     per_env = [{"length_range_m": (230.0 + 3 * i, 231.0 + 3 * i)} for i in range(n)]
     kw = dict(warmup_s=2.0, horizon_s=200.0, n_av=11)
@@ -394,7 +395,7 @@ def test_vector_env_side_by_side():
     for u in actions:
         rows = [e.step(u[i]) for i, e in enumerate(alone)]
         ref.append((np.stack([r[0] for r in rows]), np.array([r[1] for r in rows])))
-    keys = ("x_m", "v_mps", "fuel_g")
+    keys = ("x_m", "v_mps")
     final = [{k: e.sim.state()[k].copy() for k in keys} for e in alone]
     # a repaired follower stands at its leader's rear: vehicle 21 (the last row) behind vehicle 0 too
     repaired = min(o[0][0, 0, 2] for o in ref) == 0.0 and min(o[0][0, -1, 2] for o in ref) == 0.0
