@@ -114,20 +114,20 @@ static int write_road(hid_t fid, const WfScenario *sc, WfError *err)
     return rc ? WF_ESYS : 0;
 }
 
-/* A gridded observer's group from its column table: `fields` fills the values into scratch (`n_scratch` doubles). */
+/* A gridded observer's group from its column table: `fields` fills the values into scratch (`n_scratch` doubles);
+ * the columns `keep` accepts are written (all when keep is NULL). */
 static int write_grid(hid_t fid, const char *group, const WfObsColumn *cols, size_t n, size_t n_scratch,
                       void (*fields)(const void *obs, const WfScenario *sc, double *scratch, WfObsData *out),
-                      const void *obs, const WfScenario *sc, WfH5Pass pass, WfError *err)
+                      int (*keep)(size_t col), const void *obs, const WfScenario *sc, WfH5Pass pass, WfError *err)
 {
     hid_t g = wf_h5_group_pass(fid, group, pass, err);
     if (g < 0) return WF_ESYS;
     double *buf = malloc(n_scratch * sizeof *buf);
     WfObsData data[WF_EDIE_N_COLS];
     int rc = !buf ? wf_err(err, WF_ESYS, "out of memory") : 0;
-    if (!rc) {
-        fields(obs, sc, buf, data);
-        rc = wf_h5_put_columns(g, cols, data, n, pass, err);
-    }
+    if (!rc) fields(obs, sc, buf, data);
+    for (size_t k = 0; !rc && k < n; k++)
+        if (!keep || keep(k)) rc = wf_h5_put_columns(g, &cols[k], &data[k], 1, pass, err);
     free(buf);
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
@@ -148,28 +148,11 @@ static int write_detectors(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *
     const WfDetectors *d = wf_corridor_detectors(wf_sim_corridor(r->sim));
     if (!d->n_det) return 0;
     return write_grid(fid, "detectors", wf_detector_columns, WF_DET_N_COLS, wf_detectors_scratch(d), detector_fields,
-                      d, r->sc, pass, err);
+                      NULL, d, r->sc, pass, err);
 }
 
-/* /edie, its grid and the axes of its fields said in attributes when the file is created. */
-/* Edie's fields of a lane (in lanes/edie/laneL: the fields only; the grid and class profiles are the road's). */
-static int write_edie_lane(hid_t fid, const WfEdie *lane, size_t l, const WfScenario *sc, WfH5Pass pass, WfError *err)
-{
-    char name[64];
-    snprintf(name, sizeof name, "lanes/edie/lane%zu", l);
-    hid_t g = wf_h5_group_pass(fid, name, pass, err);
-    if (g < 0) return WF_ESYS;
-    double *buf = malloc(wf_edie_scratch(lane, sc->n_classes) * sizeof *buf);
-    WfObsData data[WF_EDIE_N_COLS];
-    int rc = !buf ? wf_err(err, WF_ESYS, "out of memory") : 0;
-    if (!rc) wf_edie_fields(lane, sc, buf, data);
-    for (size_t k = 0; !rc && k < WF_EDIE_N_COLS; k++)
-        if (wf_edie_is_field(k)) rc = wf_h5_put_columns(g, &wf_edie_columns[k], &data[k], 1, pass, err);
-    free(buf);
-    H5Gclose(g);
-    return rc ? WF_ESYS : 0;
-}
-
+/* /edie, its grid and the axes of its fields said in attributes when the file is created; on several lanes, each
+ * lane's fields in lanes/edie/laneL (the fields only; the grid and class profiles are the road's). */
 static int write_edie(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
 {
     const WfEdie *all = wf_corridor_edie(wf_sim_corridor(r->sim));
@@ -180,7 +163,7 @@ static int write_edie(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
     WfEdie road = wf_corridor_edie_lane(all, -1, sum);
     const WfEdie *e = &road;
     int bad = write_grid(fid, "edie", wf_edie_columns, WF_EDIE_N_COLS, wf_edie_scratch(e, sc->n_classes), edie_fields,
-                         e, sc, pass, err);
+                         NULL, e, sc, pass, err);
     if (!bad && all->n_lanes > 1) { /* /lanes exists (wf_h5_write_lanes runs first) */
         hid_t g = wf_h5_group_pass(fid, "lanes/edie", pass, err);
         bad = g < 0;
@@ -188,7 +171,10 @@ static int write_edie(hid_t fid, const WfH5Run *r, WfH5Pass pass, WfError *err)
     }
     for (size_t l = 0; !bad && all->n_lanes > 1 && l < all->n_lanes; l++) {
         WfEdie lane = wf_corridor_edie_lane(all, (int)l, NULL);
-        bad = write_edie_lane(fid, &lane, l, sc, pass, err);
+        char name[64];
+        snprintf(name, sizeof name, "lanes/edie/lane%zu", l);
+        bad = write_grid(fid, name, wf_edie_columns, WF_EDIE_N_COLS, wf_edie_scratch(&lane, sc->n_classes),
+                         edie_fields, wf_edie_is_field, &lane, sc, pass, err);
     }
     free(sum);
     if (bad) return WF_ESYS;
