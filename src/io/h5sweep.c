@@ -194,13 +194,11 @@ static int write_timing(hid_t fid, const WfSweep *sw, const WfSweepResult *res, 
         for (size_t i = 0; i < n; i++) d[i] = res[i].status == WF_RUN_PENDING ? NAN : res[i].wall_s;
         rc = wf_h5_write_f64(g, "wall_time", 1, &dn, d, "s", "wall time of the run: load, simulate, per-run file", err);
     }
-    if (!rc) {
-        for (size_t i = 0; i < n; i++) k[i] = res[i].status == WF_RUN_PENDING ? -1 : res[i].worker;
-        rc = wf_h5_write_i64(g, "worker", 1, &dn, k, "1", "thread number or MPI rank that ran it", err);
-    }
-    if (!rc) {
-        for (size_t i = 0; i < n; i++) k[i] = res[i].status == WF_RUN_PENDING ? -1 : res[i].threads;
-        rc = wf_h5_write_i64(g, "threads", 1, &dn, k, "1", "OpenMP threads inside the run", err);
+    static const char *const ints[][2] = {{"worker", "thread number or MPI rank that ran it"},
+                                          {"threads", "OpenMP threads inside the run"}};
+    for (int q = 0; !rc && q < 2; q++) {
+        for (size_t i = 0; i < n; i++) k[i] = res[i].status == WF_RUN_PENDING ? -1 : q ? res[i].threads : res[i].worker;
+        rc = wf_h5_write_i64(g, ints[q][0], 1, &dn, k, "1", ints[q][1], err);
     }
     if (!rc && t)
         rc = wf_h5_scalar_str(g, "mode", t->mode, "threads (one machine) or mpi", err) ||
@@ -367,25 +365,20 @@ static int read_metrics(hid_t met, hid_t cm, const char *path, WfSweepSaved *sv,
 /* /timing: each run's wall time, worker and threads. */
 static int read_timing(hid_t tim, const char *path, WfSweepSaved *sv, WfError *err)
 {
-    int rc = 0;
     size_t w1 = 1;
-    int64_t *k = NULL;
-    double *d = NULL;
-    if (!rc) {
-        w1 = 1;
-        if (!(d = read_numeric(tim, "wall_time", H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1)))
-            rc = bad(err, path, "wall_time");
-        for (size_t i = 0; !rc && i < sv->n; i++) sv->res[i].wall_s = d[i];
-        free(d);
-    }
+    double *d = read_numeric(tim, "wall_time", H5T_NATIVE_DOUBLE, sizeof *d, sv->n, &w1);
+    if (!d) return bad(err, path, "wall_time");
+    for (size_t i = 0; i < sv->n; i++) sv->res[i].wall_s = d[i];
+    free(d);
     const char *ints[] = {"worker", "threads"};
-    for (int q = 0; q < 2 && !rc; q++) {
+    for (int q = 0; q < 2; q++) {
         w1 = 1;
-        if (!(k = read_numeric(tim, ints[q], H5T_NATIVE_INT64, sizeof *k, sv->n, &w1))) rc = bad(err, path, ints[q]);
-        for (size_t i = 0; !rc && i < sv->n; i++) *(q ? &sv->res[i].threads : &sv->res[i].worker) = (int)k[i];
+        int64_t *k = read_numeric(tim, ints[q], H5T_NATIVE_INT64, sizeof *k, sv->n, &w1);
+        if (!k) return bad(err, path, ints[q]);
+        for (size_t i = 0; i < sv->n; i++) *(q ? &sv->res[i].threads : &sv->res[i].worker) = (int)k[i];
         free(k);
     }
-    return rc;
+    return 0;
 }
 
 int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
