@@ -121,18 +121,6 @@ static int resolve_project(int choice, const WfVehicleClass *vc)
     return choice >= 0 ? choice : vc->model->project_default;
 }
 
-static void join_args(int argc, char **argv, char *out, size_t len)
-{
-    size_t used = 0;
-    out[0] = '\0';
-    for (int i = -1; i < argc; i++) {
-        const char *s = i < 0 ? "wavefuel" : argv[i];
-        int w = snprintf(out + used, len - used, "%s%s", used ? " " : "", s);
-        if (w < 0 || (size_t)w >= len - used) break;
-        used += (size_t)w;
-    }
-}
-
 static const char *density_note(const WfVehicleClass *vc)
 {
     double def = (vc->fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL;
@@ -454,7 +442,7 @@ int wf_cmd_cycle(int argc, char **argv)
     TableArg tables[MAX_TABLES];
     int project = -1, force = 0, protocol = 0, o;
     char cmdline[4096];
-    join_args(argc, argv, cmdline, sizeof cmdline);
+    wf_cli_join_args(argc, argv, cmdline, sizeof cmdline);
     optind = 1;
     static const char *const conflicts[] = {"pP", NULL};
     WfCliOpts cli = {.cmd = "cycle", .longopts = opts, .shortopts = "c:g:o:fh", .repeatable = "ct",

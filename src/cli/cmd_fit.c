@@ -77,19 +77,6 @@ static void print_report(const WfTable *t, const char *table_path, const WfFitRe
            r->fuel_n, r->pq == WF_FIT_PQ_JOINT ? "PQ" : "P, Q", r->fuel_rms_gps, r->fuel_max_gps);
 }
 
-/* The command line as one string, for the class file's provenance. */
-static void join_args(int argc, char **argv, char *out, size_t len)
-{
-    size_t used = 0;
-    out[0] = '\0';
-    for (int i = -1; i < argc; i++) {
-        const char *a = i < 0 ? "wavefuel" : argv[i];
-        int w = snprintf(out + used, len - used, "%s%s", used ? " " : "", a);
-        if (w < 0 || (size_t)w >= len - used) break;
-        used += (size_t)w;
-    }
-}
-
 static int parse_num(const char *opt, const char *s, double *out)
 {
     if (wf_parse_double(s, out) != 0) {
@@ -98,6 +85,26 @@ static int parse_num(const char *opt, const char *s, double *out)
     }
     return 0;
 }
+
+/* The index of s in names (NULL-terminated), the value of the option's enum; else a usage error saying what the
+ * option takes (`takes`). */
+static int parse_choice(const char *opt, const char *s, const char *const *names, const char *takes, int *out)
+{
+    for (int i = 0; names[i]; i++)
+        if (!strcmp(s, names[i])) {
+            *out = i;
+            return 0;
+        }
+    fprintf(stderr, "wavefuel fit: %s must be %s (got '%s')\n", opt, takes, s);
+    return 2;
+}
+
+/* In the order of their enums (WfFitDuty, WfFitPQ, WfFuelType). */
+static const char *const duties[] = {"auto", "light", "heavy", NULL};
+static const char *const pqs[] = {"paper", "joint", NULL};
+static const char *const fuels[] = {"gasoline", "diesel", NULL};
+_Static_assert(WF_FIT_DUTY_LIGHT == 1 && WF_FIT_DUTY_HEAVY == 2 && WF_FIT_PQ_JOINT == 1 && WF_FUEL_DIESEL == 1,
+               "the choices' order is their enums'");
 
 typedef struct FitArgs {
     const char *out, *like, *label, *table_path;
@@ -123,39 +130,25 @@ static int parse_args(int argc, char **argv, FitArgs *a)
                                          {0, 0, 0, 0}};
     *a = (FitArgs){.opt = {.duty = WF_FIT_DUTY_AUTO, .pq = WF_FIT_PQ_PAPER},
                    .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
-    int o;
+    int o, v;
     optind = 1;
     WfCliOpts cli = {.cmd = "fit", .longopts = opts, .shortopts = "o:fh"};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'd':
-            if (!strcmp(optarg, "auto")) a->opt.duty = WF_FIT_DUTY_AUTO;
-            else if (!strcmp(optarg, "light")) a->opt.duty = WF_FIT_DUTY_LIGHT;
-            else if (!strcmp(optarg, "heavy")) a->opt.duty = WF_FIT_DUTY_HEAVY;
-            else {
-                fprintf(stderr, "wavefuel fit: --duty must be light, heavy or auto (got '%s')\n", optarg);
-                return 2;
-            }
+            if (parse_choice("--duty", optarg, duties, "light, heavy or auto", &v)) return 2;
+            a->opt.duty = (WfFitDuty)v;
             break;
         case 'P':
-            if (!strcmp(optarg, "paper")) a->opt.pq = WF_FIT_PQ_PAPER;
-            else if (!strcmp(optarg, "joint")) a->opt.pq = WF_FIT_PQ_JOINT;
-            else {
-                fprintf(stderr, "wavefuel fit: --pq must be paper or joint (got '%s')\n", optarg);
-                return 2;
-            }
+            if (parse_choice("--pq", optarg, pqs, "paper or joint", &v)) return 2;
+            a->opt.pq = (WfFitPQ)v;
             break;
         case 'o': a->out = optarg; break;
         case 'f': a->force = 1; break;
         case 'L': a->like = optarg; break;
         case 'n': a->label = optarg; break;
         case 'F':
-            if (!strcmp(optarg, "gasoline")) a->fuel = WF_FUEL_GASOLINE;
-            else if (!strcmp(optarg, "diesel")) a->fuel = WF_FUEL_DIESEL;
-            else {
-                fprintf(stderr, "wavefuel fit: --fuel must be gasoline or diesel (got '%s')\n", optarg);
-                return 2;
-            }
+            if (parse_choice("--fuel", optarg, fuels, "gasoline or diesel", &a->fuel)) return 2;
             break;
         case 'm':
             if (parse_num("--mass-kg", optarg, &a->mass)) return 2;
@@ -208,7 +201,7 @@ static int write_class(int argc, char **argv, const FitArgs *a, const WfFitResul
     snprintf(default_label, sizeof default_label, "%s (fitted from %s)", stem, wf_path_base(a->table_path));
     info.label = a->label ? a->label : default_label;
     info.table_path = a->table_path;
-    join_args(argc, argv, command, sizeof command);
+    wf_cli_join_args(argc, argv, command, sizeof command);
     info.command = command;
     int rc = wf_fit_write_class(r, &info, a->out, a->force, err);
     WfVehicleClass back;

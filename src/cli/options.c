@@ -79,3 +79,15 @@ int wf_cli_getopt(WfCliOpts *o, int argc, char **argv, int quiet)
     }
     return c;
 }
+
+void wf_cli_join_args(int argc, char **argv, char *out, size_t len)
+{
+    size_t used = 0;
+    out[0] = '\0';
+    for (int i = -1; i < argc; i++) {
+        const char *s = i < 0 ? "wavefuel" : argv[i];
+        int w = snprintf(out + used, len - used, "%s%s", used ? " " : "", s);
+        if (w < 0 || (size_t)w >= len - used) break;
+        used += (size_t)w;
+    }
+}

@@ -6,6 +6,7 @@
 #define WAVEFUEL_CLI_OPTIONS_H
 
 #include <getopt.h>
+#include <stddef.h>
 
 enum {
     WF_CLI_OPT_MAX = 32,   /* options of one command, -V included */
@@ -32,5 +33,9 @@ typedef struct WfCliOpts {
  * "wavefuel CMD: ..." on stderr for an unknown option, a missing value, a repeated option or a conflict. Quiet (no
  * message at all) when `quiet` is set in the command, as for MPI ranks other than 0. */
 int wf_cli_getopt(WfCliOpts *o, int argc, char **argv, int quiet);
+
+/* A command's line as one string for provenance: "wavefuel" then argv[0..argc) (the command's words), separated by
+ * spaces, into out (len bytes); words that do not fit are left out. */
+void wf_cli_join_args(int argc, char **argv, char *out, size_t len);
 
 #endif
