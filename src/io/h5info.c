@@ -35,9 +35,7 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
         /* arrays (a cycle's samples, a sweep's columns) are for h5py, not for this listing */
     } else if (H5Tget_class(t) == H5T_STRING && n == 1) {
         char *s = NULL;
-        hid_t mt = H5Tcopy(H5T_C_S1);
-        H5Tset_size(mt, H5T_VARIABLE);
-        H5Tset_cset(mt, H5T_CSET_UTF8);
+        hid_t mt = wf_h5_text_type(H5T_VARIABLE);
         if (H5Tis_variable_str(t) > 0 && H5Dread(d, mt, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) >= 0 && s) {
             if (!strchr(s, '\n')) fprintf(c->out, "  %-24s %s\n", name, s);
             H5free_memory(s);
@@ -45,15 +43,14 @@ static herr_t print_dataset(hid_t g, const char *name, const H5L_info_t *info, v
             /* Fixed-length text (/meta/reason, rewritten in place): read with a terminating NUL added. */
             char fixed[4097];
             size_t sz = H5Tget_size(t);
-            hid_t ft = H5Tcopy(H5T_C_S1);
-            if (ft >= 0 && H5Tset_size(ft, sz + 1) >= 0 && H5Tset_cset(ft, H5T_CSET_UTF8) >= 0 &&
-                H5Dread(d, ft, H5S_ALL, H5S_ALL, H5P_DEFAULT, fixed) >= 0) {
+            hid_t ft = wf_h5_text_type(sz + 1);
+            if (ft >= 0 && H5Dread(d, ft, H5S_ALL, H5S_ALL, H5P_DEFAULT, fixed) >= 0) {
                 fixed[sz] = '\0';
                 if (!strchr(fixed, '\n')) fprintf(c->out, "  %-24s %s\n", name, fixed);
             }
             if (ft >= 0) H5Tclose(ft);
         }
-        H5Tclose(mt);
+        if (mt >= 0) H5Tclose(mt);
     } else if ((H5Tget_class(t) == H5T_FLOAT || H5Tget_class(t) == H5T_INTEGER) && n >= 1 && n <= 16) {
         double v[16];
         if (H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) >= 0) {

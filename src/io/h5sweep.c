@@ -254,11 +254,10 @@ static int shape(hid_t d, hsize_t *rows, hsize_t *cols)
 static int read_strings(hid_t loc, const char *name, size_t n, void (*fn)(WfSweepSaved *, size_t, const char *),
                         WfSweepSaved *sv)
 {
-    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), t = H5Tcopy(H5T_C_S1);
+    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), t = wf_h5_text_type(H5T_VARIABLE);
     hsize_t rows = 0, cols = 0;
     char **s = calloc(n ? n : 1, sizeof *s);
-    int rc = !s || d < 0 || t < 0 || shape(d, &rows, &cols) || rows != n || cols != 1 ||
-             H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0;
+    int rc = !s || d < 0 || t < 0 || shape(d, &rows, &cols) || rows != n || cols != 1;
     if (!rc && n && H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, s) < 0) rc = 1;
     for (size_t i = 0; !rc && i < n; i++) fn(sv, i, s[i] ? s[i] : "");
     if (s && !rc && n) {

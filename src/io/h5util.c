@@ -251,18 +251,14 @@ hid_t wf_h5_group_pass(hid_t loc, const char *name, WfH5Pass pass, WfError *err)
     return g;
 }
 
-int wf_h5_attr_str(hid_t obj, const char *name, const char *value, WfError *err)
+hid_t wf_h5_text_type(size_t size)
 {
-    hid_t t = H5Tcopy(H5T_C_S1), sp = H5Screate(H5S_SCALAR), a = H5I_INVALID_HID;
-    int rc = 0;
-    if (t < 0 || sp < 0 || H5Tset_size(t, strlen(value) + 1) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0) rc = 1;
-    if (!rc && (a = H5Acreate2(obj, name, t, sp, H5P_DEFAULT, H5P_DEFAULT)) < 0) rc = 1;
-    if (!rc && H5Awrite(a, t, value) < 0) rc = 1;
-    if (rc) rc = h5fail_at(err, "write attribute", obj, name);
-    if (a >= 0) H5Aclose(a);
-    if (sp >= 0) H5Sclose(sp);
-    if (t >= 0) H5Tclose(t);
-    return rc;
+    hid_t t = H5Tcopy(H5T_C_S1);
+    if (t >= 0 && (H5Tset_size(t, size) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0)) {
+        H5Tclose(t);
+        return H5I_INVALID_HID;
+    }
+    return t;
 }
 
 static int attr_scalar(hid_t obj, const char *name, hid_t type, const void *v, WfError *err)
@@ -274,6 +270,14 @@ static int attr_scalar(hid_t obj, const char *name, hid_t type, const void *v, W
     if (rc) rc = h5fail_at(err, "write attribute", obj, name);
     if (a >= 0) H5Aclose(a);
     if (sp >= 0) H5Sclose(sp);
+    return rc;
+}
+
+int wf_h5_attr_str(hid_t obj, const char *name, const char *value, WfError *err)
+{
+    hid_t t = wf_h5_text_type(strlen(value) + 1);
+    int rc = t < 0 ? h5fail_at(err, "write attribute", obj, name) : attr_scalar(obj, name, t, value, err);
+    if (t >= 0) H5Tclose(t);
     return rc;
 }
 
@@ -323,14 +327,13 @@ int wf_h5_read_scalar_str(hid_t loc, const char *file, const char *name, char **
     *out = NULL;
     if (H5Lexists(loc, name, H5P_DEFAULT) <= 0) return wf_err(err, WF_EINPUT, "%s: no dataset '%s'", file, name);
     hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), ft = d >= 0 ? H5Dget_type(d) : H5I_INVALID_HID;
-    hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID, t = H5Tcopy(H5T_C_S1);
+    hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID, t = wf_h5_text_type(H5T_VARIABLE);
     char *s = NULL;
     int rc = 0;
     if (ft < 0 || sp < 0 || H5Tget_class(ft) != H5T_STRING || H5Tis_variable_str(ft) <= 0 ||
         H5Sget_simple_extent_npoints(sp) != 1)
         rc = wf_err(err, WF_EINPUT, "%s: '%s' is not a scalar string", file, name);
-    else if (t < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0 ||
-             H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) < 0 || !s)
+    else if (t < 0 || H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, &s) < 0 || !s)
         rc = wf_err(err, WF_ESYS, "%s: HDF5: read dataset '%s' failed", file, name);
     else if (!(*out = strdup(s)))
         rc = wf_err(err, WF_ESYS, "out of memory");
@@ -399,8 +402,8 @@ int wf_h5_write_strings(hid_t loc, const char *name, size_t n, const char *const
                         WfError *err)
 {
     hsize_t dim = n;
-    hid_t t = H5Tcopy(H5T_C_S1), sp = H5Screate_simple(1, &dim, NULL), d = H5I_INVALID_HID;
-    int rc = (t < 0 || sp < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0);
+    hid_t t = wf_h5_text_type(H5T_VARIABLE), sp = H5Screate_simple(1, &dim, NULL), d = H5I_INVALID_HID;
+    int rc = t < 0 || sp < 0;
     if (!rc && (d = H5Dcreate2(loc, name, t, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT)) < 0) rc = 1;
     if (!rc && n && H5Dwrite(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, s) < 0) rc = 1;
     if (rc) rc = h5fail_at(err, "write dataset", loc, name);
@@ -437,12 +440,8 @@ int wf_h5_scalar_i64(hid_t loc, const char *name, int64_t v, const char *units, 
 
 int wf_h5_scalar_str(hid_t loc, const char *name, const char *s, const char *desc, WfError *err)
 {
-    hid_t t = H5Tcopy(H5T_C_S1);
-    if (t < 0 || H5Tset_size(t, H5T_VARIABLE) < 0 || H5Tset_cset(t, H5T_CSET_UTF8) < 0) {
-        int rc = h5fail_at(err, "string type for", loc, name);
-        if (t >= 0) H5Tclose(t);
-        return rc;
-    }
+    hid_t t = wf_h5_text_type(H5T_VARIABLE);
+    if (t < 0) return h5fail_at(err, "string type for", loc, name);
     int rc = scalar_any(loc, name, t, t, &s, "1", desc, err);
     H5Tclose(t);
     return rc;
@@ -535,9 +534,8 @@ int wf_h5_put_text(hid_t loc, const char *name, WfH5Pass pass, const char *s, co
         while (n > 0 && ((unsigned char)s[n] & 0xC0) == 0x80) n--; /* not inside a UTF-8 sequence */
     }
     memcpy(buf, s, n);
-    hid_t t = H5Tcopy(H5T_C_S1);
-    if (t < 0 || H5Tset_size(t, sizeof buf) < 0 || H5Tset_strpad(t, H5T_STR_NULLTERM) < 0 ||
-        H5Tset_cset(t, H5T_CSET_UTF8) < 0) {
+    hid_t t = wf_h5_text_type(sizeof buf);
+    if (t < 0 || H5Tset_strpad(t, H5T_STR_NULLTERM) < 0) {
         int rc = h5fail_at(err, "text type for", loc, name);
         if (t >= 0) H5Tclose(t);
         return rc;

@@ -66,6 +66,9 @@ int wf_h5_write_strings(hid_t loc, const char *name, size_t n, const char *const
 int wf_h5_scalar_f64(hid_t loc, const char *name, double v, const char *units, const char *desc, WfError *err);
 int wf_h5_scalar_i64(hid_t loc, const char *name, int64_t v, const char *units, const char *desc, WfError *err);
 int wf_h5_scalar_str(hid_t loc, const char *name, const char *s, const char *desc, WfError *err);
+/* A UTF-8 string type of `size` bytes, NUL-terminated (H5T_VARIABLE: variable-length); H5I_INVALID_HID on failure.
+ * Close it with H5Tclose. */
+hid_t wf_h5_text_type(size_t size);
 /* Attributes on any object. */
 int wf_h5_attr_str(hid_t obj, const char *name, const char *value, WfError *err);
 int wf_h5_attr_f64(hid_t obj, const char *name, double value, WfError *err);
