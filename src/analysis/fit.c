@@ -189,7 +189,7 @@ static int need_points(const WfFitStep *s, size_t m, size_t n, WfError *err)
 
 typedef struct NlData {
     size_t        n;
-    const double *v, *th, *y; /* th NULL for the flat fit */
+    const double *v, *th, *y; /* th NULL for the flat fit (b1..b3), given for the grade fit (b4..b6) */
     double        s[3];       /* parameter scales */
 } NlData;
 
@@ -210,12 +210,18 @@ static void unscale(const gsl_vector *x, const NlData *d, double *b)
     for (int j = 0; j < 3; j++) b[j] = gsl_vector_get(x, (size_t)j) * d->s[j];
 }
 
-static int flat_f(const gsl_vector *x, void *vd, gsl_vector *f)
+/* The model at point i: the flat bound, or (th given) the grade term 2 g(v) theta. */
+static double nl_model(const NlData *d, const double *b, size_t i)
+{
+    return d->th ? 2.0 * grade_gain(b, d->v[i]) * d->th[i] : amax_flat(b, d->v[i]);
+}
+
+static int nl_f(const gsl_vector *x, void *vd, gsl_vector *f)
 {
     const NlData *d = vd;
     double b[3];
     unscale(x, d, b);
-    for (size_t i = 0; i < d->n; i++) gsl_vector_set(f, i, amax_flat(b, d->v[i]) - d->y[i]);
+    for (size_t i = 0; i < d->n; i++) gsl_vector_set(f, i, nl_model(d, b, i) - d->y[i]);
     return GSL_SUCCESS;
 }
 
@@ -234,15 +240,6 @@ static int flat_df(const gsl_vector *x, void *vd, gsl_matrix *J)
     return GSL_SUCCESS;
 }
 
-static int grade_f(const gsl_vector *x, void *vd, gsl_vector *f)
-{
-    const NlData *d = vd;
-    double b[3];
-    unscale(x, d, b);
-    for (size_t i = 0; i < d->n; i++) gsl_vector_set(f, i, 2.0 * grade_gain(b, d->v[i]) * d->th[i] - d->y[i]);
-    return GSL_SUCCESS;
-}
-
 static int grade_df(const gsl_vector *x, void *vd, gsl_matrix *J)
 {
     const NlData *d = vd;
@@ -258,12 +255,12 @@ static int grade_df(const gsl_vector *x, void *vd, gsl_matrix *J)
     return GSL_SUCCESS;
 }
 
-static double nl_cost(const NlData *d, int grade, const double *b)
+static double nl_cost(const NlData *d, const double *b)
 {
     double ss = 0.0;
     for (size_t i = 0; i < d->n; i++) {
-        double m = grade ? 2.0 * grade_gain(b, d->v[i]) * d->th[i] : amax_flat(b, d->v[i]);
-        ss += (m - d->y[i]) * (m - d->y[i]);
+        double r = nl_model(d, b, i) - d->y[i];
+        ss += r * r;
     }
     return ss;
 }
@@ -273,12 +270,12 @@ static double nl_cost(const NlData *d, int grade, const double *b)
  * or small-gradient test passed, or "no further progress" (GSL_ENOPROG: the trust region cannot shrink
  * further, an end a piecewise model on a staircase target can reach; the caller compares costs). Running
  * out of iterations is a failure (WF_ESYS). */
-static int nl_fit(NlData *d, int grade, double *b, WfError *err)
+static int nl_fit(NlData *d, double *b, WfError *err)
 {
     for (int j = 0; j < 3; j++) d->s[j] = fabs(b[j]) > 1e-300 ? fabs(b[j]) : 1.0;
     gsl_multifit_nlinear_fdf fdf = {0};
-    fdf.f = grade ? grade_f : flat_f;
-    fdf.df = grade ? grade_df : flat_df;
+    fdf.f = nl_f;
+    fdf.df = d->th ? grade_df : flat_df;
     fdf.n = d->n;
     fdf.p = 3;
     fdf.params = d;
@@ -299,25 +296,23 @@ static int nl_fit(NlData *d, int grade, double *b, WfError *err)
         double bn[3];
         unscale(gsl_multifit_nlinear_position(w), d, bn);
         if (isfinite(bn[0]) && isfinite(bn[1]) && isfinite(bn[2])) memcpy(b, bn, sizeof bn);
-        else rc = wf_err(err, WF_ESYS, "fit: the nonlinear fit of %s diverged", grade ? "b4..b6" : "b1..b3");
+        else rc = wf_err(err, WF_ESYS, "fit: the nonlinear fit of %s diverged", d->th ? "b4..b6" : "b1..b3");
     } else {
         rc = wf_err(err, WF_ESYS, "fit: the nonlinear fit of %s did not converge (gsl_multifit_nlinear_driver: %s)",
-                    grade ? "b4..b6" : "b1..b3", gsl_strerror(st));
+                    d->th ? "b4..b6" : "b1..b3", gsl_strerror(st));
     }
     gsl_multifit_nlinear_free(w);
     gsl_set_error_handler(old);
     return rc;
 }
 
-static void nl_residuals(const NlData *d, int grade, const double *b, WfFitStep *s)
+static void nl_residuals(const NlData *d, const double *b, WfFitStep *s)
 {
     double mx = 0.0;
-    for (size_t i = 0; i < d->n; i++) {
-        double m = grade ? 2.0 * grade_gain(b, d->v[i]) * d->th[i] : amax_flat(b, d->v[i]);
-        if (fabs(m - d->y[i]) > mx) mx = fabs(m - d->y[i]);
-    }
+    for (size_t i = 0; i < d->n; i++)
+        if (fabs(nl_model(d, b, i) - d->y[i]) > mx) mx = fabs(nl_model(d, b, i) - d->y[i]);
     s->n_used = d->n;
-    s->rms = d->n ? sqrt(nl_cost(d, grade, b) / (double)d->n) : NAN;
+    s->rms = d->n ? sqrt(nl_cost(d, b) / (double)d->n) : NAN;
     s->max_abs = mx;
     s->done = 1;
 }
@@ -352,11 +347,11 @@ static int fit_amax_flat(const WfTable *t, WfCirclesParams *p, WfFitStep *s, WfE
     if (rc) return rc;
     double b[3] = {top, b23[0], b23[1]};
     NlData d = {.n = N_AMAX_V, .v = v, .th = NULL, .y = y};
-    if ((rc = nl_fit(&d, 0, b, err))) return rc;
+    if ((rc = nl_fit(&d, b, err))) return rc;
     p->b1 = b[0];
     p->b2 = b[1];
     p->b3 = b[2];
-    nl_residuals(&d, 0, b, s);
+    nl_residuals(&d, b, s);
     return 0;
 }
 
@@ -393,13 +388,13 @@ static int fit_amax_grade(const WfTable *t, WfCirclesParams *p, WfFitStep *s, Wf
         best[0] = hi > line[0] ? hi : line[0];
         best[1] = line[0];
         best[2] = line[1];
-        best_cost = nl_cost(&d, 1, best);
+        best_cost = nl_cost(&d, best);
         static const double cap_v[] = {5.0, 10.0, 20.0, 30.0};
         for (size_t k = 0; k < sizeof cap_v / sizeof cap_v[0]; k++) {
             double b[3] = {line[0] + line[1] * cap_v[k], line[0], line[1]};
             /* A start that does not converge is dropped: the uncapped candidate always exists. */
-            if (nl_fit(&d, 1, b, err)) continue;
-            double cost = nl_cost(&d, 1, b);
+            if (nl_fit(&d, b, err)) continue;
+            double cost = nl_cost(&d, b);
             if (cost < best_cost) {
                 best_cost = cost;
                 memcpy(best, b, sizeof b);
@@ -414,7 +409,7 @@ static int fit_amax_grade(const WfTable *t, WfCirclesParams *p, WfFitStep *s, Wf
         p->b4 = best[0];
         p->b5 = best[1];
         p->b6 = best[2];
-        nl_residuals(&d, 1, best, s);
+        nl_residuals(&d, best, s);
     }
     free(buf);
     return rc;
