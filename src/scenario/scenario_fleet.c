@@ -157,26 +157,35 @@ static const WfKeySpec class_rows[] = {
 };
 const WfKeyTable wf_class_keys = {"fleet.classes[i]", class_rows, sizeof class_rows / sizeof *class_rows};
 
-/* Fraction, count and indices of one entry (class or driver group) under the placement rules; *count_out and
- * *frac_out are the entry's share for resolve_counts. */
-static int class_share(const WfScenario *sc, WfCfgNode *e, void *entry, double *frac, long *count, WfError *err)
+/* The share of one entry (class or driver group) under the placement rules, for resolve_counts: placed
+ * explicitly (`listed`), its 'indices' list counts; otherwise exactly one of its 'fraction' (*frac) and 'count'
+ * (*count) is given. `noun` names the entry in messages, `needs` what 'indices' needs. */
+static int entry_share(WfCfgNode *e, int listed, const long *indices, size_t n_indices, const char *noun,
+                       const char *needs, double *frac, long *count, WfError *err)
 {
-    const WfClassShare *cs = entry;
     char w[1024];
-    *frac = cs->fraction;
-    *count = cs->count;
-    if (sc->placement == WF_PLACE_EXPLICIT) {
-        if (!cs->indices)
-            return wf_err(err, WF_EINPUT, "%s: placement is explicit: list this class's vehicles in 'indices'",
-                          where_of(e, w, sizeof w));
-        *count = (long)cs->n_indices;
-        *frac = NAN;
-    } else if (cs->indices) {
-        return wf_err(err, WF_EINPUT, "%s: 'indices' needs fleet.placement: explicit", where_of(e, w, sizeof w));
+    if (listed) {
+        if (!indices)
+            return wf_err(err, WF_EINPUT, "%s: placement is explicit: list this %s's vehicles in 'indices'",
+                          where_of(e, w, sizeof w), noun);
+        *count = (long)n_indices;
+    } else if (indices) {
+        return wf_err(err, WF_EINPUT, "%s: 'indices' needs %s", where_of(e, w, sizeof w), needs);
     } else if (isnan(*frac) == (*count < 0)) {
         return wf_err(err, WF_EINPUT, "%s: give exactly one of 'fraction' or 'count'", where_of(e, w, sizeof w));
     }
     return 0;
+}
+
+/* A class placed explicitly has no fraction. */
+static int class_share(const WfScenario *sc, WfCfgNode *e, void *entry, double *frac, long *count, WfError *err)
+{
+    const WfClassShare *cs = entry;
+    int listed = sc->placement == WF_PLACE_EXPLICIT;
+    *frac = listed ? NAN : cs->fraction;
+    *count = cs->count;
+    return entry_share(e, listed, cs->indices, cs->n_indices, "class", "fleet.placement: explicit", frac, count,
+                       err);
 }
 
 _Static_assert(WF_CF_PLUGIN_MAX_PARAMS <= WF_MAX_MODEL_PARAMS, "a plugin's parameters must fit a driver group");
@@ -511,18 +520,9 @@ static int group_share(const WfScenario *sc, WfCfgNode *e, void *entry, double *
     if (g->placement == WF_PLACE_EXPLICIT && (!isnan(*frac) || *count >= 0))
         return wf_err(err, WF_EINPUT, "%s: placement is explicit: the group's size is its 'indices' list; drop "
                       "'fraction' and 'count'", where_of(e, w, sizeof w));
-    if (sc->placement == WF_PLACE_EXPLICIT || g->placement == WF_PLACE_EXPLICIT) {
-        if (!g->indices)
-            return wf_err(err, WF_EINPUT, "%s: placement is explicit: list this group's vehicles in 'indices'",
-                          where_of(e, w, sizeof w));
-        *count = (long)g->n_indices;
-    } else if (g->indices) {
-        return wf_err(err, WF_EINPUT, "%s: 'indices' needs placement: explicit (fleet.placement or the group's own)",
-                      where_of(e, w, sizeof w));
-    } else if (isnan(*frac) == (*count < 0)) {
-        return wf_err(err, WF_EINPUT, "%s: give exactly one of 'fraction' or 'count'", where_of(e, w, sizeof w));
-    }
-    return 0;
+    return entry_share(e, sc->placement == WF_PLACE_EXPLICIT || g->placement == WF_PLACE_EXPLICIT, g->indices,
+                       g->n_indices, "group", "placement: explicit (fleet.placement or the group's own)", frac, count,
+                       err);
 }
 
 /* The two share lists of the fleet, classes and driver groups: each entry is a map read with `table`, then its
