@@ -209,14 +209,9 @@ typedef struct ClassResult {
     size_t  n_outside, n_evals_tab;
 } ClassResult;
 
-static double *fuel_at(ClassResult *r, size_t m, size_t c, size_t g)
+static double *fuel_at(const ClassResult *r, size_t m, size_t c, size_t g)
 {
     return &r->fuel[(m * (r->n_cycles + 1) + c) * r->n_grades + g];
-}
-
-static double fuel_of(const ClassResult *r, size_t m, size_t c, size_t g)
-{
-    return r->fuel[(m * (r->n_cycles + 1) + c) * r->n_grades + g];
 }
 
 static void print_rel_row(const char *name, const char *label, const double *rel, size_t n_grades)
@@ -239,7 +234,7 @@ static void print_class_markdown(const Entry *e, const ClassResult *r, const cha
         const char *name = c < r->n_cycles ? cycles[c] : "ALL";
         for (size_t m = 0; m < r->n_models; m++) {
             printf("| %s | %s%s |", name, models[m]->model->name, c < r->n_cycles ? "" : " (sum)");
-            for (size_t g = 0; g < r->n_grades; g++) printf(" %.2f |", fuel_of(r, m, c, g));
+            for (size_t g = 0; g < r->n_grades; g++) printf(" %.2f |", *fuel_at(r, m, c, g));
             printf("\n");
         }
         if (r->rel && c < r->n_cycles) print_rel_row(name, "rel. diff", &r->rel[c * r->n_grades], r->n_grades);
@@ -264,12 +259,12 @@ static void relative_differences(ClassResult *r, const Duty *d)
     for (size_t g = 0; g < G; g++) {
         double mean = 0.0;
         for (size_t c = 0; c < C; c++) {
-            double rel = (fuel_of(r, 0, c, g) - fuel_of(r, 1, c, g)) / fuel_of(r, 1, c, g);
+            double rel = (*fuel_at(r, 0, c, g) - *fuel_at(r, 1, c, g)) / *fuel_at(r, 1, c, g);
             r->rel[c * G + g] = rel;
             mean += wf_cycle_duration_s(&d->cyc[c]) * rel;
         }
         r->rel[C * G + g] = mean / total_s;
-        r->rel_total[g] = (fuel_of(r, 0, C, g) - fuel_of(r, 1, C, g)) / fuel_of(r, 1, C, g);
+        r->rel_total[g] = (*fuel_at(r, 0, C, g) - *fuel_at(r, 1, C, g)) / *fuel_at(r, 1, C, g);
     }
 }
 
