@@ -17,7 +17,6 @@
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/mlp.h"
 #include "wavefuel/corridor.h"
-#include "wavefuel/csv.h"
 #include "wavefuel/integrator.h"
 #include "util/numfmt.h"
 
@@ -67,70 +66,22 @@ long wf_scenario_trajectory_every(const WfScenario *sc)
 }
 long wf_scenario_records(const WfScenario *sc, long every) { return wf_scenario_n_steps(sc) / every + 1; }
 
-/* road.grade of a ring: points or a CSV file; wf_road_set_grade checks that the profile closes. */
+/* road.grade of a ring: points or a CSV file; wf_road_set_grade checks the values and that the profile closes. */
 static int load_grade(WfCfgNode *road, const WfKeySpec *row, void *target, WfKeyEnv *env, WfError *err)
 {
     (void)row, (void)env;
     WfScenario *sc = target;
-    WfCfgNode *grade = NULL, *points = NULL;
-    const char *csv = NULL;
-    char w[1024];
+    WfCfgNode *grade = NULL;
     if (wf_cfg_map_opt(road, "grade", &grade, err)) return WF_EINPUT;
     if (!grade) return 0;
-    if (wf_cfg_seq_opt(grade, "points", &points, err) || wf_cfg_string_opt(grade, "csv", &csv, err))
-        return WF_EINPUT;
-    if (!!points == !!csv)
-        return wf_err(err, WF_EINPUT, "%s: give either 'points' (a list of [x_m, grade_rad]) or 'csv' (a file)",
-                      where_of(grade, w, sizeof w));
+    static const WfPairCols cols = {{"x_m", "grade_rad"}, {"m", "rad"}, {0, -0.2}, {1e9, 0.2}, .csv_doc = "a file"};
     double *x = NULL, *th = NULL;
     size_t n = 0;
-    int rc = 0;
-    if (points) {
-        n = points->n_child;
-        x = malloc((n + 1) * sizeof *x);
-        th = malloc((n + 1) * sizeof *th);
-        if (!x || !th) {
-            rc = wf_err(err, WF_ESYS, "out of memory");
-            goto done;
-        }
-        for (size_t i = 0; i < n; i++) {
-            WfCfgNode *p = points->child[i];
-            p->used = 1;
-            if (p->kind != WF_CFG_SEQ || p->n_child != 2) {
-                rc = wf_err(err, WF_EINPUT, "%s: expected a pair [x_m, grade_rad]", where_of(p, w, sizeof w));
-                goto done;
-            }
-            if ((rc = wf_cfg_node_double(p->child[0], 0, 1e9, "m", &x[i], err))) goto done;
-            if ((rc = wf_cfg_node_double(p->child[1], -0.2, 0.2, "rad", &th[i], err))) goto done;
-        }
-        rc = wf_road_set_grade(&sc->road, n, x, th, where_of(points, w, sizeof w), err);
-    } else {
-        /* Relative paths are relative to the scenario file, so a scenario and its profile travel together. */
-        char path[2048];
-        if (wf_path_relative_to(sc->path, csv, path, sizeof path)) {
-            rc = wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(grade, "csv"), w, sizeof w));
-            goto done;
-        }
-        static const char *const names[] = {"x_m", "grade_rad"};
-        WfCsv t;
-        if ((rc = wf_csv_read(path, 2, names, &t, err))) {
-            wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(grade, "csv"), w, sizeof w));
-            goto done;
-        }
-        if ((rc = wf_scenario_add_input(sc, path, err))) {
-            wf_csv_free(&t);
-            goto done;
-        }
-        n = t.n_rows;
-        x = malloc((n + 1) * sizeof *x);
-        th = malloc((n + 1) * sizeof *th);
-        if (!x || !th) rc = wf_err(err, WF_ESYS, "out of memory");
-        for (size_t i = 0; !rc && i < n; i++) x[i] = t.data[2 * i], th[i] = t.data[2 * i + 1];
-        if (!rc && n == 0) rc = wf_err(err, WF_EINPUT, "%s: no rows", path);
-        if (!rc) rc = wf_road_set_grade(&sc->road, n, x, th, path, err);
-        wf_csv_free(&t);
-    }
-done:
+    char where[2048];
+    int rc = wf_scenario_pairs(sc, grade, &cols, &x, &th, &n, where, sizeof where, err);
+    /* No points: a flat ring; a CSV file without rows is a mistake. */
+    if (!rc && n == 0 && wf_cfg_child(grade, "csv")) rc = wf_err(err, WF_EINPUT, "%s: no rows", where);
+    if (!rc) rc = wf_road_set_grade(&sc->road, n, x, th, where, err);
     free(x);
     free(th);
     return rc;

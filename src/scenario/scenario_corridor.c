@@ -40,11 +40,8 @@ void wf_corridor_spec_destroy(WfCorridorSpec **ps)
     *ps = NULL;
 }
 
-/* Two-column numbers from either `points: [[a, b], ...]` or `csv: FILE` (header `names`) of `map`. The arrays
- * are owned by the caller. `where` receives the location of what was read, for later messages. */
-static int read_pairs(WfScenario *sc, WfCfgNode *map, const char *const names[2], double min0, double max0,
-                      const char *unit0, double min1, double max1, const char *unit1, double **a_out,
-                      double **b_out, size_t *n_out, char *where, size_t wlen, WfError *err)
+int wf_scenario_pairs(WfScenario *sc, WfCfgNode *map, const WfPairCols *c, double **a_out, double **b_out,
+                      size_t *n_out, char *where, size_t wlen, WfError *err)
 {
     WfCfgNode *points = NULL;
     const char *csv = NULL;
@@ -52,35 +49,19 @@ static int read_pairs(WfScenario *sc, WfCfgNode *map, const char *const names[2]
     *a_out = *b_out = NULL;
     *n_out = 0;
     if (wf_cfg_seq_opt(map, "points", &points, err) || wf_cfg_string_opt(map, "csv", &csv, err)) return WF_EINPUT;
-    if (!!points == !!csv)
-        return wf_err(err, WF_EINPUT, "%s: give either 'points' (a list of [%s, %s]) or 'csv' (a file with header "
-                      "%s,%s)", where_of(map, w, sizeof w), names[0], names[1], names[0], names[1]);
-    size_t n = 0;
-    double *a = NULL, *b = NULL;
-    int rc = 0;
-    if (points) {
-        n = points->n_child;
-        where_of(points, where, wlen);
-        a = malloc((n + 1) * sizeof *a);
-        b = malloc((n + 1) * sizeof *b);
-        if (!a || !b) rc = wf_err(err, WF_ESYS, "out of memory");
-        for (size_t i = 0; !rc && i < n; i++) {
-            WfCfgNode *p = points->child[i];
-            p->used = 1;
-            if (p->kind != WF_CFG_SEQ || p->n_child != 2)
-                rc = wf_err(err, WF_EINPUT, "%s: expected a pair [%s, %s]", where_of(p, w, sizeof w), names[0],
-                            names[1]);
-            else if (wf_cfg_node_double(p->child[0], min0, max0, unit0, &a[i], err) ||
-                     wf_cfg_node_double(p->child[1], min1, max1, unit1, &b[i], err))
-                rc = WF_EINPUT;
-        }
-    } else {
-        char path[2048];
-        WfCsv t;
+    if (!!points == !!csv) {
+        char doc[200];
+        snprintf(doc, sizeof doc, "a file with header %s,%s", c->name[0], c->name[1]);
+        return wf_err(err, WF_EINPUT, "%s: give either 'points' (a list of [%s, %s]) or 'csv' (%s)",
+                      where_of(map, w, sizeof w), c->name[0], c->name[1], c->csv_doc ? c->csv_doc : doc);
+    }
+    char path[2048];
+    WfCsv t = {0};
+    if (csv) {
         if (wf_path_relative_to(sc->path, csv, path, sizeof path))
             return wf_err(err, WF_EINPUT, "%s: path too long", where_of(wf_cfg_child(map, "csv"), w, sizeof w));
         if (snprintf(where, wlen, "%s", path) >= (int)wlen) where[wlen - 1] = '\0'; /* only for messages */
-        if (wf_csv_read(path, 2, names, &t, err)) {
+        if (wf_csv_read(path, 2, c->name, &t, err)) {
             wf_err_prefix(err, "%s: ", where_of(wf_cfg_child(map, "csv"), w, sizeof w));
             return WF_EINPUT;
         }
@@ -88,33 +69,56 @@ static int read_pairs(WfScenario *sc, WfCfgNode *map, const char *const names[2]
             wf_csv_free(&t);
             return WF_ESYS;
         }
-        n = t.n_rows;
-        a = malloc((n + 1) * sizeof *a);
-        b = malloc((n + 1) * sizeof *b);
-        if (!a || !b) rc = wf_err(err, WF_ESYS, "out of memory");
-        for (size_t i = 0; !rc && i < n; i++) {
-            a[i] = t.data[2 * i], b[i] = t.data[2 * i + 1];
-            if (!(a[i] >= min0 && a[i] <= max0))
-                rc = wf_err(err, WF_EINPUT, "%s:%d: %s must be in [%s, %s] %s (got %s)", path, t.line[i],
-                            names[0], WF_NUM(min0), WF_NUM(max0), unit0, WF_NUM(a[i]));
-            else if (!(b[i] >= min1 && b[i] <= max1))
-                rc = wf_err(err, WF_EINPUT, "%s:%d: %s must be in [%s, %s] %s (got %s)", path, t.line[i],
-                            names[1], WF_NUM(min1), WF_NUM(max1), unit1, WF_NUM(b[i]));
-        }
-        wf_csv_free(&t);
+    } else {
+        where_of(points, where, wlen);
     }
+    size_t n = points ? points->n_child : t.n_rows;
+    double *v[2] = {malloc((n + 1) * sizeof *v[0]), malloc((n + 1) * sizeof *v[1])};
+    int rc = !v[0] || !v[1] ? wf_err(err, WF_ESYS, "out of memory") : 0;
+    for (size_t i = 0; !rc && i < n; i++) {
+        WfCfgNode *p = points ? points->child[i] : NULL;
+        if (p) p->used = 1;
+        if (p && (p->kind != WF_CFG_SEQ || p->n_child != 2))
+            rc = wf_err(err, WF_EINPUT, "%s: expected a pair [%s, %s]", where_of(p, w, sizeof w), c->name[0],
+                        c->name[1]);
+        for (int k = 0; !rc && k < 2; k++) {
+            if (p) rc = wf_cfg_node_double(p->child[k], c->min[k], c->max[k], c->unit[k], &v[k][i], err);
+            else v[k][i] = t.data[2 * i + (size_t)k];
+            if (!p && c->csv_ranges && !(v[k][i] >= c->min[k] && v[k][i] <= c->max[k]))
+                rc = wf_err(err, WF_EINPUT, "%s:%d: %s must be in [%s, %s] %s (got %s)", path, t.line[i], c->name[k],
+                            WF_NUM(c->min[k]), WF_NUM(c->max[k]), c->unit[k], WF_NUM(v[k][i]));
+        }
+    }
+    wf_csv_free(&t);
+    if (rc) {
+        free(v[0]);
+        free(v[1]);
+        return rc;
+    }
+    *a_out = v[0], *b_out = v[1], *n_out = n;
+    return 0;
+}
+
+/* A profile from wf_scenario_pairs: at least one point, the first column increasing. The arrays are owned by the
+ * caller. `where` receives the location of what was read, for later messages. */
+static int read_pairs(WfScenario *sc, WfCfgNode *map, const WfPairCols *c, double **a_out, double **b_out,
+                      size_t *n_out, char *where, size_t wlen, WfError *err)
+{
+    int rc = wf_scenario_pairs(sc, map, c, a_out, b_out, n_out, where, wlen, err);
+    const double *a = *a_out;
+    size_t n = *n_out;
     if (!rc && n == 0) rc = wf_err(err, WF_EINPUT, "%s: no points", where);
     for (size_t i = 1; !rc && i < n; i++)
         if (!(a[i] > a[i - 1]))
-            rc = wf_err(err, WF_EINPUT, "%s: point %zu: %s must increase (got %s after %s)", where, i, names[0],
+            rc = wf_err(err, WF_EINPUT, "%s: point %zu: %s must increase (got %s after %s)", where, i, c->name[0],
                         WF_NUM(a[i]), WF_NUM(a[i - 1]));
     if (rc) {
-        free(a);
-        free(b);
-        return rc;
+        free(*a_out);
+        free(*b_out);
+        *a_out = *b_out = NULL;
+        *n_out = 0;
     }
-    *a_out = a, *b_out = b, *n_out = n;
-    return 0;
+    return rc;
 }
 
 /* A time profile: `KEY: value` (constant) or `csv: FILE` with header time_s,NAME, points linear in between. */
@@ -143,10 +147,9 @@ static int read_profile(WfScenario *sc, WfCfgNode *map, const char *key, const c
         p->n = 1, p->t[0] = 0.0, p->y[0] = v, p->cum[0] = 0.0;
         return 0;
     }
-    const char *names[2] = {"time_s", col};
+    const WfPairCols cols = {{"time_s", col}, {"s", unit}, {0, 0}, {1e9, max}, .csv_ranges = 1};
     char where[1024];
-    if (read_pairs(sc, map, names, 0, 1e9, "s", 0, max, unit, &p->t, &p->y, &p->n, where, sizeof where, err))
-        return WF_EINPUT;
+    if (read_pairs(sc, map, &cols, &p->t, &p->y, &p->n, where, sizeof where, err)) return WF_EINPUT;
     p->cum = malloc(p->n * sizeof *p->cum);
     if (!p->cum) return wf_err(err, WF_ESYS, "out of memory");
     p->cum[0] = 0.0;
@@ -197,15 +200,14 @@ int wf_corridor_road_elevation(WfCfgNode *road, const WfKeySpec *row, void *t, W
         return wf_err(err, WF_EINPUT, "%s: give either road.grade or road.elevation, not both",
                       where_of(elev, w, sizeof w));
     if (grade) {
-        static const char *const names[2] = {"x_m", "grade_rad"};
-        return read_pairs(sc, grade, names, 0, L, "m", -0.2, 0.2, "rad", &cs->grade_x_m, &cs->grade_rad,
-                          &cs->n_grade, where, sizeof where, err);
+        const WfPairCols cols = {{"x_m", "grade_rad"}, {"m", "rad"}, {0, -0.2}, {L, 0.2}, .csv_ranges = 1};
+        return read_pairs(sc, grade, &cols, &cs->grade_x_m, &cs->grade_rad, &cs->n_grade, where, sizeof where, err);
     }
     if (!elev) return 0;
-    static const char *const names[2] = {"x_m", "z_m"};
+    const WfPairCols cols = {{"x_m", "z_m"}, {"m", "m"}, {0, -1e4}, {L, 1e4}, .csv_ranges = 1};
     double *x = NULL, *z = NULL;
     size_t n = 0;
-    if (read_pairs(sc, elev, names, 0, L, "m", -1e4, 1e4, "m", &x, &z, &n, where, sizeof where, err)) return WF_EINPUT;
+    if (read_pairs(sc, elev, &cols, &x, &z, &n, where, sizeof where, err)) return WF_EINPUT;
     return elevation_to_grade(cs, x, z, n, where, err);
 }
 

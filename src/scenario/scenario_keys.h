@@ -14,6 +14,21 @@ int wf_scenario_add_input(WfScenario *sc, const char *path, WfError *err);
 /* "file:line: path" of a node, into buf. */
 const char *wf_scenario_where(const WfCfgNode *n, char *buf, size_t len);
 
+/* Two columns of numbers (wf_scenario_pairs): their names (a CSV's header), units and ranges. */
+typedef struct WfPairCols {
+    const char *name[2], *unit[2];
+    double      min[2], max[2];
+    int         csv_ranges; /* a CSV's values checked too (0: the caller checks them, as a ring's road does) */
+    const char *csv_doc;    /* 'csv' in the message when neither or both are given; NULL: "a file with header A,B" */
+} WfPairCols;
+
+/* The two columns of `points: [[a, b], ...]` or `csv: FILE` (relative to the scenario file, added to its inputs)
+ * of `map`, exactly one of them: points each in the ranges of c, a CSV's rows too with c->csv_ranges. *a and *b are
+ * malloc'd (n + 1 values; the caller frees them), NULL on failure. `where` receives the location of what was read
+ * for later messages: the points' file:line: path, or the CSV's path. */
+int wf_scenario_pairs(WfScenario *sc, WfCfgNode *map, const WfPairCols *c, double **a, double **b, size_t *n,
+                      char *where, size_t wlen, WfError *err);
+
 /* road.grade / road.elevation / road.zones of a corridor (WF_KEY_LATER rows of the road table). */
 int wf_corridor_road_grade(WfCfgNode *road, const WfKeySpec *row, void *sc, WfKeyEnv *env, WfError *err);
 int wf_corridor_road_elevation(WfCfgNode *road, const WfKeySpec *row, void *sc, WfKeyEnv *env, WfError *err);
