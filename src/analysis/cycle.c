@@ -148,22 +148,17 @@ int wf_cycle_data_dir(const char *dir, const char *dir_from, const char *default
 {
     *found = 0;
     out[0] = '\0';
-    const char *given = dir && *dir ? dir : NULL;
-    if (given) {
-        if (!is_dir(given))
-            return wf_err(err, WF_EINPUT, "data directory %s (%s) does not exist", given, dir_from ? dir_from : "given");
-        int w = snprintf(out, len, "%s", given);
-        if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "data directory path too long: %s", given);
-        *found = 1;
-        return 0;
+    const char *show = dir && *dir ? dir : NULL;
+    char real[PATH_MAX];
+    if (show && !is_dir(show))
+        return wf_err(err, WF_EINPUT, "data directory %s (%s) does not exist", show, dir_from ? dir_from : "given");
+    if (!show) {
+        if (!default_dir || !is_dir(default_dir)) return 0;
+        show = realpath(default_dir, real) ? real : default_dir;
     }
-    if (default_dir && is_dir(default_dir)) {
-        char real[PATH_MAX];
-        const char *show = realpath(default_dir, real) ? real : default_dir;
-        int w = snprintf(out, len, "%s", show);
-        if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "data directory path too long: %s", show);
-        *found = 1;
-    }
+    int w = snprintf(out, len, "%s", show);
+    if (w < 0 || (size_t)w >= len) return wf_err(err, WF_EINPUT, "data directory path too long: %s", show);
+    *found = 1;
     return 0;
 }
 
