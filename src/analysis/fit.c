@@ -795,17 +795,11 @@ static int finish_partial(FILE *f, const char *partial, const char *path, int wr
 {
     int bad = write_failed | ferror(f);
     if (fclose(f) != 0) bad = 1;
-    if (bad) {
-        int e = errno;
-        remove(partial);
-        return wf_err(err, WF_ESYS, "%s: write failed: %s", partial, strerror(e));
-    }
-    if (rename(partial, path) != 0) {
-        int e = errno;
-        remove(partial);
-        return wf_err(err, WF_ESYS, "cannot rename %s to %s: %s", partial, path, strerror(e));
-    }
-    return 0;
+    if (!bad && rename(partial, path) == 0) return 0;
+    int e = errno; /* of the failed write, close or rename */
+    remove(partial);
+    return bad ? wf_err(err, WF_ESYS, "%s: write failed: %s", partial, strerror(e))
+               : wf_err(err, WF_ESYS, "cannot rename %s to %s: %s", partial, path, strerror(e));
 }
 
 /* A YAML double-quoted scalar (escapes quotes, backslashes and control characters). */
