@@ -132,6 +132,17 @@ static int next_event(Builder *b, yaml_event_t *ev)
     return 0;
 }
 
+/* The next event's type and line; the event itself is dropped. */
+static int skip_event(Builder *b, yaml_event_type_t *type, int *line)
+{
+    yaml_event_t ev;
+    if (next_event(b, &ev)) return WF_EINPUT;
+    *type = ev.type;
+    *line = (int)ev.start_mark.line + 1;
+    yaml_event_delete(&ev);
+    return 0;
+}
+
 /* A double-quoted YAML scalar may hold "\0": strdup() would silently cut the text there ("230\0junk" read
  * as 230), so such keys and values are rejected. `what` names the key (or "a list item"). */
 static int scalar_has_nul(Builder *b, const yaml_event_t *ev, const char *what)
@@ -260,37 +271,26 @@ int wf_cfg_load_string(const char *name, const char *text, size_t len, WfCfg **o
         return wf_err(err, WF_ESYS, "libyaml: cannot initialise parser");
     }
     yaml_parser_set_input_string(&b.parser, (const unsigned char *)cfg->text, len);
-    int rc = 0;
-    yaml_event_t ev;
-    /* stream start, document start (or stream end for an empty file), root node, document end */
-    if ((rc = next_event(&b, &ev))) goto done;
-    yaml_event_delete(&ev);
-    if ((rc = next_event(&b, &ev))) goto done;
-    if (ev.type == YAML_STREAM_END_EVENT) {
-        yaml_event_delete(&ev);
+    /* The stream's start, a document's start (or the stream's end: an empty file), the root map, the document's
+     * end and the stream's end (anything else: a second document). */
+    yaml_event_type_t type = YAML_NO_EVENT;
+    yaml_event_t ev = {0};
+    int line = 0, rc = skip_event(&b, &type, &line);
+    if (!rc) rc = skip_event(&b, &type, &line);
+    if (!rc && type == YAML_STREAM_END_EVENT)
         rc = wf_err(err, WF_EINPUT, "%s: empty file: expected a YAML mapping of keys", name);
-        goto done;
-    }
-    yaml_event_delete(&ev);
-    if ((rc = next_event(&b, &ev))) goto done;
-    if (ev.type != YAML_MAPPING_START_EVENT) {
-        int line = (int)ev.start_mark.line + 1;
+    if (!rc) rc = next_event(&b, &ev);
+    if (!rc && ev.type != YAML_MAPPING_START_EVENT) {
+        line = (int)ev.start_mark.line + 1;
         yaml_event_delete(&ev);
         rc = wf_err(err, WF_EINPUT, "%s:%d: expected a YAML mapping (key: value lines) at the top", name, line);
-        goto done;
+    } else if (!rc) {
+        rc = parse_node(&b, &ev, &cfg->root, 0);
     }
-    if ((rc = parse_node(&b, &ev, &cfg->root, 0))) goto done;
-    if ((rc = next_event(&b, &ev))) goto done; /* document end */
-    yaml_event_delete(&ev);
-    if ((rc = next_event(&b, &ev))) goto done;
-    if (ev.type != YAML_STREAM_END_EVENT) {
-        int line = (int)ev.start_mark.line + 1;
-        yaml_event_delete(&ev);
+    if (!rc) rc = skip_event(&b, &type, &line);
+    if (!rc) rc = skip_event(&b, &type, &line);
+    if (!rc && type != YAML_STREAM_END_EVENT)
         rc = wf_err(err, WF_EINPUT, "%s:%d: more than one YAML document in the file", name, line);
-        goto done;
-    }
-    yaml_event_delete(&ev);
-done:
     yaml_parser_delete(&b.parser);
     if (rc) {
         wf_cfg_destroy(&cfg);
