@@ -95,9 +95,10 @@ static hid_t file_access(void)
     return fapl;
 }
 
-/* A new WfH5File for PATH and PATH.partial, not yet open. */
+/* A new WfH5File for PATH and PATH.partial, not yet open (HDF5 initialised for it). */
 static int file_new(const char *path, WfH5File **out, WfError *err)
 {
+    wf_h5_library_init();
     *out = NULL;
     WfH5File *f = calloc(1, sizeof *f);
     if (!f) return wf_err(err, WF_ESYS, "out of memory");
@@ -114,8 +115,6 @@ static int file_new(const char *path, WfH5File **out, WfError *err)
 
 int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
 {
-    wf_h5_library_init();
-    *out = NULL;
     struct stat st;
     WfH5File *f = NULL;
     int rc0 = file_new(path, &f, err);
@@ -150,8 +149,6 @@ int wf_h5_create(const char *path, int force, WfH5File **out, WfError *err)
 
 int wf_h5_reopen(const char *path, WfH5File **out, WfError *err)
 {
-    wf_h5_library_init();
-    *out = NULL;
     WfH5File *f = NULL;
     int rc0 = file_new(path, &f, err);
     if (rc0) return rc0;
