@@ -25,6 +25,16 @@ static void usage(FILE *out)
                  "also after a command, prints the version.\n");
 }
 
+/* The command called `name`; NULL after saying that there is none. */
+static const WfCommand *find(const char *name)
+{
+    for (int i = 0; i < N_COMMANDS; i++)
+        if (!strcmp(name, commands[i].name)) return &commands[i];
+    fprintf(stderr, "wavefuel: unknown command '%s'\n", name);
+    usage(stderr);
+    return NULL;
+}
+
 int main(int argc, char **argv)
 {
     WfError err = {0};
@@ -37,11 +47,8 @@ int main(int argc, char **argv)
     if (!strcmp(argv[1], "help") && (argc == 3 || argc == 4)) {
         char help_opt[] = "--help";
         char *args[] = {argv[2], argc == 4 ? argv[3] : help_opt, help_opt, NULL};
-        for (int i = 0; i < N_COMMANDS; i++)
-            if (!strcmp(argv[2], commands[i].name)) return commands[i].main(argc - 1, args);
-        fprintf(stderr, "wavefuel: unknown command '%s'\n", argv[2]);
-        usage(stderr);
-        return 2;
+        const WfCommand *cmd = find(argv[2]);
+        return cmd ? cmd->main(argc - 1, args) : 2;
     }
     if (!strcmp(argv[1], "--help") || !strcmp(argv[1], "-h") || !strcmp(argv[1], "help")) {
         usage(stdout);
@@ -51,9 +58,6 @@ int main(int argc, char **argv)
         printf("wavefuel %s (%s)\n", WF_VERSION, wf_git_hash());
         return 0;
     }
-    for (int i = 0; i < N_COMMANDS; i++)
-        if (!strcmp(argv[1], commands[i].name)) return commands[i].main(argc - 1, argv + 1);
-    fprintf(stderr, "wavefuel: unknown command '%s'\n", argv[1]);
-    usage(stderr);
-    return 2;
+    const WfCommand *cmd = find(argv[1]);
+    return cmd ? cmd->main(argc - 1, argv + 1) : 2;
 }
