@@ -137,49 +137,44 @@ int wf_csv_read(const char *path, size_t n_cols, const char *const *names, WfCsv
     size_t bufcap = 0, cap = 0;
     int lineno = 0, rc = 0, seen_data = 0;
     long len;
-    while ((len = read_line(f, &buf, &bufcap)) > 0) {
+    while (!rc && (len = read_line(f, &buf, &bufcap)) > 0) {
         if (lineno == INT_MAX) {
             rc = wf_err(err, WF_EINPUT, "%s: more than %d lines", shown, INT_MAX);
-            goto done;
+            break;
         }
         lineno++;
-        if ((size_t)len != strlen(buf)) {
-            rc = wf_err(err, WF_EINPUT, "%s:%d: contains a NUL byte: not a text table", shown, lineno);
-            goto done;
-        }
+        int has_nul = (size_t)len != strlen(buf);
         char *s = trim(buf);
         if (lineno == 1 && (unsigned char)s[0] == 0xEF && (unsigned char)s[1] == 0xBB && (unsigned char)s[2] == 0xBF)
             s += 3; /* UTF-8 byte-order mark written by spreadsheet programs */
-        if (!*s || *s == '#') continue;
-        if (strchr(s, '\r')) {
+        if (has_nul)
+            rc = wf_err(err, WF_EINPUT, "%s:%d: contains a NUL byte: not a text table", shown, lineno);
+        else if (!*s || *s == '#')
+            continue;
+        else if (strchr(s, '\r'))
             rc = wf_err(err, WF_EINPUT, "%s:%d: carriage return inside a line: lines must end in LF or CRLF", shown,
                         lineno);
-            goto done;
-        }
-        if (strchr(s, '"')) {
+        else if (strchr(s, '"'))
             rc = wf_err(err, WF_EINPUT, "%s:%d: quoted fields are not supported: numbers only", shown, lineno);
-            goto done;
-        }
         /* Header: only before the first data row, recognised by a first field that does not start like a number
          * (a digit, sign or point): "0x10" or "1e999" on the first row is a bad number, not a header. */
-        if (!seen_data && !out->had_header) {
-            if (!strchr("0123456789+-.", *s)) {
-                out->had_header = 1;
-                if ((rc = check_header(s, n_cols, names, shown, lineno, err))) goto done;
-                continue;
-            }
+        else if (!seen_data && !out->had_header && !strchr("0123456789+-.", *s)) {
+            out->had_header = 1;
+            rc = check_header(s, n_cols, names, shown, lineno, err);
+        } else {
+            seen_data = 1;
+            if (out->n_rows == cap) rc = grow(out, &cap, err);
+            if (!rc) rc = parse_row(s, out->data + out->n_rows * n_cols, n_cols, names, shown, lineno, err);
+            if (!rc) out->line[out->n_rows++] = lineno;
         }
-        seen_data = 1;
-        if (out->n_rows == cap && (rc = grow(out, &cap, err))) goto done;
-        double *row = out->data + out->n_rows * n_cols;
-        if ((rc = parse_row(s, row, n_cols, names, shown, lineno, err))) goto done;
-        out->line[out->n_rows++] = lineno;
     }
-    if (len == -1) rc = wf_err(err, WF_EINPUT, "%s:%d: line longer than %d bytes: not a numeric table", shown,
-                               lineno + 1, (int)MAX_LINE);
-    else if (len == -2) rc = wf_err(err, WF_ESYS, "out of memory reading %s", shown);
-    else if (ferror(f)) rc = wf_err(err, WF_ESYS, "%s: read error: %s", shown, strerror(errno));
-done:
+    if (!rc && len == -1)
+        rc = wf_err(err, WF_EINPUT, "%s:%d: line longer than %d bytes: not a numeric table", shown, lineno + 1,
+                    (int)MAX_LINE);
+    else if (!rc && len == -2)
+        rc = wf_err(err, WF_ESYS, "out of memory reading %s", shown);
+    else if (!rc && ferror(f))
+        rc = wf_err(err, WF_ESYS, "%s: read error: %s", shown, strerror(errno));
     free(buf);
     if (!is_stdin) fclose(f);
     if (rc) wf_csv_free(out);
