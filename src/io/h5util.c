@@ -349,12 +349,14 @@ static int label(hid_t d, const char *units, const char *desc, WfError *err)
     return 0;
 }
 
+/* rank 0: a scalar. */
 static int write_any(hid_t loc, const char *name, int rank, const hsize_t *dims, hid_t mem_type, hid_t file_type,
                      const void *data, const char *units, const char *desc, WfError *err)
 {
     hsize_t total = 1;
     for (int i = 0; i < rank; i++) total *= dims[i];
-    hid_t sp = H5Screate_simple(rank, dims, NULL), dcpl = H5Pcreate(H5P_DATASET_CREATE), d = H5I_INVALID_HID;
+    hid_t sp = rank ? H5Screate_simple(rank, dims, NULL) : H5Screate(H5S_SCALAR);
+    hid_t dcpl = H5Pcreate(H5P_DATASET_CREATE), d = H5I_INVALID_HID;
     int rc = (sp < 0 || dcpl < 0);
     /* Large arrays are chunked and compressed (shuffle + deflate 1, as the appended series: deflate 4 took a third of
      * a one-step 10^7-vehicle run for the same file size); small ones stay contiguous (cheaper to read). */
@@ -411,35 +413,21 @@ int wf_h5_write_strings(hid_t loc, const char *name, size_t n, const char *const
     return rc;
 }
 
-static int scalar_any(hid_t loc, const char *name, hid_t mem, hid_t file, const void *v, const char *units,
-                      const char *desc, WfError *err)
-{
-    hid_t sp = H5Screate(H5S_SCALAR), d = H5I_INVALID_HID;
-    int rc = sp < 0;
-    if (!rc && (d = H5Dcreate2(loc, name, file, sp, H5P_DEFAULT, H5P_DEFAULT, H5P_DEFAULT)) < 0) rc = 1;
-    if (!rc && H5Dwrite(d, mem, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) < 0) rc = 1;
-    if (rc) rc = h5fail_at(err, "write dataset", loc, name);
-    if (!rc) rc = label(d, units, desc, err);
-    if (d >= 0) H5Dclose(d);
-    if (sp >= 0) H5Sclose(sp);
-    return rc;
-}
-
 int wf_h5_scalar_f64(hid_t loc, const char *name, double v, const char *units, const char *desc, WfError *err)
 {
-    return scalar_any(loc, name, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, &v, units, desc, err);
+    return write_any(loc, name, 0, NULL, H5T_NATIVE_DOUBLE, H5T_IEEE_F64LE, &v, units, desc, err);
 }
 
 int wf_h5_scalar_i64(hid_t loc, const char *name, int64_t v, const char *units, const char *desc, WfError *err)
 {
-    return scalar_any(loc, name, H5T_NATIVE_INT64, H5T_STD_I64LE, &v, units, desc, err);
+    return write_any(loc, name, 0, NULL, H5T_NATIVE_INT64, H5T_STD_I64LE, &v, units, desc, err);
 }
 
 int wf_h5_scalar_str(hid_t loc, const char *name, const char *s, const char *desc, WfError *err)
 {
     hid_t t = wf_h5_text_type(H5T_VARIABLE);
     if (t < 0) return h5fail_at(err, "string type for", loc, name);
-    int rc = scalar_any(loc, name, t, t, &s, "1", desc, err);
+    int rc = write_any(loc, name, 0, NULL, t, t, &s, "1", desc, err);
     H5Tclose(t);
     return rc;
 }
