@@ -68,10 +68,25 @@ int wf_h5_put_columns(hid_t g, const WfObsColumn *cols, const WfObsData *data, s
     return rc;
 }
 
-static WfH5Result *new_writer(const WfH5Boundary *b)
+/* The writer of the run's kind of road (its observers: src/io/h5ring.c, src/io/h5corridor.c). */
+static const WfH5Boundary *boundary_of(const WfSim *sim, WfError *err)
 {
-    WfH5Result *w = calloc(1, sizeof *w);
-    if (!w) return NULL;
+    static const WfH5Boundary *const all[] = {&wf_h5_ring, &wf_h5_corridor};
+    for (size_t k = 0; k < sizeof all / sizeof all[0]; k++)
+        if (!strcmp(all[k]->kind, wf_sim_kind(sim))) return all[k];
+    wf_err(err, WF_EINPUT, "no result writer for a %s run", wf_sim_kind(sim));
+    return NULL;
+}
+
+/* A writer for the run's kind of road, nothing written yet; NULL with err set. */
+static WfH5Result *new_writer(const WfSim *sim, WfError *err)
+{
+    const WfH5Boundary *b = boundary_of(sim, err);
+    WfH5Result *w = b ? calloc(1, sizeof *w) : NULL;
+    if (!w) {
+        if (b) wf_err(err, WF_ESYS, "out of memory");
+        return NULL;
+    }
     w->b = b;
     w->g_meta = H5I_INVALID_HID;
     for (size_t k = 0; k < WF_H5_MAX_SERIES; k++) wf_h5_series_init(&w->ser[k]);
@@ -410,16 +425,6 @@ static int resume_file(WfH5Result *w, const WfH5Run *r, WfError *err)
     return rc ? wf_err_prefix(err, "%s: ", w->file->partial) : 0;
 }
 
-/* The writer of the run's kind of road (its observers: src/io/h5ring.c, src/io/h5corridor.c). */
-static const WfH5Boundary *boundary_of(const WfSim *sim, WfError *err)
-{
-    static const WfH5Boundary *const all[] = {&wf_h5_ring, &wf_h5_corridor};
-    for (size_t k = 0; k < sizeof all / sizeof all[0]; k++)
-        if (!strcmp(all[k]->kind, wf_sim_kind(sim))) return all[k];
-    wf_err(err, WF_EINPUT, "no result writer for a %s run", wf_sim_kind(sim));
-    return NULL;
-}
-
 static WfOutput ops_of(WfH5Result *w)
 {
     return (WfOutput){.begin = h5_begin, .record = h5_record, .trajectory = h5_trajectory,
@@ -429,12 +434,9 @@ static WfOutput ops_of(WfH5Result *w)
 /* A writer for `result` whose run is set back to its checkpoint (nothing written yet); NULL with err set. */
 static WfH5Result *restored_writer(const char *result, WfSim *sim, WfError *err)
 {
-    const WfH5Boundary *b = boundary_of(sim, err);
-    WfH5Result *w = b ? new_writer(b) : NULL;
-    if (!w) {
-        if (b) wf_err(err, WF_ESYS, "out of memory");
-        return NULL;
-    }
+    WfH5Result *w = new_writer(sim, err);
+    if (!w) return NULL;
+    const WfH5Boundary *b = w->b;
     WfH5Run r = run_of(sim);
     w->resume = 1;
     build_series(w, &r);
@@ -477,9 +479,8 @@ int wf_h5out_resume(const char *result, WfSim *sim, WfH5Out **out, WfOutput *ops
 int wf_h5out_create(const WfSim *sim, const char *path, int force, WfH5Out **out, WfOutput *ops, WfError *err)
 {
     *out = NULL;
-    const WfH5Boundary *b = boundary_of(sim, err);
-    WfH5Result *w = b ? new_writer(b) : NULL;
-    if (!w) return b ? wf_err(err, WF_ESYS, "out of memory") : WF_EINPUT;
+    WfH5Result *w = new_writer(sim, err);
+    if (!w) return err->code;
     int rc = wf_h5_create(path, force, &w->file, err);
     if (rc) {
         free(w);
