@@ -33,6 +33,7 @@ struct WfH5Result {
     WfH5Series *grp[WF_H5_MAX_CURSORS][WF_H5_MAX_SERIES]; /* the series of each cursor, appended together */
     size_t      n_grp[WF_H5_MAX_CURSORS];
     int64_t     counted[WF_H5_MAX_CURSORS]; /* the row counters as last written (-1: not yet) */
+    const char *cur[WF_H5_MAX_CURSORS];     /* each cursor's group: its name in checkpoints */
     double     *buf;    /* TS_BUF x (n_ts_cols + n_classes) */
     double     *cls;    /* TS_BUF x max(n_classes, 1): scratch of wf_h5_series_write_records */
     double     *frame;  /* scratch of the boundary's trajectory frame */
@@ -91,6 +92,7 @@ static WfH5Result *new_writer(const WfSim *sim, WfError *err)
     w->g_meta = H5I_INVALID_HID;
     for (size_t k = 0; k < WF_H5_MAX_SERIES; k++) wf_h5_series_init(&w->ser[k]);
     for (size_t k = 0; k < WF_H5_MAX_CURSORS; k++) w->counted[k] = -1;
+    for (size_t c = 0; c < b->n_cursors; c++) w->cur[c] = b->cursor[c].group;
     return w;
 }
 
@@ -404,12 +406,10 @@ static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
         for (size_t c = 1; c < w->b->n_cursors; c++) w->failed[c] = 1;
         return write_failed(w, 0, err);
     }
-    const char *cur[WF_H5_MAX_CURSORS];
-    for (size_t c = 0; c < w->b->n_cursors; c++) cur[c] = w->b->cursor[c].group;
     WfStateVar vars[WF_MAX_STATE_VARS];
     /* The state function packs the engine's scalars before listing the blocks; they are only read here. */
     size_t nv = wf_sim_state((WfSim *)sim, vars, WF_MAX_STATE_VARS);
-    return wf_ckpt_save(w->file->path, w->b->kind, wf_sim_scenario(sim), wf_sim_steps_done(sim), cur,
+    return wf_ckpt_save(w->file->path, w->b->kind, wf_sim_scenario(sim), wf_sim_steps_done(sim), w->cur,
                         w->b->n_cursors, w->sp, w->ns, vars, nv, err);
 }
 
@@ -440,12 +440,10 @@ static WfH5Result *restored_writer(const char *result, WfSim *sim, WfError *err)
     WfH5Run r = run_of(sim);
     w->resume = 1;
     build_series(w, &r);
-    const char *cur[WF_H5_MAX_CURSORS];
-    for (size_t c = 0; c < b->n_cursors; c++) cur[c] = b->cursor[c].group;
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS);
     /* The checkpoint and the partial file are read and verified completely before the file is changed. */
-    int rc = wf_ckpt_restore(result, b->kind, r.sc, cur, b->n_cursors, w->sp, w->ns, vars, nv, err);
+    int rc = wf_ckpt_restore(result, b->kind, r.sc, w->cur, b->n_cursors, w->sp, w->ns, vars, nv, err);
     if (!rc) rc = wf_sim_restored(sim, err);
     if (rc) wf_h5out_destroy(&w);
     return w;
