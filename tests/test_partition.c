@@ -14,6 +14,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "wavefuel/corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/partition.h"
 #include "wavefuel/scenario.h"
@@ -49,10 +50,44 @@ static const char *overlap_yaml =
     "       indices: [1023, 1535, 2047, 2999]}\n"
     "initial: {state: equilibrium}\n";
 
-/* What a run leaves: its records, its state after the run (rank 0: gathered), its summary, its steps. */
+/* A corridor (tests/test_window.c's: Poisson arrivals above capacity, noisy heterogeneous IDM, PI with saturation
+ * under a safety filter, two classes, grades, a headway and a speed-limit zone, a prescribed-speed virtual leader
+ * that drops) with detectors at and beside the cuts between the segments of 2 and 3 ranks (Edie cells of 250 m: cuts
+ * at 6000 m, and at 4000 and 8000 m). */
+static const char *corridor_yaml =
+    "seed: 17\n"
+    "road:\n  type: corridor\n  length_m: 12000\n  speed_limit_mps: 30\n"
+    "  grade: {points: [[0, 0], [3000, 0.02], [7000, -0.015], [12000, 0]]}\n"
+    "  zones:\n    - {type: headway, from_m: 2000, to_m: 4000, factor: 1.4}\n"
+    "    - {type: speed_limit, from_m: 9000, to_m: 9500, speed_limit_mps: 9}\n"
+    "time: {duration_s: 900, dt_s: 0.1, output_interval_s: 5.0, warmup_s: 450}\n"
+    "fleet:\n  placement: random\n"
+    "  classes:\n    - {class: midsize_sedan, fraction: 0.75}\n    - {class: class8_tractor, fraction: 0.25}\n"
+    "  drivers:\n"
+    "    - {model: idm, fraction: 0.8, noise_mps2: 0.2, feasible_accel: clip,\n"
+    "       heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}\n"
+    "    - {model: pi_saturation, fraction: 0.2, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}\n"
+    "corridor:\n  inflow: {flow_vph: 2600, arrivals: poisson}\n"
+    "  outflow: {type: speed, points: [[0, 25], [350, 25], [400, 5], [700, 5], [750, 25]]}\n"
+    "  detectors: {x_m: [1000, 3990, 4000, 6000, 6003, 7995, 8000, 11900], interval_s: 60}\n"
+    "  edie: {dx_m: 250, dt_s: 30}\n";
+
+/* Noise far beyond what the brakes absorb behind a virtual leader that slows to 3 m/s: overlaps repaired all along
+ * the road, so across the cuts between the segments too (at 3000 m; at 2000 and 4000 m). */
+static const char *corridor_overlap_yaml =
+    "seed: 5\nroad: {type: corridor, length_m: 6000}\n"
+    "time: {duration_s: 600, dt_s: 0.1, output_interval_s: 2.0}\n"
+    "fleet:\n  classes: [{class: midsize_sedan, fraction: 1}]\n"
+    "  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]\n"
+    "corridor:\n  inflow: {flow_vph: 3000}\n"
+    "  outflow: {type: speed, points: [[0, 20], [200, 20], [260, 3], [600, 3]]}\n"
+    "  detectors: {x_m: [1995, 3000, 4001], interval_s: 30}\n  edie: {dx_m: 500, dt_s: 20}\n";
+
+/* What a run leaves: its records (and a corridor's trips) as doubles, its state after the run (rank 0: gathered),
+ * its summary, its steps. */
 typedef struct Out {
-    WfTsRow rows[MAX_ROWS];
-    size_t n_rows;
+    double *vals;
+    size_t n_vals, cap_vals, n_rows, n_trips;
     unsigned char *state;
     size_t state_size;
     WfSummary summary;
@@ -60,14 +95,39 @@ typedef struct Out {
     int rc;
 } Out;
 
+static void keep_vals(Out *o, const double *v, size_t n)
+{
+    if (o->n_vals + n > o->cap_vals) {
+        o->cap_vals = 2 * (o->n_vals + n);
+        o->vals = realloc(o->vals, o->cap_vals * sizeof(double));
+        if (!o->vals) abort();
+    }
+    memcpy(o->vals + o->n_vals, v, n * sizeof(double));
+    o->n_vals += n;
+}
+
 static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
     (void)err;
     Out *o = ctx;
-    if (o->n_rows < MAX_ROWS) {
-        WfTsRow *row = &o->rows[o->n_rows++];
-        WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(sim)->n_classes);
+    keep_vals(o, rec->v, rec->n);
+    keep_vals(o, rec->class_fuel_rate_gps, wf_sim_scenario(sim)->n_classes);
+    o->n_rows++;
+    return 0;
+}
+
+static int keep_trips(void *ctx, const WfSim *sim, const WfTrip *trips, size_t n, WfError *err)
+{
+    (void)sim, (void)err;
+    Out *o = ctx;
+    for (size_t k = 0; k < n; k++) {
+        const WfTrip *t = &trips[k];
+        double v[] = {(double)t->serial, t->class_id, t->group_id, t->completed, t->t_arrival_s, t->t_entry_s,
+                      t->t_exit_s, t->v_entry_mps, t->fuel_g, t->dist_m, t->time_stopped_s, t->stops,
+                      t->hard_brakes, t->infeasible_steps};
+        keep_vals(o, v, sizeof v / sizeof v[0]);
     }
+    o->n_trips += n;
     return 0;
 }
 
@@ -79,6 +139,7 @@ typedef struct Shared {
     const void *ptr[MAX_RANKS];
     int flag[MAX_RANKS];
     long stop_after[MAX_RANKS]; /* a rank raises its own stop at its n-th exchange (0: never) */
+    unsigned char chain[4096];  /* what a chain passes on */
 } Shared;
 
 typedef struct Rank {
@@ -128,15 +189,16 @@ static int or_all(void *ctx, int *flags, WfError *err)
 
 static int sum_u64(void *ctx, uint64_t *v, size_t m, WfError *err)
 {
-    (void)err;
     Rank *r = ctx;
-    uint64_t sum[64] = {0};
+    uint64_t *sum = calloc(m ? m : 1, sizeof *sum);
+    if (!sum) return wf_err(err, WF_ESYS, "out of memory");
     r->sh->ptr[r->rank] = v;
     pthread_barrier_wait(&r->sh->bar);
     for (int k = 0; k < r->sh->size; k++)
-        for (size_t j = 0; j < m && j < 64; j++) sum[j] += ((const uint64_t *)r->sh->ptr[k])[j];
+        for (size_t j = 0; j < m; j++) sum[j] += ((const uint64_t *)r->sh->ptr[k])[j];
     pthread_barrier_wait(&r->sh->bar);
     memcpy(v, sum, m * sizeof *v);
+    free(sum);
     return 0;
 }
 
@@ -151,6 +213,61 @@ static int gather(void *ctx, void *buf, const size_t *off, int root, WfError *er
             if (k != r->rank)
                 memcpy((unsigned char *)buf + off[k], (const unsigned char *)r->sh->ptr[k] + off[k], off[k + 1] - off[k]);
     pthread_barrier_wait(&r->sh->bar);
+    return 0;
+}
+
+static int allgather(void *ctx, const void *mine, void *all, size_t bytes, WfError *err)
+{
+    (void)err;
+    Rank *r = ctx;
+    r->sh->ptr[r->rank] = mine;
+    pthread_barrier_wait(&r->sh->bar);
+    for (int k = 0; k < r->sh->size; k++) memcpy((unsigned char *)all + (size_t)k * bytes, r->sh->ptr[k], bytes);
+    pthread_barrier_wait(&r->sh->bar);
+    return 0;
+}
+
+static int shift(void *ctx, const void *send, size_t send_bytes, void *recv, size_t recv_bytes, WfError *err)
+{
+    (void)err, (void)send_bytes;
+    Rank *r = ctx;
+    r->sh->ptr[r->rank] = send;
+    pthread_barrier_wait(&r->sh->bar);
+    if (r->rank + 1 < r->sh->size) memcpy(recv, r->sh->ptr[r->rank + 1], recv_bytes);
+    pthread_barrier_wait(&r->sh->bar);
+    return 0;
+}
+
+/* The ranks in turn, one per round between barriers; the last rank's buffer back to rank 0. */
+static int chain(void *ctx, void *buf, size_t bytes, void (*fn)(void *arg, void *buf), void *arg, WfError *err)
+{
+    Rank *r = ctx;
+    if (bytes > sizeof r->sh->chain) return wf_err(err, WF_ESYS, "test transport: a chain of %zu bytes", bytes);
+    for (int k = 0; k < r->sh->size; k++) {
+        if (k == r->rank) {
+            if (k) memcpy(buf, r->sh->chain, bytes);
+            fn(arg, buf);
+            memcpy(r->sh->chain, buf, bytes);
+        }
+        pthread_barrier_wait(&r->sh->bar);
+    }
+    if (r->rank == 0) memcpy(buf, r->sh->chain, bytes);
+    pthread_barrier_wait(&r->sh->bar);
+    return 0;
+}
+
+static int sum_f64(void *ctx, double *v, size_t m, WfError *err)
+{
+    Rank *r = ctx;
+    double *sum = calloc(m ? m : 1, sizeof *sum);
+    if (!sum) return wf_err(err, WF_ESYS, "out of memory");
+    r->sh->ptr[r->rank] = v;
+    pthread_barrier_wait(&r->sh->bar);
+    for (int k = 0; k < r->sh->size; k++)
+        for (size_t j = 0; j < m; j++) sum[j] += ((const double *)r->sh->ptr[k])[j];
+    pthread_barrier_wait(&r->sh->bar);
+    memcpy(v, sum, m * sizeof *v);
+    free(sum);
     return 0;
 }
 
@@ -179,8 +296,9 @@ static void *job_main(void *arg)
     Rank rk = {.sh = j->sh, .rank = j->rank};
     WfPartition part = {.rank = j->rank, .size = j->sh ? j->sh->size : 1, .ctx = &rk, .post_next = post_next,
                         .wait_next = wait_next, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
+                        .allgather = allgather, .shift = shift, .chain = chain, .sum_f64 = sum_f64,
                         .stop_own = &rk.own_stop};
-    WfOutput out = {.record = keep_row, .ctx = o};
+    WfOutput out = {.record = keep_row, .trips = keep_trips, .ctx = o};
     memset(o, 0, sizeof *o);
     o->rc = wf_scenario_load(j->path, j->set, j->n_set, &sc, &err);
     if (!o->rc) o->rc = wf_sim_create_part(sc, j->sh ? &part : NULL, &sim, &err);
@@ -188,6 +306,11 @@ static void *job_main(void *arg)
     if (o->rc && o->rc != WF_EINTR) printf("  rank %d: %s\n", j->rank, err.msg);
     if (sim) {
         o->state = wf_test_state_copy(sim, &o->state_size);
+        if (getenv("WF_DEBUG_VARS")) {
+            WfStateVar vars[WF_MAX_STATE_VARS];
+            size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS), off = 0;
+            for (size_t k = 0; k < nv && j->rank == 0; k++) { printf("    var %s at %zu size %zu\n", vars[k].name, off, vars[k].size); off += vars[k].size; }
+        }
         o->summary = *wf_sim_summary(sim);
         o->steps = wf_sim_steps_done(sim);
         wf_sim_window_stats(sim, &o->windows, &o->redone);
@@ -225,16 +348,23 @@ static void run_one(const char *path, const char *const *set, size_t n_set, Out 
 
 static void out_free(Out *o, int n)
 {
-    for (int k = 0; k < n; k++) free(o[k].state), o[k].state = NULL;
+    for (int k = 0; k < n; k++) free(o[k].state), free(o[k].vals), o[k].state = NULL, o[k].vals = NULL;
 }
 
 static void compare(const Out *o, const Out *ref, const char *what)
 {
     CHECK(o->rc == 0 && ref->rc == 0, "%s: a run failed (%d, %d)", what, o->rc, ref->rc);
-    CHECK(o->n_rows == ref->n_rows && o->n_rows > 0, "%s: %zu records, one process %zu", what, o->n_rows, ref->n_rows);
-    for (size_t r = 0; r < o->n_rows && r < ref->n_rows; r++)
-        CHECK(memcmp(&o->rows[r], &ref->rows[r], sizeof o->rows[r]) == 0, "%s: record %zu (t = %g s) differs", what, r,
-              ref->rows[r].v[WF_TS_T]);
+    CHECK(o->n_rows == ref->n_rows && o->n_rows > 0 && o->n_trips == ref->n_trips,
+          "%s: %zu records and %zu trips, one process %zu and %zu", what, o->n_rows, o->n_trips, ref->n_rows,
+          ref->n_trips);
+    size_t first = 0;
+    while (first < o->n_vals && first < ref->n_vals && !memcmp(&o->vals[first], &ref->vals[first], sizeof(double)))
+        first++;
+    CHECK(o->n_vals == ref->n_vals && first == o->n_vals, "%s: records and trips differ from value %zu of %zu (%.17g, "
+          "one process %.17g)", what, first, ref->n_vals, first < o->n_vals ? o->vals[first] : NAN,
+          first < ref->n_vals ? ref->vals[first] : NAN);
+    for (size_t b = 0, last = 0, any = 0; b < o->state_size && b < ref->state_size; b++)
+        if (o->state[b] != ref->state[b]) { if (!any || b > last + 64) printf("    state byte differing: %zu (%lld vs %lld)\n", b, (long long)*(int64_t *)(o->state + b - b % 8), (long long)*(int64_t *)(ref->state + b - b % 8)); last = b; any = 1; }
     CHECK(o->state_size == ref->state_size && memcmp(o->state, ref->state, o->state_size) == 0,
           "%s: the state after the run (accumulators, modes, controller memory, safety counts) differs", what);
     CHECK(memcmp(&o->summary, &ref->summary, sizeof o->summary) == 0, "%s: the summary differs", what);
@@ -264,14 +394,44 @@ static void split_equals_one(const char *yaml, const char *name, int need_redone
                           out[r].windows, out[0].steps, out[0].windows);
                 out_free(out, size);
             }
-    printf("  %s: %ld windows over the split runs, %ld redone; last record overlaps %.0f\n", name, windows, redone,
-           ref->n_rows ? ref->rows[ref->n_rows - 1].v[WF_TS_OVERLAPS] : -1.0);
+    printf("  %s: %ld windows over the split runs, %ld redone; %zu records\n", name, windows, redone, ref->n_rows);
     CHECK(windows > 0, "%s: no split run took a window", name);
     if (need_redone) CHECK(redone > 0, "%s: no window was redone: the repair path was not exercised", name);
     out_free(ref, 1);
     free(ref), free(out);
     wf_test_remove_yaml(dir, path);
 }
+
+/* A corridor split 2 and 3 ways (1 and 2 threads) against one process: every record, trip, the whole state after
+ * the run (vehicles, Edie cells, detectors, counters, controller memory, safety counts) and the summary. */
+static void corridor_split_equals_one(const char *yaml, const char *name, int need_overlaps)
+{
+    char dir[] = "/tmp/wf_part_XXXXXX", path[64];
+    if (!wf_test_write_yaml(yaml, dir, path, sizeof path)) return;
+    Out *ref = calloc(1, sizeof *ref), *out = calloc(MAX_RANKS, sizeof *out);
+    run_one(path, NULL, 0, ref);
+    for (int size = 2; size <= 3; size++)
+        for (int threads = 1; threads <= (size == 2 ? 2 : 1); threads++) {
+            char what[128];
+            snprintf(what, sizeof what, "%s, %d ranks, %d threads", name, size, threads);
+            run_split(path, NULL, 0, size, threads, -1, 0, out);
+            compare(&out[0], ref, what);
+            for (int r = 1; r < size; r++)
+                CHECK(out[r].rc == 0 && out[r].steps == ref->steps, "%s: rank %d took %ld steps of %ld", what, r,
+                      out[r].steps, ref->steps);
+            out_free(out, size);
+        }
+    printf("  %s: %zu records, %zu trips, %lld overlaps repaired\n", name, ref->n_rows, ref->n_trips,
+           (long long)ref->summary.counts.overlaps);
+    CHECK(ref->n_trips > 100, "%s: only %zu trips", name, ref->n_trips);
+    if (need_overlaps) CHECK(ref->summary.counts.overlaps > 0, "%s: no overlap was repaired", name);
+    out_free(ref, 1);
+    free(ref), free(out);
+    wf_test_remove_yaml(dir, path);
+}
+
+static void test_corridor(void) { corridor_split_equals_one(corridor_yaml, "corridor", 0); }
+static void test_corridor_overlaps(void) { corridor_split_equals_one(corridor_overlap_yaml, "overlapping corridor", 1); }
 
 static void test_noisy_ring_with_controllers(void) { split_equals_one(ring_yaml, "graded ring, controllers", 0); }
 static void test_overlaps_repaired(void) { split_equals_one(overlap_yaml, "overlapping ring", 1); }
@@ -298,5 +458,7 @@ int main(void)
     RUN(test_noisy_ring_with_controllers);
     RUN(test_overlaps_repaired);
     RUN(test_stop_on_one_rank);
+    RUN(test_corridor);
+    RUN(test_corridor_overlaps);
     TEST_EXIT();
 }

@@ -1,9 +1,11 @@
-/* One ring road split across processes (docs/mpi.md): what a run needs of its communicator. The library holds no
+/* One road split across processes (docs/mpi.md): what a run needs of its communicator. The library holds no
  * MPI: bin/wavefuel-mpi implements these calls with MPI (src/mpi/partition_mpi.c), and any other transport can.
  *
- * Rank r of size steps a contiguous range of the ring's vehicles, whole blocks of WF_STATS_BLOCK (the same split on
- * every rank: wf_partition_blocks). Every rank builds the whole fleet (the same bits everywhere) and keeps every array
- * whole; it steps only its own range and refreshes the few vehicles ahead of it that it reads from the next rank.
+ * A ring: rank r of size steps a contiguous range of the ring's vehicles, whole blocks of WF_STATS_BLOCK (the same
+ * split on every rank: wf_partition_blocks). Every rank builds the whole fleet (the same bits everywhere) and keeps
+ * every array whole; it steps only its own range and refreshes the few vehicles ahead of it that it reads from the
+ * next rank. A corridor: rank r owns a segment of the road (rank 0 the exit's, the last rank the entrance's) and the
+ * vehicles on it, which pass to the rank ahead as they cross into its segment (src/core/corridor.c).
  * Every call below is collective: every rank makes it, in the same order. Each returns 0, or an error code with err
  * set (the run then stops with that error on every rank that saw it). */
 #ifndef WAVEFUEL_PARTITION_H
@@ -31,6 +33,17 @@ typedef struct WfPartition {
     /* Bytes [off[r], off[r + 1]) of buf are rank r's (off: size + 1 offsets): afterwards rank `root` holds all of
      * them (root -1: every rank). */
     int (*gather)(void *ctx, void *buf, const size_t *off, int root, WfError *err);
+    /* Each rank's `bytes` of mine into all + r bytes, on every rank. */
+    int (*allgather)(void *ctx, const void *mine, void *all, size_t bytes, WfError *err);
+    /* send_bytes of send to rank - 1 (rank 0 sends nothing) and recv_bytes from rank + 1 into recv (the last rank
+     * receives nothing): each rank passes on to the rank ahead of it on an open road. */
+    int (*shift)(void *ctx, const void *send, size_t send_bytes, void *recv, size_t recv_bytes, WfError *err);
+    /* The ranks in turn: rank 0 calls fn(arg, buf) and passes buf to rank 1, which calls fn on what it received and
+     * passes it on, and so on; the last rank's buf comes back to rank 0. A sum that must run in rank order. */
+    int (*chain)(void *ctx, void *buf, size_t bytes, void (*fn)(void *arg, void *buf), void *arg, WfError *err);
+    /* The sums of m doubles over the ranks, into v on every rank (where at most one rank holds a value other than
+     * +0, the sum is that value bit for bit). */
+    int (*sum_f64)(void *ctx, double *v, size_t m, WfError *err);
     /* The run's stop: each rank's own flag (the number of the signal that stopped it, 0 while none did), and the
      * flag every rank agrees on at each step (set by the engine: the bitwise OR of the ranks' own, the signal's
      * number when they got the same; the step loop reads it). */

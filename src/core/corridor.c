@@ -140,6 +140,36 @@ typedef struct CorWindow {
                                * began (the interior's are window.c's) */
 } CorWindow;
 
+/* A corridor split across processes (docs/mpi.md, "Corridors"): what a rank tells every other (the allgather),
+ * twice a step. Before the step: its vehicles and its rear vehicle (x, v, length) at the step's start, and (rank 0)
+ * the speed outflow's virtual leader after its exits. After the kernel: its rear vehicle's x and length and its front
+ * vehicle's x (x2) as they moved, the vehicles that crossed into the segment ahead (out; skip: one crossed a whole
+ * segment), its WF_STEP_* flags with its stop request above PART_STOP_SHIFT, and the overlap repairs it made alone. */
+typedef struct PartRec {
+    double   x, v, len, x2, vl_xref, vl_iref, vl_x;
+    uint64_t n, out, skip, flags, repairs;
+} PartRec;
+enum { PART_STOP_SHIFT = 8 };
+
+/* This rank's share of a split corridor: its segment of the road (fronts in [cut_lo, cut_hi); rank 0 the exit's,
+ * the last rank the entrance's) and its Edie cells, its vehicles (road indices [k_lo, k_lo + n_own), slots from
+ * first_own up) and those that crossed into its segment in the step (n_in, behind them). Vehicles keep their slots
+ * and every per-slot key on every rank; a rank's copies of the slots it does not hold are stale. */
+typedef struct CorPart {
+    WfPartition *p;          /* borrowed; NULL: the whole road in this process */
+    double   cut_lo, cut_hi;
+    size_t   i_lo, i_hi;
+    size_t   k_lo, n_own, first_own, n_in;
+    size_t   kb, ke;         /* the measurement's road indices */
+    PartRec *pre, *post;     /* every rank's records of the step */
+    size_t   vbytes;         /* a packed vehicle */
+    unsigned char *out, *in, *all; /* packed vehicles: crossing out, crossing in, the whole road */
+    size_t  *off;
+    WfSafetyCount safety_all; /* every rank's safety counts (what the summary and a checkpoint read) */
+    int      repaired;       /* the step's repair brought the whole road onto every rank */
+} CorPart;
+#define PART_MIN_M 50.0      /* a segment's length beyond two of the longest vehicles, at least (part_check) */
+
 struct WfCorridor {
     WfSim                *sim; /* the run this engine is the boundary of (outputs, threads, summary) */
     const WfScenario     *sc;  /* borrowed */
@@ -211,6 +241,7 @@ struct WfCorridor {
     double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
     size_t   lane_row_len, lane_rows_max;
     CorWindow win;
+    CorPart   pt;
 };
 
 /* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names, and whether a
@@ -235,6 +266,9 @@ static inline uint64_t lane_key(size_t l, uint64_t n) { return ((uint64_t)l << 4
 
 static void window_free(CorWindow *cw);
 static int  window_init(WfCorridor *c, WfError *err);
+static int  part_check(const WfCorridor *c, const WfPartition *p, WfError *err);
+static int  part_init(WfCorridor *c, WfPartition *p, WfError *err);
+static void part_free(CorPart *pt);
 
 static void corridor_destroy(void *eng)
 {
@@ -252,6 +286,7 @@ static void corridor_destroy(void *eng)
                     c->off_dst};
     for (size_t i = 0; i < sizeof snap / sizeof snap[0]; i++) free(snap[i]);
     window_free(&c->win);
+    part_free(&c->pt);
     free(c);
 }
 
@@ -481,6 +516,7 @@ static int corridor_create(WfSim *sim, WfError *err)
     if (!rc) init_boundary(c);
     if (!rc) rc = lane_init(c, err);
     if (!rc) rc = lanes_init(c, err);
+    if (!rc && sim->part && !(rc = part_check(c, sim->part, err))) rc = part_init(c, sim->part, err);
     if (!rc) rc = window_init(c, err);
     return rc;
 }
@@ -592,6 +628,23 @@ static double free_speed(WfCorridor *c, size_t l, size_t g, const double *p, dou
     return f->v_free = wf_cf_equilibrium_speed(m, p, WF_CORRIDOR_FREE_GAP_M, v_hi);
 }
 
+/* The back vehicle of lane ln (not empty) at the step's start: inside a window, the interior's back one from its
+ * trace; split across processes, the rear vehicle of the last rank that holds any (its record of the step). */
+static void back_vehicle(const WfCorridor *c, const CorLane *ln, double *x, double *v, double *len)
+{
+    const WfCorridorVehicles *vh = &ln->veh;
+    for (int r = c->pt.p ? c->pt.p->size - 1 : -1; r >= 0; r--)
+        if (c->pt.pre[r].n) {
+            *x = c->pt.pre[r].x, *v = c->pt.pre[r].v, *len = c->pt.pre[r].len;
+            return;
+        }
+    size_t last = wf_corridor_slot(vh, vh->n - 1);
+    int traced = c->win.back_on && last == c->win.back_slot;
+    *x = traced ? c->win.back_x : vh->x_m[last];
+    *v = traced ? c->win.back_v : vh->v_mps[last];
+    *len = vh->length_m[last];
+}
+
 /* Insertion rule (docs/corridors.md): the queue's head enters at x = 0 with the speed v_in = min(entry cap,
  * limit at 0, leader speed, own free speed) when its gap g to the last vehicle's rear (or to the virtual leader) is
  * >= 0 and its own model, at (g, v_in, leader speed), does not brake harder than b =
@@ -619,11 +672,9 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
     double gap, vl;
     int free_road = 0, obstacle = 0;
     if (vh->n > 0) {
-        /* the back vehicle at the step's start (inside a window, the interior's back one from its trace) */
-        size_t last = wf_corridor_slot(vh, vh->n - 1);
-        int traced = c->win.back_on && last == c->win.back_slot;
-        gap = (traced ? c->win.back_x : vh->x_m[last]) - vh->length_m[last] - x0;
-        vl = traced ? c->win.back_v : vh->v_mps[last];
+        double bx, blen;
+        back_vehicle(c, ln, &bx, &vl, &blen);
+        gap = bx - blen - x0;
     } else if (isfinite(ln->end_m)) {
         gap = ln->end_m - x0, vl = 0.0, obstacle = 1; /* an empty merge lane: its end ahead */
     } else if (c->has_vl) {
@@ -1161,8 +1212,9 @@ static void measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, si
         x_lo = xd < x_lo ? xd : x_lo;
         x_hi = xd + len > x_hi ? xd + len : x_hi;
     }
-    *k0 = first_below(ln, ln->xold, x_hi + 1.0, 0, 0, ln->veh.n);
-    *k1 = first_below(ln, ln->veh.x_m, x_lo - 1.0, 1, *k0, ln->veh.n);
+    size_t kb = c->pt.p ? c->pt.kb : 0, ke = c->pt.p ? c->pt.ke : ln->veh.n; /* split: this rank's vehicles */
+    *k0 = first_below(ln, ln->xold, x_hi + 1.0, 0, kb, ke);
+    *k1 = first_below(ln, ln->veh.x_m, x_lo - 1.0, 1, *k0, ke);
 }
 
 /* The running sums of one Edie cell of the step's row and of its class profiles are held in registers while
@@ -1467,11 +1519,11 @@ static int phase_offramp(WfCorridor *c, double t_end, WfError *err)
 /* Vehicles whose front has reached L leave (front first); with the speed outflow each one becomes the virtual
  * leader: its rear bumper drives on at the prescribed speed. Inside a window their trips and totals wait for its
  * end (its slot keeps them: no entry reaches it within a window). */
-static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, WfError *err)
+static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, size_t most, WfError *err)
 {
     WfCorridorVehicles *vh = &ln->veh;
     CorWindow *cw = &c->win;
-    while (vh->n > 0 && vh->x_m[wf_corridor_slot(vh, 0)] >= c->L) {
+    for (; most > 0 && vh->n > 0 && vh->x_m[wf_corridor_slot(vh, 0)] >= c->L; most--) {
         size_t s = wf_corridor_slot(vh, 0);
         int rc = 0;
         if (cw->active)
@@ -1548,22 +1600,24 @@ static int corridor_lanes(const void *eng, WfLaneObs *out)
 typedef struct RecordSums {
     double sv, sg, vmin, vmax, gmin;
     size_t n, ngap, stopped, waves; /* counts: the same values as the sums of 1.0 they replace */
+    int    prev_slow;               /* the last vehicle added was slower than the wave speed */
     V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_masks) */
 } RecordSums;
 
-/* One lane into the record's sums, front first, with nv class vectors (a constant at each call). Every sum is a
+/* Vehicles [k0, k1) of one lane into the record's sums, front first, with nv class vectors (a constant at each call). Every sum is a
  * register, so the pass runs at the speed of its longest chain of additions instead of a class sum's store and
  * reload per vehicle; the minimum and maximum are fmin(m, x) and fmax(m, x) as glibc gives them (m when equal or
  * when x is NaN), written as comparisons because each call of fmin cost more than the rest of the vehicle. */
 static inline __attribute__((always_inline)) void record_lane(const WfScenario *sc, const WfCorridorVehicles *vh,
-                                                              const M4 mk[][4], RecordSums *r, const int nv)
+                                                              const M4 mk[][4], RecordSums *r, size_t k0, size_t k1,
+                                                              const int nv)
 {
     double sv = r->sv, sg = r->sg, vmin = r->vmin, vmax = r->vmax, gmin = r->gmin;
     double v_stop = sc->v_stop_mps, v_wave = sc->wave_speed_mps;
-    size_t stopped = r->stopped, waves = r->waves, n = vh->n;
+    size_t stopped = r->stopped, waves = r->waves, n = k1 - k0;
     V4 cf0 = r->cf[0], cf1 = r->cf[1], cf2 = r->cf[2], cf3 = r->cf[3];
-    int prev_slow = 0;
-    for (size_t k = 0, s = n ? wf_corridor_slot(vh, 0) : 0; k < n; k++, s = s ? s - 1 : vh->cap - 1) {
+    int prev_slow = r->prev_slow;
+    for (size_t k = k0, s = n ? wf_corridor_slot(vh, k0) : 0; k < k1; k++, s = s ? s - 1 : vh->cap - 1) {
         double v = vh->v_mps[s], rate = vh->fuel_rate_gps[s];
         const M4 *m4 = mk[vh->class_id[s]];
         sv += v;
@@ -1583,11 +1637,14 @@ static inline __attribute__((always_inline)) void record_lane(const WfScenario *
     }
     r->sv = sv, r->sg = sg, r->vmin = vmin, r->vmax = vmax, r->gmin = gmin, r->stopped = stopped, r->waves = waves;
     r->cf[0] = cf0, r->cf[1] = cf1, r->cf[2] = cf2, r->cf[3] = cf3;
-    r->n += n, r->ngap += n ? n - 1 : 0;
+    r->prev_slow = prev_slow;
+    r->n += n, r->ngap += n ? n - (k0 == 0) : 0; /* the road's front vehicle follows none */
 }
 
+/* Lanes [l0, l1) into the record's sums, each lane's vehicles [k0, k1) (SIZE_MAX: all of them), each lane's waves
+ * from its front. */
 WF_SIMD_CLONES
-static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, RecordSums *r)
+static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size_t k1, RecordSums *r)
 {
     size_t nc = c->sc->n_classes;
     int nv = nc <= 4 ? 1 : nc <= 8 ? 2 : 4;
@@ -1595,31 +1652,49 @@ static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, RecordSums *
     lane_masks(mk, nc, nv, 1);
     const M4(*masks)[4] = (const M4(*)[4])mk;
     for (size_t l = l0; l < l1; l++) {
-        if (nv == 1) record_lane(c->sc, &c->ln[l].veh, masks, r, 1);
-        else if (nv == 2) record_lane(c->sc, &c->ln[l].veh, masks, r, 2);
-        else record_lane(c->sc, &c->ln[l].veh, masks, r, 4);
+        const WfCorridorVehicles *vh = &c->ln[l].veh;
+        size_t e = k1 < vh->n ? k1 : vh->n;
+        if (k1 == SIZE_MAX) r->prev_slow = 0;
+        if (nv == 1) record_lane(c->sc, vh, masks, r, k0, e, 1);
+        else if (nv == 2) record_lane(c->sc, vh, masks, r, k0, e, 2);
+        else record_lane(c->sc, vh, masks, r, k0, e, 4);
     }
 }
+
+/* The sum of (v - mean)^2 over vehicles [k0, k1) of lane l, front first, added to m2. */
+static double record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, double mean, double m2)
+{
+    const WfCorridorVehicles *vh = &c->ln[l].veh;
+    for (size_t k = k0; k < k1 && k < vh->n; k++) {
+        double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
+        m2 += d * d;
+    }
+    return m2;
+}
+
+static void record_row(const WfCorridor *c, const RecordSums *r, double m2, double t, WfCorridorRow *row);
 
 /* The record of lanes [l0, l1) (the road's: all of them): sums lane after lane, each lane front first; waves and gaps
  * within each lane. */
 static void record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row)
 {
-    const WfScenario *sc = c->sc;
-    memset(row, 0, sizeof *row);
     RecordSums r = {.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY};
-    record_lanes(c, l0, l1, &r);
+    record_lanes(c, l0, l1, 0, SIZE_MAX, &r);
+    double mean = r.n ? r.sv / (double)r.n : NAN, m2 = 0.0;
+    for (size_t l = l0; l < l1; l++) m2 = record_m2(c, l, 0, SIZE_MAX, mean, m2);
+    record_row(c, &r, m2, t, row);
+}
+
+/* A record's row from its sums (record_lanes) and m2 (record_m2). */
+static void record_row(const WfCorridor *c, const RecordSums *rs, double m2, double t, WfCorridorRow *row)
+{
+    const WfScenario *sc = c->sc;
+    const RecordSums r = *rs;
+    memset(row, 0, sizeof *row);
     for (size_t cl = 0; cl < sc->n_classes; cl++) row->class_fuel_rate_gps[cl] = r.cf[cl / 4][cl % 4];
     size_t n = r.n, ngap = r.ngap;
     double sv = r.sv, sg = r.sg, fuel = 0.0;
-    double mean = n ? sv / (double)n : NAN, m2 = 0.0;
-    for (size_t l = l0; l < l1; l++) {
-        const WfCorridorVehicles *vh = &c->ln[l].veh;
-        for (size_t k = 0; k < vh->n; k++) {
-            double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
-            m2 += d * d;
-        }
-    }
+    double mean = n ? sv / (double)n : NAN;
     for (size_t cl = 0; cl < sc->n_classes; cl++) fuel += row->class_fuel_rate_gps[cl];
     row->v[WF_CTS_T] = t;
     row->v[WF_CTS_VEHICLES] = (double)n;
@@ -1771,7 +1846,7 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     phase_measure(c, step, in_window);
     if (c->cs->has_offramp && (rc = phase_offramp(c, t_next, err))) return rc;
     for (size_t l = 0; l < nl; l++)
-        if ((rc = phase_exits(c, &c->ln[l], t_next, in_window, err))) return rc;
+        if ((rc = phase_exits(c, &c->ln[l], t_next, in_window, SIZE_MAX, err))) return rc;
     return 0;
 }
 
@@ -1906,7 +1981,7 @@ static int front_part(WfCorridor *c, long step0, int k, int in_window, WfError *
         advance_leader(c, t_next);
         phase_overlaps(c, ln, in_window, c->has_vl ? 1 : 0);
         if (c->fault_slot >= 0) return WF_STEP_FAULT;
-        if (phase_exits(c, ln, t_next, in_window, err) || vh->n <= cw->n_int) return WF_STEP_OVERLAP;
+        if (phase_exits(c, ln, t_next, in_window, SIZE_MAX, err) || vh->n <= cw->n_int) return WF_STEP_OVERLAP;
     }
     return 0;
 }
@@ -2033,6 +2108,389 @@ static int corridor_window(WfCorridor *c, long step0, int k, int *done, WfError 
 }
 
 /* One step on the threads the governor chooses (time.thread_check_steps), timed for it. */
+/* ------------------------------------------------------------------ a corridor split across processes */
+
+/* One road split across processes (wavefuel/partition.h, docs/mpi.md): rank r holds a segment of the road, cut on
+ * Edie cell edges (rank 0 the exit's, the last rank the entrance's), and the vehicles whose fronts are on it.
+ * Vehicles only move forward, so a vehicle leaves a rank only for the rank ahead and joins it behind all of its
+ * vehicles: road order stays whole without a reordering. What needs the whole road is exchanged or summed in road
+ * order: the entrance and the virtual leader run on every rank from the ranks' records (the back vehicle, rank 0's
+ * exits); a record's sums pass from rank to rank (chain); each Edie cell and detector is measured by its segment's
+ * rank, from its own vehicles then those that crossed into the segment (behind them in road order), and a
+ * detector also from the vehicle just ahead (whose body may cover it); summed onto every rank at the end, a cell
+ * holds its owner's value (the others' are +0). */
+
+/* Before the corridor is built: what a split corridor cannot be. */
+static int part_check(const WfCorridor *c, const WfPartition *p, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    const char *why = c->n_lanes > 1 ? "road.lanes: a corridor of several lanes"
+                    : c->cs->has_offramp ? "corridor.off_ramp: an off-ramp"
+                    : sc->trajectories ? "output.trajectories: trajectories"
+                    : !sc->fused_step ? "time.fused_step false: steps in two passes"
+                    : sc->block_steps > 1 ? "time.block_steps: time-blocked windows" : NULL;
+    if (why) return wf_err(err, WF_EINPUT, "%s: %s cannot be split across processes (docs/mpi.md)", sc->path, why);
+    for (size_t g = 0; g < sc->n_groups; g++)
+        if (sc->groups[g].model->external)
+            return wf_err(err, WF_EINPUT, "%s: driver group '%s': model %s takes its commands from outside every step "
+                          "and cannot be split across processes (docs/mpi.md)", sc->path, sc->groups[g].name,
+                          sc->groups[g].mlp ? "mlp" : sc->groups[g].model->name);
+    /* every segment longer than two vehicles and PART_MIN_M: a body never spans one, a step never crosses one */
+    double len = 0.0, dx = c->edie.dx_m, least = INFINITY;
+    size_t nx = c->edie.nx, R = (size_t)p->size;
+    for (size_t k = 0; k < sc->n_classes; k++) len = fmax(len, sc->classes[k].length_m);
+    for (size_t r = 0; r < R; r++) {
+        size_t lo = nx * (R - 1 - r) / R, hi = nx * (R - r) / R;
+        least = fmin(least, (r == 0 ? c->L : (double)hi * dx) - (double)lo * dx);
+    }
+    if (nx < R || !(least >= 2.0 * len + PART_MIN_M))
+        return wf_err(err, WF_EINPUT, "%s: corridor.edie.dx_m %g m: %zu processes split the road's %zu Edie cells "
+                      "into segments as short as %.6g m; each needs at least one cell and %.6g m (two of the longest "
+                      "vehicles and %g m): fewer processes or smaller cells (docs/mpi.md)", sc->path, dx, R, nx,
+                      nx < R ? 0.0 : least, 2.0 * len + PART_MIN_M, PART_MIN_M);
+    return 0;
+}
+
+/* A vehicle's state in the order of pack_vehicle: every saved per-slot array, the step's old position, fuel rate
+ * and Edie cell (the rank it crosses to measures it), its controller memory. */
+#define PACK_ARRAYS(X) SAVED_SLOT_ARRAYS(X) X("", xold, 0) X("", veh.fuel_rate_gps, 0) X("", cell, 0)
+
+static int part_init(WfCorridor *c, WfPartition *p, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    CorLane *ln = &c->ln[0];
+    size_t R = (size_t)p->size, r = (size_t)p->rank, nx = c->edie.nx, cap = ln->veh.cap;
+    pt->p = p;
+    pt->i_lo = nx * (R - 1 - r) / R, pt->i_hi = nx * (R - r) / R;
+    pt->cut_lo = r + 1 == R ? -INFINITY : (double)pt->i_lo * c->edie.dx_m;
+    pt->cut_hi = r == 0 ? INFINITY : (double)pt->i_hi * c->edie.dx_m;
+#define SIZE_OF(nm, field, stepped) pt->vbytes += sizeof *ln->field;
+    PACK_ARRAYS(SIZE_OF)
+#undef SIZE_OF
+    pt->vbytes += c->sstride;
+    pt->pre = calloc(R, sizeof *pt->pre);
+    pt->post = calloc(R, sizeof *pt->post);
+    pt->off = calloc(R + 1, sizeof *pt->off);
+    pt->out = malloc(cap * pt->vbytes);
+    pt->in = malloc(cap * pt->vbytes);
+    pt->all = malloc(cap * pt->vbytes);
+    if (!pt->pre || !pt->post || !pt->off || !pt->out || !pt->in || !pt->all)
+        return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicle slots split across processes", cap);
+    ln->lane.after_wanted = 0; /* vehicles crossing in are measured after the step */
+    return 0;
+}
+
+static void part_free(CorPart *pt)
+{
+    void *a[] = {pt->pre, pt->post, pt->off, pt->out, pt->in, pt->all};
+    for (size_t i = 0; i < sizeof a / sizeof a[0]; i++) free(a[i]);
+}
+
+/* Vehicles [k0, k0 + m) of the road, front first, packed into buf (unpack 0) or from it into their slots. */
+static void part_pack(WfCorridor *c, size_t k0, size_t m, unsigned char *buf, int unpack)
+{
+    CorLane *ln = &c->ln[0];
+    for (size_t j = 0; j < m; j++) {
+        size_t s = wf_corridor_slot(&ln->veh, k0 + j);
+#define PACK(nm, field, stepped)                                                                                    \
+    unpack ? memcpy(&ln->field[s], buf, sizeof *ln->field) : memcpy(buf, &ln->field[s], sizeof *ln->field);        \
+    buf += sizeof *ln->field;
+        PACK_ARRAYS(PACK)
+#undef PACK
+        if (c->sstride)
+            unpack ? memcpy(ln->veh.state + s * c->sstride, buf, c->sstride)
+                   : memcpy(buf, ln->veh.state + s * c->sstride, c->sstride);
+        buf += c->sstride;
+    }
+}
+
+/* Every rank's vehicles from the records (pre): the road's count, this rank's road indices and back slot. */
+static void part_layout(WfCorridor *c)
+{
+    CorPart *pt = &c->pt;
+    WfCorridorVehicles *vh = &c->ln[0].veh;
+    size_t n = 0, before = 0, behind = 0;
+    for (int r = 0; r < pt->p->size; r++) {
+        n += pt->pre[r].n;
+        if (r < pt->p->rank) before += pt->pre[r].n;
+        if (r > pt->p->rank) behind += pt->pre[r].n;
+    }
+    vh->n = n;
+    pt->k_lo = before;
+    pt->n_own = pt->pre[pt->p->rank].n;
+    pt->first_own = (vh->first + behind) % vh->cap;
+}
+
+/* The step's start: every rank's vehicles and rear vehicle, rank 0's virtual leader after its exits. */
+static int part_before(WfCorridor *c, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    const WfCorridorVehicles *vh = &c->ln[0].veh;
+    struct CorEntrance *en = &c->st.lane[0];
+    PartRec me = {.n = pt->n_own, .vl_xref = en->vl_xref, .vl_iref = en->vl_iref, .vl_x = en->vl_x};
+    if (pt->n_own) me.x = vh->x_m[pt->first_own], me.v = vh->v_mps[pt->first_own], me.len = vh->length_m[pt->first_own];
+    int rc = pt->p->allgather(pt->p->ctx, &me, pt->pre, sizeof me, err);
+    if (rc) return rc;
+    en->vl_xref = pt->pre[0].vl_xref, en->vl_iref = pt->pre[0].vl_iref, en->vl_x = pt->pre[0].vl_x;
+    part_layout(c);
+    return 0;
+}
+
+/* The nearest rank ahead of this one that holds vehicles (records rec), or -1. */
+static int part_ahead(const CorPart *pt, const PartRec *rec)
+{
+    int r = pt->p->rank - 1;
+    while (r >= 0 && !rec[r].n) r--;
+    return r;
+}
+
+/* The leader of this rank's front vehicle: the rear vehicle of the nearest rank ahead that holds one, as it was at
+ * the step's start, or the road's front leader. */
+static WfLead part_front(const WfCorridor *c)
+{
+    int a = part_ahead(&c->pt, c->pt.pre);
+    if (a < 0) return front_leader(c, 0);
+    const PartRec *r = &c->pt.pre[a];
+    return (WfLead){r->x - r->len, r->v, 0.0};
+}
+
+static int part_lane_step(WfCorridor *c, const WfLead *front, long step, int pass, int in_window)
+{
+    CorPart *pt = &c->pt;
+    if (!pt->n_own) return 0;
+    return wf_lane_step(&c->ln[0].lane, pt->first_own, pt->n_own, front, step, pass, in_window, NULL);
+}
+
+/* A record's two passes in road order: the sums, then the squared deviations from the mean (the chains' steps). */
+typedef struct PartM2 {
+    RecordSums r;
+    double m2;
+} PartM2;
+
+static void part_sums(void *arg, void *buf)
+{
+    const WfCorridor *c = arg;
+    record_lanes(c, 0, 1, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, buf);
+}
+
+static void part_m2(void *arg, void *buf)
+{
+    const WfCorridor *c = arg;
+    PartM2 *m = buf;
+    double mean = m->r.n ? m->r.sv / (double)m->r.n : NAN;
+    m->m2 = record_m2(c, 0, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, mean, m->m2);
+}
+
+/* The record of a step's start, made on rank 0 from the sums along the ranks. */
+static int part_record(WfCorridor *c, double t, int in_window, WfError *err)
+{
+    WfPartition *p = c->pt.p;
+    PartM2 m = {.r = {.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY}};
+    int rc = p->chain(p->ctx, &m.r, sizeof m.r, part_sums, c, err);
+    if (!rc) rc = p->chain(p->ctx, &m, sizeof m, part_m2, c, err);
+    if (rc || p->rank) return rc;
+    WfCorridorRow row;
+    record_row(c, &m.r, m.m2, t, &row);
+    if (in_window && c->ln[0].veh.n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
+    const WfOutput *out = c->sim->out;
+    WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
+    return out && out->record ? out->record(out->ctx, c->sim, &rec, err) : 0;
+}
+
+/* Rank r's upper cut: the fronts at or beyond it are on the segment ahead (rank 0: none). */
+static double part_cut(const WfCorridor *c, int r)
+{
+    size_t R = (size_t)c->pt.p->size;
+    return r <= 0 ? INFINITY : (double)(c->edie.nx * (R - (size_t)r) / R) * c->edie.dx_m;
+}
+
+/* Rank r's record after the kernel moved its n vehicles, road indices from k0: its rear and front vehicles, those
+ * that crossed its upper cut and whether one crossed the next cut too. */
+static void part_moved(const WfCorridor *c, int r, size_t k0, size_t n, PartRec *q)
+{
+    const WfCorridorVehicles *vh = &c->ln[0].veh;
+    double cut = part_cut(c, r), next = part_cut(c, r - 1);
+    q->n = n, q->out = q->skip = 0;
+    if (!n) return;
+    size_t rear = wf_corridor_slot(vh, k0 + n - 1);
+    q->x = vh->x_m[rear], q->len = vh->length_m[rear], q->x2 = vh->x_m[wf_corridor_slot(vh, k0)];
+    for (double x; q->out < n && (x = vh->x_m[wf_corridor_slot(vh, k0 + q->out)]) >= cut; q->out++) q->skip |= x >= next;
+}
+
+/* The whole road onto every rank (the records' counts), which repairs it as one process does; then every rank's
+ * record as its moved vehicles now stand. */
+static int part_repair(WfCorridor *c, int in_window, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    WfPartition *p = pt->p;
+    WfCorridorVehicles *vh = &c->ln[0].veh;
+    size_t k = 0;
+    for (int r = 0; r < p->size; k += pt->post[r++].n) pt->off[r] = k * pt->vbytes;
+    pt->off[p->size] = k * pt->vbytes;
+    part_pack(c, pt->k_lo, pt->n_own, pt->all + pt->k_lo * pt->vbytes, 0);
+    int rc = p->gather(p->ctx, pt->all, pt->off, -1, err);
+    if (rc) return rc;
+    part_pack(c, 0, vh->n, pt->all, 1);
+    phase_overlaps(c, &c->ln[0], in_window, vh->n);
+    k = 0;
+    for (int r = 0; r < p->size; k += pt->post[r++].n) part_moved(c, r, k, pt->post[r].n, &pt->post[r]);
+    return 0;
+}
+
+/* After the kernel moved this rank's vehicles: every rank's record, flags and stop agreed, the edges between ranks
+ * tested as the kernel tests a follower against its leader, overlaps repaired (part_repair), then the vehicles that
+ * crossed into the segment ahead passed to it and those that crossed into this one taken from the rank behind. */
+static int part_after(WfCorridor *c, int in_window, int kflags, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    WfPartition *p = pt->p;
+    CorLane *ln = &c->ln[0];
+    int me = p->rank, rc;
+    int64_t before = c->st.counts.overlaps;
+    PartRec q = {0};
+    /* the road's front vehicle behind the virtual leader, by the rank that holds it (a full repair repeats it) */
+    if (c->has_vl && pt->n_own && pt->k_lo == 0) {
+        phase_overlaps(c, ln, in_window, 1);
+        if (c->fault_slot >= 0) kflags |= WF_STEP_FAULT, c->fault_slot = -1;
+    }
+    part_moved(c, me, pt->k_lo, pt->n_own, &q);
+    q.repairs = (uint64_t)(c->st.counts.overlaps - before);
+    q.flags = (uint64_t)kflags | (p->stop_own ? (uint64_t)*p->stop_own << PART_STOP_SHIFT : 0);
+    if ((rc = p->allgather(p->ctx, &q, pt->post, sizeof q, err))) return rc;
+    uint64_t flags = 0, stop = 0, skip = 0;
+    for (int r = 0, a = -1; r < p->size; r++) {
+        const PartRec *o = &pt->post[r];
+        flags |= o->flags & ((1u << PART_STOP_SHIFT) - 1), stop |= o->flags >> PART_STOP_SHIFT, skip |= o->skip;
+        if (r != me) c->st.counts.overlaps += (int64_t)o->repairs;
+        if (!o->n) continue;
+        if (a >= 0 && pt->post[a].x - pt->post[a].len - o->x2 < 0.0) flags |= WF_STEP_OVERLAP;
+        a = r;
+    }
+    p->stop_all = (sig_atomic_t)stop;
+    if (skip)
+        return wf_err(err, WF_EINPUT, "%s: a vehicle crossed a whole process's segment of the road in one step (at t "
+                      "= %.6g s): fewer processes (docs/mpi.md)", c->sc->path, (double)(c->meas_step + 1) * c->sc->dt_s);
+    if (flags && ((rc = part_repair(c, in_window, err)) || c->fault_slot >= 0)) return rc;
+    size_t out = pt->post[me].out;
+    pt->n_in = me + 1 < p->size ? pt->post[me + 1].out : 0;
+    part_pack(c, pt->k_lo, out, pt->out, 0);
+    rc = p->shift(p->ctx, pt->out, out * pt->vbytes, pt->in, pt->n_in * pt->vbytes, err);
+    if (!rc) part_pack(c, pt->k_lo + pt->n_own, pt->n_in, pt->in, 1);
+    pt->repaired = flags != 0;
+    return rc;
+}
+
+/* This rank's Edie cells and detectors from the step: its own vehicles, then those that crossed in (behind them in
+ * road order); a detector first from the vehicle just ahead, whose body may cover it (its old and new positions
+ * from the records, unless a repair brought the whole road). */
+static void part_measure(WfCorridor *c, long step, int in_window)
+{
+    CorPart *pt = &c->pt;
+    CorLane *ln = &c->ln[0];
+    int a = part_ahead(pt, pt->post);
+    pt->kb = pt->k_lo, pt->ke = pt->k_lo + pt->n_own + pt->n_in;
+    if (a >= 0 && c->det.n_det) {
+        size_t s = wf_corridor_slot(&ln->veh, pt->k_lo - 1);
+        if (!pt->repaired) ln->xold[s] = pt->pre[a].x, ln->veh.x_m[s] = pt->post[a].x;
+        ln->cell[s] = UINT32_MAX, ln->veh.fuel_rate_gps[s] = 0.0;
+        pt->kb--;
+    }
+    measure_range(c, ln, step, in_window, pt->i_lo, pt->i_hi, 0, 0);
+    for (size_t q = 0; q < c->det.n_det; q++)
+        if (c->det.x_m[q] >= pt->cut_lo && c->det.x_m[q] < pt->cut_hi) measure_range(c, ln, step, in_window, 0, 0, q, q + 1);
+}
+
+/* One step of a split corridor (step_once's order on one lane). */
+static int part_step_once(WfCorridor *c, long step, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    CorPart *pt = &c->pt;
+    CorLane *ln = &c->ln[0];
+    double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
+    int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps, rc, flags;
+    if ((rc = part_before(c, err)) || (rc = arrivals(c, t, err))) return rc;
+    size_t n0 = ln->veh.n;
+    if ((rc = entrance(c, t, step, err))) return rc;
+    pt->pre[pt->p->size - 1].n += ln->veh.n - n0; /* an entry joins the last rank */
+    part_layout(c);
+    WfLead front = part_front(c);
+    lane_exports(c, records || last);
+    c->meas_step = step, c->meas_in_window = in_window;
+    if (records || last) {
+        part_lane_step(c, &front, step, WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window);
+        if (records && (rc = part_record(c, t, in_window, err))) return rc;
+        if (last) return WF_LOOP_END;
+        flags = part_lane_step(c, &front, step, WF_PASS_ADVANCE, in_window);
+    } else {
+        flags = part_lane_step(c, &front, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window);
+    }
+    advance_leader(c, t_next);
+    if ((rc = part_after(c, in_window, flags, err))) return rc;
+    if (c->fault_slot >= 0) return numerical_fault(c, step, err);
+    part_measure(c, step, in_window);
+    size_t here = pt->n_own + pt->n_in, n1 = ln->veh.n;
+    if (pt->p->rank == 0 && (rc = phase_exits(c, ln, t_next, in_window, here, err))) return rc;
+    /* what this rank holds for the next step: its vehicles that stayed, those that came, less those that left */
+    pt->n_own = here - pt->post[pt->p->rank].out - (n1 - ln->veh.n);
+    pt->first_own = (pt->first_own + ln->veh.cap - pt->n_in) % ln->veh.cap;
+    return 0;
+}
+
+/* The whole road onto rank 0 (a checkpoint, the summary): every vehicle into its slot, each Edie cell and detector
+ * its owner's (summed over the ranks, the others' at +0), the safety counts summed. */
+static int part_collect(WfCorridor *c, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    WfPartition *p = pt->p;
+    PartRec me = {.n = pt->n_own};
+    int rc = p->allgather(p->ctx, &me, pt->pre, sizeof me, err);
+    if (rc) return rc;
+    part_layout(c);
+    size_t k = 0, nx = c->edie.nx, nc = c->sc->n_classes;
+    for (int r = 0; r < p->size; k += pt->pre[r++].n) pt->off[r] = k * pt->vbytes;
+    pt->off[p->size] = k * pt->vbytes;
+    part_pack(c, pt->k_lo, pt->n_own, pt->all + pt->k_lo * pt->vbytes, 0);
+    if ((rc = p->gather(p->ctx, pt->all, pt->off, 0, err))) return rc;
+    if (p->rank == 0) part_pack(c, 0, c->ln[0].veh.n, pt->all, 1);
+    WfEdie *e = &c->edie;
+    for (size_t j = 0; j < e->nt + nc; j++) /* the rows of each field, then the class profiles' */
+        for (size_t i = 0; i < nx; i++) {
+            if (i >= pt->i_lo && i < pt->i_hi) continue;
+            if (j < e->nt) e->dist_m[j * nx + i] = e->time_s[j * nx + i] = e->fuel_g[j * nx + i] = 0.0;
+            else e->class_dist_m[(j - e->nt) * nx + i] = e->class_fuel_g[(j - e->nt) * nx + i] = 0.0;
+        }
+    WfDetectors *d = &c->det;
+    for (size_t j = 0; j < d->n_int; j++)
+        for (size_t q = 0; q < d->n_det; q++) {
+            if (d->x_m[q] >= pt->cut_lo && d->x_m[q] < pt->cut_hi) continue;
+            size_t i = j * d->n_det + q;
+            d->count[i] = 0, d->sum_v_mps[i] = d->sum_inv_v_spm[i] = d->occupied_s[i] = 0.0;
+        }
+    size_t ne = e->nt * nx, nd = d->n_int * d->n_det;
+    double *f64[] = {e->dist_m, e->time_s, e->fuel_g, e->class_dist_m, e->class_fuel_g, d->sum_v_mps,
+                     d->sum_inv_v_spm, d->occupied_s};
+    size_t len[] = {ne, ne, ne, nc * nx, nc * nx, nd, nd, nd};
+    for (size_t i = 0; !rc && i < sizeof len / sizeof len[0]; i++) rc = len[i] ? p->sum_f64(p->ctx, f64[i], len[i], err) : 0;
+    if (!rc && nd) rc = p->sum_u64(p->ctx, (uint64_t *)d->count, nd, err);
+    pt->safety_all = c->ln[0].lane.safety;
+    if (!rc) rc = p->sum_u64(p->ctx, pt->safety_all.steps, WF_MAX_GROUPS, err);
+    if (!rc) rc = p->sum_u64(p->ctx, pt->safety_all.hits, WF_MAX_GROUPS, err);
+    return rc;
+}
+
+/* After a restore: this rank's vehicles, those whose fronts are on its segment. */
+static void part_restored(WfCorridor *c)
+{
+    CorPart *pt = &c->pt;
+    const WfCorridorVehicles *vh = &c->ln[0].veh;
+    size_t k0 = 0, k1;
+    while (k0 < vh->n && vh->x_m[wf_corridor_slot(vh, k0)] >= pt->cut_hi) k0++;
+    for (k1 = k0; k1 < vh->n && vh->x_m[wf_corridor_slot(vh, k1)] >= pt->cut_lo; k1++) {}
+    pt->k_lo = k0, pt->n_own = k1 - k0, pt->n_in = 0;
+    pt->first_own = k1 > k0 ? wf_corridor_slot(vh, k1 - 1) : vh->first;
+    if (pt->p->rank) c->ln[0].lane.safety = (WfSafetyCount){{0}, {0}}; /* rank 0 holds the restored counts */
+}
+
 static int corridor_step(void *eng, long step, long max_steps, long *steps, WfError *err)
 {
     *steps = 1;
@@ -2050,7 +2508,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
                              c->sc->trajectories ? c->traj_every : 0, c->out_every);
     if (k > 1) rc = corridor_window(c, step, (int)k, &done, err);
     if (done) *steps = k;
-    else if (!rc) rc = step_once(c, step, err);
+    else if (!rc) rc = c->pt.p ? part_step_once(c, step, err) : step_once(c, step, err);
     if (parallel) wf_governor_done(&c->gov, wf_wall_now() - t0, (double)on_road * (double)*steps);
     return rc;
 }
@@ -2058,11 +2516,12 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
 /* The safety counts of every lane, summed (what the summary and a checkpoint hold); restored, they stay with lane 0. */
 static WfSafetyCount *safety_total(WfCorridor *c, int restore)
 {
-    WfSafetyCount *all = &c->safety;
+    WfSafetyCount *all = c->pt.p ? &c->pt.safety_all : &c->safety; /* split: every rank's, summed (part_collect) */
     if (restore) {
         for (size_t l = 0; l < c->n_lanes; l++) c->ln[l].lane.safety = l ? (WfSafetyCount){{0}, {0}} : *all;
         return all;
     }
+    if (c->pt.p) return all;
     *all = (WfSafetyCount){{0}, {0}};
     for (size_t l = 0; l < c->n_lanes; l++)
         for (size_t g = 0; g < WF_MAX_GROUPS; g++)
@@ -2070,11 +2529,21 @@ static WfSafetyCount *safety_total(WfCorridor *c, int restore)
     return all;
 }
 
+/* Before a checkpoint: the trips handed to the output; split across processes, the whole road onto rank 0. */
+static int corridor_flush(void *eng, WfError *err)
+{
+    WfCorridor *c = eng;
+    int rc = c->pt.p ? part_collect(c, err) : 0;
+    return rc ? rc : flush_trips(c, err);
+}
+
 /* The vehicles still on the road: their window totals count, their trips are reported as unfinished. */
 static int corridor_close(void *eng, WfError *err)
 {
     WfCorridor *c = eng;
-    int rc = flush_trips(c, err);
+    int rc = c->pt.p ? part_collect(c, err) : 0;
+    if (rc || (c->pt.p && c->pt.p->rank)) return rc; /* split across processes: rank 0 alone sums */
+    rc = flush_trips(c, err);
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
         for (size_t k = 0; !rc && k < ln->veh.n; k++)
@@ -2200,6 +2669,7 @@ static int corridor_restored(void *eng, WfError *err)
         return wf_err(err, WF_EINPUT, "%s: the restored state does not fit this corridor (%s at step %ld)", sc->path,
                       bad, st->steps_done);
     safety_total(c, 1);
+    if (c->pt.p) part_restored(c);
     c->fault_slot = -1;
     c->n_trips = 0;
     return 0;
@@ -2256,7 +2726,7 @@ static int corridor_windows(const void *eng, long *windows, long *redone)
 }
 
 const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,
-                                     .step = corridor_step, .flush = flush_trips, .close = corridor_close,
+                                     .step = corridor_step, .flush = corridor_flush, .close = corridor_close,
                                      .state = corridor_state, .restored = corridor_restored,
                                      .group = corridor_group, .lanes = corridor_lanes,
                                      .windows = corridor_windows};

@@ -38,9 +38,6 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
 int wf_sim_create_part(const WfScenario *sc, WfPartition *part, WfSim **out, WfError *err)
 {
     *out = NULL;
-    if (part && sc->corridor)
-        return wf_err(err, WF_EINPUT, "%s: road.type corridor: a road split across processes must be a ring "
-                      "(docs/mpi.md)", sc->path);
     WfSim *s = calloc(1, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     s->sc = sc;

@@ -72,11 +72,61 @@ static int gather(void *ctx, void *buf, const size_t *off, int root, WfError *er
     return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "a gather of the state", err);
 }
 
+static int allgather(void *ctx, const void *mine, void *all, size_t bytes, WfError *err)
+{
+    MpiPart *m = ctx;
+    if (bytes > INT_MAX) return wf_err(err, WF_ESYS, "MPI: a record of %zu bytes is too large", bytes);
+    int rc = MPI_Allgather(mine, (int)bytes, MPI_BYTE, all, (int)bytes, MPI_BYTE, m->comm);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "the exchange of the ranks' records", err);
+}
+
+static int shift(void *ctx, const void *send, size_t send_bytes, void *recv, size_t recv_bytes, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rank, size;
+    MPI_Comm_rank(m->comm, &rank);
+    MPI_Comm_size(m->comm, &size);
+    if (send_bytes > INT_MAX || recv_bytes > INT_MAX)
+        return wf_err(err, WF_ESYS, "MPI: %zu vehicles' bytes are too many for one message",
+                      send_bytes > recv_bytes ? send_bytes : recv_bytes);
+    int to = rank > 0 ? rank - 1 : MPI_PROC_NULL, from = rank + 1 < size ? rank + 1 : MPI_PROC_NULL;
+    int rc = MPI_Sendrecv(send, (int)send_bytes, MPI_BYTE, to, 2, recv, (int)recv_bytes, MPI_BYTE, from, 2, m->comm,
+                          MPI_STATUS_IGNORE);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "passing vehicles to the rank ahead", err);
+}
+
+static int chain(void *ctx, void *buf, size_t bytes, void (*fn)(void *arg, void *buf), void *arg, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rank, size, rc = MPI_SUCCESS;
+    MPI_Comm_rank(m->comm, &rank);
+    MPI_Comm_size(m->comm, &size);
+    if (bytes > INT_MAX) return wf_err(err, WF_ESYS, "MPI: a running sum of %zu bytes is too large", bytes);
+    if (rank > 0) rc = MPI_Recv(buf, (int)bytes, MPI_BYTE, rank - 1, 3, m->comm, MPI_STATUS_IGNORE);
+    if (rc == MPI_SUCCESS) fn(arg, buf);
+    if (rc == MPI_SUCCESS && size > 1 && rank + 1 < size) rc = MPI_Send(buf, (int)bytes, MPI_BYTE, rank + 1, 3, m->comm);
+    if (rc == MPI_SUCCESS && size > 1 && rank + 1 == size) rc = MPI_Send(buf, (int)bytes, MPI_BYTE, 0, 4, m->comm);
+    if (rc == MPI_SUCCESS && size > 1 && rank == 0) rc = MPI_Recv(buf, (int)bytes, MPI_BYTE, size - 1, 4, m->comm, MPI_STATUS_IGNORE);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "a running sum along the ranks", err);
+}
+
+static int sum_f64(void *ctx, double *v, size_t n, WfError *err)
+{
+    MpiPart *m = ctx;
+    int rc = MPI_SUCCESS;
+    for (size_t k = 0; rc == MPI_SUCCESS && k < n; k += INT_MAX / 2) {
+        size_t c = n - k < INT_MAX / 2 ? n - k : INT_MAX / 2;
+        rc = MPI_Allreduce(MPI_IN_PLACE, v + k, (int)c, MPI_DOUBLE, MPI_SUM, m->comm);
+    }
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "a sum of the measurement", err);
+}
+
 int wf_mpi_partition_init(WfPartition *p, volatile sig_atomic_t *stop_own, WfError *err)
 {
     MpiPart *m = calloc(1, sizeof *m);
     *p = (WfPartition){.ctx = m, .post_next = post_next, .wait_next = wait_next, .or_all = or_all,
-                       .sum_u64 = sum_u64, .gather = gather, .stop_own = stop_own};
+                       .sum_u64 = sum_u64, .gather = gather, .allgather = allgather, .shift = shift,
+                       .chain = chain, .sum_f64 = sum_f64, .stop_own = stop_own};
     if (!m) return wf_err(err, WF_ESYS, "out of memory");
     m->comm = MPI_COMM_WORLD;
     MPI_Comm_rank(m->comm, &p->rank);
