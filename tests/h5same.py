@@ -2,7 +2,7 @@
 """Two wavefuel result files hold the same results: every dataset and attribute outside /meta (the set of names,
 dtype, shape and bytes; text by its values), and /meta/steps_done, /meta/completed and any /meta datasets named.
 
-Used by tests/t_mpi_ring.sh, bench/mpi_ring/run.py and bench/corridor_threads/run.py.
+Used by tests/t_mpi.sh, bench/mpi_ring/run.py and bench/corridor_threads/run.py.
 
     h5same.py A.h5 B.h5 [meta/NAME...]    prints "N datasets, S steps"; exit 1 naming what differs
 """

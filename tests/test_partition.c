@@ -1,10 +1,12 @@
-/* A ring split across processes (include/wavefuel/partition.h, docs/mpi.md) gives the bits of one process, without
+/* A road split across processes (include/wavefuel/partition.h, docs/mpi.md) gives the bits of one process, without
  * MPI: R "ranks" are threads of this program, each with its own run of the same scenario, and the partition's
  * collective calls are made through shared memory and a barrier. Rank 0's records, its whole state after the run
  * (every per-vehicle array, controller memory, safety counts: what a checkpoint saves) and its summary equal those of
  * one process, for 2 and 3 ranks, windows of 16 steps and single steps, on a noisy graded ring with controllers and
  * a safety filter, and on a ring whose overlaps force repairs and redone windows; a stop requested by one rank stops
- * every rank at the same step. tests/t_mpi_ring.sh runs the same with MPI where it is installed. */
+ * every rank at the same step. A corridor split into 2 and 3 segments gives one process's records, trips, state
+ * (with every Edie cell and detector) and summary, with detectors at and beside the cuts and overlaps repaired
+ * across them. tests/t_mpi.sh runs the same with MPI where it is installed. */
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -306,11 +308,6 @@ static void *job_main(void *arg)
     if (o->rc && o->rc != WF_EINTR) printf("  rank %d: %s\n", j->rank, err.msg);
     if (sim) {
         o->state = wf_test_state_copy(sim, &o->state_size);
-        if (getenv("WF_DEBUG_VARS")) {
-            WfStateVar vars[WF_MAX_STATE_VARS];
-            size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS), off = 0;
-            for (size_t k = 0; k < nv && j->rank == 0; k++) { printf("    var %s at %zu size %zu\n", vars[k].name, off, vars[k].size); off += vars[k].size; }
-        }
         o->summary = *wf_sim_summary(sim);
         o->steps = wf_sim_steps_done(sim);
         wf_sim_window_stats(sim, &o->windows, &o->redone);
@@ -363,8 +360,6 @@ static void compare(const Out *o, const Out *ref, const char *what)
     CHECK(o->n_vals == ref->n_vals && first == o->n_vals, "%s: records and trips differ from value %zu of %zu (%.17g, "
           "one process %.17g)", what, first, ref->n_vals, first < o->n_vals ? o->vals[first] : NAN,
           first < ref->n_vals ? ref->vals[first] : NAN);
-    for (size_t b = 0, last = 0, any = 0; b < o->state_size && b < ref->state_size; b++)
-        if (o->state[b] != ref->state[b]) { if (!any || b > last + 64) printf("    state byte differing: %zu (%lld vs %lld)\n", b, (long long)*(int64_t *)(o->state + b - b % 8), (long long)*(int64_t *)(ref->state + b - b % 8)); last = b; any = 1; }
     CHECK(o->state_size == ref->state_size && memcmp(o->state, ref->state, o->state_size) == 0,
           "%s: the state after the run (accumulators, modes, controller memory, safety counts) differs", what);
     CHECK(memcmp(&o->summary, &ref->summary, sizeof o->summary) == 0, "%s: the summary differs", what);

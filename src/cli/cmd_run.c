@@ -29,11 +29,12 @@
 static void help(FILE *out)
 {
 #ifdef WF_MPI
-    fprintf(out, "mpirun -n R wavefuel-mpi run: `wavefuel run` with one ring split across the R processes, each\n"
-                 "stepping a contiguous share of its vehicles; rank 0 writes the same result file as one process\n"
-                 "would, bit for bit (docs/mpi.md). Rings of one lane with fixed-step integrators, without\n"
-                 "trajectories and without groups commanded from outside; a checkpoint is saved when a signal\n"
-                 "stops the run (--checkpoint-every is not offered); --resume takes any number of processes.\n\n");
+    fprintf(out, "mpirun -n R wavefuel-mpi run: `wavefuel run` with one road split across the R processes: a\n"
+                 "ring's vehicles in contiguous shares, a corridor in segments of the road; rank 0 writes the same\n"
+                 "result file as one process would, bit for bit (docs/mpi.md). Roads of one lane with fixed-step\n"
+                 "integrators, without trajectories and without groups commanded from outside; a checkpoint is\n"
+                 "saved when a signal stops the run (--checkpoint-every is not offered); --resume takes any number\n"
+                 "of processes.\n\n");
 #endif
     fprintf(out,
             "usage: wavefuel run SCENARIO.yaml [-o FILE.h5] [--set key.path=value]... [--threads N] [--force] [-q]\n"
@@ -57,7 +58,7 @@ static void help(FILE *out)
             "                      the same run\n");
 }
 
-/* The processes a ring is split across (wavefuel-mpi run, docs/mpi.md); 0 in wavefuel run. */
+/* The processes a road is split across (wavefuel-mpi run, docs/mpi.md); 0 in wavefuel run. */
 static int run_ranks;
 
 /* The run's first line: what was simulated and how fast; a corridor adds its vehicle counts. */
@@ -77,8 +78,10 @@ static void print_header(const WfSim *sim)
     }
     const WfSummary *s = wf_sim_summary(sim);
     const WfCorridorCounts *n = &s->counts;
-    printf("wavefuel run: %s  (corridor %.6g m, %.6g s simulated, %s dt = %.6g s, %d threads, wall %.3f s)\n", sc->name,
-           sc->road.length_m, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim), wall);
+    printf("wavefuel run: %s  (corridor %.6g m, %.6g s simulated, %s dt = %.6g s, %d threads", sc->name,
+           sc->road.length_m, sc->duration_s, sc->integrator, sc->dt_s, wf_sim_threads(sim));
+    if (run_ranks) printf(" x %d processes", run_ranks);
+    printf(", wall %.3f s)\n", wall);
     printf("vehicles: %lld arrived, %lld entered, %lld exited, %lld on the road, %lld queued at the end; %lld entries "
            "delayed (mean wait %.3g s, longest queue %lld)\n",
            (long long)n->arrived, (long long)n->entered, (long long)n->exited,
@@ -189,7 +192,7 @@ static int load_scenario(RunArgs *a, WfScenario **sc, WfError *err)
 }
 
 #ifdef WF_MPI
-/* wavefuel-mpi run (docs/mpi.md): every rank loads the scenario and builds the ring; rank 0 alone writes the result
+/* wavefuel-mpi run (docs/mpi.md): every rank loads the scenario and builds the road; rank 0 alone writes the result
  * and prints. A setup step that fails on some rank stops every rank before the run; an error of rank 0's writer
  * during the run stops every rank at once (the others would wait for rank 0 at the next exchange). */
 static WfOutput writer_ops;   /* rank 0's writer */
@@ -211,6 +214,13 @@ static int record_or_abort(void *ctx, const WfSim *sim, const WfRecord *rec, WfE
 {
     int rc = writer_ops.record(ctx, sim, rec, err);
     if (rc) wf_mpi_abort(wf_cli_fail(err)); /* the partial file keeps the rows written before */
+    return 0;
+}
+
+static int trips_or_abort(void *ctx, const WfSim *sim, const struct WfTrip *trips, size_t n, WfError *err)
+{
+    int rc = writer_ops.trips(ctx, sim, trips, n, err);
+    if (rc) wf_mpi_abort(wf_cli_fail(err)); /* a corridor's trips go out during the run too */
     return 0;
 }
 
@@ -251,6 +261,7 @@ static int open_output(const RunArgs *a, WfScenario *sc, WfSim *sim, int rank, W
         writer_ops = *ops, writer_h5 = h5;
         ops->begin = ops->begin ? begin_or_abort : NULL;
         ops->record = ops->record ? record_or_abort : NULL;
+        ops->trips = ops->trips ? trips_or_abort : NULL;
     }
 #endif
     return rc;
@@ -276,7 +287,7 @@ int wf_cmd_run(int argc, char **argv)
     }
 #ifdef WF_MPI
     if (a.ckpt_s > 0) {
-        fprintf(stderr, "wavefuel-mpi run: --checkpoint-every: a ring split across processes saves a checkpoint only "
+        fprintf(stderr, "wavefuel-mpi run: --checkpoint-every: a road split across processes saves a checkpoint only "
                         "when a signal stops it (docs/mpi.md)\n");
         free(a.sets);
         return 2;

@@ -1,12 +1,14 @@
 #!/usr/bin/env bash
-# One ring split across MPI ranks (`mpirun -n R bin/wavefuel-mpi run`, issue 20): the result file equals
+# One road split across MPI ranks (`mpirun -n R bin/wavefuel-mpi run`, issue 20). A ring: the result file equals
 # `wavefuel run` of the same scenario in every dataset outside /meta (and /meta/steps_done, /meta/completed), bit for
 # bit, for 2 and 3 ranks, 1 and 2 threads, time-blocked windows of 16 steps and one step at a time: a graded
 # heterogeneous noisy ring with two classes and a speed limit, controllers with memory under a safety filter, a ring
 # whose overlaps are repaired, a numerical fault on rank 1 (the same exit status, message and partial file); a run
 # stopped by SIGTERM (to mpirun, or to rank 1 alone) resumes on another rank count and in one process to the
 # uninterrupted result; what the ranks cannot split is refused with exit status 2, the key named and no file
-# written; uneven shares are refused or give the one-process result.
+# written; uneven shares are refused or give the one-process result. A corridor: the same for 2, 3 and 4 ranks, 1 and
+# 2 threads, with detectors at and beside the cuts between the ranks' segments, overlaps repaired across them, a
+# stop by SIGTERM resumed on another rank count and in one process, and its own refusals.
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 MPIBIN=${WAVEFUEL_MPI_BIN:-bin/wavefuel-mpi}
@@ -14,10 +16,12 @@ PY=/usr/bin/python3
 . tests/scaffold.sh
 
 if ! command -v mpicc >/dev/null 2>&1 || ! command -v mpirun >/dev/null 2>&1; then
-  echo "NOTE t_mpi_ring: mpicc/mpirun not installed, MPI ring tests skipped (tools/install-deps.sh mpi)"
+  echo "NOTE t_mpi: mpicc/mpirun not installed, MPI tests skipped (tools/install-deps.sh mpi)"
   exit 0
 fi
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_btl_vader_single_copy_mechanism=none
+# Waiting ranks yield their core: this machine has 2, the tests run up to 4 ranks beside other tests.
+export OMPI_MCA_mpi_yield_when_idle=1
 # The default build tree: a sanitizer run of the suite (BUILD=build-san in the environment) must not mix its objects.
 if ! make -s --no-print-directory mpi BUILD=build >"$tmp/make_mpi.log" 2>&1; then
   ko build_mpi "make mpi failed: $(tail -3 "$tmp/make_mpi.log")"; exit 1
@@ -146,12 +150,12 @@ rank_pid() {
   local k
   for k in $(pgrep -P "$1"); do tr '\0' '\n' <"/proc/$k/environ" 2>/dev/null | grep -qx "OMPI_COMM_WORLD_RANK=$2" && echo "$k"; done
 }
-# interrupted NAME TARGET: runs LONG on 2 ranks into $tmp/NAME.h5 and sends SIGTERM to TARGET (mpirun or rank1) once
-# the ranks step; mpirun itself in the background (not under timeout, which would signal the ranks too), killed if it
-# outlives 120 s. Sets rc to mpirun's exit status.
+# interrupted NAME TARGET SCENARIO...: runs the scenario on 2 ranks into $tmp/NAME.h5 and sends SIGTERM to TARGET
+# (mpirun or rank1) once the ranks step; mpirun itself in the background (not under timeout, which would signal the
+# ranks too), killed if it outlives 120 s. Sets rc to mpirun's exit status.
 interrupted() {
-  local name=$1 target=$2 pid to
-  mpirun -n 2 --oversubscribe --bind-to none "$MPIBIN" run $LONG -q -o "$tmp/$name.h5" --threads 1 >"$tmp/$name.log" 2>&1 &
+  local name=$1 target=$2 pid to; shift 2
+  mpirun -n 2 --oversubscribe --bind-to none "$MPIBIN" run "$@" -q -o "$tmp/$name.h5" --threads 1 >"$tmp/$name.log" 2>&1 &
   pid=$!; pids+=($pid)
   for _ in $(seq 600); do [ -e "$tmp/$name.h5.partial" ] && break; alive $pid || break; sleep 0.05; done
   sleep 1
@@ -160,15 +164,16 @@ interrupted() {
   for _ in $(seq 1200); do alive $pid || break; sleep 0.1; done
   kill -KILL $pid 2>/dev/null; wait $pid; rc=$?
 }
-# stopped NAME: the partial and checkpoint of an interrupted run (the steps done printed); no result.
+# stopped NAME STEPS: the partial and checkpoint of an interrupted run of STEPS steps (the steps done printed); no
+# result.
 stopped() {
   [ -e "$tmp/$1.h5.ckpt" ] && [ -e "$tmp/$1.h5.partial" ] && [ ! -e "$tmp/$1.h5" ] ||
     { echo "files: $(cd "$tmp" && echo "$1".h5*)"; return 1; }
   $PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); s=f['meta/steps_done'][()]; \
-assert f['meta/completed'][()]==0 and 0 < s < 60000, s; print(s)" "$tmp/$1.h5.partial"
+assert f['meta/completed'][()]==0 and 0 < s < int(sys.argv[2]), s; print(s)" "$tmp/$1.h5.partial" "$2"
 }
-interrupted i mpirun
-if [ $rc -ne 0 ] && msg=$(stopped i 2>&1); then
+interrupted i mpirun $LONG
+if [ $rc -ne 0 ] && msg=$(stopped i 60000 2>&1); then
   ok "sigterm_to_mpirun_leaves_checkpoint (rc $rc, stopped after $msg steps)"
   # The reason names the signal, as one process's does.
   reason=$($PY -c "import h5py,sys; print(h5py.File(sys.argv[1])['meta/reason'][()].decode())" "$tmp/i.h5.partial")
@@ -180,14 +185,94 @@ if [ $rc -ne 0 ] && msg=$(stopped i 2>&1); then
 else
   ko sigterm_to_mpirun_leaves_checkpoint "rc $rc, ${msg:-}: $(tail -3 "$tmp/i.log")"
 fi
-interrupted j rank1
-if [ $rc -eq 3 ] && msg=$(stopped j 2>&1); then
+interrupted j rank1 $LONG
+if [ $rc -eq 3 ] && msg=$(stopped j 60000 2>&1); then
   ok "sigterm_to_rank1_stops_all (rc $rc, stopped after $msg steps)"
   $BIN run --resume "$tmp/j.h5" -q --threads 2 >"$tmp/rj.log" 2>&1; rc=$?
   if [ $rc -eq 0 ] && msg=$(same "$tmp/long_ref.h5" "$tmp/j.h5" 2>&1); then ok "resume_in_one_process ($msg)"
   else ko resume_in_one_process "rc $rc: $(tail -3 "$tmp/rj.log") ${msg:-}"; fi
 else
   ko sigterm_to_rank1_stops_all "rc $rc (3: interrupted), ${msg:-}: $(tail -3 "$tmp/j.log")"
+fi
+
+# (e) A corridor (tests/test_partition.c's): Poisson arrivals above capacity, noisy heterogeneous IDM, PI with
+# saturation under a safety filter, two classes, grades, a headway and a speed-limit zone, a prescribed-speed virtual
+# leader that drops; Edie cells of 250 m, so the ranks' segments are cut at 6000 m (2 ranks), 4000 and 8000 m (3),
+# 3000, 6000 and 9000 m (4), with detectors at and beside the cuts.
+cat >"$tmp/cor.yaml" <<'EOF'
+seed: 17
+road:
+  type: corridor
+  length_m: 12000
+  speed_limit_mps: 30
+  grade: {points: [[0, 0], [3000, 0.02], [7000, -0.015], [12000, 0]]}
+  zones:
+    - {type: headway, from_m: 2000, to_m: 4000, factor: 1.4}
+    - {type: speed_limit, from_m: 9000, to_m: 9500, speed_limit_mps: 9}
+time: {duration_s: 900, dt_s: 0.1, output_interval_s: 5.0, warmup_s: 450}
+fleet:
+  placement: random
+  classes:
+    - {class: midsize_sedan, fraction: 0.75}
+    - {class: class8_tractor, fraction: 0.25}
+  drivers:
+    - {model: idm, fraction: 0.8, noise_mps2: 0.2, feasible_accel: clip,
+       heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}
+    - {model: pi_saturation, fraction: 0.2, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}
+corridor:
+  inflow: {flow_vph: 2600, arrivals: poisson}
+  outflow: {type: speed, points: [[0, 25], [350, 25], [400, 5], [700, 5], [750, 25]]}
+  detectors: {x_m: [1000, 2998, 3000, 3990, 4000, 6000, 6003, 7995, 8000, 9000, 11900], interval_s: 60}
+  edie: {dx_m: 250, dt_s: 30}
+EOF
+run "$tmp/cor.yaml" -o "$tmp/cor_ref.h5" --threads 1
+for rt in "2 1" "2 2" "3 1" "4 1"; do
+  set -- $rt
+  mpi_same "corridor_R$1_threads$2" "$tmp/cor_ref.h5" "$1" "$2" 1 "$tmp/cor.yaml"
+done
+
+# (f) Noise far beyond what the brakes absorb behind a virtual leader that slows to 3 m/s: overlaps repaired all
+# along the road, across the cuts too.
+cat >"$tmp/cov.yaml" <<'EOF'
+seed: 5
+road: {type: corridor, length_m: 6000}
+time: {duration_s: 600, dt_s: 0.1, output_interval_s: 2.0}
+fleet:
+  classes: [{class: midsize_sedan, fraction: 1}]
+  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]
+corridor:
+  inflow: {flow_vph: 3000}
+  outflow: {type: speed, points: [[0, 20], [200, 20], [260, 3], [600, 3]]}
+  detectors: {x_m: [1995, 3000, 4001], interval_s: 30}
+  edie: {dx_m: 500, dt_s: 20}
+EOF
+run "$tmp/cov.yaml" -o "$tmp/cov_ref.h5" --threads 2
+if $PY -c "import h5py,sys; n=h5py.File(sys.argv[1])['timeseries/overlaps'][-1]; assert n > 50, n" "$tmp/cov_ref.h5"; then
+  mpi_same corridor_overlaps_R2_threads2 "$tmp/cov_ref.h5" 2 2 1 "$tmp/cov.yaml"
+  mpi_same corridor_overlaps_R3_threads1 "$tmp/cov_ref.h5" 3 1 1 "$tmp/cov.yaml"
+else ko corridor_overlaps "the reference run repaired too few overlaps to exercise the repairs"; fi
+
+# (g) A corridor stopped by SIGTERM (to mpirun, to rank 1) resumes on 3 ranks and in one process to the
+# uninterrupted result.
+CLONG="$tmp/cor.yaml --set time.duration_s=6000"
+run $CLONG -o "$tmp/clong_ref.h5" --threads 2
+interrupted ci mpirun $CLONG
+if [ $rc -ne 0 ] && msg=$(stopped ci 60000 2>&1); then
+  ok "corridor_sigterm_to_mpirun_leaves_checkpoint (rc $rc, stopped after $msg steps)"
+  mpi 3 run --resume "$tmp/ci.h5" -q --threads 1 >"$tmp/rci.log" 2>&1; rc=$?
+  if [ $rc -eq 0 ] && msg=$(same "$tmp/clong_ref.h5" "$tmp/ci.h5" 2>&1); then ok "corridor_resume_on_3_ranks ($msg)"
+  else ko corridor_resume_on_3_ranks "rc $rc: $(tail -3 "$tmp/rci.log") ${msg:-}"; fi
+else
+  ko corridor_sigterm_to_mpirun_leaves_checkpoint "rc $rc, ${msg:-}: $(tail -3 "$tmp/ci.log")"
+fi
+interrupted cj rank1 $CLONG
+if [ $rc -eq 3 ] && msg=$(stopped cj 60000 2>&1); then
+  ok "corridor_sigterm_to_rank1_stops_all (rc $rc, stopped after $msg steps)"
+  $BIN run --resume "$tmp/cj.h5" -q --threads 2 >"$tmp/rcj.log" 2>&1; rc=$?
+  if [ $rc -eq 0 ] && msg=$(same "$tmp/clong_ref.h5" "$tmp/cj.h5" 2>&1); then ok "corridor_resume_in_one_process ($msg)"
+  else ko corridor_resume_in_one_process "rc $rc: $(tail -3 "$tmp/rcj.log") ${msg:-}"; fi
+else
+  ko corridor_sigterm_to_rank1_stops_all "rc $rc (3: interrupted), ${msg:-}: $(tail -3 "$tmp/cj.log")"
 fi
 
 # Refusals: exit status 2, the key or option named, no file; each case runs in one process (so it is the ranks that
@@ -201,7 +286,6 @@ refused() { # name, text the message must hold, ranks, arguments of run (without
   rm -f "$tmp"/bad.h5*
 }
 SHORT="$tmp/het.yaml --set time.duration_s=5"
-refused refuses_corridor road.type 2 tests/data/tiny_corridor.yaml --set time.duration_s=40
 refused refuses_lanes road.lanes 2 $SHORT --set road.lanes=2
 for integ in cvode arkode rk4; do refused "refuses_$integ" time.integrator 2 $SHORT --set time.integrator=$integ; done
 refused refuses_trajectories output.trajectories 2 $SHORT --set output.trajectories=true
@@ -216,6 +300,15 @@ refused refuses_external external 2 scenarios/ring_waves_av.yaml --set fleet.veh
 refused refuses_checkpoint_every --checkpoint-every 2 $SHORT --checkpoint-every 1
 # 700 vehicles on 2 ranks: 3 blocks, one for rank 0.
 refused refuses_too_few_per_rank fleet.vehicles 2 $SHORT --set fleet.vehicles=700
+CSHORT="$tmp/cor.yaml --set time.duration_s=60 --set time.warmup_s=0"
+refused corridor_refuses_lanes road.lanes 2 scenarios/corridor_bottleneck_lanes.yaml --set time.duration_s=60 \
+  --set time.warmup_s=0
+refused corridor_refuses_trajectories output.trajectories 2 tests/data/tiny_corridor.yaml --set time.duration_s=40
+refused corridor_refuses_windows time.block_steps 2 $CSHORT --set time.block_steps=4
+refused corridor_refuses_unfused time.fused_step 2 $CSHORT --set time.fused_step=false
+refused corridor_refuses_external external 2 $CSHORT --set 'fleet.drivers[1].model=external'
+# 12 km in Edie cells of 3 km: 4 cells, fewer than 5 ranks
+refused corridor_refuses_short_segments corridor.edie.dx_m 5 $CSHORT --set corridor.edie.dx_m=3000
 
 # Uneven shares, refused or run as one process runs them: windows on some ranks and single steps on others would
 # exchange halos of different sizes. 1000 vehicles on 2 ranks: rank 1 holds a whole block and 232 vehicles (fewer
