@@ -231,11 +231,17 @@ for rt in "2 1" "2 2" "3 1" "4 1"; do
   mpi_same "corridor_R$1_threads$2" "$tmp/cor_ref.h5" "$1" "$2" 1 "$tmp/cor.yaml"
 done
 
-# (f) Noise far beyond what the brakes absorb behind a virtual leader that slows to 3 m/s: overlaps repaired all
-# along the road, across the cuts too.
+# (f) Noise far beyond what the brakes absorb, in queues behind slow zones that start past the cuts (tests/
+# test_partition.c's): overlaps repaired along the road and between the ranks' vehicles, waves across the cuts.
 cat >"$tmp/cov.yaml" <<'EOF'
 seed: 5
-road: {type: corridor, length_m: 6000}
+road:
+  type: corridor
+  length_m: 6000
+  zones:
+    - {type: speed_limit, from_m: 2150, to_m: 2600, speed_limit_mps: 8}
+    - {type: speed_limit, from_m: 3150, to_m: 3600, speed_limit_mps: 5}
+    - {type: speed_limit, from_m: 4150, to_m: 4600, speed_limit_mps: 3}
 time: {duration_s: 600, dt_s: 0.1, output_interval_s: 2.0}
 fleet:
   classes: [{class: midsize_sedan, fraction: 1}]

@@ -74,10 +74,14 @@ static const char *corridor_yaml =
     "  detectors: {x_m: [1000, 3990, 4000, 6000, 6003, 7995, 8000, 11900], interval_s: 60}\n"
     "  edie: {dx_m: 250, dt_s: 30}\n";
 
-/* Noise far beyond what the brakes absorb behind a virtual leader that slows to 3 m/s: overlaps repaired all along
- * the road, so across the cuts between the segments too (at 3000 m; at 2000 and 4000 m). */
+/* Noise far beyond what the brakes absorb, in queues behind three slow zones that start past the cuts between the
+ * segments (3000 m; 2000 and 4000 m) and a virtual leader that slows to 3 m/s: overlaps repaired along the road, some
+ * between the ranks' vehicles alone in their step, and slow runs (waves) across the cuts. */
 static const char *corridor_overlap_yaml =
-    "seed: 5\nroad: {type: corridor, length_m: 6000}\n"
+    "seed: 5\nroad:\n  type: corridor\n  length_m: 6000\n  zones:\n"
+    "    - {type: speed_limit, from_m: 2150, to_m: 2600, speed_limit_mps: 8}\n"
+    "    - {type: speed_limit, from_m: 3150, to_m: 3600, speed_limit_mps: 5}\n"
+    "    - {type: speed_limit, from_m: 4150, to_m: 4600, speed_limit_mps: 3}\n"
     "time: {duration_s: 600, dt_s: 0.1, output_interval_s: 2.0}\n"
     "fleet:\n  classes: [{class: midsize_sedan, fraction: 1}]\n"
     "  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]\n"
