@@ -2395,7 +2395,20 @@ static void part_measure(WfCorridor *c, long step, int in_window)
         ln->cell[s] = UINT32_MAX, ln->veh.fuel_rate_gps[s] = 0.0;
         pt->kb--;
     }
-    measure_range(c, ln, step, in_window, pt->i_lo, pt->i_hi, 0, 0);
+    /* the cells in even ranges over the threads (each cell's sums are the same bits wherever the cuts fall) */
+    int nth = wf_lane_threads(pt->ke - pt->kb, wf_governor_threads(&c->gov));
+    if (nth <= 1) measure_range(c, ln, step, in_window, pt->i_lo, pt->i_hi, 0, 0);
+    else {
+#pragma omp parallel num_threads(nth) default(none) shared(c, ln, pt, step, in_window)
+        {
+#ifdef _OPENMP
+            size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads(), w = pt->i_hi - pt->i_lo;
+#else
+            size_t t = 0, nt = 1, w = pt->i_hi - pt->i_lo;
+#endif
+            measure_range(c, ln, step, in_window, pt->i_lo + w * t / nt, pt->i_lo + w * (t + 1) / nt, 0, 0);
+        }
+    }
     for (size_t q = 0; q < c->det.n_det; q++)
         if (c->det.x_m[q] >= pt->cut_lo && c->det.x_m[q] < pt->cut_hi) measure_range(c, ln, step, in_window, 0, 0, q, q + 1);
 }
