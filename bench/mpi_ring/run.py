@@ -1,7 +1,12 @@
 #!/usr/bin/python3
-"""One ring split across MPI ranks (issue 20, `mpirun -n R bin/wavefuel-mpi run`): weak and strong scaling over
+"""One road split across MPI ranks (issue 20, `mpirun -n R bin/wavefuel-mpi run`): weak and strong scaling over
 R = 1, 2, 4 ranks of one thread each, on the ring of bench/scaling/ring.yaml (IDM with noise, two energy classes,
 ballistic dt 0.1 s, a record every second, 25 m of road per vehicle), and the bit-identity check at 1e7 vehicles.
+
+--road corridor: the corridor of bench/corridor_vs_ring/corridor.yaml (the same drivers and classes, fed above its
+capacity, Edie cells of 500 m), --km-per-rank of road per rank (weak; strong: twice that on every R), simulated for
+--fill times the time a vehicle at 25 m/s takes to cross the road, so that it fills and stays full; its vehicles
+(N) are the mean of /timeseries/vehicles, its vehicle-steps N x steps. The identity check is that of its largest run.
 
   weak      N = --per-rank vehicles per rank (2.5e6: 1e7 at R = 4), --steps steps;
   strong    N = 2 x --per-rank (5e6) on R = 1, 2, 4 (R = 2 is the weak run of the same N);
@@ -21,6 +26,8 @@ The binaries are copied once at the start (a rebuild during the runs cannot mix 
 
 Usage: /usr/bin/python3 bench/mpi_ring/run.py [--per-rank 2500000] [--steps 40] [--ranks 1,2,4] [--no-identity]
            [--bin bin/wavefuel] [--mpi-bin bin/wavefuel-mpi] [--out bench/mpi_ring/results.json] [--table [JSON]]
+       /usr/bin/python3 bench/mpi_ring/run.py --road corridor [--km-per-rank 100] [--fill 1.5] [--ranks 1,2,4]
+           [--out bench/mpi_ring/results_corridor.json]
 """
 import argparse
 import datetime
@@ -41,6 +48,7 @@ ROOT = os.path.dirname(os.path.dirname(HERE))
 sys.path.insert(0, os.path.join(ROOT, "bench"))
 from machine import machine  # noqa: E402 (what a benchmark ran on)
 SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
+CORRIDOR = os.path.join(ROOT, "bench", "corridor_vs_ring", "corridor.yaml")
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 from h5same import compare  # noqa: E402 (the one comparison of two results)
 SPACING_M = 25.0  # road per vehicle, as in ring.yaml
@@ -57,9 +65,20 @@ def sha256(path):
     return h.hexdigest()
 
 
+ROAD = dict(kind="ring", fill=1.5)  # set by main: the road of the runs
+
+
 def scenario_args(n, steps):
+    """A ring of n vehicles; a corridor of n metres, simulated for `steps` steps."""
+    if ROAD["kind"] == "corridor":
+        return [CORRIDOR, "--set", f"road.length_m={n:.17g}", "--set", f"time.duration_s={steps * DT_S:.10g}"]
     return [SCENARIO, "--set", f"fleet.vehicles={n}", "--set", f"road.length_m={SPACING_M * n:.17g}",
             "--set", f"time.duration_s={steps * DT_S:.10g}"]
+
+
+def corridor_steps(length_m):
+    """Steps for a corridor of that length to fill (a vehicle at 25 m/s crosses it) and stay full, x --fill."""
+    return int(round(ROAD["fill"] * length_m / 25.0 / DT_S))
 
 
 def run_one(kind, ranks, n, steps, threads, bins, tmp, keep=None):
@@ -76,6 +95,8 @@ def run_one(kind, ranks, n, steps, threads, bins, tmp, keep=None):
     else:
         cmd = timed + [bins["one"]] + args
     env = dict(os.environ, OMP_NUM_THREADS=str(threads), **MPI_ENV)
+    if ROAD["kind"] == "corridor":  # it exchanges every step: a waiting rank gives its core to an oversubscribed one
+        env["OMPI_MCA_mpi_yield_when_idle"] = "1"
     load0 = os.getloadavg()[0]
     t0 = time.perf_counter()
     p = subprocess.run(cmd, env=env, capture_output=True, text=True)
@@ -86,9 +107,11 @@ def run_one(kind, ranks, n, steps, threads, bins, tmp, keep=None):
     for r in range(max(ranks, 1)):
         with open(f"{rss}.{r}") as f:
             rss_kib.append(int(f.read().split()[-1]))
-    header = next((line for line in p.stdout.splitlines() if "vehicle-steps/s" in line), "")
+    header = next((line for line in p.stdout.splitlines() if "vehicle-steps/s" in line or "corridor" in line), "")
     with h5py.File(out) as f:
         m = f["meta"]
+        if ROAD["kind"] == "corridor":  # its vehicles: the mean over the records
+            n = int(round(float(f["timeseries/vehicles"][()].mean())))
         res = dict(kind=kind, ranks=ranks, n=n, threads=threads, steps=int(m["steps_done"][()]),
                    loop_s=float(m["wall_time_s"][()]), proc_s=proc_s, rss_kib=rss_kib,
                    git_hash=m["git_hash"][()].decode(), header=header, load_before=load0,
@@ -117,8 +140,10 @@ def fmt_n(n):
 def table(res):
     out = []
     m = res["machine"]
+    steps = f"{res['steps']} steps of 0.1 s" if res.get("road", "ring") == "ring" else \
+        f"a corridor of {res['per_rank'] / 1000:g} km per rank (N: its mean vehicles on the road), steps as the runs say"
     out.append(f"Machine: {m['cpu']}, {m['cores']} cores ({m['mpi']}); wavefuel {res['git_hash']}; {res['date']}; "
-               f"one run each; {res['steps']} steps of 0.1 s; 1 thread per rank; ranks beyond {m['cores']} are "
+               f"one run each; {steps}; 1 thread per rank; ranks beyond {m['cores']} are "
                "oversubscribed (--oversubscribe --bind-to none): they share the cores.")
     out.append("")
     out.append("| scaling | R | N | N per rank | loop s | veh-steps/s (loop) | per rank | efficiency | "
@@ -164,7 +189,10 @@ def main():
     ap.add_argument("--per-rank", type=float, default=2.5e6, help="vehicles per rank of the weak scaling")
     ap.add_argument("--steps", type=int, default=40)
     ap.add_argument("--ranks", default="1,2,4")
-    ap.add_argument("--no-identity", action="store_true", help="skip the one-process run of the largest ring")
+    ap.add_argument("--no-identity", action="store_true", help="skip the one-process run of the largest road")
+    ap.add_argument("--road", choices=("ring", "corridor"), default="ring")
+    ap.add_argument("--km-per-rank", type=float, default=100.0, help="a corridor's road per rank of the weak scaling")
+    ap.add_argument("--fill", type=float, default=1.5, help="a corridor's simulated time, in crossing times")
     ap.add_argument("--out", default=os.path.join(HERE, "results.json"))
     ap.add_argument("--table", nargs="?", const=os.path.join(HERE, "results.json"), metavar="RESULTS_JSON",
                     help="only print the table of an existing results.json")
@@ -175,8 +203,18 @@ def main():
         return 0
     os.environ.setdefault("WAVEFUEL_VEHICLES", os.path.join(ROOT, "vehicles"))  # the copies find no classes beside them
     per, ranks = int(args.per_rank), [int(r) for r in args.ranks.split(",")]
+    ROAD.update(kind=args.road, fill=args.fill)
+    corridor = args.road == "corridor"
+    if corridor:
+        per = int(args.km_per_rank * 1000)  # metres of road per rank
+        if args.out == os.path.join(HERE, "results.json"):
+            args.out = os.path.join(HERE, "results_corridor.json")
+
+    def steps(n):
+        return corridor_steps(n) if corridor else args.steps
     res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), machine=machine("mpi", ["mpirun", "--version"], "unknown MPI"),
-               scenario=os.path.relpath(SCENARIO, ROOT), per_rank=per, steps=args.steps, runs=[])
+               scenario=os.path.relpath(CORRIDOR if corridor else SCENARIO, ROOT), road=args.road, per_rank=per,
+               steps=args.steps, runs=[])
     print(f"# {res['date']}  {res['machine']['cpu']}, {res['machine']['cores']} cores "
           f"(R > {res['machine']['cores']}: oversubscribed, the ranks share the cores); load {os.getloadavg()[0]:.2f}",
           flush=True)
@@ -187,23 +225,23 @@ def main():
         shutil.copy2(args.mpi_bin, bins["mpi"])
         res["binary_sha256"] = {k: sha256(v) for k, v in bins.items()}
         runs = res["runs"]
-        runs.append(run_one("one-proc", 0, per, args.steps, 1, bins, tmp))
+        runs.append(run_one("one-proc", 0, per, steps(per), 1, bins, tmp))
         big = os.path.join(tmp, "mpi_big.h5")
         for r in ranks:
             keep = big if r == max(ranks) and not args.no_identity else None
-            runs.append(run_one("weak", r, per * r, args.steps, 1, bins, tmp, keep=keep))
+            runs.append(run_one("weak", r, per * r, steps(per * r), 1, bins, tmp, keep=keep))
         n_strong = 2 * per
         for r in ranks:
             if r * per != n_strong:  # R = 2 is the weak run of this N
-                runs.append(run_one("strong", r, n_strong, args.steps, 1, bins, tmp))
+                runs.append(run_one("strong", r, n_strong, steps(n_strong), 1, bins, tmp))
             else:
                 runs.append(dict(next(c for c in runs if c["kind"] == "weak" and c["ranks"] == r), kind="strong"))
         if not args.no_identity:
             n_big = per * max(ranks)
             ref = os.path.join(tmp, "one_big.h5")
-            runs.append(run_one("one-proc", 0, n_big, args.steps, 2, bins, tmp, keep=ref))
+            runs.append(run_one("one-proc", 0, n_big, steps(n_big), 2, bins, tmp, keep=ref))
             count, bad = compare(ref, big)
-            res["identity"] = dict(n=n_big, ranks=max(ranks), threads=2, datasets=count, differ=bad)
+            res["identity"] = dict(n=runs[-1]["n"], ranks=max(ranks), threads=2, datasets=count, differ=bad)
             print(f"identity  N={n_big}: {count} datasets outside /meta compared: "
                   + ("identical" if not bad else f"DIFFER: {bad[:10]}"), flush=True)
     res["git_hash"] = res["runs"][0]["git_hash"]
