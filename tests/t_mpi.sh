@@ -172,28 +172,35 @@ stopped() {
   $PY -c "import h5py,sys; f=h5py.File(sys.argv[1]); s=f['meta/steps_done'][()]; \
 assert f['meta/completed'][()]==0 and 0 < s < int(sys.argv[2]), s; print(s)" "$tmp/$1.h5.partial" "$2"
 }
-interrupted i mpirun $LONG
-if [ $rc -ne 0 ] && msg=$(stopped i 60000 2>&1); then
-  ok "sigterm_to_mpirun_leaves_checkpoint (rc $rc, stopped after $msg steps)"
-  # The reason names the signal, as one process's does.
-  reason=$($PY -c "import h5py,sys; print(h5py.File(sys.argv[1])['meta/reason'][()].decode())" "$tmp/i.h5.partial")
-  if [ "$reason" = "interrupted by SIGTERM" ] && grep -q "interrupted by SIGTERM at t = " "$tmp/i.log"; then ok sigterm_named
-  else ko sigterm_named "/meta/reason '$reason'; $(grep -m1 interrupted "$tmp/i.log")"; fi
-  mpi 3 run --resume "$tmp/i.h5" -q --threads 1 >"$tmp/ri.log" 2>&1; rc=$?
-  if [ $rc -eq 0 ] && msg=$(same "$tmp/long_ref.h5" "$tmp/i.h5" 2>&1); then ok "resume_on_3_ranks ($msg)"
-  else ko resume_on_3_ranks "rc $rc: $(tail -3 "$tmp/ri.log") ${msg:-}"; fi
-else
-  ko sigterm_to_mpirun_leaves_checkpoint "rc $rc, ${msg:-}: $(tail -3 "$tmp/i.log")"
-fi
-interrupted j rank1 $LONG
-if [ $rc -eq 3 ] && msg=$(stopped j 60000 2>&1); then
-  ok "sigterm_to_rank1_stops_all (rc $rc, stopped after $msg steps)"
-  $BIN run --resume "$tmp/j.h5" -q --threads 2 >"$tmp/rj.log" 2>&1; rc=$?
-  if [ $rc -eq 0 ] && msg=$(same "$tmp/long_ref.h5" "$tmp/j.h5" 2>&1); then ok "resume_in_one_process ($msg)"
-  else ko resume_in_one_process "rc $rc: $(tail -3 "$tmp/rj.log") ${msg:-}"; fi
-else
-  ko sigterm_to_rank1_stops_all "rc $rc (3: interrupted), ${msg:-}: $(tail -3 "$tmp/j.log")"
-fi
+# sigterm_cases PREFIX STEPS REF SCENARIO...: the scenario (of STEPS steps) stopped by SIGTERM to mpirun leaves a
+# checkpoint whose reason names the signal, resumed on 3 ranks; stopped by SIGTERM to rank 1 alone (exit status 3),
+# resumed in one process; both equal REF.
+sigterm_cases() {
+  local p=$1 steps=$2 ref=$3 reason; shift 3
+  interrupted "${p}i" mpirun "$@"
+  if [ $rc -ne 0 ] && msg=$(stopped "${p}i" "$steps" 2>&1); then
+    ok "${p}sigterm_to_mpirun_leaves_checkpoint (rc $rc, stopped after $msg steps)"
+    reason=$($PY -c "import h5py,sys; print(h5py.File(sys.argv[1])['meta/reason'][()].decode())" "$tmp/${p}i.h5.partial")
+    if [ "$reason" = "interrupted by SIGTERM" ] && grep -q "interrupted by SIGTERM at t = " "$tmp/${p}i.log"; then
+      ok "${p}sigterm_named"
+    else ko "${p}sigterm_named" "/meta/reason '$reason'; $(grep -m1 interrupted "$tmp/${p}i.log")"; fi
+    mpi 3 run --resume "$tmp/${p}i.h5" -q --threads 1 >"$tmp/${p}ri.log" 2>&1; rc=$?
+    if [ $rc -eq 0 ] && msg=$(same "$ref" "$tmp/${p}i.h5" 2>&1); then ok "${p}resume_on_3_ranks ($msg)"
+    else ko "${p}resume_on_3_ranks" "rc $rc: $(tail -3 "$tmp/${p}ri.log") ${msg:-}"; fi
+  else
+    ko "${p}sigterm_to_mpirun_leaves_checkpoint" "rc $rc, ${msg:-}: $(tail -3 "$tmp/${p}i.log")"
+  fi
+  interrupted "${p}j" rank1 "$@"
+  if [ $rc -eq 3 ] && msg=$(stopped "${p}j" "$steps" 2>&1); then
+    ok "${p}sigterm_to_rank1_stops_all (rc $rc, stopped after $msg steps)"
+    $BIN run --resume "$tmp/${p}j.h5" -q --threads 2 >"$tmp/${p}rj.log" 2>&1; rc=$?
+    if [ $rc -eq 0 ] && msg=$(same "$ref" "$tmp/${p}j.h5" 2>&1); then ok "${p}resume_in_one_process ($msg)"
+    else ko "${p}resume_in_one_process" "rc $rc: $(tail -3 "$tmp/${p}rj.log") ${msg:-}"; fi
+  else
+    ko "${p}sigterm_to_rank1_stops_all" "rc $rc (3: interrupted), ${msg:-}: $(tail -3 "$tmp/${p}j.log")"
+  fi
+}
+sigterm_cases "" 60000 "$tmp/long_ref.h5" $LONG
 
 # (e) A corridor (tests/test_partition.c's): Poisson arrivals above capacity, noisy heterogeneous IDM, PI with
 # saturation under a safety filter, two classes, grades, a headway and a speed-limit zone, a prescribed-speed virtual
@@ -262,24 +269,7 @@ else ko corridor_overlaps "the reference run repaired too few overlaps to exerci
 # uninterrupted result.
 CLONG="$tmp/cor.yaml --set time.duration_s=6000"
 run $CLONG -o "$tmp/clong_ref.h5" --threads 2
-interrupted ci mpirun $CLONG
-if [ $rc -ne 0 ] && msg=$(stopped ci 60000 2>&1); then
-  ok "corridor_sigterm_to_mpirun_leaves_checkpoint (rc $rc, stopped after $msg steps)"
-  mpi 3 run --resume "$tmp/ci.h5" -q --threads 1 >"$tmp/rci.log" 2>&1; rc=$?
-  if [ $rc -eq 0 ] && msg=$(same "$tmp/clong_ref.h5" "$tmp/ci.h5" 2>&1); then ok "corridor_resume_on_3_ranks ($msg)"
-  else ko corridor_resume_on_3_ranks "rc $rc: $(tail -3 "$tmp/rci.log") ${msg:-}"; fi
-else
-  ko corridor_sigterm_to_mpirun_leaves_checkpoint "rc $rc, ${msg:-}: $(tail -3 "$tmp/ci.log")"
-fi
-interrupted cj rank1 $CLONG
-if [ $rc -eq 3 ] && msg=$(stopped cj 60000 2>&1); then
-  ok "corridor_sigterm_to_rank1_stops_all (rc $rc, stopped after $msg steps)"
-  $BIN run --resume "$tmp/cj.h5" -q --threads 2 >"$tmp/rcj.log" 2>&1; rc=$?
-  if [ $rc -eq 0 ] && msg=$(same "$tmp/clong_ref.h5" "$tmp/cj.h5" 2>&1); then ok "corridor_resume_in_one_process ($msg)"
-  else ko corridor_resume_in_one_process "rc $rc: $(tail -3 "$tmp/rcj.log") ${msg:-}"; fi
-else
-  ko corridor_sigterm_to_rank1_stops_all "rc $rc (3: interrupted), ${msg:-}: $(tail -3 "$tmp/cj.log")"
-fi
+sigterm_cases corridor_ 60000 "$tmp/clong_ref.h5" $CLONG
 
 # Refusals: exit status 2, the key or option named, no file; each case runs in one process (so it is the ranks that
 # refuse it, not the scenario).

@@ -1604,7 +1604,8 @@ typedef struct RecordSums {
     V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_masks) */
 } RecordSums;
 
-/* Vehicles [k0, k1) of one lane into the record's sums, front first, with nv class vectors (a constant at each call). Every sum is a
+/* Vehicles [k0, k1) of one lane into the record's sums, front first, with nv class vectors (a constant at each
+ * call). Every sum is a
  * register, so the pass runs at the speed of its longest chain of additions instead of a class sum's store and
  * reload per vehicle; the minimum and maximum are fmin(m, x) and fmax(m, x) as glibc gives them (m when equal or
  * when x is NaN), written as comparisons because each call of fmin cost more than the rest of the vehicle. */
@@ -2120,21 +2121,14 @@ static int corridor_window(WfCorridor *c, long step0, int k, int *done, WfError 
  * detector also from the vehicle just ahead (whose body may cover it); summed onto every rank at the end, a cell
  * holds its owner's value (the others' are +0). */
 
-/* Before the corridor is built: what a split corridor cannot be. */
+/* Before the corridor's segments are cut: what a split corridor cannot be, beyond what no split road can
+ * (wf_sim_create_part). */
 static int part_check(const WfCorridor *c, const WfPartition *p, WfError *err)
 {
     const WfScenario *sc = c->sc;
-    const char *why = c->n_lanes > 1 ? "road.lanes: a corridor of several lanes"
-                    : c->cs->has_offramp ? "corridor.off_ramp: an off-ramp"
-                    : sc->trajectories ? "output.trajectories: trajectories"
-                    : !sc->fused_step ? "time.fused_step false: steps in two passes"
+    const char *why = c->cs->has_offramp ? "corridor.off_ramp: an off-ramp"
                     : sc->block_steps > 1 ? "time.block_steps: time-blocked windows" : NULL;
     if (why) return wf_err(err, WF_EINPUT, "%s: %s cannot be split across processes (docs/mpi.md)", sc->path, why);
-    for (size_t g = 0; g < sc->n_groups; g++)
-        if (sc->groups[g].model->external)
-            return wf_err(err, WF_EINPUT, "%s: driver group '%s': model %s takes its commands from outside every step "
-                          "and cannot be split across processes (docs/mpi.md)", sc->path, sc->groups[g].name,
-                          sc->groups[g].mlp ? "mlp" : sc->groups[g].model->name);
     /* every segment longer than two vehicles and PART_MIN_M: a body never spans one, a step never crosses one */
     double len = 0.0, dx = c->edie.dx_m, least = INFINITY;
     size_t nx = c->edie.nx, R = (size_t)p->size;
@@ -2314,7 +2308,8 @@ static void part_moved(const WfCorridor *c, int r, size_t k0, size_t n, PartRec 
     if (!n) return;
     size_t rear = wf_corridor_slot(vh, k0 + n - 1);
     q->x = vh->x_m[rear], q->len = vh->length_m[rear], q->x2 = vh->x_m[wf_corridor_slot(vh, k0)];
-    for (double x; q->out < n && (x = vh->x_m[wf_corridor_slot(vh, k0 + q->out)]) >= cut; q->out++) q->skip |= x >= next;
+    for (double x; q->out < n && (x = vh->x_m[wf_corridor_slot(vh, k0 + q->out)]) >= cut; q->out++)
+        q->skip |= x >= next;
 }
 
 /* The whole road onto every rank (the records' counts), which repairs it as one process does; then every rank's
@@ -2369,7 +2364,8 @@ static int part_after(WfCorridor *c, int in_window, int kflags, WfError *err)
     p->stop_all = (sig_atomic_t)stop;
     if (skip)
         return wf_err(err, WF_EINPUT, "%s: a vehicle crossed a whole process's segment of the road in one step (at t "
-                      "= %.6g s): fewer processes (docs/mpi.md)", c->sc->path, (double)(c->meas_step + 1) * c->sc->dt_s);
+                      "= %.6g s): fewer processes (docs/mpi.md)", c->sc->path,
+                      (double)(c->meas_step + 1) * c->sc->dt_s);
     if (flags && ((rc = part_repair(c, in_window, err)) || c->fault_slot >= 0)) return rc;
     size_t out = pt->post[me].out;
     pt->n_in = me + 1 < p->size ? pt->post[me + 1].out : 0;
@@ -2410,7 +2406,8 @@ static void part_measure(WfCorridor *c, long step, int in_window)
         }
     }
     for (size_t q = 0; q < c->det.n_det; q++)
-        if (c->det.x_m[q] >= pt->cut_lo && c->det.x_m[q] < pt->cut_hi) measure_range(c, ln, step, in_window, 0, 0, q, q + 1);
+        if (c->det.x_m[q] >= pt->cut_lo && c->det.x_m[q] < pt->cut_hi)
+            measure_range(c, ln, step, in_window, 0, 0, q, q + 1);
 }
 
 /* One step of a split corridor (step_once's order on one lane). */
@@ -2483,7 +2480,8 @@ static int part_collect(WfCorridor *c, WfError *err)
     double *f64[] = {e->dist_m, e->time_s, e->fuel_g, e->class_dist_m, e->class_fuel_g, d->sum_v_mps,
                      d->sum_inv_v_spm, d->occupied_s};
     size_t len[] = {ne, ne, ne, nc * nx, nc * nx, nd, nd, nd};
-    for (size_t i = 0; !rc && i < sizeof len / sizeof len[0]; i++) rc = len[i] ? p->sum_f64(p->ctx, f64[i], len[i], err) : 0;
+    for (size_t i = 0; !rc && i < sizeof len / sizeof len[0]; i++)
+        rc = len[i] ? p->sum_f64(p->ctx, f64[i], len[i], err) : 0;
     if (!rc && nd) rc = p->sum_u64(p->ctx, (uint64_t *)d->count, nd, err);
     pt->safety_all = c->ln[0].lane.safety;
     if (!rc) rc = p->sum_u64(p->ctx, pt->safety_all.steps, WF_MAX_GROUPS, err);

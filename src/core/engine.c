@@ -298,20 +298,10 @@ static size_t part_ahead(const WfRing *s)
     return s->b_hi < wf_lane_blocks(0, s->f->n) ? s->b_hi * WF_BLOCK : 0;
 }
 
-/* Before the fleet is built: what a split ring cannot be. */
+/* Before the fleet is built: what a split ring cannot be, beyond what no split road can (wf_sim_create_part). */
 static int part_check(const WfScenario *sc, const WfPartition *p, WfError *err)
 {
     size_t n = (size_t)sc->n_vehicles;
-    const char *why = sc->n_lanes > 1 ? "road.lanes: a ring of several lanes"
-                    : sc->adaptive ? "time.integrator: a SUNDIALS integrator (fixed-step integrators only)"
-                    : sc->trajectories ? "output.trajectories: trajectories"
-                    : !sc->fused_step ? "time.fused_step false: steps in two passes" : NULL;
-    if (why) return wf_err(err, WF_EINPUT, "%s: %s cannot be split across processes (docs/mpi.md)", sc->path, why);
-    for (size_t g = 0; g < sc->n_groups; g++)
-        if (sc->groups[g].model->external)
-            return wf_err(err, WF_EINPUT, "%s: driver group '%s': model %s takes its commands from outside every step "
-                          "and cannot be split across processes (docs/mpi.md)", sc->path, sc->groups[g].name,
-                          sc->groups[g].mlp ? "mlp" : sc->groups[g].model->name);
     size_t nb = wf_lane_blocks(0, n);
     if (nb < 2 * (size_t)p->size)
         return wf_err(err, WF_EINPUT, "%s: fleet.vehicles %zu: %d processes need at least %zu vehicles (two blocks of "

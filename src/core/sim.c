@@ -35,9 +35,27 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     return wf_sim_create_part(sc, NULL, out, err);
 }
 
+/* What no road split across processes can be (each boundary refuses more: part_check in engine.c, corridor.c). */
+static int part_refusals(const WfScenario *sc, WfError *err)
+{
+    const char *why = wf_scenario_lanes(sc) > 1 ? "road.lanes: a road of several lanes"
+                    : sc->adaptive ? "time.integrator: a SUNDIALS integrator (fixed-step integrators only)"
+                    : sc->trajectories ? "output.trajectories: trajectories"
+                    : !sc->fused_step ? "time.fused_step false: steps in two passes" : NULL;
+    if (why) return wf_err(err, WF_EINPUT, "%s: %s cannot be split across processes (docs/mpi.md)", sc->path, why);
+    for (size_t g = 0; g < sc->n_groups; g++)
+        if (sc->groups[g].model->external)
+            return wf_err(err, WF_EINPUT, "%s: driver group '%s': model %s takes its commands from outside every step "
+                          "and cannot be split across processes (docs/mpi.md)", sc->path, sc->groups[g].name,
+                          sc->groups[g].mlp ? "mlp" : sc->groups[g].model->name);
+    return 0;
+}
+
 int wf_sim_create_part(const WfScenario *sc, WfPartition *part, WfSim **out, WfError *err)
 {
     *out = NULL;
+    int rc = part ? part_refusals(sc, err) : 0;
+    if (rc) return rc;
     WfSim *s = calloc(1, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     s->sc = sc;
@@ -49,7 +67,7 @@ int wf_sim_create_part(const WfScenario *sc, WfPartition *part, WfSim **out, WfE
 #else
     s->nthreads = 1;
 #endif
-    int rc = s->b->create(s, err);
+    rc = s->b->create(s, err);
     if (!rc) rc = mlp_alloc(s, err);
     if (rc) wf_sim_destroy(&s);
     *out = s;
