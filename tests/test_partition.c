@@ -52,27 +52,9 @@ static const char *overlap_yaml =
     "       indices: [1023, 1535, 2047, 2999]}\n"
     "initial: {state: equilibrium}\n";
 
-/* A corridor (tests/test_window.c's: Poisson arrivals above capacity, noisy heterogeneous IDM, PI with saturation
- * under a safety filter, two classes, grades, a headway and a speed-limit zone, a prescribed-speed virtual leader
- * that drops) with detectors at and beside the cuts between the segments of 2 and 3 ranks (Edie cells of 250 m: cuts
- * at 6000 m, and at 4000 and 8000 m). */
-static const char *corridor_yaml =
-    "seed: 17\n"
-    "road:\n  type: corridor\n  length_m: 12000\n  speed_limit_mps: 30\n"
-    "  grade: {points: [[0, 0], [3000, 0.02], [7000, -0.015], [12000, 0]]}\n"
-    "  zones:\n    - {type: headway, from_m: 2000, to_m: 4000, factor: 1.4}\n"
-    "    - {type: speed_limit, from_m: 9000, to_m: 9500, speed_limit_mps: 9}\n"
-    "time: {duration_s: 900, dt_s: 0.1, output_interval_s: 5.0, warmup_s: 450}\n"
-    "fleet:\n  placement: random\n"
-    "  classes:\n    - {class: midsize_sedan, fraction: 0.75}\n    - {class: class8_tractor, fraction: 0.25}\n"
-    "  drivers:\n"
-    "    - {model: idm, fraction: 0.8, noise_mps2: 0.2, feasible_accel: clip,\n"
-    "       heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}\n"
-    "    - {model: pi_saturation, fraction: 0.2, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}\n"
-    "corridor:\n  inflow: {flow_vph: 2600, arrivals: poisson}\n"
-    "  outflow: {type: speed, points: [[0, 25], [350, 25], [400, 5], [700, 5], [750, 25]]}\n"
-    "  detectors: {x_m: [1000, 3990, 4000, 6000, 6003, 7995, 8000, 11900], interval_s: 60}\n"
-    "  edie: {dx_m: 250, dt_s: 30}\n";
+/* A corridor (wf_test.h) with detectors at and beside the cuts between the segments of 2 and 3 ranks (Edie cells of
+ * 250 m: cuts at 6000 m, and at 4000 and 8000 m). */
+static const char *corridor_yaml = WF_TEST_CORRIDOR_YAML;
 
 /* Noise far beyond what the brakes absorb, in queues behind three slow zones that start past the cuts between the
  * segments (3000 m; 2000 and 4000 m) and a virtual leader that slows to 3 m/s: overlaps repaired along the road, some

@@ -43,27 +43,8 @@ static const char *overlap_yaml =
     "  drivers: [{model: idm, fraction: 1, noise_mps2: 5, decel_max_mps2: 0.5}]\n"
     "initial: {state: equilibrium}\n";
 
-/* A corridor with every part of its state a window touches: Poisson arrivals above what the road takes (a queue at
- * the entrance), noisy heterogeneous IDM with the feasible clip, a PI-with-saturation controller with memory under
- * a safety filter, two classes, a grade profile, a headway and a speed-limit zone, a prescribed-speed virtual leader
- * that drops (a queue from the exit, and its restarts at each exit), detectors and Edie cells. */
-static const char *corridor_yaml =
-    "seed: 17\n"
-    "road:\n  type: corridor\n  length_m: 12000\n  speed_limit_mps: 30\n"
-    "  grade: {points: [[0, 0], [3000, 0.02], [7000, -0.015], [12000, 0]]}\n"
-    "  zones:\n    - {type: headway, from_m: 2000, to_m: 4000, factor: 1.4}\n"
-    "    - {type: speed_limit, from_m: 9000, to_m: 9500, speed_limit_mps: 9}\n"
-    "time: {duration_s: 900, dt_s: 0.1, output_interval_s: 5.0, warmup_s: 450}\n"
-    "fleet:\n  placement: random\n"
-    "  classes:\n    - {class: midsize_sedan, fraction: 0.75}\n    - {class: class8_tractor, fraction: 0.25}\n"
-    "  drivers:\n"
-    "    - {model: idm, fraction: 0.8, noise_mps2: 0.2, feasible_accel: clip,\n"
-    "       heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}\n"
-    "    - {model: pi_saturation, fraction: 0.2, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}\n"
-    "corridor:\n  inflow: {flow_vph: 2600, arrivals: poisson}\n"
-    "  outflow: {type: speed, points: [[0, 25], [350, 25], [400, 5], [700, 5], [750, 25]]}\n"
-    "  detectors: {x_m: [1000, 6000, 11900], interval_s: 60}\n"
-    "  edie: {dx_m: 250, dt_s: 30}\n";
+/* A corridor with every part of its state a window touches (wf_test.h). */
+static const char *corridor_yaml = WF_TEST_CORRIDOR_YAML;
 
 /* Noise far beyond what the brakes absorb on a corridor: overlaps, and windows redone. */
 static const char *corridor_overlap_yaml =

@@ -74,6 +74,30 @@ static void wf_test_setup_(void)
         memcpy((dst)->class_fuel_rate_gps, (rec)->class_fuel_rate_gps, (n_classes) * sizeof(double)); \
     } while (0)
 
+/* A corridor with every part of the state a time-blocked window or a split across processes touches (tests/
+ * test_window.c, tests/test_partition.c): Poisson arrivals above what the road takes (a queue at the entrance), noisy
+ * heterogeneous IDM with the feasible clip, a PI-with-saturation controller with memory under a safety filter, two
+ * classes, a grade profile, a headway and a speed-limit zone, a prescribed-speed virtual leader that drops (a queue
+ * from the exit, and its restarts at each exit), Edie cells of 250 m and detectors at and beside 3000, 4000, 6000,
+ * 8000 and 9000 m (the cuts between the segments of 2, 3 and 4 processes). */
+#define WF_TEST_CORRIDOR_YAML \
+    "seed: 17\n" \
+    "road:\n  type: corridor\n  length_m: 12000\n  speed_limit_mps: 30\n" \
+    "  grade: {points: [[0, 0], [3000, 0.02], [7000, -0.015], [12000, 0]]}\n" \
+    "  zones:\n    - {type: headway, from_m: 2000, to_m: 4000, factor: 1.4}\n" \
+    "    - {type: speed_limit, from_m: 9000, to_m: 9500, speed_limit_mps: 9}\n" \
+    "time: {duration_s: 900, dt_s: 0.1, output_interval_s: 5.0, warmup_s: 450}\n" \
+    "fleet:\n  placement: random\n" \
+    "  classes:\n    - {class: midsize_sedan, fraction: 0.75}\n    - {class: class8_tractor, fraction: 0.25}\n" \
+    "  drivers:\n" \
+    "    - {model: idm, fraction: 0.8, noise_mps2: 0.2, feasible_accel: clip,\n" \
+    "       heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}\n" \
+    "    - {model: pi_saturation, fraction: 0.2, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}\n" \
+    "corridor:\n  inflow: {flow_vph: 2600, arrivals: poisson}\n" \
+    "  outflow: {type: speed, points: [[0, 25], [350, 25], [400, 5], [700, 5], [750, 25]]}\n" \
+    "  detectors: {x_m: [1000, 2998, 3000, 3990, 4000, 6000, 6003, 7995, 8000, 9000, 11900], interval_s: 60}\n" \
+    "  edie: {dx_m: 250, dt_s: 30}\n"
+
 #define TEST_EXIT() return wf_test_fail_total_ ? 1 : 0
 
 /* A scenario text in a new temporary directory: dir is a mkdtemp template ("/tmp/x_XXXXXX", filled in), path
