@@ -74,8 +74,8 @@ static const char *corridor_overlap_yaml =
 /* What a run leaves: its records (and a corridor's trips) as doubles, its state after the run (rank 0: gathered),
  * its summary, its steps. */
 typedef struct Out {
-    double *vals;
-    size_t n_vals, cap_vals, n_rows, n_trips;
+    WfTestVals vals;
+    size_t n_rows, n_trips;
     unsigned char *state;
     size_t state_size;
     WfSummary summary;
@@ -83,23 +83,12 @@ typedef struct Out {
     int rc;
 } Out;
 
-static void keep_vals(Out *o, const double *v, size_t n)
-{
-    if (o->n_vals + n > o->cap_vals) {
-        o->cap_vals = 2 * (o->n_vals + n);
-        o->vals = realloc(o->vals, o->cap_vals * sizeof(double));
-        if (!o->vals) abort();
-    }
-    memcpy(o->vals + o->n_vals, v, n * sizeof(double));
-    o->n_vals += n;
-}
-
 static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
     (void)err;
     Out *o = ctx;
-    keep_vals(o, rec->v, rec->n);
-    keep_vals(o, rec->class_fuel_rate_gps, wf_sim_scenario(sim)->n_classes);
+    wf_test_keep(&o->vals, rec->v, rec->n);
+    wf_test_keep(&o->vals, rec->class_fuel_rate_gps, wf_sim_scenario(sim)->n_classes);
     o->n_rows++;
     return 0;
 }
@@ -108,13 +97,7 @@ static int keep_trips(void *ctx, const WfSim *sim, const WfTrip *trips, size_t n
 {
     (void)sim, (void)err;
     Out *o = ctx;
-    for (size_t k = 0; k < n; k++) {
-        const WfTrip *t = &trips[k];
-        double v[] = {(double)t->serial, t->class_id, t->group_id, t->completed, t->t_arrival_s, t->t_entry_s,
-                      t->t_exit_s, t->v_entry_mps, t->fuel_g, t->dist_m, t->time_stopped_s, t->stops,
-                      t->hard_brakes, t->infeasible_steps};
-        keep_vals(o, v, sizeof v / sizeof v[0]);
-    }
+    for (size_t k = 0; k < n; k++) wf_test_keep_trip(&o->vals, &trips[k]);
     o->n_trips += n;
     return 0;
 }
@@ -331,7 +314,7 @@ static void run_one(const char *path, const char *const *set, size_t n_set, Out 
 
 static void out_free(Out *o, int n)
 {
-    for (int k = 0; k < n; k++) free(o[k].state), free(o[k].vals), o[k].state = NULL, o[k].vals = NULL;
+    for (int k = 0; k < n; k++) free(o[k].state), free(o[k].vals.v), o[k].state = NULL, o[k].vals = (WfTestVals){0};
 }
 
 static void compare(const Out *o, const Out *ref, const char *what)
@@ -340,12 +323,10 @@ static void compare(const Out *o, const Out *ref, const char *what)
     CHECK(o->n_rows == ref->n_rows && o->n_rows > 0 && o->n_trips == ref->n_trips,
           "%s: %zu records and %zu trips, one process %zu and %zu", what, o->n_rows, o->n_trips, ref->n_rows,
           ref->n_trips);
-    size_t first = 0;
-    while (first < o->n_vals && first < ref->n_vals && !memcmp(&o->vals[first], &ref->vals[first], sizeof(double)))
-        first++;
-    CHECK(o->n_vals == ref->n_vals && first == o->n_vals, "%s: records and trips differ from value %zu of %zu (%.17g, "
-          "one process %.17g)", what, first, ref->n_vals, first < o->n_vals ? o->vals[first] : NAN,
-          first < ref->n_vals ? ref->vals[first] : NAN);
+    size_t first = 0, n = o->vals.n, nr = ref->vals.n;
+    while (first < n && first < nr && !memcmp(&o->vals.v[first], &ref->vals.v[first], sizeof(double))) first++;
+    CHECK(n == nr && first == n, "%s: records and trips differ from value %zu of %zu (%.17g, one process %.17g)", what,
+          first, nr, first < n ? o->vals.v[first] : NAN, first < nr ? ref->vals.v[first] : NAN);
     CHECK(o->state_size == ref->state_size && memcmp(o->state, ref->state, o->state_size) == 0,
           "%s: the state after the run (accumulators, modes, controller memory, safety counts) differs", what);
     CHECK(memcmp(&o->summary, &ref->summary, sizeof o->summary) == 0, "%s: the summary differs", what);

@@ -60,30 +60,19 @@ typedef struct Out {
     double *x, *v;
     WfTsRow rows[128];          /* a ring's first records */
     size_t n_rows;
-    double *vals;               /* every record's values and class fuel rates, then (a corridor) every trip's fields */
-    size_t n_vals, cap_vals, n_trips;
+    WfTestVals vals;            /* every record's values and class fuel rates, then (a corridor) every trip's fields */
+    size_t n_trips;
     unsigned char *state;
     size_t state_size;
     long windows, redone;
 } Out;
 
-static void keep_vals(Out *o, const double *v, size_t n)
-{
-    if (o->n_vals + n > o->cap_vals) {
-        o->cap_vals = 2 * (o->n_vals + n);
-        o->vals = realloc(o->vals, o->cap_vals * sizeof(double));
-        if (!o->vals) abort();
-    }
-    memcpy(o->vals + o->n_vals, v, n * sizeof(double));
-    o->n_vals += n;
-}
-
 static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
 {
     (void)err;
     Out *o = ctx;
-    keep_vals(o, rec->v, rec->n);
-    keep_vals(o, rec->class_fuel_rate_gps, wf_sim_scenario(sim)->n_classes);
+    wf_test_keep(&o->vals, rec->v, rec->n);
+    wf_test_keep(&o->vals, rec->class_fuel_rate_gps, wf_sim_scenario(sim)->n_classes);
     if (rec->n == WF_TS_N_COLS && o->n_rows < sizeof o->rows / sizeof o->rows[0]) {
         WfTsRow *row = &o->rows[o->n_rows++];
         WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(sim)->n_classes);
@@ -96,19 +85,13 @@ static int keep_trips(void *ctx, const WfSim *sim, const WfTrip *tr, size_t n, W
 {
     (void)sim, (void)err;
     Out *o = ctx;
-    for (size_t k = 0; k < n; k++, o->n_trips++) {
-        const WfTrip *t = &tr[k];
-        double f[] = {(double)t->serial, t->class_id, t->group_id, t->completed, t->t_arrival_s, t->t_entry_s,
-                      t->t_exit_s, t->v_entry_mps, t->fuel_g, t->dist_m, t->time_stopped_s, t->stops,
-                      t->hard_brakes, t->infeasible_steps, t->lane, t->lane_changes};
-        keep_vals(o, f, sizeof f / sizeof f[0]);
-    }
+    for (size_t k = 0; k < n; k++, o->n_trips++) wf_test_keep_trip(&o->vals, &tr[k]);
     return 0;
 }
 
 static void out_free(Out *o)
 {
-    free(o->x), free(o->v), free(o->state), free(o->vals);
+    free(o->x), free(o->v), free(o->state), free(o->vals.v);
     memset(o, 0, sizeof *o);
 }
 
@@ -153,8 +136,8 @@ static void compare(const Out *o, const Out *ref, const char *what)
     if (!o->x || !ref->x) return;
     CHECK(memcmp(o->x, ref->x, o->n * sizeof(double)) == 0, "%s: positions differ", what);
     CHECK(memcmp(o->v, ref->v, o->n * sizeof(double)) == 0, "%s: speeds differ", what);
-    CHECK(o->n_vals == ref->n_vals && o->n_vals > 0 && memcmp(o->vals, ref->vals, o->n_vals * sizeof(double)) == 0,
-          "%s: the records or trips differ (%zu values, reference %zu)", what, o->n_vals, ref->n_vals);
+    CHECK(o->vals.n == ref->vals.n && o->vals.n > 0 && memcmp(o->vals.v, ref->vals.v, o->vals.n * sizeof(double)) == 0,
+          "%s: the records or trips differ (%zu values, reference %zu)", what, o->vals.n, ref->vals.n);
     CHECK(o->n_trips == ref->n_trips, "%s: %zu trips, reference %zu", what, o->n_trips, ref->n_trips);
     for (size_t r = 0; r < o->n_rows && r < ref->n_rows; r++)
         CHECK(memcmp(&o->rows[r], &ref->rows[r], sizeof o->rows[r]) == 0, "%s: record %zu (t = %g s) differs", what, r,

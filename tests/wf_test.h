@@ -9,6 +9,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "wavefuel/corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/vehicle.h"
 
@@ -73,6 +74,32 @@ static void wf_test_setup_(void)
         memcpy((dst)->v, (rec)->v, (rec)->n * sizeof *(rec)->v);                                    \
         memcpy((dst)->class_fuel_rate_gps, (rec)->class_fuel_rate_gps, (n_classes) * sizeof(double)); \
     } while (0)
+
+/* Values kept in the order they come: a run's records and trips, compared bit for bit. */
+typedef struct WfTestVals {
+    double *v;
+    size_t  n, cap;
+} WfTestVals;
+
+static inline void wf_test_keep(WfTestVals *o, const double *v, size_t n)
+{
+    if (o->n + n > o->cap) {
+        o->cap = 2 * (o->n + n);
+        o->v = realloc(o->v, o->cap * sizeof(double));
+        if (!o->v) abort();
+    }
+    memcpy(o->v + o->n, v, n * sizeof(double));
+    o->n += n;
+}
+
+/* A corridor's trip, field by field. */
+static inline void wf_test_keep_trip(WfTestVals *o, const WfTrip *t)
+{
+    double f[] = {(double)t->serial, t->class_id, t->group_id, t->completed, t->t_arrival_s, t->t_entry_s,
+                  t->t_exit_s, t->v_entry_mps, t->fuel_g, t->dist_m, t->time_stopped_s, t->stops,
+                  t->hard_brakes, t->infeasible_steps, t->lane, t->lane_changes};
+    wf_test_keep(o, f, sizeof f / sizeof f[0]);
+}
 
 /* A corridor with every part of the state a time-blocked window or a split across processes touches (tests/
  * test_window.c, tests/test_partition.c): Poisson arrivals above what the road takes (a queue at the entrance), noisy
