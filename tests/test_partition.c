@@ -71,6 +71,17 @@ static const char *corridor_overlap_yaml =
     "  outflow: {type: speed, points: [[0, 20], [200, 20], [260, 3], [600, 3]]}\n"
     "  detectors: {x_m: [1995, 3000, 4001], interval_s: 30}\n  edie: {dx_m: 500, dt_s: 20}\n";
 
+/* Vehicles far apart behind a prescribed-speed leader: the exit's segment is often empty, so the front vehicle
+ * follows the leader from another rank, and the leader restarts behind each vehicle that leaves (rank 0's exits). */
+static const char *corridor_sparse_yaml =
+    "seed: 9\nroad: {type: corridor, length_m: 6000}\n"
+    "time: {duration_s: 1200, dt_s: 0.1, output_interval_s: 3.0}\n"
+    "fleet:\n  classes: [{class: midsize_sedan, fraction: 1}]\n"
+    "  drivers: [{model: idm, fraction: 1, noise_mps2: 0.3}]\n"
+    "corridor:\n  inflow: {flow_vph: 45}\n"
+    "  outflow: {type: speed, points: [[0, 22], [600, 18], [1200, 22]]}\n"
+    "  detectors: {x_m: [1999, 3000, 4000], interval_s: 60}\n  edie: {dx_m: 500, dt_s: 30}\n";
+
 /* What a run leaves: its records (and a corridor's trips) as doubles, its state after the run (rank 0: gathered),
  * its summary, its steps. */
 typedef struct Out {
@@ -385,7 +396,7 @@ static void corridor_split_equals_one(const char *yaml, const char *name, int ne
         }
     printf("  %s: %zu records, %zu trips, %lld overlaps repaired\n", name, ref->n_rows, ref->n_trips,
            (long long)ref->summary.counts.overlaps);
-    CHECK(ref->n_trips > 100, "%s: only %zu trips", name, ref->n_trips);
+    CHECK(ref->n_trips > 10, "%s: only %zu trips", name, ref->n_trips);
     if (need_overlaps) CHECK(ref->summary.counts.overlaps > 0, "%s: no overlap was repaired", name);
     out_free(ref, 1);
     free(ref), free(out);
@@ -393,6 +404,7 @@ static void corridor_split_equals_one(const char *yaml, const char *name, int ne
 }
 
 static void test_corridor(void) { corridor_split_equals_one(corridor_yaml, "corridor", 0); }
+static void test_corridor_sparse(void) { corridor_split_equals_one(corridor_sparse_yaml, "sparse corridor", 0); }
 static void test_corridor_overlaps(void) { corridor_split_equals_one(corridor_overlap_yaml, "overlapping corridor", 1); }
 
 static void test_noisy_ring_with_controllers(void) { split_equals_one(ring_yaml, "graded ring, controllers", 0); }
@@ -422,5 +434,6 @@ int main(void)
     RUN(test_stop_on_one_rank);
     RUN(test_corridor);
     RUN(test_corridor_overlaps);
+    RUN(test_corridor_sparse);
     TEST_EXIT();
 }

@@ -140,14 +140,15 @@ typedef struct CorWindow {
                                * began (the interior's are window.c's) */
 } CorWindow;
 
-/* A corridor split across processes (docs/mpi.md, "Corridors"): what a rank tells every other (the allgather),
- * twice a step. Before the step: its vehicles and its rear vehicle (x, v, length) at the step's start, and (rank 0)
- * the speed outflow's virtual leader after its exits. After the kernel: its rear vehicle's x and length and its front
- * vehicle's x (x2) as they moved, the vehicles that crossed into the segment ahead (out; skip: one crossed a whole
- * segment), its WF_STEP_* flags with its stop request above PART_STOP_SHIFT, and the overlap repairs it made alone. */
+/* A corridor split across processes (docs/mpi.md): what a rank tells every other once a step (the allgather),
+ * after the kernel moved its n vehicles: its rear vehicle (x, v, length) and front vehicle's x (x2); those that
+ * crossed into the segment ahead (out, the rearmost of them at out_x, out_v, out_len; skip: one crossed a whole
+ * segment); those at or past the exit from the front (past, the rearmost at past_x, past_len); its WF_STEP_* flags
+ * with its stop request above PART_STOP_SHIFT; the overlap repairs it made alone. From every rank's record each rank
+ * knows every rank's vehicles and rear vehicle at the next step's start (the same table, CorPart.pre). */
 typedef struct PartRec {
-    double   x, v, len, x2, vl_xref, vl_iref, vl_x;
-    uint64_t n, out, skip, flags, repairs;
+    double   x, v, len, x2, out_x, out_v, out_len, past_x, past_len;
+    uint64_t n, out, skip, past, flags, repairs;
 } PartRec;
 enum { PART_STOP_SHIFT = 8 };
 
@@ -161,7 +162,7 @@ typedef struct CorPart {
     size_t   i_lo, i_hi;
     size_t   k_lo, n_own, first_own, n_in;
     size_t   kb, ke;         /* the measurement's road indices */
-    PartRec *pre, *post;     /* every rank's records of the step */
+    PartRec *pre, *post;     /* every rank's vehicles and rear vehicle at the step's start; its record of the step */
     size_t   vbytes;         /* a packed vehicle */
     unsigned char *out, *in, *all; /* packed vehicles: crossing out, crossing in, the whole road */
     size_t  *off;
@@ -2215,21 +2216,6 @@ static void part_layout(WfCorridor *c)
     pt->first_own = (vh->first + behind) % vh->cap;
 }
 
-/* The step's start: every rank's vehicles and rear vehicle, rank 0's virtual leader after its exits. */
-static int part_before(WfCorridor *c, WfError *err)
-{
-    CorPart *pt = &c->pt;
-    const WfCorridorVehicles *vh = &c->ln[0].veh;
-    struct CorEntrance *en = &c->st.lane[0];
-    PartRec me = {.n = pt->n_own, .vl_xref = en->vl_xref, .vl_iref = en->vl_iref, .vl_x = en->vl_x};
-    if (pt->n_own) me.x = vh->x_m[pt->first_own], me.v = vh->v_mps[pt->first_own], me.len = vh->length_m[pt->first_own];
-    int rc = pt->p->allgather(pt->p->ctx, &me, pt->pre, sizeof me, err);
-    if (rc) return rc;
-    en->vl_xref = pt->pre[0].vl_xref, en->vl_iref = pt->pre[0].vl_iref, en->vl_x = pt->pre[0].vl_x;
-    part_layout(c);
-    return 0;
-}
-
 /* The nearest rank ahead of this one that holds vehicles (records rec), or -1. */
 static int part_ahead(const CorPart *pt, const PartRec *rec)
 {
@@ -2298,18 +2284,48 @@ static double part_cut(const WfCorridor *c, int r)
     return r <= 0 ? INFINITY : (double)(c->edie.nx * (R - (size_t)r) / R) * c->edie.dx_m;
 }
 
-/* Rank r's record after the kernel moved its n vehicles, road indices from k0: its rear and front vehicles, those
- * that crossed its upper cut and whether one crossed the next cut too. */
+/* Rank r's record after the kernel moved its n vehicles, road indices from k0 (PartRec). */
 static void part_moved(const WfCorridor *c, int r, size_t k0, size_t n, PartRec *q)
 {
     const WfCorridorVehicles *vh = &c->ln[0].veh;
-    double cut = part_cut(c, r), next = part_cut(c, r - 1);
-    q->n = n, q->out = q->skip = 0;
+    /* the cut beyond the segment ahead (for rank 1, the exit): crossing it too skips a segment */
+    double cut = part_cut(c, r), next = r == 1 ? c->L : part_cut(c, r - 1);
+    q->n = n, q->out = q->skip = q->past = 0;
     if (!n) return;
-    size_t rear = wf_corridor_slot(vh, k0 + n - 1);
-    q->x = vh->x_m[rear], q->len = vh->length_m[rear], q->x2 = vh->x_m[wf_corridor_slot(vh, k0)];
-    for (double x; q->out < n && (x = vh->x_m[wf_corridor_slot(vh, k0 + q->out)]) >= cut; q->out++)
-        q->skip |= x >= next;
+    size_t rear = wf_corridor_slot(vh, k0 + n - 1), s;
+    q->x = vh->x_m[rear], q->v = vh->v_mps[rear], q->len = vh->length_m[rear], q->x2 = vh->x_m[wf_corridor_slot(vh, k0)];
+    for (; q->out < n && vh->x_m[s = wf_corridor_slot(vh, k0 + q->out)] >= cut; q->out++) {
+        q->skip |= vh->x_m[s] >= next;
+        q->out_x = vh->x_m[s], q->out_v = vh->v_mps[s], q->out_len = vh->length_m[s];
+    }
+    for (; q->past < n && vh->x_m[s = wf_corridor_slot(vh, k0 + q->past)] >= c->L; q->past++)
+        q->past_x = vh->x_m[s], q->past_len = vh->length_m[s];
+}
+
+/* After the step: every rank's vehicles and rear vehicle at the next step's start (pre) from the records, as the
+ * vehicles crossing the cuts and leaving at the exit change them; the speed outflow's leader restarts behind the last
+ * vehicle that left, as rank 0's exits set it (phase_exits). */
+static void part_next(WfCorridor *c, double t_end)
+{
+    CorPart *pt = &c->pt;
+    const PartRec *post = pt->post;
+    int R = pt->p->size;
+    uint64_t exits = post[0].past; /* none of the vehicles crossing into rank 0's segment (part_moved) */
+    if (exits && c->cs->outflow == WF_OUTFLOW_SPEED && pt->p->rank) {
+        struct CorEntrance *en = &c->st.lane[0];
+        size_t seg = en->vl_seg;
+        en->vl_xref = post[0].past_x - post[0].past_len;
+        en->vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
+        en->vl_x = en->vl_xref;
+    }
+    for (int r = 0; r < R; r++) {
+        const PartRec *in = r + 1 < R && post[r + 1].out ? &post[r + 1] : NULL;
+        PartRec *q = &pt->pre[r];
+        *q = (PartRec){.n = post[r].n - post[r].out + (in ? in->out : 0) - (r ? 0 : exits)};
+        if (in) q->x = in->out_x, q->v = in->out_v, q->len = in->out_len;
+        else q->x = post[r].x, q->v = post[r].v, q->len = post[r].len;
+    }
+    part_layout(c);
 }
 
 /* The whole road onto every rank (the records' counts), which repairs it as one process does; then every rank's
@@ -2418,7 +2434,7 @@ static int part_step_once(WfCorridor *c, long step, WfError *err)
     CorLane *ln = &c->ln[0];
     double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
     int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps, rc, flags;
-    if ((rc = part_before(c, err)) || (rc = arrivals(c, t, err))) return rc;
+    if ((rc = arrivals(c, t, err))) return rc;
     size_t n0 = ln->veh.n;
     if ((rc = entrance(c, t, step, err))) return rc;
     pt->pre[pt->p->size - 1].n += ln->veh.n - n0; /* an entry joins the last rank */
@@ -2438,11 +2454,8 @@ static int part_step_once(WfCorridor *c, long step, WfError *err)
     if ((rc = part_after(c, in_window, flags, err))) return rc;
     if (c->fault_slot >= 0) return numerical_fault(c, step, err);
     part_measure(c, step, in_window);
-    size_t here = pt->n_own + pt->n_in, n1 = ln->veh.n;
-    if (pt->p->rank == 0 && (rc = phase_exits(c, ln, t_next, in_window, here, err))) return rc;
-    /* what this rank holds for the next step: its vehicles that stayed, those that came, less those that left */
-    pt->n_own = here - pt->post[pt->p->rank].out - (n1 - ln->veh.n);
-    pt->first_own = (pt->first_own + ln->veh.cap - pt->n_in) % ln->veh.cap;
+    if (pt->p->rank == 0 && (rc = phase_exits(c, ln, t_next, in_window, pt->n_own + pt->n_in, err))) return rc;
+    part_next(c, t_next);
     return 0;
 }
 
@@ -2452,16 +2465,14 @@ static int part_collect(WfCorridor *c, WfError *err)
 {
     CorPart *pt = &c->pt;
     WfPartition *p = pt->p;
-    PartRec me = {.n = pt->n_own};
-    int rc = p->allgather(p->ctx, &me, pt->pre, sizeof me, err);
-    if (rc) return rc;
-    part_layout(c);
+    int rc;
     size_t k = 0, nx = c->edie.nx, nc = c->sc->n_classes;
     for (int r = 0; r < p->size; k += pt->pre[r++].n) pt->off[r] = k * pt->vbytes;
     pt->off[p->size] = k * pt->vbytes;
     part_pack(c, pt->k_lo, pt->n_own, pt->all + pt->k_lo * pt->vbytes, 0);
     if ((rc = p->gather(p->ctx, pt->all, pt->off, 0, err))) return rc;
     if (p->rank == 0) part_pack(c, 0, c->ln[0].veh.n, pt->all, 1);
+    pt->n_in = 0;
     WfEdie *e = &c->edie;
     for (size_t j = 0; j < e->nt + nc; j++) /* the rows of each field, then the class profiles' */
         for (size_t i = 0; i < nx; i++) {
@@ -2489,16 +2500,23 @@ static int part_collect(WfCorridor *c, WfError *err)
     return rc;
 }
 
-/* After a restore: this rank's vehicles, those whose fronts are on its segment. */
+/* After a restore (every rank holds the whole road): every rank's vehicles, those whose fronts are on its segment,
+ * and rear vehicle. */
 static void part_restored(WfCorridor *c)
 {
     CorPart *pt = &c->pt;
     const WfCorridorVehicles *vh = &c->ln[0].veh;
-    size_t k0 = 0, k1;
-    while (k0 < vh->n && vh->x_m[wf_corridor_slot(vh, k0)] >= pt->cut_hi) k0++;
-    for (k1 = k0; k1 < vh->n && vh->x_m[wf_corridor_slot(vh, k1)] >= pt->cut_lo; k1++) {}
-    pt->k_lo = k0, pt->n_own = k1 - k0, pt->n_in = 0;
-    pt->first_own = k1 > k0 ? wf_corridor_slot(vh, k1 - 1) : vh->first;
+    for (int r = 0, k = 0; r < pt->p->size; r++) {
+        size_t k1 = (size_t)k, s = 0;
+        double lo = r + 1 == pt->p->size ? -INFINITY : part_cut(c, r + 1);
+        while (k1 < vh->n && vh->x_m[s = wf_corridor_slot(vh, k1)] >= lo) k1++;
+        PartRec *q = &pt->pre[r];
+        *q = (PartRec){.n = k1 - (size_t)k};
+        if (q->n) s = wf_corridor_slot(vh, k1 - 1), q->x = vh->x_m[s], q->v = vh->v_mps[s], q->len = vh->length_m[s];
+        k = (int)k1;
+    }
+    part_layout(c);
+    pt->n_in = 0;
     if (pt->p->rank) c->ln[0].lane.safety = (WfSafetyCount){{0}, {0}}; /* rank 0 holds the restored counts */
 }
 
