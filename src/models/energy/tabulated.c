@@ -752,9 +752,6 @@ static void tab_release(void *params)
 const WfEnergyModel wf_energy_tabulated = {
     .name = "tabulated",
     .param_size = sizeof(WfTabulatedParams),
-    .spec = NULL,
-    .n_spec = 0,
-    .check = NULL,
     .eval = tab_eval,
     .a_max = tab_a_max,
     .load = tab_load,
