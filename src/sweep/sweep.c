@@ -349,32 +349,28 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
 static int parse_seeds(WfCfgNode *root, int64_t **out, size_t *n_out, struct WfSweepPool *pool, WfError *err)
 {
     WfCfgNode *c = wf_cfg_child(root, "seeds"), *seq = NULL;
+    long n = 0;
     *n_out = 0;
     if (c && c->kind == WF_CFG_SEQ) {
         if (wf_cfg_seq_opt(root, "seeds", &seq, err)) return WF_EINPUT;
         if (!seq->n_child) return wf_err(err, WF_EINPUT, "%s:%d: seeds: an empty list", seq->file, seq->line);
-        int64_t *s = pool_calloc(pool, seq->n_child, sizeof *s);
-        if (!s) return wf_err(err, WF_ESYS, "out of memory");
-        for (size_t i = 0; i < seq->n_child; i++) {
-            long v;
-            WfCfgNode *it = seq->child[i];
-            char w[1100];
-            it->used = 1;
-            if (it->kind != WF_CFG_SCALAR || wf_parse_long(it->value, 0, 2147483647L, &v))
-                return wf_err(err, WF_EINPUT, "%s: expected a seed, an integer in [0, 2147483647] (got '%s')",
-                              where(it, w, sizeof w), it->kind == WF_CFG_SCALAR ? it->value : "a map or list");
-            s[i] = v;
-        }
-        *out = s;
-        *n_out = seq->n_child;
-        return 0;
+        n = (long)seq->n_child;
+    } else if (wf_cfg_long_opt(root, "seeds", 1, 1000000, &n, err)) {
+        return WF_EINPUT;
     }
-    long n = 0;
-    if (wf_cfg_long_opt(root, "seeds", 1, 1000000, &n, err)) return WF_EINPUT;
     if (!n) return 0;
     int64_t *s = pool_calloc(pool, (size_t)n, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
-    for (long i = 0; i < n; i++) s[i] = i + 1;
+    for (long i = 0; i < n; i++) {
+        long v = i + 1;
+        WfCfgNode *it = seq ? seq->child[i] : NULL;
+        char w[1100];
+        if (it) it->used = 1;
+        if (it && (it->kind != WF_CFG_SCALAR || wf_parse_long(it->value, 0, 2147483647L, &v)))
+            return wf_err(err, WF_EINPUT, "%s: expected a seed, an integer in [0, 2147483647] (got '%s')",
+                          where(it, w, sizeof w), it->kind == WF_CFG_SCALAR ? it->value : "a map or list");
+        s[i] = v;
+    }
     *out = s;
     *n_out = (size_t)n;
     return 0;
@@ -419,13 +415,6 @@ static int parse_runs(WfSweep *sw, WfCfgNode *runs, SetList **lists_out, WfError
         snprintf(sw->axes[ax].units, sizeof sw->axes[ax].units, "%s",
                  sw->axes[ax].numeric ? unit_of_key(sw->axes[ax].keys) : "");
     *lists_out = lists;
-    return 0;
-}
-
-static int resolve_scenario(WfSweep *sw, const char *scen, WfError *err)
-{
-    if (wf_path_relative_to(sw->path, scen, sw->scenario_path, sizeof sw->scenario_path))
-        return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
     return 0;
 }
 
@@ -501,16 +490,16 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
                       "not both", where(runs, w, sizeof w));
     /* The name names output/NAME.h5 (and the table's rows): a plain file name that fits, never cut. */
     const char *base = wf_path_base(sw->path);
-    int stem_len = (int)strcspn(base, ".");
     char stem[1024];
-    snprintf(stem, sizeof stem, "%.*s", stem_len, base);
-    const char *problem = wf_path_plain_name_problem(name ? name : stem, sizeof sw->name - 1);
+    snprintf(stem, sizeof stem, "%.*s", (int)strcspn(base, "."), base);
+    const char *chosen = name ? name : stem, *problem = wf_path_plain_name_problem(chosen, sizeof sw->name - 1);
     if (problem)
         return wf_err(err, WF_EINPUT, "%s '%.200s' %s (at most %zu bytes)%s",
-                      name ? where(wf_cfg_child(root, "name"), w, sizeof w) : sw->path, name ? name : stem, problem,
+                      name ? where(wf_cfg_child(root, "name"), w, sizeof w) : sw->path, chosen, problem,
                       sizeof sw->name - 1, name ? "" : ": the file's stem is the default name; set `name:`");
-    memcpy(sw->name, name ? name : stem, strlen(name ? name : stem) + 1); /* fits: checked above */
-    if (resolve_scenario(sw, scen, err)) return WF_EINPUT;
+    memcpy(sw->name, chosen, strlen(chosen) + 1); /* fits: checked above */
+    if (wf_path_relative_to(sw->path, scen, sw->scenario_path, sizeof sw->scenario_path))
+        return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
     int n = output ? snprintf(sw->output, sizeof sw->output, "%s", output)
                    : snprintf(sw->output, sizeof sw->output, WF_OUTPUT_DEFAULT_DIR "/%s.h5", sw->name);
     if (n < 0 || (size_t)n >= sizeof sw->output) return wf_err(err, WF_EINPUT, "%s: output path too long", sw->path);
@@ -613,31 +602,26 @@ int wf_sweep_overrides(const WfSweep *sw, size_t run, char **out, WfError *err)
     return 0;
 }
 
-/* Appends one shell word, single-quoted unless it holds only characters no POSIX shell treats specially. */
+/* Appends one shell word, single-quoted unless it holds only characters no POSIX shell treats specially (a quote
+ * is not one of them, so only a quoted word has any). */
 static int append_word(char *buf, size_t len, size_t *used, const char *w)
 {
     static const char safe[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+./=:,@%";
     int plain = w[0] && strspn(w, safe) == strlen(w);
-    size_t need = plain ? strlen(w) : 2 + strlen(w);
-    if (!plain)
-        for (const char *c = w; *c; c++) need += *c == '\'' ? 3 : 0; /* ' becomes '\'' */
+    size_t need = strlen(w) + (plain ? 0 : 2);
+    for (const char *c = w; *c; c++) need += *c == '\'' ? 3 : 0; /* ' becomes '\'' */
     if (*used + need + 2 > len) return WF_EINPUT;
     char *p = buf + *used;
     if (*used) *p++ = ' ';
-    if (plain) {
-        memcpy(p, w, strlen(w));
-        p += strlen(w);
-    } else {
-        *p++ = '\'';
-        for (const char *c = w; *c; c++) {
-            if (*c == '\'') {
-                memcpy(p, "'\\''", 4);
-                p += 4;
-            } else
-                *p++ = *c;
-        }
-        *p++ = '\'';
+    if (!plain) *p++ = '\'';
+    for (const char *c = w; *c; c++) {
+        if (*c == '\'') {
+            memcpy(p, "'\\''", 4);
+            p += 4;
+        } else
+            *p++ = *c;
     }
+    if (!plain) *p++ = '\'';
     *p = '\0';
     *used = (size_t)(p - buf);
     return 0;
