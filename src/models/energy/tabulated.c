@@ -204,6 +204,68 @@ static int alloc_values(WfTable *t, WfError *err)
     return 0;
 }
 
+/* The grid of a CSV table: header and rows checked, the axes from the distinct values of the first three columns,
+ * the value arrays allocated. */
+static int csv_grid(WfTable *t, const WfCsv *csv, const char *path, WfError *err)
+{
+    if (!csv->had_header)
+        return wf_err(err, WF_EINPUT, "%s: the first line must be the header 'Velocity,Acceleration,Road Grade,Fuel "
+                                      "Rate,Infeasible' (the release's format)", path);
+    if (csv->n_rows == 0) return wf_err(err, WF_EINPUT, "%s: no data rows", path);
+    for (size_t r = 0; r < csv->n_rows; r++) {
+        double inf = csv->data[r * 5 + 4];
+        if (inf != 0.0 && inf != 1.0)
+            return wf_err(err, WF_EINPUT, "%s:%d: field 5 (Infeasible) must be 0 or 1 (got %s)", path, csv->line[r],
+                          WF_NUM(inf));
+    }
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (size_t c = 0; c < 3; c++) {
+        double *nodes = NULL;
+        size_t n = 0;
+        int rc = distinct(csv, c, &nodes, &n, err);
+        if (rc || (rc = axis_init(axes[c], nodes, n, path, column_names[c], err))) return rc;
+    }
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n;
+    /* The product is bounded before it is formed: each axis has at most n_rows values. */
+    double product = (double)nv * (double)na * (double)nt;
+    /* A few missing rows are reported by name below; a product far beyond the row count is not a grid. */
+    if (product > 4.0 * (double)csv->n_rows + 1024.0)
+        return wf_err(err, WF_EINPUT,
+                      "%s: not a regular grid: %zu distinct speeds x %zu accelerations x %zu grades would need "
+                      "%.0f rows, the file has %zu",
+                      path, nv, na, nt, product, csv->n_rows);
+    return alloc_values(t, err);
+}
+
+/* The rows' values into the grid: exactly one row per grid point. row_line (zeroed, one per point) receives the line
+ * of the row that filled each point. */
+static int csv_values(WfTable *t, const WfCsv *csv, const char *path, int *row_line, WfError *err)
+{
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
+    for (size_t r = 0; r < csv->n_rows; r++) {
+        const double *row = csv->data + r * 5;
+        size_t idx = (node_index(&t->v, row[0]) * na + node_index(&t->a, row[1])) * nt + node_index(&t->theta, row[2]);
+        if (row_line[idx])
+            return wf_err(err, WF_EINPUT,
+                          "%s:%d: duplicate row for Velocity=%s, Acceleration=%s, Road Grade=%s (first on line %d)",
+                          path, csv->line[r], WF_NUM(row[0]), WF_NUM(row[1]), WF_NUM(row[2]), row_line[idx]);
+        row_line[idx] = csv->line[r];
+        t->fuel_gps[idx] = row[3];
+        t->infeasible[idx] = (uint8_t)row[4];
+    }
+    for (size_t idx = 0; idx < n; idx++)
+        if (!row_line[idx]) {
+            size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
+            return wf_err(err, WF_EINPUT,
+                          "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s (the distinct "
+                          "values make %zu speeds x %zu accelerations x %zu grades = %zu points, the file has %zu "
+                          "rows: rows are missing, or the points do not lie on one grid)",
+                          path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n,
+                          csv->n_rows);
+        }
+    return 0;
+}
+
 int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
 {
     *out = NULL;
@@ -214,90 +276,21 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
     if (rc) return rc;
     WfTable *t = calloc(1, sizeof *t);
     int *row_line = NULL;
-    if (!t) {
+    rc = t ? csv_grid(t, &csv, path, err) : wf_err(err, WF_ESYS, "out of memory reading %s", path);
+    if (!rc && !(row_line = calloc(t->v.n * t->a.n * t->theta.n, sizeof *row_line)))
         rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
-        goto fail;
+    if (!rc) rc = csv_values(t, &csv, path, row_line, err);
+    if (!rc) {
+        derive_a_max(t);
+        snprintf(t->source, sizeof t->source, "%s", path);
+        t->data_fnv1a64 = wf_table_checksum(t);
+        rc = file_fnv(path, &t->source_fnv1a64, err);
     }
-    if (!csv.had_header) {
-        rc = wf_err(err, WF_EINPUT, "%s: the first line must be the header 'Velocity,Acceleration,Road Grade,Fuel "
-                                    "Rate,Infeasible' (the release's format)", path);
-        goto fail;
-    }
-    if (csv.n_rows == 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: no data rows", path);
-        goto fail;
-    }
-    for (size_t r = 0; r < csv.n_rows; r++) {
-        double inf = csv.data[r * 5 + 4];
-        if (inf != 0.0 && inf != 1.0) {
-            rc = wf_err(err, WF_EINPUT, "%s:%d: field 5 (Infeasible) must be 0 or 1 (got %s)", path, csv.line[r],
-                        WF_NUM(inf));
-            goto fail;
-        }
-    }
-    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
-    for (size_t c = 0; c < 3; c++) {
-        double *nodes = NULL;
-        size_t n = 0;
-        if ((rc = distinct(&csv, c, &nodes, &n, err))) goto fail;
-        if ((rc = axis_init(axes[c], nodes, n, path, column_names[c], err))) goto fail;
-    }
-    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n;
-    /* The product is bounded before it is formed: each axis has at most n_rows values. */
-    double product = (double)nv * (double)na * (double)nt;
-    /* A few missing rows are reported by name below; a product far beyond the row count is not a grid. */
-    if (product > 4.0 * (double)csv.n_rows + 1024.0) {
-        rc = wf_err(err, WF_EINPUT,
-                    "%s: not a regular grid: %zu distinct speeds x %zu accelerations x %zu grades would need "
-                    "%.0f rows, the file has %zu",
-                    path, nv, na, nt, product, csv.n_rows);
-        goto fail;
-    }
-    size_t n = nv * na * nt;
-    if ((rc = alloc_values(t, err))) goto fail;
-    row_line = calloc(n, sizeof *row_line);
-    if (!row_line) {
-        rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
-        goto fail;
-    }
-    for (size_t r = 0; r < csv.n_rows; r++) {
-        const double *row = csv.data + r * 5;
-        size_t idx = (node_index(&t->v, row[0]) * na + node_index(&t->a, row[1])) * nt + node_index(&t->theta, row[2]);
-        if (row_line[idx]) {
-            rc = wf_err(err, WF_EINPUT,
-                        "%s:%d: duplicate row for Velocity=%s, Acceleration=%s, Road Grade=%s (first on line "
-                        "%d)",
-                        path, csv.line[r], WF_NUM(row[0]), WF_NUM(row[1]), WF_NUM(row[2]), row_line[idx]);
-            goto fail;
-        }
-        row_line[idx] = csv.line[r];
-        t->fuel_gps[idx] = row[3];
-        t->infeasible[idx] = (uint8_t)row[4];
-    }
-    for (size_t idx = 0; idx < n; idx++)
-        if (!row_line[idx]) {
-            size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
-            rc = wf_err(err, WF_EINPUT,
-                        "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s "
-                        "(the distinct values make %zu speeds x %zu accelerations x %zu grades = %zu points, the "
-                        "file has %zu rows: rows are missing, or the points do not lie on one grid)",
-                        path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n,
-                        csv.n_rows);
-            goto fail;
-        }
-    derive_a_max(t);
-    snprintf(t->source, sizeof t->source, "%s", path);
-    if ((rc = file_fnv(path, &t->source_fnv1a64, err))) goto fail;
-    t->data_fnv1a64 = wf_table_checksum(t);
     free(row_line);
     wf_csv_free(&csv);
+    if (rc) wf_table_destroy(&t);
     *out = t;
-    return 0;
-fail:
-    free(row_line);
-    wf_csv_free(&csv);
-    wf_table_destroy(&t);
-    return rc ? rc : WF_EINPUT;
+    return rc;
 }
 
 int wf_table_from_grid(size_t nv, const double *v, size_t na, const double *a, size_t nt, const double *theta,
