@@ -458,6 +458,70 @@ static int read_dataset(hid_t fid, const char *path, const char *name, int rank,
     return rc;
 }
 
+/* The contents of a table file into t (allocated and zeroed); each error returned where it is found. */
+static int h5_table(hid_t fid, const char *path, WfTable *t, WfError *err)
+{
+    char fmt[128], hex_src[64], hex_data[64];
+    int rc = read_str_attr(fid, path, "format", fmt, sizeof fmt, err);
+    if (rc) return rc;
+    if (strcmp(fmt, TABLE_FORMAT) != 0)
+        return wf_err(err, WF_EINPUT, "%s: format is '%s', expected '%s'", path, fmt, TABLE_FORMAT);
+    int64_t version = 0;
+    hid_t va = H5Aexists(fid, "format_version") > 0 ? H5Aopen(fid, "format_version", H5P_DEFAULT) : H5I_INVALID_HID;
+    if (va < 0 || H5Aread(va, H5T_NATIVE_INT64, &version) < 0) version = -1;
+    if (va >= 0) H5Aclose(va);
+    if (version != TABLE_FORMAT_VERSION)
+        return wf_err(err, WF_EINPUT, "%s: format_version %lld, this wavefuel reads version %d", path,
+                      (long long)version, TABLE_FORMAT_VERSION);
+    if ((rc = read_str_attr(fid, path, "source", t->source, sizeof t->source, err)) ||
+        (rc = read_str_attr(fid, path, "source_fnv1a64", hex_src, sizeof hex_src, err)) ||
+        (rc = read_str_attr(fid, path, "data_fnv1a64", hex_data, sizeof hex_data, err)))
+        return rc;
+    t->source_fnv1a64 = strtoull(hex_src, NULL, 16);
+    t->data_fnv1a64 = strtoull(hex_data, NULL, 16);
+    static const char *const axis_sets[] = {"velocity_mps", "acceleration_mps2", "grade_rad"};
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (int c = 0; c < 3; c++) {
+        hsize_t dims[1];
+        void *buf;
+        if ((rc = read_dataset(fid, path, axis_sets[c], 1, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err)))
+            return rc;
+        const double *x = buf;
+        size_t n = (size_t)dims[0];
+        for (size_t k = 0; k < n; k++)
+            if (!isfinite(x[k]) || (k && !(x[k] > x[k - 1]))) n = 0;
+        if (n == 0) {
+            free(buf);
+            return wf_err(err, WF_EINPUT, "%s: %s must be finite, ascending and non-empty", path, axis_sets[c]);
+        }
+        /* buf is the axis's from here, even when axis_init fails */
+        if ((rc = axis_init(axes[c], buf, n, path, axis_sets[c], err))) return rc;
+    }
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
+    hsize_t dims[2];
+    void *buf;
+    if ((rc = read_dataset(fid, path, "fuel_gps", 2, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err))) return rc;
+    t->fuel_gps = buf;
+    if (dims[0] != nv * na || dims[1] != nt)
+        return wf_err(err, WF_EINPUT, "%s: fuel_gps is %llu x %llu, the grid needs %zu x %zu", path,
+                      (unsigned long long)dims[0], (unsigned long long)dims[1], nv * na, nt);
+    if ((rc = read_dataset(fid, path, "infeasible", 2, H5T_NATIVE_UINT8, 1, dims, &buf, err))) return rc;
+    t->infeasible = buf;
+    if (dims[0] != nv * na || dims[1] != nt) return wf_err(err, WF_EINPUT, "%s: infeasible has the wrong shape", path);
+    if (!(t->a_max_mps2 = malloc(nv * nt * sizeof *t->a_max_mps2)))
+        return wf_err(err, WF_ESYS, "out of memory loading %s", path);
+    for (size_t i = 0; i < n; i++)
+        if (t->infeasible[i] > 1 || !isfinite(t->fuel_gps[i]))
+            return wf_err(err, WF_EINPUT, "%s: value %zu of fuel_gps / infeasible is not finite / 0 or 1", path, i);
+    uint64_t sum = wf_table_checksum(t);
+    if (sum != t->data_fnv1a64)
+        return wf_err(err, WF_EINPUT, "%s: checksum mismatch (stored %s, computed %016llx): the file was damaged or "
+                                      "edited; import the CSV again",
+                      path, hex_data, (unsigned long long)sum);
+    derive_a_max(t);
+    return 0;
+}
+
 int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
 {
     *out = NULL;
@@ -467,88 +531,7 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
     if (fid < 0)
         return wf_err(err, WF_EINPUT, "%s: not an HDF5 file (import a CSV table first: wavefuel table import)", path);
     WfTable *t = calloc(1, sizeof *t);
-    double *nodes[3] = {NULL, NULL, NULL};
-    int rc = 0;
-    char fmt[128], hex_src[64], hex_data[64];
-    if (!t) {
-        rc = wf_err(err, WF_ESYS, "out of memory");
-        goto done;
-    }
-    if ((rc = read_str_attr(fid, path, "format", fmt, sizeof fmt, err))) goto done;
-    if (strcmp(fmt, TABLE_FORMAT) != 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: format is '%s', expected '%s'", path, fmt, TABLE_FORMAT);
-        goto done;
-    }
-    int64_t version = 0;
-    hid_t va = H5Aexists(fid, "format_version") > 0 ? H5Aopen(fid, "format_version", H5P_DEFAULT) : H5I_INVALID_HID;
-    if (va < 0 || H5Aread(va, H5T_NATIVE_INT64, &version) < 0) version = -1;
-    if (va >= 0) H5Aclose(va);
-    if (version != TABLE_FORMAT_VERSION) {
-        rc = wf_err(err, WF_EINPUT, "%s: format_version %lld, this wavefuel reads version %d", path,
-                    (long long)version, TABLE_FORMAT_VERSION);
-        goto done;
-    }
-    if ((rc = read_str_attr(fid, path, "source", t->source, sizeof t->source, err)) ||
-        (rc = read_str_attr(fid, path, "source_fnv1a64", hex_src, sizeof hex_src, err)) ||
-        (rc = read_str_attr(fid, path, "data_fnv1a64", hex_data, sizeof hex_data, err)))
-        goto done;
-    t->source_fnv1a64 = strtoull(hex_src, NULL, 16);
-    t->data_fnv1a64 = strtoull(hex_data, NULL, 16);
-    static const char *const axis_sets[] = {"velocity_mps", "acceleration_mps2", "grade_rad"};
-    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
-    for (int c = 0; c < 3; c++) {
-        hsize_t dims[1];
-        void *buf;
-        if ((rc = read_dataset(fid, path, axis_sets[c], 1, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err)))
-            goto done;
-        nodes[c] = buf;
-        size_t n = (size_t)dims[0];
-        for (size_t k = 0; k < n; k++)
-            if (!isfinite(nodes[c][k]) || (k && !(nodes[c][k] > nodes[c][k - 1]))) n = 0;
-        if (n == 0) {
-            rc = wf_err(err, WF_EINPUT, "%s: %s must be finite, ascending and non-empty", path, axis_sets[c]);
-            goto done;
-        }
-        nodes[c] = NULL; /* owned by the axis from here, even when axis_init fails */
-        if ((rc = axis_init(axes[c], buf, n, path, axis_sets[c], err))) goto done;
-    }
-    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
-    hsize_t dims[2];
-    void *buf;
-    if ((rc = read_dataset(fid, path, "fuel_gps", 2, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err))) goto done;
-    t->fuel_gps = buf;
-    if (dims[0] != nv * na || dims[1] != nt) {
-        rc = wf_err(err, WF_EINPUT, "%s: fuel_gps is %llu x %llu, the grid needs %zu x %zu", path,
-                    (unsigned long long)dims[0], (unsigned long long)dims[1], nv * na, nt);
-        goto done;
-    }
-    if ((rc = read_dataset(fid, path, "infeasible", 2, H5T_NATIVE_UINT8, 1, dims, &buf, err))) goto done;
-    t->infeasible = buf;
-    if (dims[0] != nv * na || dims[1] != nt) {
-        rc = wf_err(err, WF_EINPUT, "%s: infeasible has the wrong shape", path);
-        goto done;
-    }
-    t->a_max_mps2 = malloc(nv * nt * sizeof *t->a_max_mps2);
-    if (!t->a_max_mps2) {
-        rc = wf_err(err, WF_ESYS, "out of memory loading %s", path);
-        goto done;
-    }
-    for (size_t i = 0; i < n; i++) {
-        if (t->infeasible[i] > 1 || !isfinite(t->fuel_gps[i])) {
-            rc = wf_err(err, WF_EINPUT, "%s: value %zu of fuel_gps / infeasible is not finite / 0 or 1", path, i);
-            goto done;
-        }
-    }
-    uint64_t sum = wf_table_checksum(t);
-    if (sum != t->data_fnv1a64) {
-        rc = wf_err(err, WF_EINPUT, "%s: checksum mismatch (stored %s, computed %016llx): the file was damaged or "
-                                    "edited; import the CSV again",
-                    path, hex_data, (unsigned long long)sum);
-        goto done;
-    }
-    derive_a_max(t);
-done:
-    for (int c = 0; c < 3; c++) free(nodes[c]);
+    int rc = t ? h5_table(fid, path, t, err) : wf_err(err, WF_ESYS, "out of memory");
     H5Fclose(fid);
     if (rc) wf_table_destroy(&t);
     *out = t;
