@@ -253,7 +253,7 @@ static int list_in(const char *dir, void *vctx)
     DIR *d = opendir(dir);
     if (!d) return 0; /* a search-path entry that does not exist holds no classes */
     struct dirent *e;
-    while ((e = readdir(d))) {
+    while (!c->rc && (e = readdir(d))) {
         size_t len = strlen(e->d_name);
         if (len < 6 || strcmp(e->d_name + len - 5, ".yaml") != 0) continue;
         char stem[256];
@@ -265,25 +265,18 @@ static int list_in(const char *dir, void *vctx)
             size_t cap = c->cap ? 2 * c->cap : 8;
             WfVehicleClass *p = realloc(c->v, cap * sizeof *p);
             if (!p) {
-                closedir(d);
                 c->rc = wf_err(c->err, WF_ESYS, "out of memory");
-                return 1;
+                break;
             }
             c->v = p;
             c->cap = cap;
         }
         char path[PATH_MAX + 300];
         snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
-        int rc = wf_vehicle_load(path, &c->v[c->n], c->err);
-        if (rc) {
-            closedir(d);
-            c->rc = rc;
-            return 1;
-        }
-        c->n++;
+        if (!(c->rc = wf_vehicle_load(path, &c->v[c->n], c->err))) c->n++;
     }
     closedir(d);
-    return 0;
+    return c->rc != 0; /* 1 stops the search */
 }
 
 static int by_name(const void *a, const void *b)
