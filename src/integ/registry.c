@@ -1,8 +1,6 @@
 /* The one list of integrators, fixed-step and adaptive; adding one is one line here (and, for a fixed-step one,
  * its file in src/integ/). The adaptive entries name the SUNDIALS solver that src/integ/ode.c builds. */
 #include <stddef.h>
-#include <stdio.h>
-#include <string.h>
 
 #include "util/registry.h"
 #include "wavefuel/integrator.h"

@@ -2,8 +2,6 @@
  * table, the meaning on each boundary, and how `wavefuel run` prints them. Definitions: docs/metrics.md. */
 #include "wavefuel/summary.h"
 
-#include <string.h>
-
 #include "wavefuel/corridor.h"
 #include "wavefuel/safety.h"
 

@@ -1,9 +1,6 @@
 /* The list of car-following models and controllers; adding one is one line here. Also the generic
  * equilibrium solver that initial conditions use for every model. */
-#include <math.h>
 #include <stddef.h>
-#include <stdio.h>
-#include <string.h>
 
 #include "util/registry.h"
 #include "wavefuel/cf.h"

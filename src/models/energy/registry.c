@@ -1,7 +1,5 @@
 /* The list of energy model families; adding one is one line here. */
 #include <stddef.h>
-#include <stdio.h>
-#include <string.h>
 
 #include "util/registry.h"
 #include "wavefuel/energy.h"

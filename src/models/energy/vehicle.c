@@ -2,7 +2,6 @@
 #include "wavefuel/vehicle.h"
 
 #include <dirent.h>
-#include <errno.h>
 #include <limits.h>
 #include <math.h>
 #include <stddef.h>
