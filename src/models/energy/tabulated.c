@@ -293,56 +293,48 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
     return rc;
 }
 
-int wf_table_from_grid(size_t nv, const double *v, size_t na, const double *a, size_t nt, const double *theta,
-                       const double *fuel, const uint8_t *infeasible, const char *source, WfTable **out, WfError *err)
+/* The axes and values of wf_table_from_grid into t (allocated and zeroed); each error returned where it is found. */
+static int grid_fill(WfTable *t, const size_t *sizes, const double *const *in, const double *fuel,
+                     const uint8_t *infeasible, const char *source, WfError *err)
 {
-    *out = NULL;
-    const size_t sizes[3] = {nv, na, nt};
-    const double *const in[3] = {v, a, theta};
     static const char *const what[3] = {"velocity", "acceleration", "grade"};
-    WfTable *t = calloc(1, sizeof *t);
-    if (!t) return wf_err(err, WF_ESYS, "out of memory");
     WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
-    int rc = 0;
-    for (int c = 0; c < 3 && !rc; c++) {
+    int rc;
+    for (int c = 0; c < 3; c++) {
         size_t n = sizes[c];
-        if (n == 0) {
-            rc = wf_err(err, WF_EINPUT, "%s: the %s axis is empty", source, what[c]);
-            break;
-        }
-        for (size_t k = 0; k < n && !rc; k++)
+        if (n == 0) return wf_err(err, WF_EINPUT, "%s: the %s axis is empty", source, what[c]);
+        for (size_t k = 0; k < n; k++)
             if (!isfinite(in[c][k]) || (k && !(in[c][k] > in[c][k - 1])))
-                rc = wf_err(err, WF_EINPUT, "%s: %s node %zu (%s) is not finite or not above the one before", source,
-                            what[c], k, WF_NUM(in[c][k]));
-        if (rc) break;
+                return wf_err(err, WF_EINPUT, "%s: %s node %zu (%s) is not finite or not above the one before",
+                              source, what[c], k, WF_NUM(in[c][k]));
         double *nodes = malloc((n + 1) * sizeof *nodes);
-        if (!nodes) {
-            rc = wf_err(err, WF_ESYS, "out of memory");
-            break;
-        }
+        if (!nodes) return wf_err(err, WF_ESYS, "out of memory");
         memcpy(nodes, in[c], n * sizeof *nodes);
-        rc = axis_init(axes[c], nodes, n, source, what[c], err);
+        if ((rc = axis_init(axes[c], nodes, n, source, what[c], err))) return rc;
     }
-    if (!rc) rc = alloc_values(t, err);
-    size_t n = nv * na * nt;
-    for (size_t i = 0; i < n && !rc; i++) {
+    if ((rc = alloc_values(t, err))) return rc;
+    for (size_t i = 0; i < sizes[0] * sizes[1] * sizes[2]; i++) {
         if (!isfinite(fuel[i]) || infeasible[i] > 1)
-            rc = wf_err(err, WF_EINPUT, "%s: value %zu: fuel must be finite and infeasible 0 or 1", source, i);
-        else {
-            t->fuel_gps[i] = fuel[i];
-            t->infeasible[i] = infeasible[i];
-        }
-    }
-    if (rc) {
-        wf_table_destroy(&t);
-        return rc;
+            return wf_err(err, WF_EINPUT, "%s: value %zu: fuel must be finite and infeasible 0 or 1", source, i);
+        t->fuel_gps[i] = fuel[i];
+        t->infeasible[i] = infeasible[i];
     }
     derive_a_max(t);
     snprintf(t->source, sizeof t->source, "%s", source);
-    t->source_fnv1a64 = 0;
-    t->data_fnv1a64 = wf_table_checksum(t);
-    *out = t;
+    t->data_fnv1a64 = wf_table_checksum(t); /* source_fnv1a64 stays 0: no source file */
     return 0;
+}
+
+int wf_table_from_grid(size_t nv, const double *v, size_t na, const double *a, size_t nt, const double *theta,
+                       const double *fuel, const uint8_t *infeasible, const char *source, WfTable **out, WfError *err)
+{
+    const size_t sizes[3] = {nv, na, nt};
+    const double *const in[3] = {v, a, theta};
+    WfTable *t = calloc(1, sizeof *t);
+    int rc = t ? grid_fill(t, sizes, in, fuel, infeasible, source, err) : wf_err(err, WF_ESYS, "out of memory");
+    if (rc) wf_table_destroy(&t);
+    *out = t;
+    return rc;
 }
 
 /* ---------------------------------------------------------------------------------------------------------
