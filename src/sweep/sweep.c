@@ -532,37 +532,34 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     return rc;
 }
 
+/* The sweep of cfg into sw (zeroed); each error returned where it is found. */
+static int fill_sweep(WfSweep *sw, const char *path, WfCfg *cfg, const char *scenario_text, WfError *err)
+{
+    if (!(sw->pool = calloc(1, sizeof *sw->pool)) || !(sw->text = strdup(cfg->text)))
+        return wf_err(err, WF_ESYS, "out of memory");
+    if (snprintf(sw->path, sizeof sw->path, "%s", path) >= (int)sizeof sw->path)
+        return wf_err(err, WF_EINPUT, "sweep path too long: %s", path);
+    int rc = build(sw, cfg, err);
+    if (rc) return rc;
+    if (scenario_text)
+        return (sw->scenario_text = strdup(scenario_text)) ? 0 : wf_err(err, WF_ESYS, "out of memory");
+    /* Read once: every run uses this text, so editing the file during a sweep changes no run. */
+    WfCfg *sc = NULL;
+    rc = wf_cfg_load_file(sw->scenario_path, &sc, err);
+    if (rc) wf_err_prefix(err, "%s: scenario: ", sw->path);
+    else if (!(sw->scenario_text = strdup(sc->text))) rc = wf_err(err, WF_ESYS, "out of memory");
+    wf_cfg_destroy(&sc);
+    return rc;
+}
+
 static int load_common(const char *path, WfCfg *cfg, const char *scenario_text, WfSweep **out, WfError *err)
 {
     WfSweep *sw = calloc(1, sizeof *sw);
-    int rc = 0;
-    if (!sw || !(sw->pool = calloc(1, sizeof *sw->pool)) || !(sw->text = strdup(cfg->text))) {
-        rc = wf_err(err, WF_ESYS, "out of memory");
-        goto done;
-    }
-    if (snprintf(sw->path, sizeof sw->path, "%s", path) >= (int)sizeof sw->path) {
-        rc = wf_err(err, WF_EINPUT, "sweep path too long: %s", path);
-        goto done;
-    }
-    if ((rc = build(sw, cfg, err))) goto done;
-    if (scenario_text) {
-        if (!(sw->scenario_text = strdup(scenario_text))) rc = wf_err(err, WF_ESYS, "out of memory");
-    } else {
-        /* Read once: every run uses this text, so editing the file during a sweep changes no run. */
-        WfCfg *sc = NULL;
-        rc = wf_cfg_load_file(sw->scenario_path, &sc, err);
-        if (rc) wf_err_prefix(err, "%s: scenario: ", sw->path);
-        else if (!(sw->scenario_text = strdup(sc->text))) rc = wf_err(err, WF_ESYS, "out of memory");
-        wf_cfg_destroy(&sc);
-    }
-done:
+    int rc = sw ? fill_sweep(sw, path, cfg, scenario_text, err) : wf_err(err, WF_ESYS, "out of memory");
     wf_cfg_destroy(&cfg);
-    if (rc) {
-        if (sw) wf_sweep_destroy(&sw);
-        return rc;
-    }
+    if (rc) wf_sweep_destroy(&sw);
     *out = sw;
-    return 0;
+    return rc;
 }
 
 int wf_sweep_load(const char *path, WfSweep **out, WfError *err)
