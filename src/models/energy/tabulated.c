@@ -30,23 +30,16 @@ static const char *const column_names[] = {"Velocity", "Acceleration", "Road Gra
 /* ---------------------------------------------------------------------------------------------------------
  * Grid construction and checks */
 
-static void axis_free(WfTableAxis *ax)
-{
-    free(ax->x);
-    free(ax->inv_w);
-    free(ax->bucket);
-    ax->x = NULL;
-    ax->inv_w = NULL;
-    ax->bucket = NULL;
-}
-
 void wf_table_destroy(WfTable **pt)
 {
     if (!pt || !*pt) return;
     WfTable *t = *pt;
-    axis_free(&t->v);
-    axis_free(&t->a);
-    axis_free(&t->theta);
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (int c = 0; c < 3; c++) {
+        free(axes[c]->x);
+        free(axes[c]->inv_w);
+        free(axes[c]->bucket);
+    }
     free(t->fuel_gps);
     free(t->infeasible);
     free(t->a_max_mps2);
