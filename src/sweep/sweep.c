@@ -510,26 +510,24 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     int64_t *seeds = NULL;
     int rc = set ? flatten(set, "", &common, sw->pool, err) : 0;
     if (!rc && common.s && !pool_keep(sw->pool, common.s)) rc = wf_err(err, WF_ESYS, "out of memory");
-    if (!rc && axes) {
+    if (rc) return rc;
+    if (axes) {
         if (axes->n_child > WF_SWEEP_MAX_AXES)
-            rc = wf_err(err, WF_EINPUT, "%s: more than %d axes", where(axes, w, sizeof w), WF_SWEEP_MAX_AXES);
-        for (size_t a = 0; !rc && a < axes->n_child; a++) {
-            rc = parse_axis(axes->child[a], &sw->axes[a], &defs[a], sw->pool, err);
-            for (size_t b = 0; !rc && b < a; b++)
+            return wf_err(err, WF_EINPUT, "%s: more than %d axes", where(axes, w, sizeof w), WF_SWEEP_MAX_AXES);
+        for (size_t a = 0; a < axes->n_child; a++) {
+            if ((rc = parse_axis(axes->child[a], &sw->axes[a], &defs[a], sw->pool, err))) return rc;
+            for (size_t b = 0; b < a; b++)
                 if (!strcmp(sw->axes[a].name, sw->axes[b].name))
-                    rc = wf_err(err, WF_EINPUT, "%s: two axes are named '%s': give one a `name`",
-                                where(axes->child[a], w, sizeof w), sw->axes[a].name);
+                    return wf_err(err, WF_EINPUT, "%s: two axes are named '%s': give one a `name`",
+                                  where(axes->child[a], w, sizeof w), sw->axes[a].name);
         }
-        if (!rc) n_defs = sw->n_axes = axes->n_child;
+        n_defs = sw->n_axes = axes->n_child;
     }
-    if (!rc && runs) {
-        if (!runs->n_child) rc = wf_err(err, WF_EINPUT, "%s: `runs` is empty", where(runs, w, sizeof w));
-        if (!rc) rc = parse_runs(sw, runs, &explicit_runs, err);
-    }
-    if (!rc) rc = parse_seeds(root, &seeds, &n_seeds, sw->pool, err);
-    if (!rc) rc = wf_cfg_check_unused(cfg, err);
-    if (!rc) rc = expand(sw, &common, defs, n_defs, explicit_runs, runs ? runs->n_child : 0, seeds, n_seeds, err);
-    return rc;
+    if (runs && !runs->n_child) return wf_err(err, WF_EINPUT, "%s: `runs` is empty", where(runs, w, sizeof w));
+    if ((runs && (rc = parse_runs(sw, runs, &explicit_runs, err))) ||
+        (rc = parse_seeds(root, &seeds, &n_seeds, sw->pool, err)) || (rc = wf_cfg_check_unused(cfg, err)))
+        return rc;
+    return expand(sw, &common, defs, n_defs, explicit_runs, runs ? runs->n_child : 0, seeds, n_seeds, err);
 }
 
 /* The sweep of cfg into sw (zeroed); each error returned where it is found. */
