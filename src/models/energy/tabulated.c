@@ -646,10 +646,9 @@ size_t wf_table_n_outside(const WfTable *t, size_t n, const double *v, const dou
 {
     size_t count = 0;
     for (size_t i = 0; i < n; i++) {
-        double vv = v[i] > 0.0 ? v[i] : 0.0;
-        double am = project ? wf_table_a_max(t, vv, th[i]) : 0.0;
-        double au = !project ? a[i] : (a[i] < am ? a[i] : am);
-        count += (size_t)!(inside(&t->v, vv) && inside(&t->a, au) && inside(&t->theta, th[i]));
+        int outside; /* as the evaluation finds it: the one form of the clamping and projection rule */
+        eval1(t, v[i], a[i], th[i], project, 0, NULL, &outside);
+        count += (size_t)outside;
     }
     return count;
 }
