@@ -155,17 +155,17 @@ static int flatten(WfCfgNode *map, const char *prefix, SetList *l, struct WfSwee
     return 0;
 }
 
-/* The unit implied by a key's suffix (keys carry their unit: length_m, U_mps, T_s); "1" when it names none. */
-static const char *unit_of_key(const char *key)
+/* The unit implied by the suffix of a key (its first n characters; keys carry their unit: length_m, U_mps, T_s); "1"
+ * when it names none. */
+static const char *unit_of_key(const char *key, size_t n)
 {
     static const struct { const char *suffix, *unit; } tab[] = {
         {"_per_s2", "1/s^2"}, {"_per_s", "1/s"}, {"_mps2", "m/s^2"}, {"_mps", "m/s"}, {"_gps", "g/s"},
         {"_rad", "rad"},      {"_kw", "kW"},     {"_m", "m"},         {"_s", "s"},     {"_g", "g"},
     };
-    size_t n = strlen(key);
     for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++) {
         size_t k = strlen(tab[i].suffix);
-        if (n > k && strcmp(key + n - k, tab[i].suffix) == 0) return tab[i].unit;
+        if (n > k && strncmp(key + n - k, tab[i].suffix, k) == 0) return tab[i].unit;
     }
     return "1";
 }
@@ -338,10 +338,8 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
         double x;
         if (wf_parse_double(def->pt[j].label, &x)) ax->numeric = 0;
     }
-    const char *first = ax->keys;
-    char key0[512];
-    snprintf(key0, sizeof key0, "%.*s", (int)strcspn(first, ","), first);
-    snprintf(ax->units, sizeof ax->units, "%s", ax->numeric ? unit_of_key(key0) : "");
+    /* The first key's unit. */
+    snprintf(ax->units, sizeof ax->units, "%s", ax->numeric ? unit_of_key(ax->keys, strcspn(ax->keys, ",")) : "");
     return 0;
 }
 
@@ -413,7 +411,7 @@ static int parse_runs(WfSweep *sw, WfCfgNode *runs, SetList **lists_out, WfError
     }
     for (size_t ax = 0; ax < sw->n_axes; ax++)
         snprintf(sw->axes[ax].units, sizeof sw->axes[ax].units, "%s",
-                 sw->axes[ax].numeric ? unit_of_key(sw->axes[ax].keys) : "");
+                 sw->axes[ax].numeric ? unit_of_key(sw->axes[ax].keys, strlen(sw->axes[ax].keys)) : "");
     *lists_out = lists;
     return 0;
 }
@@ -638,9 +636,6 @@ int wf_sweep_command(const WfSweep *sw, size_t run, const char *program, char *b
 
 /* ---- One run ---- */
 
-/* FNV-1a, 64 bit: names a run's own file after its overrides, so the name stays when the sweep is extended. */
-static uint64_t fnv1a(const char *s) { return wf_fnv1a64(WF_FNV1A64_INIT, s, strlen(s)); }
-
 static void record_error(WfSweepResult *res, const WfError *err)
 {
     res->status = err->code == WF_EINTR ? WF_RUN_PENDING : WF_RUN_FAILED;
@@ -686,8 +681,9 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
         char *ov = NULL;
         rc = wf_sweep_overrides(sw, i, &ov, &err);
         if (!rc) {
+            /* FNV-1a of the overrides names the run's own file, so the name stays when the sweep is extended. */
             int n = snprintf(sc->output_path, sizeof sc->output_path, "%s/run_%016llx.h5", o->per_run_dir,
-                             (unsigned long long)fnv1a(ov));
+                             (unsigned long long)wf_fnv1a64(WF_FNV1A64_INIT, ov, strlen(ov)));
             if (n < 0 || (size_t)n >= sizeof sc->output_path)
                 rc = wf_err(&err, WF_EINPUT, "per-run directory path too long: %s", o->per_run_dir);
         }
