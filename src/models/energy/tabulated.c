@@ -51,15 +51,11 @@ void wf_table_destroy(WfTable **pt)
  * builds the bucket index. `what` names the axis for messages. */
 static int axis_init(WfTableAxis *ax, double *nodes, size_t n, const char *file, const char *what, WfError *err)
 {
-    ax->x = nodes;
-    ax->n = n;
-    ax->lo = nodes[0];
-    ax->hi = nodes[n - 1];
     /* One node: the padding makes x[k + 1] - x[k] = 1, so t = 0 without a division by zero; up = 0 keeps
      * both "corners" on the single node. */
     nodes[n] = n > 1 ? nodes[n - 1] + (nodes[n - 1] - nodes[n - 2]) : nodes[0] + 1.0;
-    ax->kmax = n > 1 ? n - 2 : 0;
-    ax->up = n > 1 ? 1 : 0;
+    *ax = (WfTableAxis){.n = n, .lo = nodes[0], .hi = nodes[n - 1], .kmax = n > 1 ? n - 2 : 0, .up = n > 1 ? 1 : 0,
+                        .x = nodes};
     /* Buckets no wider than the narrowest cell hold at most two cells, so locate() steps at most twice. */
     double min_w = INFINITY;
     for (size_t k = 0; k + 1 < n; k++) min_w = fmin(min_w, nodes[k + 1] - nodes[k]);
