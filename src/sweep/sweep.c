@@ -585,10 +585,8 @@ int wf_sweep_overrides(const WfSweep *sw, size_t run, char **out, WfError *err)
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     /* Same format as a scenario's `overrides` (each assignment followed by a newline). */
     for (size_t i = 0; i < r->n_set; i++) {
-        size_t k = strlen(r->set[i]);
-        memcpy(p, r->set[i], k);
-        p[k] = '\n';
-        p += k + 1;
+        p = stpcpy(p, r->set[i]);
+        *p++ = '\n';
     }
     *p = '\0';
     *out = s;
