@@ -81,7 +81,7 @@ typedef struct AxisDef {
     size_t n;
 } AxisDef;
 
-/* A growable list of assignments. */
+/* A growable list of assignments; its arrays live in the pool (outgrown ones too, until the sweep is destroyed). */
 typedef struct SetList {
     const char **s;
     size_t       n, cap;
@@ -95,8 +95,9 @@ static int setlist_add(SetList *l, struct WfSweepPool *pool, const char *key, co
     snprintf(a, len, "%s=%s", key, value);
     if (l->n == l->cap) {
         size_t cap = l->cap ? 2 * l->cap : 8;
-        const char **q = realloc(l->s, cap * sizeof *q);
+        const char **q = pool_calloc(pool, cap, sizeof *q);
         if (!q) return wf_err(err, WF_ESYS, "out of memory");
+        if (l->n) memcpy(q, l->s, l->n * sizeof *q);
         l->s = q, l->cap = cap;
     }
     l->s[l->n++] = a;
@@ -223,7 +224,6 @@ static int parse_points(WfCfgNode *points, WfSweepAxis *ax, AxisDef *def, struct
         if (!set) return wf_cfg_missing(p, "set", "a map of overrides", err);
         SetList l = {0};
         int rc = flatten(set, "", &l, pool, err);
-        if (!rc && !pool_keep(pool, l.s) && l.n) rc = wf_err(err, WF_ESYS, "out of memory");
         if (rc) return rc;
         /* Labels outlive the configuration tree: copy them. */
         if (!(label = pool_strdup(pool, label))) return wf_err(err, WF_ESYS, "out of memory");
@@ -278,7 +278,6 @@ static int parse_values(const char *key, WfCfgNode *values, WfCfgNode *range, Wf
             rc = scalar_of(with->child[k]->child[j], "a value", &wv, err) ||
                  setlist_add(&l, pool, with->child[k]->key, wv, err);
         }
-        if (!rc && !pool_keep(pool, l.s)) rc = wf_err(err, WF_ESYS, "out of memory");
         if (rc) return err->code;
         def->pt[j] = (Point){v[j], l.s, l.n};
     }
@@ -386,7 +385,6 @@ static int parse_runs(WfSweep *sw, WfCfgNode *runs, SetList **lists_out, WfError
         if (r->kind != WF_CFG_MAP)
             return wf_err(err, WF_EINPUT, "%s: a run is a map of overrides {key: value, ...}", where(r, w, sizeof w));
         if (flatten(r, "", &lists[i], sw->pool, err)) return err->code;
-        if (!pool_keep(sw->pool, lists[i].s) && lists[i].n) return wf_err(err, WF_ESYS, "out of memory");
         for (size_t k = 0; k < lists[i].n; k++) {
             const char *a = lists[i].s[k];
             size_t klen = (size_t)(strchr(a, '=') - a), ax;
@@ -507,7 +505,6 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     size_t n_defs = 0, n_seeds = 0;
     int64_t *seeds = NULL;
     int rc = set ? flatten(set, "", &common, sw->pool, err) : 0;
-    if (!rc && common.s && !pool_keep(sw->pool, common.s)) rc = wf_err(err, WF_ESYS, "out of memory");
     if (rc) return rc;
     if (axes) {
         if (axes->n_child > WF_SWEEP_MAX_AXES)
