@@ -246,9 +246,9 @@ static int csv_values(WfTable *t, const WfCsv *csv, const char *path, int *row_l
         if (!row_line[idx]) {
             size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
             return wf_err(err, WF_EINPUT,
-                          "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s (the distinct "
-                          "values make %zu speeds x %zu accelerations x %zu grades = %zu points, the file has %zu "
-                          "rows: rows are missing, or the points do not lie on one grid)",
+                          "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s (the "
+                          "distinct values make %zu speeds x %zu accelerations x %zu grades = %zu points, the file "
+                          "has %zu rows: rows are missing, or the points do not lie on one grid)",
                           path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n,
                           csv->n_rows);
         }
@@ -349,21 +349,18 @@ int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *er
         (rc = wf_h5_attr_str(root, "created_by", created, err)) ||
         (rc = wf_h5_attr_str(root, "layout",
                              "fuel_gps and infeasible are (n_velocity * n_acceleration, n_grade): reshape to "
-                             "(n_velocity, n_acceleration, n_grade); axes ascending",
-                             err)) ||
-        (rc = wf_h5_write_f64(root, "velocity_mps", 1, &dv, t->v.x, "m/s", "speed nodes, ascending",
-                              err)) ||
+                             "(n_velocity, n_acceleration, n_grade); axes ascending", err)) ||
+        (rc = wf_h5_write_f64(root, "velocity_mps", 1, &dv, t->v.x, "m/s", "speed nodes, ascending", err)) ||
         (rc = wf_h5_write_f64(root, "acceleration_mps2", 1, &da, t->a.x, "m/s^2",
                               "acceleration nodes, ascending", err)) ||
-        (rc = wf_h5_write_f64(root, "grade_rad", 1, &dt, t->theta.x, "rad",
-                              "road grade nodes, ascending", err)) ||
+        (rc = wf_h5_write_f64(root, "grade_rad", 1, &dt, t->theta.x, "rad", "road grade nodes, ascending",
+                              err)) ||
         (rc = wf_h5_write_f64(root, "fuel_gps", 2, dvals, t->fuel_gps, "g/s", "fuel rate at each grid node", err)) ||
         (rc = wf_h5_write_u8(root, "infeasible", 2, dvals, t->infeasible, "1",
                              "1 where the vehicle cannot reach that acceleration at that speed and grade", err)) ||
         (rc = wf_h5_write_f64(root, "a_max_mps2", 2, damax, t->a_max_mps2, "m/s^2",
                               "largest feasible grid acceleration per (velocity, grade) column; derived, "
-                              "recomputed on load",
-                              err))) {
+                              "recomputed on load", err))) {
         wf_h5_abandon(&f, 1);
         return rc;
     }
