@@ -313,18 +313,14 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
         return wf_err(err, WF_EINPUT, "%s: give `values` or `range`, not both", where(e, w, sizeof w));
     if (key && check_text(wf_cfg_child(e, "key"), key, 1, err)) return WF_EINPUT;
 
-    if (points) {
-        int rc = parse_points(points, ax, def, pool, err);
-        if (rc) return rc;
-        if (!name) return wf_cfg_missing(e, "name", "the column name of an axis given by points", err);
-    } else {
-        int rc = parse_values(key, values, range, with, ax, def, pool, err);
-        if (rc) return rc;
-        if (!name) {
-            /* The key's last component names the column: fleet.drivers[1].count -> count. */
-            const char *dot = strrchr(key, '.');
-            name = dot ? dot + 1 : key;
-        }
+    int rc = points ? parse_points(points, ax, def, pool, err)
+                    : parse_values(key, values, range, with, ax, def, pool, err);
+    if (rc) return rc;
+    if (!name && points) return wf_cfg_missing(e, "name", "the column name of an axis given by points", err);
+    if (!name) {
+        /* The key's last component names the column: fleet.drivers[1].count -> count. */
+        const char *dot = strrchr(key, '.');
+        name = dot ? dot + 1 : key;
     }
     if (def->n == 0) return wf_err(err, WF_EINPUT, "%s: the axis has no values", where(e, w, sizeof w));
     if (strlen(name) >= sizeof ax->name || strchr(name, '/') || !name[0])
@@ -332,11 +328,9 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
                       sizeof ax->name - 1);
     snprintf(ax->name, sizeof ax->name, "%s", name);
     ax->n_values = def->n;
+    double x;
     ax->numeric = 1;
-    for (size_t j = 0; j < def->n; j++) {
-        double x;
-        if (wf_parse_double(def->pt[j].label, &x)) ax->numeric = 0;
-    }
+    for (size_t j = 0; j < def->n; j++) ax->numeric &= !wf_parse_double(def->pt[j].label, &x);
     /* The first key's unit. */
     snprintf(ax->units, sizeof ax->units, "%s", ax->numeric ? unit_of_key(ax->keys, strcspn(ax->keys, ",")) : "");
     return 0;
