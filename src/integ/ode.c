@@ -138,13 +138,6 @@ static int ewt_fn(N_Vector y, N_Vector ewt, void *user)
     return 0;
 }
 
-static void add_counters(WfOde *o)
-{
-    WfOdeStats s;
-    wf_ode_stats(o, &s);
-    o->done = s;
-}
-
 /* Classic fourth-order Runge-Kutta as a Butcher table for ERKStep (coefficients, not a solver). */
 static ARKodeButcherTable classic_rk4(void)
 {
@@ -161,13 +154,12 @@ static int setup_solver(WfOde *o, double t0, WfError *err)
     if (c->kind == WF_ODE_CVODE) {
         o->mem = CVodeCreate(c->bdf ? CV_BDF : CV_ADAMS, o->sunctx);
         if (!o->mem) return wf_err(err, WF_ESYS, "SUNDIALS: CVodeCreate failed");
-        if ((rc = check(o, CVodeSetErrHandlerFn(o->mem, on_sundials_message, o), "CVodeSetErrHandlerFn", err)))
-            return rc;
-        if ((rc = check(o, CVodeInit(o->mem, f_state, t0, o->y), "CVodeInit", err))) return rc;
-        if ((rc = check(o, CVodeSetUserData(o->mem, o), "CVodeSetUserData", err))) return rc;
-        if ((rc = check(o, CVodeWFtolerances(o->mem, ewt_fn), "CVodeWFtolerances", err))) return rc;
-        if ((rc = check(o, CVodeSetMaxNumSteps(o->mem, c->max_steps), "CVodeSetMaxNumSteps", err))) return rc;
-        if (c->max_step_s > 0 && (rc = check(o, CVodeSetMaxStep(o->mem, c->max_step_s), "CVodeSetMaxStep", err)))
+        if ((rc = check(o, CVodeSetErrHandlerFn(o->mem, on_sundials_message, o), "CVodeSetErrHandlerFn", err)) ||
+            (rc = check(o, CVodeInit(o->mem, f_state, t0, o->y), "CVodeInit", err)) ||
+            (rc = check(o, CVodeSetUserData(o->mem, o), "CVodeSetUserData", err)) ||
+            (rc = check(o, CVodeWFtolerances(o->mem, ewt_fn), "CVodeWFtolerances", err)) ||
+            (rc = check(o, CVodeSetMaxNumSteps(o->mem, c->max_steps), "CVodeSetMaxNumSteps", err)) ||
+            (c->max_step_s > 0 && (rc = check(o, CVodeSetMaxStep(o->mem, c->max_step_s), "CVodeSetMaxStep", err))))
             return rc;
         if (c->bdf) {
             o->ls = SUNLinSol_SPGMR(o->y, SUN_PREC_NONE, 0, o->sunctx);
@@ -178,18 +170,18 @@ static int setup_solver(WfOde *o, double t0, WfError *err)
             if (!o->nls) return wf_err(err, WF_ESYS, "SUNDIALS: SUNNonlinSol_FixedPoint failed");
             if ((rc = check(o, CVodeSetNonlinearSolver(o->mem, o->nls), "CVodeSetNonlinearSolver", err))) return rc;
         }
-        if ((rc = check(o, CVodeQuadInit(o->mem, f_quad, o->q), "CVodeQuadInit", err))) return rc;
-        if ((rc = check(o, CVodeQuadSStolerances(o->mem, c->rtol, c->atol_fuel_g), "CVodeQuadSStolerances", err)))
+        if ((rc = check(o, CVodeQuadInit(o->mem, f_quad, o->q), "CVodeQuadInit", err)) ||
+            (rc = check(o, CVodeQuadSStolerances(o->mem, c->rtol, c->atol_fuel_g), "CVodeQuadSStolerances", err)))
             return rc;
         return check(o, CVodeSetQuadErrCon(o->mem, c->fuel_errcon), "CVodeSetQuadErrCon", err);
     }
     o->mem = ERKStepCreate(f_state, t0, o->y, o->sunctx);
     if (!o->mem) return wf_err(err, WF_ESYS, "SUNDIALS: ERKStepCreate failed");
-    if ((rc = check(o, ERKStepSetErrHandlerFn(o->mem, on_sundials_message, o), "ERKStepSetErrHandlerFn", err)))
+    if ((rc = check(o, ERKStepSetErrHandlerFn(o->mem, on_sundials_message, o), "ERKStepSetErrHandlerFn", err)) ||
+        (rc = check(o, ERKStepSetUserData(o->mem, o), "ERKStepSetUserData", err)) ||
+        (rc = check(o, ERKStepWFtolerances(o->mem, ewt_fn), "ERKStepWFtolerances", err)) ||
+        (rc = check(o, ERKStepSetMaxNumSteps(o->mem, c->max_steps), "ERKStepSetMaxNumSteps", err)))
         return rc;
-    if ((rc = check(o, ERKStepSetUserData(o->mem, o), "ERKStepSetUserData", err))) return rc;
-    if ((rc = check(o, ERKStepWFtolerances(o->mem, ewt_fn), "ERKStepWFtolerances", err))) return rc;
-    if ((rc = check(o, ERKStepSetMaxNumSteps(o->mem, c->max_steps), "ERKStepSetMaxNumSteps", err))) return rc;
     if (c->kind == WF_ODE_RK4) {
         o->table = classic_rk4();
     } else {
@@ -200,13 +192,9 @@ static int setup_solver(WfOde *o, double t0, WfError *err)
     }
     if (!o->table) return wf_err(err, WF_ESYS, "SUNDIALS: ARKodeButcherTable_Create failed");
     if ((rc = check(o, ERKStepSetTable(o->mem, o->table), "ERKStepSetTable", err))) return rc;
-    if (c->kind == WF_ODE_RK4 &&
-        (rc = check(o, ERKStepSetFixedStep(o->mem, c->fixed_step_s), "ERKStepSetFixedStep", err)))
-        return rc;
-    if (c->kind != WF_ODE_RK4 && c->max_step_s > 0 &&
-        (rc = check(o, ERKStepSetMaxStep(o->mem, c->max_step_s), "ERKStepSetMaxStep", err)))
-        return rc;
-    return 0;
+    if (c->kind == WF_ODE_RK4)
+        return check(o, ERKStepSetFixedStep(o->mem, c->fixed_step_s), "ERKStepSetFixedStep", err);
+    return c->max_step_s > 0 ? check(o, ERKStepSetMaxStep(o->mem, c->max_step_s), "ERKStepSetMaxStep", err) : 0;
 }
 
 void wf_ode_destroy(WfOde **po)
@@ -235,12 +223,7 @@ int wf_ode_create(const WfOdeConfig *cfg, size_t n, double L, WfOdeRhs rhs, void
     *out = NULL;
     WfOde *o = calloc(1, sizeof *o);
     if (!o) return wf_err(err, WF_ESYS, "out of memory");
-    o->cfg = *cfg;
-    o->n = n;
-    o->L = L;
-    o->rhs = rhs;
-    o->ctx = ctx;
-    o->ny = cfg->kind == WF_ODE_CVODE ? 2 * n : 3 * n;
+    *o = (WfOde){.cfg = *cfg, .n = n, .ny = cfg->kind == WF_ODE_CVODE ? 2 * n : 3 * n, .L = L, .rhs = rhs, .ctx = ctx};
     int rc = check(o, SUNContext_Create(NULL, &o->sunctx), "SUNContext_Create", err);
     if (!rc) {
         o->y = new_vector(o, o->ny);
@@ -319,7 +302,7 @@ int wf_ode_reinit(WfOde *o, double t, const double *x, const double *v, WfError 
     double *y = data(o->y);
     memcpy(y, x, n * sizeof *y);
     memcpy(y + n, v, n * sizeof *y);
-    add_counters(o);
+    wf_ode_stats(o, &o->done); /* the counters so far, kept: the re-initialisation resets the solver's */
     o->done.reinits++;
     if (o->cfg.kind == WF_ODE_CVODE) {
         int rc = check(o, CVodeReInit(o->mem, t, o->y), "CVodeReInit", err);

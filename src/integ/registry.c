@@ -1,8 +1,6 @@
 /* The one list of integrators, fixed-step and adaptive; adding one is one line here (and, for a fixed-step one,
  * its file in src/integ/). The adaptive entries name the SUNDIALS solver that src/integ/ode.c builds. */
 #include <stddef.h>
-#include <stdio.h>
-#include <string.h>
 
 #include "util/registry.h"
 #include "wavefuel/integrator.h"
@@ -35,7 +33,6 @@ const char *wf_integ_kind_name(WfIntegKind kind) { return kind == WF_INTEG_ADAPT
 int wf_integrator_find(const char *name, const WfIntegrator **out, WfError *err)
 {
     long i = wf_registry_find((const void *const *)wf_integrators, offsetof(WfIntegrator, name), name, "integrator", err);
-    if (i < 0) return WF_EINPUT;
-    *out = wf_integrators[i];
-    return 0;
+    if (i >= 0) *out = wf_integrators[i];
+    return i < 0 ? WF_EINPUT : 0;
 }

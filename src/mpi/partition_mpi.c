@@ -8,6 +8,7 @@
 
 typedef struct MpiPart {
     MPI_Comm    comm;
+    int         rank, size; /* this rank's, kept from creation */
     int        *counts, *displs;
     MPI_Request req[2]; /* the halo exchange in flight: receive, send */
 } MpiPart;
@@ -24,13 +25,10 @@ static int mpi_fail(int rc, const char *what, WfError *err)
 static int post_next(void *ctx, const void *send, void *recv, size_t bytes, WfError *err)
 {
     MpiPart *m = ctx;
-    int rank, size;
-    MPI_Comm_rank(m->comm, &rank);
-    MPI_Comm_size(m->comm, &size);
     if (bytes > INT_MAX) return wf_err(err, WF_ESYS, "MPI: a halo of %zu bytes is too large", bytes);
-    int rc = MPI_Irecv(recv, (int)bytes, MPI_BYTE, (rank + 1) % size, 1, m->comm, &m->req[0]);
+    int rc = MPI_Irecv(recv, (int)bytes, MPI_BYTE, (m->rank + 1) % m->size, 1, m->comm, &m->req[0]);
     if (rc == MPI_SUCCESS)
-        rc = MPI_Isend(send, (int)bytes, MPI_BYTE, (rank + size - 1) % size, 1, m->comm, &m->req[1]);
+        rc = MPI_Isend(send, (int)bytes, MPI_BYTE, (m->rank + m->size - 1) % m->size, 1, m->comm, &m->req[1]);
     return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "posting the halo exchange", err);
 }
 
@@ -58,9 +56,7 @@ static int sum_u64(void *ctx, uint64_t *v, size_t n, WfError *err)
 static int gather(void *ctx, void *buf, const size_t *off, int root, WfError *err)
 {
     MpiPart *m = ctx;
-    int rank, size;
-    MPI_Comm_rank(m->comm, &rank);
-    MPI_Comm_size(m->comm, &size);
+    int rank = m->rank, size = m->size;
     if (off[size] > INT_MAX)
         return wf_err(err, WF_ESYS, "MPI: gathering an array of %zu bytes (more than 2 GiB) is not supported",
                       off[size]);
@@ -131,6 +127,8 @@ int wf_mpi_partition_init(WfPartition *p, volatile sig_atomic_t *stop_own, WfErr
     m->comm = MPI_COMM_WORLD;
     MPI_Comm_rank(m->comm, &p->rank);
     MPI_Comm_size(m->comm, &p->size);
+    m->rank = p->rank;
+    m->size = p->size;
     m->counts = malloc((size_t)p->size * sizeof *m->counts);
     m->displs = malloc((size_t)p->size * sizeof *m->displs);
     if (m->counts && m->displs) return 0;

@@ -6,7 +6,6 @@
 #define WAVEFUEL_SWEEP_MPI_H
 
 #include <signal.h>
-#include <stddef.h>
 
 #include "wavefuel/err.h"
 #include "wavefuel/sweep.h"

@@ -43,9 +43,6 @@ void wf_detectors_fields(const WfDetectors *d, const WfScenario *sc, double *scr
     out[D_X] = (WfObsData){d->x_m, 1, {nd, 0}};
     out[D_T0] = (WfObsData){t0, 1, {ni, 0}};
     out[D_T1] = (WfObsData){t1, 1, {ni, 0}};
-    out[D_COUNT] = (WfObsData){d->count, 2, {ni, nd}};
-    out[D_FLOW] = (WfObsData){flow, 2, {ni, nd}};
-    out[D_VT] = (WfObsData){vt, 2, {ni, nd}};
-    out[D_VH] = (WfObsData){vh, 2, {ni, nd}};
-    out[D_OCC] = (WfObsData){occ, 2, {ni, nd}};
+    const void *field[] = {d->count, flow, vt, vh, occ};
+    for (size_t c = D_COUNT; c <= D_OCC; c++) out[c] = (WfObsData){field[c - D_COUNT], 2, {ni, nd}};
 }

@@ -2,8 +2,6 @@
  * table, the meaning on each boundary, and how `wavefuel run` prints them. Definitions: docs/metrics.md. */
 #include "wavefuel/summary.h"
 
-#include <string.h>
-
 #include "wavefuel/corridor.h"
 #include "wavefuel/safety.h"
 
@@ -224,6 +222,22 @@ static void print_row(FILE *out, const char *name, const void *base, int fleet, 
     fprintf(out, "%s\n", line);
 }
 
+/* The printed fields of base that the scenario has, "LABEL VALUE[ SUFFIX]" joined by " | " after sep, one line. */
+static void print_line(FILE *out, const WfSummaryField *fields, size_t n, WfSummaryBoundary b, const void *base,
+                       const WfScenario *sc, const char *sep)
+{
+    for (size_t k = 0; k < n; k++) {
+        const WfSummaryField *f = &fields[k];
+        const WfSummaryPrint *p = &f->print[b];
+        if (!p->label || !wf_summary_field_on(f, sc)) continue;
+        char val[64];
+        print_value(val, sizeof val, f, p->format, wf_summary_value(base, f));
+        fprintf(out, "%s%s %s%s%s", sep, p->label, val, p->suffix[0] ? " " : "", p->suffix);
+        sep = " | ";
+    }
+    fprintf(out, "\n");
+}
+
 void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const char *const *names, size_t n_classes,
                       const WfScenario *sc)
 {
@@ -236,17 +250,7 @@ void wf_summary_print(FILE *out, const WfSummary *s, WfSummaryBoundary b, const 
     for (size_t c = 0; c < n_classes; c++) print_row(out, names[c], &s->cls[c], 0, b);
     print_row(out, "fleet", s, 1, b);
     fprintf(out, "\n");
-    const char *sep = "";
-    for (size_t k = 0; k < wf_summary_n_fields; k++) {
-        const WfSummaryField *f = &wf_summary_fields[k];
-        const WfSummaryPrint *p = &f->print[b];
-        if (!p->label || !wf_summary_field_on(f, sc)) continue;
-        char val[64];
-        print_value(val, sizeof val, f, p->format, wf_summary_value(s, f));
-        fprintf(out, "%s%s %s%s%s", sep, p->label, val, p->suffix[0] ? " " : "", p->suffix);
-        sep = " | ";
-    }
-    fprintf(out, "\n");
+    print_line(out, wf_summary_fields, wf_summary_n_fields, b, s, sc, "");
 }
 
 void wf_summary_print_safety(FILE *out, const WfSummary *s, WfSummaryBoundary b, const WfScenario *sc)
@@ -254,17 +258,7 @@ void wf_summary_print_safety(FILE *out, const WfSummary *s, WfSummaryBoundary b,
     for (size_t g = 0; g < sc->n_groups; g++) {
         if (!sc->groups[g].safety) continue;
         fprintf(out, "safety filter %s, group %s:", sc->groups[g].safety->name, sc->groups[g].name);
-        const char *sep = " ";
-        for (size_t k = 0; k < wf_summary_n_group_fields; k++) {
-            const WfSummaryField *f = &wf_summary_group_fields[k];
-            const WfSummaryPrint *p = &f->print[b];
-            if (!p->label) continue;
-            char val[64];
-            print_value(val, sizeof val, f, p->format, wf_summary_value(&s->grp[g], f));
-            fprintf(out, "%s%s %s%s%s", sep, p->label, val, p->suffix[0] ? " " : "", p->suffix);
-            sep = " | ";
-        }
-        fprintf(out, "\n");
+        print_line(out, wf_summary_group_fields, wf_summary_n_group_fields, b, &s->grp[g], sc, " ");
     }
     wf_summary_warn_repairs(out, (long long)(s->overlaps + s->counts.overlaps));
 }

@@ -4,7 +4,6 @@
 #include "wavefuel/sweep.h"
 
 #include <stdlib.h>
-#include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -32,23 +31,13 @@ typedef struct Exec {
 #endif
 } Exec;
 
-static void lock(Exec *e)
-{
 #ifdef _OPENMP
-    omp_set_lock(&e->lock);
+static void lock(Exec *e) { omp_set_lock(&e->lock); }
+static void unlock(Exec *e) { omp_unset_lock(&e->lock); }
 #else
-    (void)e;
+static void lock(Exec *e) { (void)e; }
+static void unlock(Exec *e) { (void)e; }
 #endif
-}
-
-static void unlock(Exec *e)
-{
-#ifdef _OPENMP
-    omp_unset_lock(&e->lock);
-#else
-    (void)e;
-#endif
-}
 
 static int stopped(const Exec *e) { return e->o->stop && *e->o->stop; }
 
@@ -178,11 +167,7 @@ static void execute(Exec *e)
 int wf_sweep_execute(const WfSweep *sw, WfSweepResult *res, const WfSweepExecOpts *o, WfSweepCounts *counts,
                      WfSweepTiming *timing, WfError *err)
 {
-    Exec e;
-    memset(&e, 0, sizeof e);
-    e.sw = sw;
-    e.o = o;
-    e.res = res;
+    Exec e = {.sw = sw, .o = o, .res = res};
     e.todo = calloc(sw->n_runs ? sw->n_runs : 1, sizeof *e.todo);
     e.done = calloc(sw->n_runs ? sw->n_runs : 1, sizeof *e.done);
     int rc = !e.todo || !e.done ? wf_err(err, WF_ESYS, "out of memory for %zu runs", sw->n_runs) : 0;

@@ -81,7 +81,7 @@ typedef struct AxisDef {
     size_t n;
 } AxisDef;
 
-/* A growable list of assignments. */
+/* A growable list of assignments; its arrays live in the pool (outgrown ones too, until the sweep is destroyed). */
 typedef struct SetList {
     const char **s;
     size_t       n, cap;
@@ -95,8 +95,9 @@ static int setlist_add(SetList *l, struct WfSweepPool *pool, const char *key, co
     snprintf(a, len, "%s=%s", key, value);
     if (l->n == l->cap) {
         size_t cap = l->cap ? 2 * l->cap : 8;
-        const char **q = realloc(l->s, cap * sizeof *q);
+        const char **q = pool_calloc(pool, cap, sizeof *q);
         if (!q) return wf_err(err, WF_ESYS, "out of memory");
+        if (l->n) memcpy(q, l->s, l->n * sizeof *q);
         l->s = q, l->cap = cap;
     }
     l->s[l->n++] = a;
@@ -155,17 +156,17 @@ static int flatten(WfCfgNode *map, const char *prefix, SetList *l, struct WfSwee
     return 0;
 }
 
-/* The unit implied by a key's suffix (keys carry their unit: length_m, U_mps, T_s); "1" when it names none. */
-static const char *unit_of_key(const char *key)
+/* The unit implied by the suffix of a key (its first n characters; keys carry their unit: length_m, U_mps, T_s); "1"
+ * when it names none. */
+static const char *unit_of_key(const char *key, size_t n)
 {
     static const struct { const char *suffix, *unit; } tab[] = {
         {"_per_s2", "1/s^2"}, {"_per_s", "1/s"}, {"_mps2", "m/s^2"}, {"_mps", "m/s"}, {"_gps", "g/s"},
         {"_rad", "rad"},      {"_kw", "kW"},     {"_m", "m"},         {"_s", "s"},     {"_g", "g"},
     };
-    size_t n = strlen(key);
     for (size_t i = 0; i < sizeof tab / sizeof tab[0]; i++) {
         size_t k = strlen(tab[i].suffix);
-        if (n > k && strcmp(key + n - k, tab[i].suffix) == 0) return tab[i].unit;
+        if (n > k && strncmp(key + n - k, tab[i].suffix, k) == 0) return tab[i].unit;
     }
     return "1";
 }
@@ -223,7 +224,6 @@ static int parse_points(WfCfgNode *points, WfSweepAxis *ax, AxisDef *def, struct
         if (!set) return wf_cfg_missing(p, "set", "a map of overrides", err);
         SetList l = {0};
         int rc = flatten(set, "", &l, pool, err);
-        if (!rc && !pool_keep(pool, l.s) && l.n) rc = wf_err(err, WF_ESYS, "out of memory");
         if (rc) return rc;
         /* Labels outlive the configuration tree: copy them. */
         if (!(label = pool_strdup(pool, label))) return wf_err(err, WF_ESYS, "out of memory");
@@ -278,7 +278,6 @@ static int parse_values(const char *key, WfCfgNode *values, WfCfgNode *range, Wf
             rc = scalar_of(with->child[k]->child[j], "a value", &wv, err) ||
                  setlist_add(&l, pool, with->child[k]->key, wv, err);
         }
-        if (!rc && !pool_keep(pool, l.s)) rc = wf_err(err, WF_ESYS, "out of memory");
         if (rc) return err->code;
         def->pt[j] = (Point){v[j], l.s, l.n};
     }
@@ -314,18 +313,14 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
         return wf_err(err, WF_EINPUT, "%s: give `values` or `range`, not both", where(e, w, sizeof w));
     if (key && check_text(wf_cfg_child(e, "key"), key, 1, err)) return WF_EINPUT;
 
-    if (points) {
-        int rc = parse_points(points, ax, def, pool, err);
-        if (rc) return rc;
-        if (!name) return wf_cfg_missing(e, "name", "the column name of an axis given by points", err);
-    } else {
-        int rc = parse_values(key, values, range, with, ax, def, pool, err);
-        if (rc) return rc;
-        if (!name) {
-            /* The key's last component names the column: fleet.drivers[1].count -> count. */
-            const char *dot = strrchr(key, '.');
-            name = dot ? dot + 1 : key;
-        }
+    int rc = points ? parse_points(points, ax, def, pool, err)
+                    : parse_values(key, values, range, with, ax, def, pool, err);
+    if (rc) return rc;
+    if (!name && points) return wf_cfg_missing(e, "name", "the column name of an axis given by points", err);
+    if (!name) {
+        /* The key's last component names the column: fleet.drivers[1].count -> count. */
+        const char *dot = strrchr(key, '.');
+        name = dot ? dot + 1 : key;
     }
     if (def->n == 0) return wf_err(err, WF_EINPUT, "%s: the axis has no values", where(e, w, sizeof w));
     if (strlen(name) >= sizeof ax->name || strchr(name, '/') || !name[0])
@@ -333,15 +328,11 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
                       sizeof ax->name - 1);
     snprintf(ax->name, sizeof ax->name, "%s", name);
     ax->n_values = def->n;
+    double x;
     ax->numeric = 1;
-    for (size_t j = 0; j < def->n; j++) {
-        double x;
-        if (wf_parse_double(def->pt[j].label, &x)) ax->numeric = 0;
-    }
-    const char *first = ax->keys;
-    char key0[512];
-    snprintf(key0, sizeof key0, "%.*s", (int)strcspn(first, ","), first);
-    snprintf(ax->units, sizeof ax->units, "%s", ax->numeric ? unit_of_key(key0) : "");
+    for (size_t j = 0; j < def->n; j++) ax->numeric &= !wf_parse_double(def->pt[j].label, &x);
+    /* The first key's unit. */
+    snprintf(ax->units, sizeof ax->units, "%s", ax->numeric ? unit_of_key(ax->keys, strcspn(ax->keys, ",")) : "");
     return 0;
 }
 
@@ -349,32 +340,28 @@ static int parse_axis(WfCfgNode *e, WfSweepAxis *ax, AxisDef *def, struct WfSwee
 static int parse_seeds(WfCfgNode *root, int64_t **out, size_t *n_out, struct WfSweepPool *pool, WfError *err)
 {
     WfCfgNode *c = wf_cfg_child(root, "seeds"), *seq = NULL;
+    long n = 0;
     *n_out = 0;
     if (c && c->kind == WF_CFG_SEQ) {
         if (wf_cfg_seq_opt(root, "seeds", &seq, err)) return WF_EINPUT;
         if (!seq->n_child) return wf_err(err, WF_EINPUT, "%s:%d: seeds: an empty list", seq->file, seq->line);
-        int64_t *s = pool_calloc(pool, seq->n_child, sizeof *s);
-        if (!s) return wf_err(err, WF_ESYS, "out of memory");
-        for (size_t i = 0; i < seq->n_child; i++) {
-            long v;
-            WfCfgNode *it = seq->child[i];
-            char w[1100];
-            it->used = 1;
-            if (it->kind != WF_CFG_SCALAR || wf_parse_long(it->value, 0, 2147483647L, &v))
-                return wf_err(err, WF_EINPUT, "%s: expected a seed, an integer in [0, 2147483647] (got '%s')",
-                              where(it, w, sizeof w), it->kind == WF_CFG_SCALAR ? it->value : "a map or list");
-            s[i] = v;
-        }
-        *out = s;
-        *n_out = seq->n_child;
-        return 0;
+        n = (long)seq->n_child;
+    } else if (wf_cfg_long_opt(root, "seeds", 1, 1000000, &n, err)) {
+        return WF_EINPUT;
     }
-    long n = 0;
-    if (wf_cfg_long_opt(root, "seeds", 1, 1000000, &n, err)) return WF_EINPUT;
     if (!n) return 0;
     int64_t *s = pool_calloc(pool, (size_t)n, sizeof *s);
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
-    for (long i = 0; i < n; i++) s[i] = i + 1;
+    for (long i = 0; i < n; i++) {
+        long v = i + 1;
+        WfCfgNode *it = seq ? seq->child[i] : NULL;
+        char w[1100];
+        if (it) it->used = 1;
+        if (it && (it->kind != WF_CFG_SCALAR || wf_parse_long(it->value, 0, 2147483647L, &v)))
+            return wf_err(err, WF_EINPUT, "%s: expected a seed, an integer in [0, 2147483647] (got '%s')",
+                          where(it, w, sizeof w), it->kind == WF_CFG_SCALAR ? it->value : "a map or list");
+        s[i] = v;
+    }
     *out = s;
     *n_out = (size_t)n;
     return 0;
@@ -392,7 +379,6 @@ static int parse_runs(WfSweep *sw, WfCfgNode *runs, SetList **lists_out, WfError
         if (r->kind != WF_CFG_MAP)
             return wf_err(err, WF_EINPUT, "%s: a run is a map of overrides {key: value, ...}", where(r, w, sizeof w));
         if (flatten(r, "", &lists[i], sw->pool, err)) return err->code;
-        if (!pool_keep(sw->pool, lists[i].s) && lists[i].n) return wf_err(err, WF_ESYS, "out of memory");
         for (size_t k = 0; k < lists[i].n; k++) {
             const char *a = lists[i].s[k];
             size_t klen = (size_t)(strchr(a, '=') - a), ax;
@@ -417,15 +403,8 @@ static int parse_runs(WfSweep *sw, WfCfgNode *runs, SetList **lists_out, WfError
     }
     for (size_t ax = 0; ax < sw->n_axes; ax++)
         snprintf(sw->axes[ax].units, sizeof sw->axes[ax].units, "%s",
-                 sw->axes[ax].numeric ? unit_of_key(sw->axes[ax].keys) : "");
+                 sw->axes[ax].numeric ? unit_of_key(sw->axes[ax].keys, strlen(sw->axes[ax].keys)) : "");
     *lists_out = lists;
-    return 0;
-}
-
-static int resolve_scenario(WfSweep *sw, const char *scen, WfError *err)
-{
-    if (wf_path_relative_to(sw->path, scen, sw->scenario_path, sizeof sw->scenario_path))
-        return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
     return 0;
 }
 
@@ -501,16 +480,16 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
                       "not both", where(runs, w, sizeof w));
     /* The name names output/NAME.h5 (and the table's rows): a plain file name that fits, never cut. */
     const char *base = wf_path_base(sw->path);
-    int stem_len = (int)strcspn(base, ".");
     char stem[1024];
-    snprintf(stem, sizeof stem, "%.*s", stem_len, base);
-    const char *problem = wf_path_plain_name_problem(name ? name : stem, sizeof sw->name - 1);
+    snprintf(stem, sizeof stem, "%.*s", (int)strcspn(base, "."), base);
+    const char *chosen = name ? name : stem, *problem = wf_path_plain_name_problem(chosen, sizeof sw->name - 1);
     if (problem)
         return wf_err(err, WF_EINPUT, "%s '%.200s' %s (at most %zu bytes)%s",
-                      name ? where(wf_cfg_child(root, "name"), w, sizeof w) : sw->path, name ? name : stem, problem,
+                      name ? where(wf_cfg_child(root, "name"), w, sizeof w) : sw->path, chosen, problem,
                       sizeof sw->name - 1, name ? "" : ": the file's stem is the default name; set `name:`");
-    memcpy(sw->name, name ? name : stem, strlen(name ? name : stem) + 1); /* fits: checked above */
-    if (resolve_scenario(sw, scen, err)) return WF_EINPUT;
+    memcpy(sw->name, chosen, strlen(chosen) + 1); /* fits: checked above */
+    if (wf_path_relative_to(sw->path, scen, sw->scenario_path, sizeof sw->scenario_path))
+        return wf_err(err, WF_EINPUT, "%s: scenario path too long", sw->path);
     int n = output ? snprintf(sw->output, sizeof sw->output, "%s", output)
                    : snprintf(sw->output, sizeof sw->output, WF_OUTPUT_DEFAULT_DIR "/%s.h5", sw->name);
     if (n < 0 || (size_t)n >= sizeof sw->output) return wf_err(err, WF_EINPUT, "%s: output path too long", sw->path);
@@ -520,60 +499,54 @@ static int build(WfSweep *sw, WfCfg *cfg, WfError *err)
     size_t n_defs = 0, n_seeds = 0;
     int64_t *seeds = NULL;
     int rc = set ? flatten(set, "", &common, sw->pool, err) : 0;
-    if (!rc && common.s && !pool_keep(sw->pool, common.s)) rc = wf_err(err, WF_ESYS, "out of memory");
-    if (!rc && axes) {
+    if (rc) return rc;
+    if (axes) {
         if (axes->n_child > WF_SWEEP_MAX_AXES)
-            rc = wf_err(err, WF_EINPUT, "%s: more than %d axes", where(axes, w, sizeof w), WF_SWEEP_MAX_AXES);
-        for (size_t a = 0; !rc && a < axes->n_child; a++) {
-            rc = parse_axis(axes->child[a], &sw->axes[a], &defs[a], sw->pool, err);
-            for (size_t b = 0; !rc && b < a; b++)
+            return wf_err(err, WF_EINPUT, "%s: more than %d axes", where(axes, w, sizeof w), WF_SWEEP_MAX_AXES);
+        for (size_t a = 0; a < axes->n_child; a++) {
+            if ((rc = parse_axis(axes->child[a], &sw->axes[a], &defs[a], sw->pool, err))) return rc;
+            for (size_t b = 0; b < a; b++)
                 if (!strcmp(sw->axes[a].name, sw->axes[b].name))
-                    rc = wf_err(err, WF_EINPUT, "%s: two axes are named '%s': give one a `name`",
-                                where(axes->child[a], w, sizeof w), sw->axes[a].name);
+                    return wf_err(err, WF_EINPUT, "%s: two axes are named '%s': give one a `name`",
+                                  where(axes->child[a], w, sizeof w), sw->axes[a].name);
         }
-        if (!rc) n_defs = sw->n_axes = axes->n_child;
+        n_defs = sw->n_axes = axes->n_child;
     }
-    if (!rc && runs) {
-        if (!runs->n_child) rc = wf_err(err, WF_EINPUT, "%s: `runs` is empty", where(runs, w, sizeof w));
-        if (!rc) rc = parse_runs(sw, runs, &explicit_runs, err);
-    }
-    if (!rc) rc = parse_seeds(root, &seeds, &n_seeds, sw->pool, err);
-    if (!rc) rc = wf_cfg_check_unused(cfg, err);
-    if (!rc) rc = expand(sw, &common, defs, n_defs, explicit_runs, runs ? runs->n_child : 0, seeds, n_seeds, err);
+    if (runs && !runs->n_child) return wf_err(err, WF_EINPUT, "%s: `runs` is empty", where(runs, w, sizeof w));
+    if ((runs && (rc = parse_runs(sw, runs, &explicit_runs, err))) ||
+        (rc = parse_seeds(root, &seeds, &n_seeds, sw->pool, err)) || (rc = wf_cfg_check_unused(cfg, err)))
+        return rc;
+    return expand(sw, &common, defs, n_defs, explicit_runs, runs ? runs->n_child : 0, seeds, n_seeds, err);
+}
+
+/* The sweep of cfg into sw (zeroed); each error returned where it is found. */
+static int fill_sweep(WfSweep *sw, const char *path, WfCfg *cfg, const char *scenario_text, WfError *err)
+{
+    if (!(sw->pool = calloc(1, sizeof *sw->pool)) || !(sw->text = strdup(cfg->text)))
+        return wf_err(err, WF_ESYS, "out of memory");
+    if (snprintf(sw->path, sizeof sw->path, "%s", path) >= (int)sizeof sw->path)
+        return wf_err(err, WF_EINPUT, "sweep path too long: %s", path);
+    int rc = build(sw, cfg, err);
+    if (rc) return rc;
+    if (scenario_text)
+        return (sw->scenario_text = strdup(scenario_text)) ? 0 : wf_err(err, WF_ESYS, "out of memory");
+    /* Read once: every run uses this text, so editing the file during a sweep changes no run. */
+    WfCfg *sc = NULL;
+    rc = wf_cfg_load_file(sw->scenario_path, &sc, err);
+    if (rc) wf_err_prefix(err, "%s: scenario: ", sw->path);
+    else if (!(sw->scenario_text = strdup(sc->text))) rc = wf_err(err, WF_ESYS, "out of memory");
+    wf_cfg_destroy(&sc);
     return rc;
 }
 
 static int load_common(const char *path, WfCfg *cfg, const char *scenario_text, WfSweep **out, WfError *err)
 {
     WfSweep *sw = calloc(1, sizeof *sw);
-    int rc = 0;
-    if (!sw || !(sw->pool = calloc(1, sizeof *sw->pool)) || !(sw->text = strdup(cfg->text))) {
-        rc = wf_err(err, WF_ESYS, "out of memory");
-        goto done;
-    }
-    if (snprintf(sw->path, sizeof sw->path, "%s", path) >= (int)sizeof sw->path) {
-        rc = wf_err(err, WF_EINPUT, "sweep path too long: %s", path);
-        goto done;
-    }
-    if ((rc = build(sw, cfg, err))) goto done;
-    if (scenario_text) {
-        if (!(sw->scenario_text = strdup(scenario_text))) rc = wf_err(err, WF_ESYS, "out of memory");
-    } else {
-        /* Read once: every run uses this text, so editing the file during a sweep changes no run. */
-        WfCfg *sc = NULL;
-        rc = wf_cfg_load_file(sw->scenario_path, &sc, err);
-        if (rc) wf_err_prefix(err, "%s: scenario: ", sw->path);
-        else if (!(sw->scenario_text = strdup(sc->text))) rc = wf_err(err, WF_ESYS, "out of memory");
-        wf_cfg_destroy(&sc);
-    }
-done:
+    int rc = sw ? fill_sweep(sw, path, cfg, scenario_text, err) : wf_err(err, WF_ESYS, "out of memory");
     wf_cfg_destroy(&cfg);
-    if (rc) {
-        if (sw) wf_sweep_destroy(&sw);
-        return rc;
-    }
+    if (rc) wf_sweep_destroy(&sw);
     *out = sw;
-    return 0;
+    return rc;
 }
 
 int wf_sweep_load(const char *path, WfSweep **out, WfError *err)
@@ -603,41 +576,34 @@ int wf_sweep_overrides(const WfSweep *sw, size_t run, char **out, WfError *err)
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     /* Same format as a scenario's `overrides` (each assignment followed by a newline). */
     for (size_t i = 0; i < r->n_set; i++) {
-        size_t k = strlen(r->set[i]);
-        memcpy(p, r->set[i], k);
-        p[k] = '\n';
-        p += k + 1;
+        p = stpcpy(p, r->set[i]);
+        *p++ = '\n';
     }
     *p = '\0';
     *out = s;
     return 0;
 }
 
-/* Appends one shell word, single-quoted unless it holds only characters no POSIX shell treats specially. */
+/* Appends one shell word, single-quoted unless it holds only characters no POSIX shell treats specially (a quote
+ * is not one of them, so only a quoted word has any). */
 static int append_word(char *buf, size_t len, size_t *used, const char *w)
 {
     static const char safe[] = "abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_-+./=:,@%";
     int plain = w[0] && strspn(w, safe) == strlen(w);
-    size_t need = plain ? strlen(w) : 2 + strlen(w);
-    if (!plain)
-        for (const char *c = w; *c; c++) need += *c == '\'' ? 3 : 0; /* ' becomes '\'' */
+    size_t need = strlen(w) + (plain ? 0 : 2);
+    for (const char *c = w; *c; c++) need += *c == '\'' ? 3 : 0; /* ' becomes '\'' */
     if (*used + need + 2 > len) return WF_EINPUT;
     char *p = buf + *used;
     if (*used) *p++ = ' ';
-    if (plain) {
-        memcpy(p, w, strlen(w));
-        p += strlen(w);
-    } else {
-        *p++ = '\'';
-        for (const char *c = w; *c; c++) {
-            if (*c == '\'') {
-                memcpy(p, "'\\''", 4);
-                p += 4;
-            } else
-                *p++ = *c;
-        }
-        *p++ = '\'';
+    if (!plain) *p++ = '\'';
+    for (const char *c = w; *c; c++) {
+        if (*c == '\'') {
+            memcpy(p, "'\\''", 4);
+            p += 4;
+        } else
+            *p++ = *c;
     }
+    if (!plain) *p++ = '\'';
     *p = '\0';
     *used = (size_t)(p - buf);
     return 0;
@@ -658,9 +624,6 @@ int wf_sweep_command(const WfSweep *sw, size_t run, const char *program, char *b
 }
 
 /* ---- One run ---- */
-
-/* FNV-1a, 64 bit: names a run's own file after its overrides, so the name stays when the sweep is extended. */
-static uint64_t fnv1a(const char *s) { return wf_fnv1a64(WF_FNV1A64_INIT, s, strlen(s)); }
 
 static void record_error(WfSweepResult *res, const WfError *err)
 {
@@ -707,8 +670,9 @@ void wf_sweep_run(const WfSweep *sw, size_t i, const WfSweepRunOpts *o, volatile
         char *ov = NULL;
         rc = wf_sweep_overrides(sw, i, &ov, &err);
         if (!rc) {
+            /* FNV-1a of the overrides names the run's own file, so the name stays when the sweep is extended. */
             int n = snprintf(sc->output_path, sizeof sc->output_path, "%s/run_%016llx.h5", o->per_run_dir,
-                             (unsigned long long)fnv1a(ov));
+                             (unsigned long long)wf_fnv1a64(WF_FNV1A64_INIT, ov, strlen(ov)));
             if (n < 0 || (size_t)n >= sizeof sc->output_path)
                 rc = wf_err(&err, WF_EINPUT, "per-run directory path too long: %s", o->per_run_dir);
         }

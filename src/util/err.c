@@ -76,12 +76,8 @@ int wf_parse_double(const char *s, double *out)
     if (end == s || errno == ERANGE || !isfinite(v)) return -1;
     if ((size_t)(end - s) != decimal_length(s)) return -1; /* hexadecimal, or strtod read further than decimal */
     end = (char *)skip_blank(end);
-    if (*end != '\0' && *end != '\r' && *end != '\n') return -1;
-    if (*end == '\r' || *end == '\n') {
-        const char *t = end;
-        while (*t == '\r' || *t == '\n') t++;
-        if (*t) return -1;
-    }
+    while (*end == '\r' || *end == '\n') end++; /* line ends may follow, nothing else */
+    if (*end) return -1;
     *out = v;
     return 0;
 }

@@ -3,8 +3,6 @@
 #ifndef WAVEFUEL_PROGRESS_H
 #define WAVEFUEL_PROGRESS_H
 
-#include <stddef.h>
-
 #define WF_PROGRESS_CELLS 30 /* cells of the bar */
 
 /* bar (at least WF_PROGRESS_CELLS + 1 bytes) receives '#' for the done fraction frac (clamped to [0, 1]) and '.'

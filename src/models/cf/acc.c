@@ -41,7 +41,4 @@ const WfCfModel wf_cf_acc = {
      * strictly decreasing in v (k_gap T >= 1e-4, k_v >= 0.01 by the ranges): one uniform-flow speed per gap. */
     .check = NULL,
     .accel = acc_accel,
-    .state_size = 0,
-    .init_state = NULL,
-    .update_state = NULL,
 };

@@ -78,7 +78,4 @@ const WfCfModel wf_cf_follower_stopper = {
     .n_spec = sizeof fs_spec / sizeof fs_spec[0],
     .check = fs_check,
     .accel = fs_accel,
-    .state_size = 0,
-    .init_state = NULL,
-    .update_state = NULL,
 };

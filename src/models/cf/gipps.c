@@ -81,7 +81,4 @@ const WfCfModel wf_cf_gipps = {
     .n_spec = sizeof gipps_spec / sizeof gipps_spec[0],
     .check = gipps_check,
     .accel = gipps_accel,
-    .state_size = 0,
-    .init_state = NULL,
-    .update_state = NULL,
 };

@@ -95,10 +95,6 @@ const WfCfModel wf_cf_idm = {
     .param_size = sizeof(IdmParams),
     .spec = idm_spec,
     .n_spec = sizeof idm_spec / sizeof idm_spec[0],
-    .check = NULL,
     .accel = idm_accel,
-    .state_size = 0,
-    .init_state = NULL,
-    .update_state = NULL,
     .accel_block = idm_accel_block,
 };

@@ -53,9 +53,5 @@ const WfCfModel wf_cf_ovm = {
     .param_size = sizeof(OvmParams),
     .spec = ovm_spec,
     .n_spec = sizeof ovm_spec / sizeof ovm_spec[0],
-    .check = NULL,
     .accel = ovm_accel,
-    .state_size = 0,
-    .init_state = NULL,
-    .update_state = NULL,
 };

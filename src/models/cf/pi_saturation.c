@@ -63,8 +63,6 @@ static const WfParamSpec pi_spec[] = {
 
 static double clip01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
-static long window_samples(const PiParams *p) { return lround(p->window_s / PI_SAMPLE_S); }
-
 /* The command of this step from the stored memory and this step's inputs. check() ensures g_u > g_l;
  * gamma >= 0.01 m by its range. */
 static double pi_command(const PiParams *p, const PiState *s, double gap_m, double v_mps, double v_lead_mps)
@@ -126,7 +124,7 @@ static void pi_update_state(const void *params, void *state, double gap_m, doubl
     }
     /* Re-summed (newest first) rather than updated by add/subtract, so no rounding accumulates over a long
      * run; at most PI_CAPACITY additions per AV and step. */
-    long want = window_samples(p) - 1;
+    long want = lround(p->window_s / PI_SAMPLE_S) - 1; /* n - 1 samples beside the current speed */
     uint32_t take = (long)s->n_stored < want ? s->n_stored : (uint32_t)want;
     double sum = 0.0;
     for (uint32_t j = 0; j < take; j++) sum += s->hist_mps[(s->head + PI_CAPACITY - 1 - j) % PI_CAPACITY];

@@ -79,39 +79,31 @@ static int validate(const char *path, const WfCfPlugin *d, WfError *err)
     return 0;
 }
 
-int wf_cf_plugin_load(const char *path, WfCfPluginLib **out, WfError *err)
+/* Opens the library named by path into lib (zeroed), checks its description and presents it as lib->model; each
+ * error returned where it is found. */
+static int open_plugin(WfCfPluginLib *lib, const char *path, WfError *err)
 {
-    *out = NULL;
-    WfCfPluginLib *lib = calloc(1, sizeof *lib);
-    if (!lib) return wf_err(err, WF_ESYS, "out of memory");
     int n = snprintf(lib->path, sizeof lib->path, "%s", path);
-    int rc = 0;
-    if (n < 0 || (size_t)n >= sizeof lib->path) {
-        rc = wf_err(err, WF_EINPUT, "plugin path too long (%zu characters): %.80s...", strlen(path), path);
-        goto fail;
-    }
+    if (n < 0 || (size_t)n >= sizeof lib->path)
+        return wf_err(err, WF_EINPUT, "plugin path too long (%zu characters): %.80s...", strlen(path), path);
     /* Without a slash dlopen would search the system's library path instead of the file named. */
     if (!strchr(path, '/')) {
         n = snprintf(lib->path, sizeof lib->path, "./%s", path);
-        if (n < 0 || (size_t)n >= sizeof lib->path) {
-            rc = wf_err(err, WF_EINPUT, "plugin path too long: %.80s...", path);
-            goto fail;
-        }
+        if (n < 0 || (size_t)n >= sizeof lib->path)
+            return wf_err(err, WF_EINPUT, "plugin path too long: %.80s...", path);
     }
     /* RTLD_NOW: a missing symbol fails here, with dlerror's message, not in the middle of a run. */
     lib->handle = dlopen(lib->path, RTLD_NOW | RTLD_LOCAL);
     if (!lib->handle) {
         const char *why = dlerror();
-        rc = wf_err(err, WF_EINPUT, "cannot load plugin %s: %s", lib->path, why ? why : "unknown dlopen error");
-        goto fail;
+        return wf_err(err, WF_EINPUT, "cannot load plugin %s: %s", lib->path, why ? why : "unknown dlopen error");
     }
     dlerror();
     void *sym = dlsym(lib->handle, WF_CF_PLUGIN_ENTRY);
     if (!sym) {
         const char *why = dlerror();
-        rc = wf_err(err, WF_EINPUT, "plugin %s does not export %s() (%s): see include/wavefuel/cf_plugin.h", lib->path,
-                    WF_CF_PLUGIN_ENTRY, why ? why : "symbol is NULL");
-        goto fail;
+        return wf_err(err, WF_EINPUT, "plugin %s does not export %s() (%s): see include/wavefuel/cf_plugin.h",
+                      lib->path, WF_CF_PLUGIN_ENTRY, why ? why : "symbol is NULL");
     }
     /* ISO C has no cast from an object pointer to a function pointer; POSIX guarantees they have the same
      * representation for dlsym's results, so the bytes are copied. */
@@ -120,16 +112,14 @@ int wf_cf_plugin_load(const char *path, WfCfPluginLib **out, WfError *err)
     memcpy(&entry, &sym, sizeof entry);
     const WfCfPlugin *d = NULL;
     WfError perr = {0};
-    if (entry(&plugin_host, &d, &perr) != 0) {
-        rc = wf_err(err, WF_EINPUT, "plugin %s refused to load: %s", lib->path,
-                    perr.msg[0] ? perr.msg : "(no message)");
-        goto fail;
-    }
-    if (!d) {
-        rc = wf_err(err, WF_EINPUT, "plugin %s: %s() returned 0 without a description", lib->path, WF_CF_PLUGIN_ENTRY);
-        goto fail;
-    }
-    if ((rc = validate(lib->path, d, err))) goto fail;
+    if (entry(&plugin_host, &d, &perr) != 0)
+        return wf_err(err, WF_EINPUT, "plugin %s refused to load: %s", lib->path,
+                      perr.msg[0] ? perr.msg : "(no message)");
+    if (!d)
+        return wf_err(err, WF_EINPUT, "plugin %s: %s() returned 0 without a description", lib->path,
+                      WF_CF_PLUGIN_ENTRY);
+    int rc = validate(lib->path, d, err);
+    if (rc) return rc;
 
     /* Parameters are consecutive doubles in table order: offset k * sizeof(double). */
     for (size_t k = 0; k < d->n_params; k++) {
@@ -148,9 +138,14 @@ int wf_cf_plugin_load(const char *path, WfCfPluginLib **out, WfError *err)
         .init_state = d->init_state,
         .update_state = d->update_state,
     };
-    *out = lib;
     return 0;
-fail:
-    wf_cf_plugin_close(&lib);
+}
+
+int wf_cf_plugin_load(const char *path, WfCfPluginLib **out, WfError *err)
+{
+    WfCfPluginLib *lib = calloc(1, sizeof *lib);
+    int rc = lib ? open_plugin(lib, path, err) : wf_err(err, WF_ESYS, "out of memory");
+    if (rc) wf_cf_plugin_close(&lib);
+    *out = lib;
     return rc;
 }

@@ -1,9 +1,6 @@
 /* The list of car-following models and controllers; adding one is one line here. Also the generic
  * equilibrium solver that initial conditions use for every model. */
-#include <math.h>
 #include <stddef.h>
-#include <stdio.h>
-#include <string.h>
 
 #include "util/registry.h"
 #include "wavefuel/cf.h"
@@ -22,9 +19,8 @@ const WfCfModel *const wf_cf_models[] = {&wf_cf_idm,           &wf_cf_ovm,      
 int wf_cf_model_find(const char *name, const WfCfModel **out, WfError *err)
 {
     long i = wf_registry_find((const void *const *)wf_cf_models, offsetof(WfCfModel, name), name, "car-following model", err);
-    if (i < 0) return WF_EINPUT;
-    *out = wf_cf_models[i];
-    return 0;
+    if (i >= 0) *out = wf_cf_models[i];
+    return i < 0 ? WF_EINPUT : 0;
 }
 
 double wf_cf_equilibrium_speed(const WfCfModel *m, const void *params, double gap_m, double v_hi)

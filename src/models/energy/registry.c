@@ -1,7 +1,5 @@
 /* The list of energy model families; adding one is one line here. */
 #include <stddef.h>
-#include <stdio.h>
-#include <string.h>
 
 #include "util/registry.h"
 #include "wavefuel/energy.h"
@@ -12,7 +10,6 @@ const WfEnergyModel *const wf_energy_models[] = {&wf_energy_circles, &wf_energy_
 int wf_energy_model_find(const char *name, const WfEnergyModel **out, WfError *err)
 {
     long i = wf_registry_find((const void *const *)wf_energy_models, offsetof(WfEnergyModel, name), name, "energy model", err);
-    if (i < 0) return WF_EINPUT;
-    *out = wf_energy_models[i];
-    return 0;
+    if (i >= 0) *out = wf_energy_models[i];
+    return i < 0 ? WF_EINPUT : 0;
 }

@@ -30,23 +30,16 @@ static const char *const column_names[] = {"Velocity", "Acceleration", "Road Gra
 /* ---------------------------------------------------------------------------------------------------------
  * Grid construction and checks */
 
-static void axis_free(WfTableAxis *ax)
-{
-    free(ax->x);
-    free(ax->inv_w);
-    free(ax->bucket);
-    ax->x = NULL;
-    ax->inv_w = NULL;
-    ax->bucket = NULL;
-}
-
 void wf_table_destroy(WfTable **pt)
 {
     if (!pt || !*pt) return;
     WfTable *t = *pt;
-    axis_free(&t->v);
-    axis_free(&t->a);
-    axis_free(&t->theta);
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (int c = 0; c < 3; c++) {
+        free(axes[c]->x);
+        free(axes[c]->inv_w);
+        free(axes[c]->bucket);
+    }
     free(t->fuel_gps);
     free(t->infeasible);
     free(t->a_max_mps2);
@@ -58,15 +51,11 @@ void wf_table_destroy(WfTable **pt)
  * builds the bucket index. `what` names the axis for messages. */
 static int axis_init(WfTableAxis *ax, double *nodes, size_t n, const char *file, const char *what, WfError *err)
 {
-    ax->x = nodes;
-    ax->n = n;
-    ax->lo = nodes[0];
-    ax->hi = nodes[n - 1];
     /* One node: the padding makes x[k + 1] - x[k] = 1, so t = 0 without a division by zero; up = 0 keeps
      * both "corners" on the single node. */
     nodes[n] = n > 1 ? nodes[n - 1] + (nodes[n - 1] - nodes[n - 2]) : nodes[0] + 1.0;
-    ax->kmax = n > 1 ? n - 2 : 0;
-    ax->up = n > 1 ? 1 : 0;
+    *ax = (WfTableAxis){.n = n, .lo = nodes[0], .hi = nodes[n - 1], .kmax = n > 1 ? n - 2 : 0, .up = n > 1 ? 1 : 0,
+                        .x = nodes};
     /* Buckets no wider than the narrowest cell hold at most two cells, so locate() steps at most twice. */
     double min_w = INFINITY;
     for (size_t k = 0; k + 1 < n; k++) min_w = fmin(min_w, nodes[k + 1] - nodes[k]);
@@ -204,6 +193,68 @@ static int alloc_values(WfTable *t, WfError *err)
     return 0;
 }
 
+/* The grid of a CSV table: header and rows checked, the axes from the distinct values of the first three columns,
+ * the value arrays allocated. */
+static int csv_grid(WfTable *t, const WfCsv *csv, const char *path, WfError *err)
+{
+    if (!csv->had_header)
+        return wf_err(err, WF_EINPUT, "%s: the first line must be the header 'Velocity,Acceleration,Road Grade,Fuel "
+                                      "Rate,Infeasible' (the release's format)", path);
+    if (csv->n_rows == 0) return wf_err(err, WF_EINPUT, "%s: no data rows", path);
+    for (size_t r = 0; r < csv->n_rows; r++) {
+        double inf = csv->data[r * 5 + 4];
+        if (inf != 0.0 && inf != 1.0)
+            return wf_err(err, WF_EINPUT, "%s:%d: field 5 (Infeasible) must be 0 or 1 (got %s)", path, csv->line[r],
+                          WF_NUM(inf));
+    }
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (size_t c = 0; c < 3; c++) {
+        double *nodes = NULL;
+        size_t n = 0;
+        int rc = distinct(csv, c, &nodes, &n, err);
+        if (rc || (rc = axis_init(axes[c], nodes, n, path, column_names[c], err))) return rc;
+    }
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n;
+    /* The product is bounded before it is formed: each axis has at most n_rows values. */
+    double product = (double)nv * (double)na * (double)nt;
+    /* A few missing rows are reported by name below; a product far beyond the row count is not a grid. */
+    if (product > 4.0 * (double)csv->n_rows + 1024.0)
+        return wf_err(err, WF_EINPUT,
+                      "%s: not a regular grid: %zu distinct speeds x %zu accelerations x %zu grades would need "
+                      "%.0f rows, the file has %zu",
+                      path, nv, na, nt, product, csv->n_rows);
+    return alloc_values(t, err);
+}
+
+/* The rows' values into the grid: exactly one row per grid point. row_line (zeroed, one per point) receives the line
+ * of the row that filled each point. */
+static int csv_values(WfTable *t, const WfCsv *csv, const char *path, int *row_line, WfError *err)
+{
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
+    for (size_t r = 0; r < csv->n_rows; r++) {
+        const double *row = csv->data + r * 5;
+        size_t idx = (node_index(&t->v, row[0]) * na + node_index(&t->a, row[1])) * nt + node_index(&t->theta, row[2]);
+        if (row_line[idx])
+            return wf_err(err, WF_EINPUT,
+                          "%s:%d: duplicate row for Velocity=%s, Acceleration=%s, Road Grade=%s (first on line %d)",
+                          path, csv->line[r], WF_NUM(row[0]), WF_NUM(row[1]), WF_NUM(row[2]), row_line[idx]);
+        row_line[idx] = csv->line[r];
+        t->fuel_gps[idx] = row[3];
+        t->infeasible[idx] = (uint8_t)row[4];
+    }
+    for (size_t idx = 0; idx < n; idx++)
+        if (!row_line[idx]) {
+            size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
+            return wf_err(err, WF_EINPUT,
+                          "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s (the "
+                          "distinct values make %zu speeds x %zu accelerations x %zu grades = %zu points, the file "
+                          "has %zu rows: rows are missing, or the points do not lie on one grid)",
+                          path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n,
+                          csv->n_rows);
+        }
+    return 0;
+}
+
 int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
 {
     *out = NULL;
@@ -214,142 +265,65 @@ int wf_table_read_csv(const char *path, WfTable **out, WfError *err)
     if (rc) return rc;
     WfTable *t = calloc(1, sizeof *t);
     int *row_line = NULL;
-    if (!t) {
+    rc = t ? csv_grid(t, &csv, path, err) : wf_err(err, WF_ESYS, "out of memory reading %s", path);
+    if (!rc && !(row_line = calloc(t->v.n * t->a.n * t->theta.n, sizeof *row_line)))
         rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
-        goto fail;
+    if (!rc) rc = csv_values(t, &csv, path, row_line, err);
+    if (!rc) {
+        derive_a_max(t);
+        snprintf(t->source, sizeof t->source, "%s", path);
+        t->data_fnv1a64 = wf_table_checksum(t);
+        rc = file_fnv(path, &t->source_fnv1a64, err);
     }
-    if (!csv.had_header) {
-        rc = wf_err(err, WF_EINPUT, "%s: the first line must be the header 'Velocity,Acceleration,Road Grade,Fuel "
-                                    "Rate,Infeasible' (the release's format)", path);
-        goto fail;
-    }
-    if (csv.n_rows == 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: no data rows", path);
-        goto fail;
-    }
-    for (size_t r = 0; r < csv.n_rows; r++) {
-        double inf = csv.data[r * 5 + 4];
-        if (inf != 0.0 && inf != 1.0) {
-            rc = wf_err(err, WF_EINPUT, "%s:%d: field 5 (Infeasible) must be 0 or 1 (got %s)", path, csv.line[r],
-                        WF_NUM(inf));
-            goto fail;
-        }
-    }
-    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
-    for (size_t c = 0; c < 3; c++) {
-        double *nodes = NULL;
-        size_t n = 0;
-        if ((rc = distinct(&csv, c, &nodes, &n, err))) goto fail;
-        if ((rc = axis_init(axes[c], nodes, n, path, column_names[c], err))) goto fail;
-    }
-    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n;
-    /* The product is bounded before it is formed: each axis has at most n_rows values. */
-    double product = (double)nv * (double)na * (double)nt;
-    /* A few missing rows are reported by name below; a product far beyond the row count is not a grid. */
-    if (product > 4.0 * (double)csv.n_rows + 1024.0) {
-        rc = wf_err(err, WF_EINPUT,
-                    "%s: not a regular grid: %zu distinct speeds x %zu accelerations x %zu grades would need "
-                    "%.0f rows, the file has %zu",
-                    path, nv, na, nt, product, csv.n_rows);
-        goto fail;
-    }
-    size_t n = nv * na * nt;
-    if ((rc = alloc_values(t, err))) goto fail;
-    row_line = calloc(n, sizeof *row_line);
-    if (!row_line) {
-        rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
-        goto fail;
-    }
-    for (size_t r = 0; r < csv.n_rows; r++) {
-        const double *row = csv.data + r * 5;
-        size_t idx = (node_index(&t->v, row[0]) * na + node_index(&t->a, row[1])) * nt + node_index(&t->theta, row[2]);
-        if (row_line[idx]) {
-            rc = wf_err(err, WF_EINPUT,
-                        "%s:%d: duplicate row for Velocity=%s, Acceleration=%s, Road Grade=%s (first on line "
-                        "%d)",
-                        path, csv.line[r], WF_NUM(row[0]), WF_NUM(row[1]), WF_NUM(row[2]), row_line[idx]);
-            goto fail;
-        }
-        row_line[idx] = csv.line[r];
-        t->fuel_gps[idx] = row[3];
-        t->infeasible[idx] = (uint8_t)row[4];
-    }
-    for (size_t idx = 0; idx < n; idx++)
-        if (!row_line[idx]) {
-            size_t it = idx % nt, ia = (idx / nt) % na, iv = idx / (nt * na);
-            rc = wf_err(err, WF_EINPUT,
-                        "%s: not a regular grid: no row for Velocity=%s, Acceleration=%s, Road Grade=%s "
-                        "(the distinct values make %zu speeds x %zu accelerations x %zu grades = %zu points, the "
-                        "file has %zu rows: rows are missing, or the points do not lie on one grid)",
-                        path, WF_NUM(t->v.x[iv]), WF_NUM(t->a.x[ia]), WF_NUM(t->theta.x[it]), nv, na, nt, n,
-                        csv.n_rows);
-            goto fail;
-        }
-    derive_a_max(t);
-    snprintf(t->source, sizeof t->source, "%s", path);
-    if ((rc = file_fnv(path, &t->source_fnv1a64, err))) goto fail;
-    t->data_fnv1a64 = wf_table_checksum(t);
     free(row_line);
     wf_csv_free(&csv);
+    if (rc) wf_table_destroy(&t);
     *out = t;
+    return rc;
+}
+
+/* The axes and values of wf_table_from_grid into t (allocated and zeroed); each error returned where it is found. */
+static int grid_fill(WfTable *t, const size_t *sizes, const double *const *in, const double *fuel,
+                     const uint8_t *infeasible, const char *source, WfError *err)
+{
+    static const char *const what[3] = {"velocity", "acceleration", "grade"};
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    int rc;
+    for (int c = 0; c < 3; c++) {
+        size_t n = sizes[c];
+        if (n == 0) return wf_err(err, WF_EINPUT, "%s: the %s axis is empty", source, what[c]);
+        for (size_t k = 0; k < n; k++)
+            if (!isfinite(in[c][k]) || (k && !(in[c][k] > in[c][k - 1])))
+                return wf_err(err, WF_EINPUT, "%s: %s node %zu (%s) is not finite or not above the one before",
+                              source, what[c], k, WF_NUM(in[c][k]));
+        double *nodes = malloc((n + 1) * sizeof *nodes);
+        if (!nodes) return wf_err(err, WF_ESYS, "out of memory");
+        memcpy(nodes, in[c], n * sizeof *nodes);
+        if ((rc = axis_init(axes[c], nodes, n, source, what[c], err))) return rc;
+    }
+    if ((rc = alloc_values(t, err))) return rc;
+    for (size_t i = 0; i < sizes[0] * sizes[1] * sizes[2]; i++) {
+        if (!isfinite(fuel[i]) || infeasible[i] > 1)
+            return wf_err(err, WF_EINPUT, "%s: value %zu: fuel must be finite and infeasible 0 or 1", source, i);
+        t->fuel_gps[i] = fuel[i];
+        t->infeasible[i] = infeasible[i];
+    }
+    derive_a_max(t);
+    snprintf(t->source, sizeof t->source, "%s", source);
+    t->data_fnv1a64 = wf_table_checksum(t); /* source_fnv1a64 stays 0: no source file */
     return 0;
-fail:
-    free(row_line);
-    wf_csv_free(&csv);
-    wf_table_destroy(&t);
-    return rc ? rc : WF_EINPUT;
 }
 
 int wf_table_from_grid(size_t nv, const double *v, size_t na, const double *a, size_t nt, const double *theta,
                        const double *fuel, const uint8_t *infeasible, const char *source, WfTable **out, WfError *err)
 {
-    *out = NULL;
     const size_t sizes[3] = {nv, na, nt};
     const double *const in[3] = {v, a, theta};
-    static const char *const what[3] = {"velocity", "acceleration", "grade"};
     WfTable *t = calloc(1, sizeof *t);
-    if (!t) return wf_err(err, WF_ESYS, "out of memory");
-    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
-    int rc = 0;
-    for (int c = 0; c < 3 && !rc; c++) {
-        size_t n = sizes[c];
-        if (n == 0) {
-            rc = wf_err(err, WF_EINPUT, "%s: the %s axis is empty", source, what[c]);
-            break;
-        }
-        for (size_t k = 0; k < n && !rc; k++)
-            if (!isfinite(in[c][k]) || (k && !(in[c][k] > in[c][k - 1])))
-                rc = wf_err(err, WF_EINPUT, "%s: %s node %zu (%s) is not finite or not above the one before", source,
-                            what[c], k, WF_NUM(in[c][k]));
-        if (rc) break;
-        double *nodes = malloc((n + 1) * sizeof *nodes);
-        if (!nodes) {
-            rc = wf_err(err, WF_ESYS, "out of memory");
-            break;
-        }
-        memcpy(nodes, in[c], n * sizeof *nodes);
-        rc = axis_init(axes[c], nodes, n, source, what[c], err);
-    }
-    if (!rc) rc = alloc_values(t, err);
-    size_t n = nv * na * nt;
-    for (size_t i = 0; i < n && !rc; i++) {
-        if (!isfinite(fuel[i]) || infeasible[i] > 1)
-            rc = wf_err(err, WF_EINPUT, "%s: value %zu: fuel must be finite and infeasible 0 or 1", source, i);
-        else {
-            t->fuel_gps[i] = fuel[i];
-            t->infeasible[i] = infeasible[i];
-        }
-    }
-    if (rc) {
-        wf_table_destroy(&t);
-        return rc;
-    }
-    derive_a_max(t);
-    snprintf(t->source, sizeof t->source, "%s", source);
-    t->source_fnv1a64 = 0;
-    t->data_fnv1a64 = wf_table_checksum(t);
+    int rc = t ? grid_fill(t, sizes, in, fuel, infeasible, source, err) : wf_err(err, WF_ESYS, "out of memory");
+    if (rc) wf_table_destroy(&t);
     *out = t;
-    return 0;
+    return rc;
 }
 
 /* ---------------------------------------------------------------------------------------------------------
@@ -375,21 +349,18 @@ int wf_table_write_h5(const WfTable *t, const char *path, int force, WfError *er
         (rc = wf_h5_attr_str(root, "created_by", created, err)) ||
         (rc = wf_h5_attr_str(root, "layout",
                              "fuel_gps and infeasible are (n_velocity * n_acceleration, n_grade): reshape to "
-                             "(n_velocity, n_acceleration, n_grade); axes ascending",
-                             err)) ||
-        (rc = wf_h5_write_f64(root, "velocity_mps", 1, &dv, t->v.x, "m/s", "speed nodes, ascending",
-                              err)) ||
+                             "(n_velocity, n_acceleration, n_grade); axes ascending", err)) ||
+        (rc = wf_h5_write_f64(root, "velocity_mps", 1, &dv, t->v.x, "m/s", "speed nodes, ascending", err)) ||
         (rc = wf_h5_write_f64(root, "acceleration_mps2", 1, &da, t->a.x, "m/s^2",
                               "acceleration nodes, ascending", err)) ||
-        (rc = wf_h5_write_f64(root, "grade_rad", 1, &dt, t->theta.x, "rad",
-                              "road grade nodes, ascending", err)) ||
+        (rc = wf_h5_write_f64(root, "grade_rad", 1, &dt, t->theta.x, "rad", "road grade nodes, ascending",
+                              err)) ||
         (rc = wf_h5_write_f64(root, "fuel_gps", 2, dvals, t->fuel_gps, "g/s", "fuel rate at each grid node", err)) ||
         (rc = wf_h5_write_u8(root, "infeasible", 2, dvals, t->infeasible, "1",
                              "1 where the vehicle cannot reach that acceleration at that speed and grade", err)) ||
         (rc = wf_h5_write_f64(root, "a_max_mps2", 2, damax, t->a_max_mps2, "m/s^2",
                               "largest feasible grid acceleration per (velocity, grade) column; derived, "
-                              "recomputed on load",
-                              err))) {
+                              "recomputed on load", err))) {
         wf_h5_abandon(&f, 1);
         return rc;
     }
@@ -465,6 +436,70 @@ static int read_dataset(hid_t fid, const char *path, const char *name, int rank,
     return rc;
 }
 
+/* The contents of a table file into t (allocated and zeroed); each error returned where it is found. */
+static int h5_table(hid_t fid, const char *path, WfTable *t, WfError *err)
+{
+    char fmt[128], hex_src[64], hex_data[64];
+    int rc = read_str_attr(fid, path, "format", fmt, sizeof fmt, err);
+    if (rc) return rc;
+    if (strcmp(fmt, TABLE_FORMAT) != 0)
+        return wf_err(err, WF_EINPUT, "%s: format is '%s', expected '%s'", path, fmt, TABLE_FORMAT);
+    int64_t version = 0;
+    hid_t va = H5Aexists(fid, "format_version") > 0 ? H5Aopen(fid, "format_version", H5P_DEFAULT) : H5I_INVALID_HID;
+    if (va < 0 || H5Aread(va, H5T_NATIVE_INT64, &version) < 0) version = -1;
+    if (va >= 0) H5Aclose(va);
+    if (version != TABLE_FORMAT_VERSION)
+        return wf_err(err, WF_EINPUT, "%s: format_version %lld, this wavefuel reads version %d", path,
+                      (long long)version, TABLE_FORMAT_VERSION);
+    if ((rc = read_str_attr(fid, path, "source", t->source, sizeof t->source, err)) ||
+        (rc = read_str_attr(fid, path, "source_fnv1a64", hex_src, sizeof hex_src, err)) ||
+        (rc = read_str_attr(fid, path, "data_fnv1a64", hex_data, sizeof hex_data, err)))
+        return rc;
+    t->source_fnv1a64 = strtoull(hex_src, NULL, 16);
+    t->data_fnv1a64 = strtoull(hex_data, NULL, 16);
+    static const char *const axis_sets[] = {"velocity_mps", "acceleration_mps2", "grade_rad"};
+    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
+    for (int c = 0; c < 3; c++) {
+        hsize_t dims[1];
+        void *buf;
+        if ((rc = read_dataset(fid, path, axis_sets[c], 1, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err)))
+            return rc;
+        const double *x = buf;
+        size_t n = (size_t)dims[0];
+        for (size_t k = 0; k < n; k++)
+            if (!isfinite(x[k]) || (k && !(x[k] > x[k - 1]))) n = 0;
+        if (n == 0) {
+            free(buf);
+            return wf_err(err, WF_EINPUT, "%s: %s must be finite, ascending and non-empty", path, axis_sets[c]);
+        }
+        /* buf is the axis's from here, even when axis_init fails */
+        if ((rc = axis_init(axes[c], buf, n, path, axis_sets[c], err))) return rc;
+    }
+    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
+    hsize_t dims[2];
+    void *buf;
+    if ((rc = read_dataset(fid, path, "fuel_gps", 2, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err))) return rc;
+    t->fuel_gps = buf;
+    if (dims[0] != nv * na || dims[1] != nt)
+        return wf_err(err, WF_EINPUT, "%s: fuel_gps is %llu x %llu, the grid needs %zu x %zu", path,
+                      (unsigned long long)dims[0], (unsigned long long)dims[1], nv * na, nt);
+    if ((rc = read_dataset(fid, path, "infeasible", 2, H5T_NATIVE_UINT8, 1, dims, &buf, err))) return rc;
+    t->infeasible = buf;
+    if (dims[0] != nv * na || dims[1] != nt) return wf_err(err, WF_EINPUT, "%s: infeasible has the wrong shape", path);
+    if (!(t->a_max_mps2 = malloc(nv * nt * sizeof *t->a_max_mps2)))
+        return wf_err(err, WF_ESYS, "out of memory loading %s", path);
+    for (size_t i = 0; i < n; i++)
+        if (t->infeasible[i] > 1 || !isfinite(t->fuel_gps[i]))
+            return wf_err(err, WF_EINPUT, "%s: value %zu of fuel_gps / infeasible is not finite / 0 or 1", path, i);
+    uint64_t sum = wf_table_checksum(t);
+    if (sum != t->data_fnv1a64)
+        return wf_err(err, WF_EINPUT, "%s: checksum mismatch (stored %s, computed %016llx): the file was damaged or "
+                                      "edited; import the CSV again",
+                      path, hex_data, (unsigned long long)sum);
+    derive_a_max(t);
+    return 0;
+}
+
 int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
 {
     *out = NULL;
@@ -474,88 +509,7 @@ int wf_table_load_h5(const char *path, WfTable **out, WfError *err)
     if (fid < 0)
         return wf_err(err, WF_EINPUT, "%s: not an HDF5 file (import a CSV table first: wavefuel table import)", path);
     WfTable *t = calloc(1, sizeof *t);
-    double *nodes[3] = {NULL, NULL, NULL};
-    int rc = 0;
-    char fmt[128], hex_src[64], hex_data[64];
-    if (!t) {
-        rc = wf_err(err, WF_ESYS, "out of memory");
-        goto done;
-    }
-    if ((rc = read_str_attr(fid, path, "format", fmt, sizeof fmt, err))) goto done;
-    if (strcmp(fmt, TABLE_FORMAT) != 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: format is '%s', expected '%s'", path, fmt, TABLE_FORMAT);
-        goto done;
-    }
-    int64_t version = 0;
-    hid_t va = H5Aexists(fid, "format_version") > 0 ? H5Aopen(fid, "format_version", H5P_DEFAULT) : H5I_INVALID_HID;
-    if (va < 0 || H5Aread(va, H5T_NATIVE_INT64, &version) < 0) version = -1;
-    if (va >= 0) H5Aclose(va);
-    if (version != TABLE_FORMAT_VERSION) {
-        rc = wf_err(err, WF_EINPUT, "%s: format_version %lld, this wavefuel reads version %d", path,
-                    (long long)version, TABLE_FORMAT_VERSION);
-        goto done;
-    }
-    if ((rc = read_str_attr(fid, path, "source", t->source, sizeof t->source, err)) ||
-        (rc = read_str_attr(fid, path, "source_fnv1a64", hex_src, sizeof hex_src, err)) ||
-        (rc = read_str_attr(fid, path, "data_fnv1a64", hex_data, sizeof hex_data, err)))
-        goto done;
-    t->source_fnv1a64 = strtoull(hex_src, NULL, 16);
-    t->data_fnv1a64 = strtoull(hex_data, NULL, 16);
-    static const char *const axis_sets[] = {"velocity_mps", "acceleration_mps2", "grade_rad"};
-    WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
-    for (int c = 0; c < 3; c++) {
-        hsize_t dims[1];
-        void *buf;
-        if ((rc = read_dataset(fid, path, axis_sets[c], 1, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err)))
-            goto done;
-        nodes[c] = buf;
-        size_t n = (size_t)dims[0];
-        for (size_t k = 0; k < n; k++)
-            if (!isfinite(nodes[c][k]) || (k && !(nodes[c][k] > nodes[c][k - 1]))) n = 0;
-        if (n == 0) {
-            rc = wf_err(err, WF_EINPUT, "%s: %s must be finite, ascending and non-empty", path, axis_sets[c]);
-            goto done;
-        }
-        nodes[c] = NULL; /* owned by the axis from here, even when axis_init fails */
-        if ((rc = axis_init(axes[c], buf, n, path, axis_sets[c], err))) goto done;
-    }
-    size_t nv = t->v.n, na = t->a.n, nt = t->theta.n, n = nv * na * nt;
-    hsize_t dims[2];
-    void *buf;
-    if ((rc = read_dataset(fid, path, "fuel_gps", 2, H5T_NATIVE_DOUBLE, sizeof(double), dims, &buf, err))) goto done;
-    t->fuel_gps = buf;
-    if (dims[0] != nv * na || dims[1] != nt) {
-        rc = wf_err(err, WF_EINPUT, "%s: fuel_gps is %llu x %llu, the grid needs %zu x %zu", path,
-                    (unsigned long long)dims[0], (unsigned long long)dims[1], nv * na, nt);
-        goto done;
-    }
-    if ((rc = read_dataset(fid, path, "infeasible", 2, H5T_NATIVE_UINT8, 1, dims, &buf, err))) goto done;
-    t->infeasible = buf;
-    if (dims[0] != nv * na || dims[1] != nt) {
-        rc = wf_err(err, WF_EINPUT, "%s: infeasible has the wrong shape", path);
-        goto done;
-    }
-    t->a_max_mps2 = malloc(nv * nt * sizeof *t->a_max_mps2);
-    if (!t->a_max_mps2) {
-        rc = wf_err(err, WF_ESYS, "out of memory loading %s", path);
-        goto done;
-    }
-    for (size_t i = 0; i < n; i++) {
-        if (t->infeasible[i] > 1 || !isfinite(t->fuel_gps[i])) {
-            rc = wf_err(err, WF_EINPUT, "%s: value %zu of fuel_gps / infeasible is not finite / 0 or 1", path, i);
-            goto done;
-        }
-    }
-    uint64_t sum = wf_table_checksum(t);
-    if (sum != t->data_fnv1a64) {
-        rc = wf_err(err, WF_EINPUT, "%s: checksum mismatch (stored %s, computed %016llx): the file was damaged or "
-                                    "edited; import the CSV again",
-                    path, hex_data, (unsigned long long)sum);
-        goto done;
-    }
-    derive_a_max(t);
-done:
-    for (int c = 0; c < 3; c++) free(nodes[c]);
+    int rc = t ? h5_table(fid, path, t, err) : wf_err(err, WF_ESYS, "out of memory");
     H5Fclose(fid);
     if (rc) wf_table_destroy(&t);
     *out = t;
@@ -685,10 +639,9 @@ size_t wf_table_n_outside(const WfTable *t, size_t n, const double *v, const dou
 {
     size_t count = 0;
     for (size_t i = 0; i < n; i++) {
-        double vv = v[i] > 0.0 ? v[i] : 0.0;
-        double am = project ? wf_table_a_max(t, vv, th[i]) : 0.0;
-        double au = !project ? a[i] : (a[i] < am ? a[i] : am);
-        count += (size_t)!(inside(&t->v, vv) && inside(&t->a, au) && inside(&t->theta, th[i]));
+        int outside; /* as the evaluation finds it: the one form of the clamping and projection rule */
+        eval1(t, v[i], a[i], th[i], project, 0, NULL, &outside);
+        count += (size_t)outside;
     }
     return count;
 }
@@ -752,9 +705,6 @@ static void tab_release(void *params)
 const WfEnergyModel wf_energy_tabulated = {
     .name = "tabulated",
     .param_size = sizeof(WfTabulatedParams),
-    .spec = NULL,
-    .n_spec = 0,
-    .check = NULL,
     .eval = tab_eval,
     .a_max = tab_a_max,
     .load = tab_load,

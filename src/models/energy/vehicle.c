@@ -2,7 +2,6 @@
 #include "wavefuel/vehicle.h"
 
 #include <dirent.h>
-#include <errno.h>
 #include <limits.h>
 #include <math.h>
 #include <stddef.h>
@@ -79,93 +78,88 @@ static int read_numeric_keys(WfCfgNode *root, WfVehicleClass *vc, WfError *err)
     return 0;
 }
 
-int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
+/* The class file's contents into vc (zeroed; name and path set); each error returned where it is found. */
+static int read_class(WfCfg *cfg, const char *path, WfVehicleClass *vc, WfError *err)
 {
-    memset(vc, 0, sizeof *vc);
-    WfCfg *cfg = NULL;
-    int rc = wf_cfg_load_file(path, &cfg, err);
-    if (rc) return rc;
     WfCfgNode *root = cfg->root, *energy = NULL, *source = NULL;
     const char *label = NULL, *model_name = "circles_polynomial";
-    int duty = -1, fuel = -1;
+    int duty = -1, fuel = -1, rc;
     static const char *const duties[] = {"light", "heavy", NULL};
     static const char *const fuels[] = {"gasoline", "diesel", NULL};
 
-    stem_of(path, vc->name, sizeof vc->name);
-    snprintf(vc->path, sizeof vc->path, "%s", path);
-    if ((rc = wf_cfg_string(root, "name", &label, err))) goto fail;
+    if ((rc = wf_cfg_string(root, "name", &label, err))) return rc;
     snprintf(vc->label, sizeof vc->label, "%s", label);
-    if ((rc = wf_cfg_enum_opt(root, "duty", duties, &duty, err))) goto fail;
-    if ((rc = wf_cfg_enum_opt(root, "fuel", fuels, &fuel, err))) goto fail;
+    if ((rc = wf_cfg_enum_opt(root, "duty", duties, &duty, err)) ||
+        (rc = wf_cfg_enum_opt(root, "fuel", fuels, &fuel, err)))
+        return rc;
     if (duty < 0 || fuel < 0) {
         /* Absent: the required-key getter reports it with file:line, or names the misspelt key beside it. */
         const char *absent = NULL;
         rc = wf_cfg_string(root, duty < 0 ? "duty" : "fuel", &absent, err);
-        if (!rc) rc = wf_err(err, WF_EINPUT, "%s: missing key '%s'", path, duty < 0 ? "duty" : "fuel");
-        goto fail;
+        return rc ? rc : wf_err(err, WF_EINPUT, "%s: missing key '%s'", path, duty < 0 ? "duty" : "fuel");
     }
     vc->duty = (WfDuty)duty;
     vc->fuel = (WfFuelType)fuel;
-    if ((rc = read_numeric_keys(root, vc, err))) goto fail;
+    if ((rc = read_numeric_keys(root, vc, err))) return rc;
     if (isnan(vc->fuel_density_g_per_l))
         vc->fuel_density_g_per_l =
             (fuel == WF_FUEL_DIESEL ? WF_DIESEL_G_PER_GAL : WF_GASOLINE_G_PER_GAL) / WF_L_PER_US_GAL;
     /* Provenance is documentation for people: accepted as free text, not interpreted. */
-    if ((rc = wf_cfg_map_opt(root, "source", &source, err))) goto fail;
+    if ((rc = wf_cfg_map_opt(root, "source", &source, err))) return rc;
     if (source) wf_cfg_mark_used(source);
-    if ((rc = wf_cfg_string_opt(root, "energy_model", &model_name, err))) goto fail;
+    if ((rc = wf_cfg_string_opt(root, "energy_model", &model_name, err))) return rc;
     if ((rc = wf_energy_model_find(model_name, &vc->model, err))) {
         char model_at[1040];
         wf_err_prefix(err, "%s: energy_model: ", wf_cfg_where(wf_cfg_child(root, "energy_model"), model_at, sizeof model_at));
-        goto fail;
+        return rc;
     }
-    if ((rc = wf_cfg_map_opt(root, "energy", &energy, err))) goto fail;
-    if (!energy && vc->model->n_spec > 0) { /* a tabulated model has no numeric parameters */
-        rc = wf_err(err, WF_EINPUT, "%s: missing map 'energy' with the model parameters", path);
-        goto fail;
-    }
-    vc->params = calloc(1, vc->model->param_size);
-    if (!vc->params) {
-        rc = wf_err(err, WF_ESYS, "out of memory");
-        goto fail;
-    }
-    if ((rc = wf_cfg_params(energy, vc->model->spec, vc->model->n_spec, vc->params, err))) goto fail;
-    if ((rc = unknown_energy_key(energy, vc->model, err))) goto fail;
+    if ((rc = wf_cfg_map_opt(root, "energy", &energy, err))) return rc;
+    if (!energy && vc->model->n_spec > 0) /* a tabulated model has no numeric parameters */
+        return wf_err(err, WF_EINPUT, "%s: missing map 'energy' with the model parameters", path);
+    if (!(vc->params = calloc(1, vc->model->param_size))) return wf_err(err, WF_ESYS, "out of memory");
+    if ((rc = wf_cfg_params(energy, vc->model->spec, vc->model->n_spec, vc->params, err)) ||
+        (rc = unknown_energy_key(energy, vc->model, err)))
+        return rc;
     /* Whole-map errors (a required key absent, inconsistent keys) point at the line of `energy:`. */
     char where[1100], energy_at[1040];
     if (energy) wf_cfg_where(energy, energy_at, sizeof energy_at);
     else snprintf(energy_at, sizeof energy_at, "%s", path);
     snprintf(where, sizeof where, "%s: energy: ", energy_at);
-    if ((rc = wf_param_check_complete(vc->model->spec, vc->model->n_spec, vc->params, where, err))) goto fail;
+    if ((rc = wf_param_check_complete(vc->model->spec, vc->model->n_spec, vc->params, where, err))) return rc;
     if (vc->model->check && (rc = vc->model->check(vc->params, err))) {
         wf_err_prefix(err, "%s: ", energy_at);
-        goto fail;
+        return rc;
     }
     /* `table: FILE.h5`: the tabulated model's data (its load hook reads the key), or, beside an explicit
      * model, the class's tabulated twin that `wavefuel cycle --protocol` compares with (docs/cycles.md). */
     const char *table = NULL;
     if (vc->model->load) rc = vc->model->load(vc->params, path, root, err);
     else rc = wf_cfg_string_opt(root, "table", &table, err);
-    if (rc) goto fail;
+    if (rc) return rc;
     /* The duty declared must match the lower-bound keys given (light: v_c...; heavy: h0, h1). */
     if (vc->model == &wf_energy_circles) {
         const WfCirclesParams *cp = vc->params;
         int heavy_keys = isinf(cp->cut_v);
-        if (heavy_keys != (vc->duty == WF_DUTY_HEAVY)) {
-            char duty_at[1040];
-            rc = wf_err(err, WF_EINPUT, "%s: duty is '%s' but energy gives the %s-duty keys",
-                        wf_cfg_where(wf_cfg_child(root, "duty"), duty_at, sizeof duty_at), wf_duty_name(vc->duty),
-                        heavy_keys ? "heavy" : "light");
-            goto fail;
-        }
+        char duty_at[1040];
+        if (heavy_keys != (vc->duty == WF_DUTY_HEAVY))
+            return wf_err(err, WF_EINPUT, "%s: duty is '%s' but energy gives the %s-duty keys",
+                          wf_cfg_where(wf_cfg_child(root, "duty"), duty_at, sizeof duty_at), wf_duty_name(vc->duty),
+                          heavy_keys ? "heavy" : "light");
     }
-    if ((rc = wf_cfg_check_unused(cfg, err))) goto fail;
+    return wf_cfg_check_unused(cfg, err);
+}
+
+int wf_vehicle_load(const char *path, WfVehicleClass *vc, WfError *err)
+{
+    memset(vc, 0, sizeof *vc);
+    WfCfg *cfg = NULL;
+    int rc = wf_cfg_load_file(path, &cfg, err);
+    if (rc) return rc;
+    stem_of(path, vc->name, sizeof vc->name);
+    snprintf(vc->path, sizeof vc->path, "%s", path);
+    if ((rc = read_class(cfg, path, vc, err))) wf_vehicle_free(vc);
     wf_cfg_destroy(&cfg);
-    return 0;
-fail:
-    wf_cfg_destroy(&cfg);
-    wf_vehicle_free(vc);
-    return rc ? rc : WF_EINPUT;
+    return rc;
 }
 
 /* The search path: set by the program (wf_vehicle_search_path_set), empty until then. Written only at start-up,
@@ -258,7 +252,7 @@ static int list_in(const char *dir, void *vctx)
     DIR *d = opendir(dir);
     if (!d) return 0; /* a search-path entry that does not exist holds no classes */
     struct dirent *e;
-    while ((e = readdir(d))) {
+    while (!c->rc && (e = readdir(d))) {
         size_t len = strlen(e->d_name);
         if (len < 6 || strcmp(e->d_name + len - 5, ".yaml") != 0) continue;
         char stem[256];
@@ -270,25 +264,18 @@ static int list_in(const char *dir, void *vctx)
             size_t cap = c->cap ? 2 * c->cap : 8;
             WfVehicleClass *p = realloc(c->v, cap * sizeof *p);
             if (!p) {
-                closedir(d);
                 c->rc = wf_err(c->err, WF_ESYS, "out of memory");
-                return 1;
+                break;
             }
             c->v = p;
             c->cap = cap;
         }
         char path[PATH_MAX + 300];
         snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
-        int rc = wf_vehicle_load(path, &c->v[c->n], c->err);
-        if (rc) {
-            closedir(d);
-            c->rc = rc;
-            return 1;
-        }
-        c->n++;
+        if (!(c->rc = wf_vehicle_load(path, &c->v[c->n], c->err))) c->n++;
     }
     closedir(d);
-    return 0;
+    return c->rc != 0; /* 1 stops the search */
 }
 
 static int by_name(const void *a, const void *b)

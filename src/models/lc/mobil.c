@@ -78,7 +78,6 @@ const WfLaneChangeModel wf_lc_mobil = {
     .param_size = sizeof(Mobil),
     .spec = mobil_spec,
     .n_spec = sizeof mobil_spec / sizeof mobil_spec[0],
-    .check = NULL,
     .advantage = mobil_advantage,
     .min_interval_s = mobil_min_interval,
     .cooperation = mobil_cooperation,

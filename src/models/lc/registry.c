@@ -12,7 +12,6 @@ int wf_lc_model_find(const char *name, const WfLaneChangeModel **out, WfError *e
 {
     long i = wf_registry_find((const void *const *)wf_lc_models, offsetof(WfLaneChangeModel, name), name,
                               "lane-change model", err);
-    if (i < 0) return WF_EINPUT;
-    *out = wf_lc_models[i];
-    return 0;
+    if (i >= 0) *out = wf_lc_models[i];
+    return i < 0 ? WF_EINPUT : 0;
 }

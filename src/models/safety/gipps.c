@@ -48,6 +48,5 @@ const WfSafetyKind wf_safety_gipps = {
     .param_size = sizeof(GippsSafety),
     .spec = gipps_safety_spec,
     .n_spec = sizeof gipps_safety_spec / sizeof gipps_safety_spec[0],
-    .check = NULL,
     .bound = gipps_safety_bound,
 };

@@ -12,7 +12,6 @@ int wf_safety_find(const char *name, const WfSafetyKind **out, WfError *err)
 {
     long i = wf_registry_find((const void *const *)wf_safety_kinds, offsetof(WfSafetyKind, name), name,
                               "safety filter kind", err);
-    if (i < 0) return WF_EINPUT;
-    *out = wf_safety_kinds[i];
-    return 0;
+    if (i >= 0) *out = wf_safety_kinds[i];
+    return i < 0 ? WF_EINPUT : 0;
 }

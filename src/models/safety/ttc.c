@@ -38,6 +38,5 @@ const WfSafetyKind wf_safety_ttc = {
     .param_size = sizeof(TtcSafety),
     .spec = ttc_safety_spec,
     .n_spec = sizeof ttc_safety_spec / sizeof ttc_safety_spec[0],
-    .check = NULL,
     .bound = ttc_safety_bound,
 };
