@@ -79,30 +79,29 @@ static int allgather(void *ctx, const void *mine, void *all, size_t bytes, WfErr
 static int shift(void *ctx, const void *send, size_t send_bytes, void *recv, size_t recv_bytes, WfError *err)
 {
     MpiPart *m = ctx;
-    int rank, size;
-    MPI_Comm_rank(m->comm, &rank);
-    MPI_Comm_size(m->comm, &size);
     if (send_bytes > INT_MAX || recv_bytes > INT_MAX)
         return wf_err(err, WF_ESYS, "MPI: %zu vehicles' bytes are too many for one message",
                       send_bytes > recv_bytes ? send_bytes : recv_bytes);
-    int to = rank > 0 ? rank - 1 : MPI_PROC_NULL, from = rank + 1 < size ? rank + 1 : MPI_PROC_NULL;
+    int to = m->rank > 0 ? m->rank - 1 : MPI_PROC_NULL, from = m->rank + 1 < m->size ? m->rank + 1 : MPI_PROC_NULL;
     int rc = MPI_Sendrecv(send, (int)send_bytes, MPI_BYTE, to, 2, recv, (int)recv_bytes, MPI_BYTE, from, 2, m->comm,
                           MPI_STATUS_IGNORE);
     return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "passing vehicles to the rank ahead", err);
 }
 
+/* Received from the rank before (rank 0: none), passed to the rank after; the last rank's back to rank 0. */
 static int chain(void *ctx, void *buf, size_t bytes, void (*fn)(void *arg, void *buf), void *arg, WfError *err)
 {
     MpiPart *m = ctx;
-    int rank, size, rc = MPI_SUCCESS;
-    MPI_Comm_rank(m->comm, &rank);
-    MPI_Comm_size(m->comm, &size);
+    int rank = m->rank, last = m->size - 1, rc = MPI_SUCCESS;
     if (bytes > INT_MAX) return wf_err(err, WF_ESYS, "MPI: a running sum of %zu bytes is too large", bytes);
     if (rank > 0) rc = MPI_Recv(buf, (int)bytes, MPI_BYTE, rank - 1, 3, m->comm, MPI_STATUS_IGNORE);
     if (rc == MPI_SUCCESS) fn(arg, buf);
-    if (rc == MPI_SUCCESS && size > 1 && rank + 1 < size) rc = MPI_Send(buf, (int)bytes, MPI_BYTE, rank + 1, 3, m->comm);
-    if (rc == MPI_SUCCESS && size > 1 && rank + 1 == size) rc = MPI_Send(buf, (int)bytes, MPI_BYTE, 0, 4, m->comm);
-    if (rc == MPI_SUCCESS && size > 1 && rank == 0) rc = MPI_Recv(buf, (int)bytes, MPI_BYTE, size - 1, 4, m->comm, MPI_STATUS_IGNORE);
+    if (rc == MPI_SUCCESS && last > 0) {
+        if (rank < last) rc = MPI_Send(buf, (int)bytes, MPI_BYTE, rank + 1, 3, m->comm);
+        else rc = MPI_Send(buf, (int)bytes, MPI_BYTE, 0, 4, m->comm);
+    }
+    if (rc == MPI_SUCCESS && last > 0 && rank == 0)
+        rc = MPI_Recv(buf, (int)bytes, MPI_BYTE, last, 4, m->comm, MPI_STATUS_IGNORE);
     return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "a running sum along the ranks", err);
 }
 
