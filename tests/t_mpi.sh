@@ -28,8 +28,8 @@ if ! make -s --no-print-directory mpi BUILD=build >"$tmp/make_mpi.log" 2>&1; the
 fi
 
 # mpi R ARGS...: wavefuel-mpi on R ranks (this machine has 2 cores: oversubscribed, unbound), bounded by a timeout so
-# that a hung job fails this test instead of hanging the suite.
-mpi() { local r=$1; shift; timeout -k 10 150 mpirun -n "$r" --oversubscribe --bind-to none "$MPIBIN" "$@"; }
+# that a hung job fails this test instead of hanging the suite (MPI_TIMEOUT seconds, 150 unless set).
+mpi() { local r=$1; shift; timeout -k 10 "${MPI_TIMEOUT:-150}" mpirun -n "$r" --oversubscribe --bind-to none "$MPIBIN" "$@"; }
 
 # same A B [META...]: the two results are the same bits outside /meta (tests/h5same.py)
 same() { $PY tests/h5same.py "$@"; }
@@ -184,7 +184,7 @@ sigterm_cases() {
     if [ "$reason" = "interrupted by SIGTERM" ] && grep -q "interrupted by SIGTERM at t = " "$tmp/${p}i.log"; then
       ok "${p}sigterm_named"
     else ko "${p}sigterm_named" "/meta/reason '$reason'; $(grep -m1 interrupted "$tmp/${p}i.log")"; fi
-    mpi 3 run --resume "$tmp/${p}i.h5" -q --threads 1 >"$tmp/${p}ri.log" 2>&1; rc=$?
+    MPI_TIMEOUT=400 mpi 3 run --resume "$tmp/${p}i.h5" -q --threads 1 >"$tmp/${p}ri.log" 2>&1; rc=$?
     if [ $rc -eq 0 ] && msg=$(same "$ref" "$tmp/${p}i.h5" 2>&1); then ok "${p}resume_on_3_ranks ($msg)"
     else ko "${p}resume_on_3_ranks" "rc $rc: $(tail -3 "$tmp/${p}ri.log") ${msg:-}"; fi
   else
@@ -267,9 +267,9 @@ else ko corridor_overlaps "the reference run repaired too few overlaps to exerci
 
 # (g) A corridor stopped by SIGTERM (to mpirun, to rank 1) resumes on 3 ranks and in one process to the
 # uninterrupted result.
-CLONG="$tmp/cor.yaml --set time.duration_s=6000"
+CLONG="$tmp/cor.yaml --set time.duration_s=30000"
 run $CLONG -o "$tmp/clong_ref.h5" --threads 2
-sigterm_cases corridor_ 60000 "$tmp/clong_ref.h5" $CLONG
+sigterm_cases corridor_ 300000 "$tmp/clong_ref.h5" $CLONG
 
 # Refusals: exit status 2, the key or option named, no file; each case runs in one process (so it is the ranks that
 # refuse it, not the scenario).
