@@ -153,11 +153,12 @@ def table(res):
     weak1 = next((c for c in res["runs"] if c["kind"] == "weak" and c["ranks"] == 1), None)
     for c in res["runs"]:
         per = c["n"] // max(c["ranks"], 1)
+        # rate of R ranks / (R x rate of 1 rank): for a ring's weak runs (equal steps) T(1 rank, N) / T(R, R N)
         if c["kind"] == "weak" and weak1:
-            eff = f"{100 * weak1['loop_s'] / c['loop_s']:.0f} %"  # T(1 rank, N) / T(R ranks, R N)
+            eff = f"{100 * c['vsteps_per_s'] / (c['ranks'] * weak1['vsteps_per_s']):.0f} %"
         elif c["kind"] == "strong":
             s1 = next((d for d in res["runs"] if d["n"] == c["n"] and d["ranks"] == 1), None)
-            eff = f"{100 * s1['loop_s'] / (c['ranks'] * c['loop_s']):.0f} %" if s1 else "—"
+            eff = f"{100 * c['vsteps_per_s'] / (c['ranks'] * s1['vsteps_per_s']):.0f} %" if s1 else "—"
         else:
             eff = "—"
         who = str(c["ranks"]) if c["ranks"] else f"1 process, {c['threads']} thr"
@@ -167,8 +168,9 @@ def table(res):
                    f"{c['vsteps_per_s_process']:.3g} | {', '.join(f'{k / 1024:.0f}' for k in c['rss_kib'])} | "
                    f"{c['load_before']:.1f}–{c['load_after']:.1f} |")
     out.append("")
-    out.append("Efficiency: weak = loop time of 1 rank / loop time of R ranks (R times the vehicles); strong = "
-               "loop time of 1 rank / (R x loop time of R ranks) at the same N. Per rank = veh-steps/s / R.")
+    out.append("Efficiency: veh-steps/s (loop) of R ranks / (R x that of 1 rank): weak, R times the road; strong, the "
+               "same road (for a ring's runs of equal steps, loop time of 1 rank / loop time of R ranks, and / R "
+               "for strong). Per rank = veh-steps/s / R.")
     if one:
         out.append(f"One process (`bin/wavefuel run`, 1 thread) at N = {fmt_n(one['n'])}: "
                    f"{one['vsteps_per_s']:.3g} veh-steps/s.")
