@@ -405,7 +405,10 @@ static void corridor_split_equals_one(const char *yaml, const char *name, int ne
 
 static void test_corridor(void) { corridor_split_equals_one(corridor_yaml, "corridor", 0); }
 static void test_corridor_sparse(void) { corridor_split_equals_one(corridor_sparse_yaml, "sparse corridor", 0); }
-static void test_corridor_overlaps(void) { corridor_split_equals_one(corridor_overlap_yaml, "overlapping corridor", 1); }
+static void test_corridor_overlaps(void)
+{
+    corridor_split_equals_one(corridor_overlap_yaml, "overlapping corridor", 1);
+}
 
 static void test_noisy_ring_with_controllers(void) { split_equals_one(ring_yaml, "graded ring, controllers", 0); }
 static void test_overlaps_repaired(void) { split_equals_one(overlap_yaml, "overlapping ring", 1); }

@@ -2146,7 +2146,7 @@ static int part_check(const WfCorridor *c, const WfPartition *p, WfError *err)
     return 0;
 }
 
-/* A vehicle's state in the order of pack_vehicle: every saved per-slot array, the step's old position, fuel rate
+/* A vehicle's state in the order of part_pack: every saved per-slot array, the step's old position, fuel rate
  * and Edie cell (the rank it crosses to measures it), its controller memory. */
 #define PACK_ARRAYS(X) SAVED_SLOT_ARRAYS(X) X("", xold, 0) X("", veh.fuel_rate_gps, 0) X("", cell, 0)
 
@@ -2293,7 +2293,8 @@ static void part_moved(const WfCorridor *c, int r, size_t k0, size_t n, PartRec 
     q->n = n, q->out = q->skip = q->past = 0;
     if (!n) return;
     size_t rear = wf_corridor_slot(vh, k0 + n - 1), s;
-    q->x = vh->x_m[rear], q->v = vh->v_mps[rear], q->len = vh->length_m[rear], q->x2 = vh->x_m[wf_corridor_slot(vh, k0)];
+    q->x = vh->x_m[rear], q->v = vh->v_mps[rear], q->len = vh->length_m[rear];
+    q->x2 = vh->x_m[wf_corridor_slot(vh, k0)];
     for (; q->out < n && vh->x_m[s = wf_corridor_slot(vh, k0 + q->out)] >= cut; q->out++) {
         q->skip |= vh->x_m[s] >= next;
         q->out_x = vh->x_m[s], q->out_v = vh->v_mps[s], q->out_len = vh->length_m[s];
