@@ -265,7 +265,16 @@ if $PY -c "import h5py,sys; n=h5py.File(sys.argv[1])['timeseries/overlaps'][-1];
   mpi_same corridor_overlaps_R3_threads1 "$tmp/cov_ref.h5" 3 1 1 "$tmp/cov.yaml"
 else ko corridor_overlaps "the reference run repaired too few overlaps to exercise the repairs"; fi
 
-# (g) A corridor stopped by SIGTERM (to mpirun, to rank 1) resumes on 3 ranks and in one process to the
+# (g) A corridor long enough for two threads on a rank (more than 4096 vehicles on the entrance's segment by the end:
+# the kernel's and the Edie measurement's threads): bench/corridor_vs_ring/corridor.yaml on 240 km, 2 ranks of 2
+# threads against one process of 2.
+BIGC="bench/corridor_vs_ring/corridor.yaml --set road.length_m=240000 --set time.duration_s=9000"
+run $BIGC -o "$tmp/bigc_ref.h5" --threads 2
+if $PY -c "import h5py,sys; n=h5py.File(sys.argv[1])['timeseries/vehicles'][-1]; assert n > 8000, n" "$tmp/bigc_ref.h5"
+then mpi_same corridor_threads_R2_threads2 "$tmp/bigc_ref.h5" 2 2 1 $BIGC
+else ko corridor_threads "the reference corridor holds too few vehicles for two threads on a rank"; fi
+
+# (h) A corridor stopped by SIGTERM (to mpirun, to rank 1) resumes on 3 ranks and in one process to the
 # uninterrupted result.
 CLONG="$tmp/cor.yaml --set time.duration_s=30000"
 run $CLONG -o "$tmp/clong_ref.h5" --threads 2
