@@ -2122,6 +2122,17 @@ static int corridor_window(WfCorridor *c, long step0, int k, int *done, WfError 
  * detector also from the vehicle just ahead (whose body may cover it); summed onto every rank at the end, a cell
  * holds its owner's value (the others' are +0). */
 
+/* The first Edie cell past rank r's segment of a road of nx cells split R ways: rank r holds the cells
+ * [part_cell(nx, R, r + 1), part_cell(nx, R, r)). */
+static size_t part_cell(size_t nx, size_t R, size_t r) { return nx * (R - r) / R; }
+
+/* Rank r's upper cut: the fronts at or beyond it are on the segment ahead (rank 0: none). */
+static double part_cut(const WfCorridor *c, int r)
+{
+    size_t R = (size_t)c->pt.p->size;
+    return r <= 0 ? INFINITY : (double)part_cell(c->edie.nx, R, (size_t)r) * c->edie.dx_m;
+}
+
 /* Before the corridor's segments are cut: what a split corridor cannot be, beyond what no split road can
  * (wf_sim_create_part). */
 static int part_check(const WfCorridor *c, const WfPartition *p, WfError *err)
@@ -2135,7 +2146,7 @@ static int part_check(const WfCorridor *c, const WfPartition *p, WfError *err)
     size_t nx = c->edie.nx, R = (size_t)p->size;
     for (size_t k = 0; k < sc->n_classes; k++) len = fmax(len, sc->classes[k].length_m);
     for (size_t r = 0; r < R; r++) {
-        size_t lo = nx * (R - 1 - r) / R, hi = nx * (R - r) / R;
+        size_t lo = part_cell(nx, R, r + 1), hi = part_cell(nx, R, r);
         least = fmin(least, (r == 0 ? c->L : (double)hi * dx) - (double)lo * dx);
     }
     if (nx < R || !(least >= 2.0 * len + PART_MIN_M))
@@ -2156,9 +2167,9 @@ static int part_init(WfCorridor *c, WfPartition *p, WfError *err)
     CorLane *ln = &c->ln[0];
     size_t R = (size_t)p->size, r = (size_t)p->rank, nx = c->edie.nx, cap = ln->veh.cap;
     pt->p = p;
-    pt->i_lo = nx * (R - 1 - r) / R, pt->i_hi = nx * (R - r) / R;
-    pt->cut_lo = r + 1 == R ? -INFINITY : (double)pt->i_lo * c->edie.dx_m;
-    pt->cut_hi = r == 0 ? INFINITY : (double)pt->i_hi * c->edie.dx_m;
+    pt->i_lo = part_cell(nx, R, r + 1), pt->i_hi = part_cell(nx, R, r);
+    pt->cut_lo = r + 1 == R ? -INFINITY : part_cut(c, (int)r + 1);
+    pt->cut_hi = part_cut(c, (int)r);
 #define SIZE_OF(nm, field, stepped) pt->vbytes += sizeof *ln->field;
     PACK_ARRAYS(SIZE_OF)
 #undef SIZE_OF
@@ -2275,13 +2286,6 @@ static int part_record(WfCorridor *c, double t, int in_window, WfError *err)
     const WfOutput *out = c->sim->out;
     WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
     return out && out->record ? out->record(out->ctx, c->sim, &rec, err) : 0;
-}
-
-/* Rank r's upper cut: the fronts at or beyond it are on the segment ahead (rank 0: none). */
-static double part_cut(const WfCorridor *c, int r)
-{
-    size_t R = (size_t)c->pt.p->size;
-    return r <= 0 ? INFINITY : (double)(c->edie.nx * (R - (size_t)r) / R) * c->edie.dx_m;
 }
 
 /* Rank r's record after the kernel moved its n vehicles, road indices from k0 (PartRec). */
