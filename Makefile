@@ -78,11 +78,12 @@ $(shell mkdir -p $(BUILD) && (echo '$(GIT_HASH)' | cmp -s - $(GIT_STAMP) || echo
 $(BUILD)/src/util/version.o $(BUILD)/pic/src/util/version.o: $(GIT_STAMP)
 $(BUILD)/src/util/version.o $(BUILD)/pic/src/util/version.o: override CFLAGS += -DWF_GIT_HASH='"$(GIT_HASH)"'
 
-# The 4-lane noise kernel (AVX) and the 8-lane Philox (AVX2): called only on CPUs that have them (src/core/rng.c
-# checks at run time).
+# The 4- and 8-lane noise kernels (AVX, AVX-512) and the 8- and 16-lane Philox (AVX2, AVX-512): called only on
+# CPUs that have them (src/core/rng.c checks at run time).
 ifneq ($(filter x86_64%,$(shell $(CC) -dumpmachine)),)
 $(BUILD)/src/core/noise_avx.o: override CFLAGS += -mavx
 $(BUILD)/src/core/philox_avx2.o: override CFLAGS += -mavx2
+$(BUILD)/src/core/noise_avx512.o $(BUILD)/src/core/philox_avx512.o: override CFLAGS += -mavx512f
 endif
 
 $(LIBA): $(LIB_OBJ)
@@ -127,6 +128,7 @@ $(BUILD)/pic/%.o: %.c Makefile
 ifneq ($(filter x86_64%,$(shell $(CC) -dumpmachine)),)
 $(BUILD)/pic/src/core/noise_avx.o: override CFLAGS += -mavx
 $(BUILD)/pic/src/core/philox_avx2.o: override CFLAGS += -mavx2
+$(BUILD)/pic/src/core/noise_avx512.o $(BUILD)/pic/src/core/philox_avx512.o: override CFLAGS += -mavx512f
 endif
 $(LIBSO): $(PIC_OBJ)
 	@mkdir -p $(dir $@)

@@ -100,39 +100,91 @@ static void test_pure_function(void)
     CHECK(memcmp(a, b, sizeof a) != 0, "block 12 and 12 + 2^32 share their deviates");
 }
 
-/* The 8-lane Philox (src/core/philox_avx2.c) against Random123's scalar philox4x32 and the uniform formula of
- * wf_rng_uniform2, bit for bit: random keys and counters (high words included), and every length up to 41 (the
- * kernel does whole groups of 8 and leaves the rest). */
+/* The vector Philox at each width the CPU has (src/core/philox_kernel.h: 8 lanes with AVX2, 16 with AVX-512) against
+ * Random123's scalar philox4x32 and the uniform formula of wf_rng_uniform2, bit for bit: random keys and counters
+ * (high words included), and every length up to 41 (the kernel does whole vectors and leaves the rest). */
 static void test_vector_philox(void)
 {
 #if defined(__x86_64__)
-    if (wf_simd_level() < WF_SIMD_AVX2) {
-        printf("SKIP vector_philox: no AVX2 on this CPU\n");
-        return;
-    }
-    uint64_t s = 0x9E3779B97F4A7C15ull;
-    size_t bad = 0, total = 0;
-    for (int trial = 0; trial < 200; trial++) {
-        uint32_t w[6];
-        for (int k = 0; k < 6; k++) s = s * 6364136223846793005ull + 1442695040888963407ull, w[k] = (uint32_t)(s >> 32);
-        size_t calls = (size_t)trial % 42;
-        double u1[48], u2[48];
-        for (size_t j = 0; j < 48; j++) u1[j] = u2[j] = -1.0;
-        wf_philox_uniforms_avx2(w[0], w[1], w[2], w[3], w[4], w[5], calls, u1, u2);
-        for (size_t j = 0; j < calls; j++) {
-            philox4x32_ctr_t c = {{w[2], w[3], w[4], w[5] + (uint32_t)j}};
-            philox4x32_key_t k = {{w[0], w[1]}};
-            philox4x32_ctr_t r = philox4x32(c, k);
-            uint64_t x = ((uint64_t)r.v[0] << 32) | r.v[1], y = ((uint64_t)r.v[2] << 32) | r.v[3];
-            double e1 = ((double)(x >> 11) + 0.5) * 0x1p-53, e2 = ((double)(y >> 11) + 0.5) * 0x1p-53;
-            int whole = j < (calls & ~(size_t)7);
-            /* past the last whole group of 8 the kernel writes nothing */
-            bad += whole ? (u1[j] != e1 || u2[j] != e2) : (u1[j] != -1.0 || u2[j] != -1.0);
-            total++;
+    const struct {
+        const char *name;
+        WfSimdLevel level;
+        size_t lanes;
+        void (*fn)(uint32_t, uint32_t, uint32_t, uint32_t, uint32_t, uint32_t, size_t, double *, double *);
+    } widths[] = {{"AVX2", WF_SIMD_AVX2, 8, wf_philox_uniforms_avx2},
+                  {"AVX-512", WF_SIMD_AVX512, 16, wf_philox_uniforms_avx512}};
+    for (size_t wi = 0; wi < sizeof widths / sizeof widths[0]; wi++) {
+        if (wf_simd_level() < widths[wi].level) {
+            printf("SKIP vector_philox %s: not on this CPU (or capped by WAVEFUEL_SIMD)\n", widths[wi].name);
+            continue;
         }
+        uint64_t s = 0x9E3779B97F4A7C15ull;
+        size_t bad = 0, total = 0;
+        for (int trial = 0; trial < 200; trial++) {
+            uint32_t w[6];
+            for (int k = 0; k < 6; k++)
+                s = s * 6364136223846793005ull + 1442695040888963407ull, w[k] = (uint32_t)(s >> 32);
+            size_t calls = (size_t)trial % 42;
+            double u1[48], u2[48];
+            for (size_t j = 0; j < 48; j++) u1[j] = u2[j] = -1.0;
+            widths[wi].fn(w[0], w[1], w[2], w[3], w[4], w[5], calls, u1, u2);
+            for (size_t j = 0; j < calls; j++) {
+                philox4x32_ctr_t c = {{w[2], w[3], w[4], w[5] + (uint32_t)j}};
+                philox4x32_key_t k = {{w[0], w[1]}};
+                philox4x32_ctr_t r = philox4x32(c, k);
+                uint64_t x = ((uint64_t)r.v[0] << 32) | r.v[1], y = ((uint64_t)r.v[2] << 32) | r.v[3];
+                double e1 = ((double)(x >> 11) + 0.5) * 0x1p-53, e2 = ((double)(y >> 11) + 0.5) * 0x1p-53;
+                int whole = j < (calls & ~(widths[wi].lanes - 1));
+                /* past the last whole vector the kernel writes nothing */
+                bad += whole ? (u1[j] != e1 || u2[j] != e2) : (u1[j] != -1.0 || u2[j] != -1.0);
+                total++;
+            }
+        }
+        CHECK(bad == 0, "%s: %zu of %zu calls differ from Random123's philox4x32 (or were written past the whole "
+              "vectors)", widths[wi].name, bad, total);
     }
-    CHECK(bad == 0, "%zu of %zu calls differ from Random123's philox4x32 (or were written past the groups of 8)",
-          bad, total);
+#endif
+}
+
+/* Box-Muller at each width the CPU has against the 2-lane kernel, bit for bit, on uniforms from every part of
+ * (0, 1) (the ends too); and each element in the right place: the 2-lane kernel's pairs against libm's formula to
+ * a few ulp (another implementation of the same deviates). */
+static void test_box_muller_widths(void)
+{
+#if defined(__x86_64__)
+    enum { PAIRS = 4096 };
+    static double u1[PAIRS], u2[PAIRS], ref[2 * PAIRS], got[2 * PAIRS];
+    uint64_t s = 0x2545F4914F6CDD1Dull;
+    for (size_t p = 0; p < PAIRS; p++) {
+        s = s * 6364136223846793005ull + 1442695040888963407ull;
+        u1[p] = ((double)(s >> 11) + 0.5) * 0x1p-53;
+        u2[p] = ((double)((s * 0x9E3779B97F4A7C15ull) >> 11)) * 0x1p-53;
+    }
+    u1[0] = 0x1p-54, u1[1] = 1.0 - 0x1p-54, u2[2] = 0.0, u2[3] = 0.5, u2[4] = 0.25;
+    wf_noise_sse2(PAIRS, u1, u2, ref);
+    size_t far = 0;
+    for (size_t p = 0; p < PAIRS; p++) {
+        double r = sqrt(-2.0 * log(u1[p])), c = r * cos(6.283185307179586476925 * u2[p]),
+               sn = r * sin(6.283185307179586476925 * u2[p]);
+        far += fabs(ref[2 * p] - c) > 1e-13 * (1.0 + r) || fabs(ref[2 * p + 1] - sn) > 1e-13 * (1.0 + r);
+    }
+    CHECK(far == 0, "%zu of %d pairs of the 2-lane kernel far from libm's Box-Muller", far, PAIRS);
+    const struct {
+        const char *name;
+        WfSimdLevel level;
+        void (*fn)(size_t, const double *, const double *, double *);
+    } widths[] = {{"AVX", WF_SIMD_AVX, wf_noise_avx}, {"AVX-512", WF_SIMD_AVX512, wf_noise_avx512}};
+    for (size_t wi = 0; wi < sizeof widths / sizeof widths[0]; wi++) {
+        if (wf_simd_level() < widths[wi].level) {
+            printf("SKIP box_muller %s: not on this CPU (or capped by WAVEFUEL_SIMD)\n", widths[wi].name);
+            continue;
+        }
+        memset(got, 0, sizeof got);
+        widths[wi].fn(PAIRS, u1, u2, got);
+        size_t bad = 0;
+        for (size_t i = 0; i < 2 * PAIRS; i++) bad += memcmp(&got[i], &ref[i], sizeof got[i]) != 0;
+        CHECK(bad == 0, "%s: %zu of %d deviates differ from the 2-lane kernel's", widths[wi].name, bad, 2 * PAIRS);
+    }
 #endif
 }
 
@@ -166,6 +218,7 @@ static void test_normal_rings(void)
 int main(void)
 {
     RUN(test_vector_philox);
+    RUN(test_box_muller_widths);
     RUN(test_normal_rings);
     RUN(test_moments_and_tails);
     RUN(test_kolmogorov_smirnov);

@@ -16,6 +16,10 @@
 #define NK_SQRT       _mm256_sqrt_pd
 #define NK_LOG        Sleef_cinz_logd4_u35avx
 #define NK_SINCOSPI   Sleef_cinz_sincospid4_u35avx
+/* c0 s0 c2 s2 and c1 s1 c3 s3, then their low and high halves */
+#define NK_STORE2(z, c, s)                                                                                     \
+    (_mm256_storeu_pd(z, _mm256_permute2f128_pd(_mm256_unpacklo_pd(c, s), _mm256_unpackhi_pd(c, s), 0x20)),    \
+     _mm256_storeu_pd((z) + 4, _mm256_permute2f128_pd(_mm256_unpacklo_pd(c, s), _mm256_unpackhi_pd(c, s), 0x31)))
 #include "core/noise_kernel.h"
 
 void wf_noise_avx(size_t pairs, const double *u1, const double *u2, double *z)
