@@ -5,7 +5,7 @@
  * split on every rank: wf_partition_blocks). Every rank builds the whole fleet (the same bits everywhere) and keeps
  * every array whole; it steps only its own range and refreshes the few vehicles ahead of it that it reads from the
  * next rank. A corridor: rank r owns a segment of the road (rank 0 the exit's, the last rank the entrance's) and the
- * vehicles on it, which pass to the rank ahead as they cross into its segment (src/core/corridor.c).
+ * vehicles on it, which pass to the rank ahead as they cross into its segment (src/core/corridor_part.c).
  * Every call below is collective: every rank makes it, in the same order. Each returns 0, or an error code with err
  * set (the run then stops with that error on every rank that saw it). */
 #ifndef WAVEFUEL_PARTITION_H

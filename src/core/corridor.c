@@ -6,29 +6,16 @@
  * back at `first`, leaders at higher slots) and never move in memory, so entries and exits touch no other
  * vehicle's data and the kernel sees at most two contiguous runs. Every sum that is written out runs serially in
  * road order. Units: m, s, m/s, m/s^2, g. */
-#include "wavefuel/corridor.h"
+#include "core/corridor_impl.h"
 
-#include <math.h>
-#include <stdlib.h>
-#include <string.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
 
-#include "wavefuel/fleet.h"
-#include "wavefuel/integrator.h"
 #include "wavefuel/rng.h"
-#include "core/block.h"
-#include "core/governor.h"
-#include "core/lanes.h"
 #include "observe/columns.h"
 #include "core/par.h"
-#include "core/sim.h"
 #include "core/simd.h"
-#include "core/window.h"
-#include "util/mem.h"
-
-#define TRIP_BUF 1024 /* trips handed to the output per call */
 
 const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
     {"t", "s", "simulated time of the record"},
@@ -50,227 +37,6 @@ const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
     {"queued", "1", "vehicles waiting at the entrance"},
     {"delayed", "1", "entries so far that waited at least one step"},
 };
-
-/* The run's state outside the per-slot arrays: a checkpoint saves this struct verbatim (corridor_state), so
- * every scalar that changes during the run lives here; what WfCorridor keeps outside it and outside the arrays
- * listed in corridor_state is derived from the scenario or recomputed at every step. */
-typedef struct CorridorRunState {
-    /* window totals of vehicles that have left (and, after the run, of those still on the road) */
-    double   cls_fuel[WF_MAX_CLASSES], cls_dist[WF_MAX_CLASSES], cls_stops[WF_MAX_CLASSES],
-             cls_infeas[WF_MAX_CLASSES], cls_steps[WF_MAX_CLASSES];
-    double   tot_hard, tot_stopped_s;
-    /* trips */
-    int64_t  cls_entered[WF_MAX_CLASSES], cls_trips[WF_MAX_CLASSES];
-    double   cls_trip_fuel[WF_MAX_CLASSES], cls_trip_time[WF_MAX_CLASSES];
-    int64_t  trips_done;
-    double   sum_trip_time, sum_trip_fuel;
-    /* each lane's entrance and virtual leader */
-    struct CorEntrance {
-        int64_t  arrived, entered, queued; /* this lane's */
-        size_t   q_head;        /* the index of the queue's head in the lane's part of queue_t */
-        double   next_target;   /* this lane's cumulative demand at which its next arrival happens */
-        size_t   in_seg;
-        int      have_cand;     /* the queue head's class, group and parameters are drawn */
-        uint16_t cand_class, cand_group;
-        double   cand_len;
-        double   cand_params[WF_MAX_MODEL_PARAMS];
-        int64_t  assigned_group[WF_MAX_GROUPS], assigned_class[WF_MAX_CLASSES], n_free_class;
-        double   vl_x, vl_v, vl_xref, vl_iref; /* the virtual leader ahead of the lane */
-        size_t   vl_seg;
-    } lane[WF_MAX_LANES];
-    /* counters (the road's: every lane's summed) and statistics */
-    WfCorridorCounts counts;
-    long     steps_done;
-    int64_t  w_entries, w_exits;
-    double   sd_sum;
-    long     n_sd;
-} CorridorRunState;
-
-/* One lane of the road: a circular buffer of slots (veh: its first slot, count and capacity, the arrays from the
- * lane's own slots) with every per-slot array the same way, and the lane as the kernel sees it. Lane l's slots are
- * [l cap, (l + 1) cap) of each allocation (held by lane 0's pointers). */
-typedef struct CorLane {
-    struct WfCorridor *c;   /* the corridor (the road hooks' context is the lane) */
-    size_t    index;        /* the lane's number */
-    WfCorridorVehicles veh;
-    double   *xold;
-    uint32_t *cell;         /* the Edie cell of the step when it lies inside one cell, else UINT32_MAX */
-    uint32_t *grade_seg;
-    uint8_t  *mode;
-    uint8_t  *dest;         /* 1: bound for the off-ramp (corridor.off_ramp) */
-    double   *t_arr, *t_ent, *v_ent;
-    WfAccum   trip, win;    /* accumulators over the trip and over the statistics window */
-    uint32_t *lane_changes, *cut_ins; /* lane changes made; vehicles that entered the lane right ahead of it */
-    int64_t  *lc_ready;     /* the first step at which the vehicle may change lanes again */
-    WfLane    lane;         /* the vehicles as the kernel sees them */
-    /* the lane's demand (a share of a profile), where its vehicles enter and where it ends (+inf: the exit; else a
-     * merge lane's end or a lane drop: a standing obstacle there leads its front vehicle) */
-    const WfProfile *demand;
-    double    share, start_m, end_m;
-} CorLane;
-
-/* Time-blocked stepping of a corridor (corridor_window): the front part (the vehicles that may leave within the
- * window, and one more) steps one step at a time with the exits, the interior in the windows of window.c following
- * the front part's rearmost vehicle, then the entrance steps one at a time behind the interior's back vehicle. The
- * measurement (Edie, detectors) and the exits' trips and totals wait for the window: each step's movement of every
- * vehicle is kept in rows, measured after the window step by step in road order. */
-typedef struct CorWindow {
-    WfWindow  w;              /* the interior's */
-    int       active;         /* the moved hook keeps each step's movement in the rows */
-    long      step0;
-    size_t    first0, n0, n_int; /* the road's back slot and vehicles as the window began; the interior's vehicles */
-    double   *x, *rate;       /* rows of cap slots: positions at the window's start and after each step (k_max + 1),
-                               * each step's fuel rate (k_max) */
-    uint32_t *cell;           /* each thread's Edie cells of a step (cells_of), cap slots per thread */
-    size_t   *nf, *nb;        /* per step: the front part's vehicles (before its exits) and the entered ones */
-    double   *fx, *fv;        /* the front part's rearmost vehicle at the start of each step */
-    uint32_t *exit_slot;      /* the exits so far, front first, step after step, and their times */
-    double   *exit_t;
-    size_t    n_exits;
-    int       k, in_window, flags; /* the window's steps, statistics gate and flags (window_after) */
-    WfError  *err;
-    /* the interior's back vehicle at the start of the entrance's step (try_insert reads it there) */
-    int       back_on;
-    size_t    back_slot;
-    double    back_x, back_v;
-    /* the per-slot arrays a step changes, and all of them (an entry writes every one), stride = bytes per slot */
-    WfStateVar vars[WF_MAX_STATE_VARS], all[WF_MAX_STATE_VARS];
-    size_t    n_vars, n_all, slot_bytes, all_bytes;
-    unsigned char *keep;      /* the scalars, the front part's slots of vars and the entrance's of all, as the window
-                               * began (the interior's are window.c's) */
-} CorWindow;
-
-/* A corridor split across processes (docs/mpi.md): what a rank tells every other once a step (the allgather),
- * after the kernel moved its n vehicles: its rear vehicle (x, v, length) and front vehicle's x (x2); those that
- * crossed into the segment ahead (out, the rearmost of them at out_x, out_v, out_len; skip: one crossed a whole
- * segment); those at or past the exit from the front (past, the rearmost at past_x, past_len); its WF_STEP_* flags
- * with its stop request above PART_STOP_SHIFT; the overlap repairs it made alone. From every rank's record each rank
- * knows every rank's vehicles and rear vehicle at the next step's start (the same table, CorPart.pre). */
-typedef struct PartRec {
-    double   x, v, len, x2, out_x, out_v, out_len, past_x, past_len;
-    uint64_t n, out, skip, past, flags, repairs;
-} PartRec;
-enum { PART_STOP_SHIFT = 8 };
-
-/* This rank's share of a split corridor: its segment of the road (fronts in [cut_lo, cut_hi); rank 0 the exit's,
- * the last rank the entrance's) and its Edie cells, its vehicles (road indices [k_lo, k_lo + n_own), slots from
- * first_own up) and those that crossed into its segment in the step (n_in, behind them). Vehicles keep their slots
- * and every per-slot key on every rank; a rank's copies of the slots it does not hold are stale. */
-typedef struct CorPart {
-    WfPartition *p;          /* borrowed; NULL: the whole road in this process */
-    double   cut_lo, cut_hi;
-    size_t   i_lo, i_hi;
-    size_t   k_lo, n_own, first_own, n_in;
-    size_t   kb, ke;         /* the measurement's road indices */
-    PartRec *pre, *post;     /* every rank's vehicles and rear vehicle at the step's start; its record of the step */
-    size_t   vbytes;         /* a packed vehicle */
-    unsigned char *out, *in, *all; /* packed vehicles: crossing out, crossing in, the whole road */
-    size_t  *off;
-    WfSafetyCount safety_all; /* every rank's safety counts (what the summary and a checkpoint read) */
-    int      repaired;       /* the step's repair brought the whole road onto every rank */
-} CorPart;
-#define PART_MIN_M 50.0      /* a segment's length beyond two of the longest vehicles, at least (part_check) */
-
-struct WfCorridor {
-    WfSim                *sim; /* the run this engine is the boundary of (outputs, threads, summary) */
-    const WfScenario     *sc;  /* borrowed */
-    const WfCorridorSpec *cs;  /* borrowed: sc->corridor */
-    const WfIntegrator   *ig;
-    size_t   pstride, sstride; /* doubles of parameters, bytes of controller state, per slot */
-    double   L;
-    size_t   n_lanes;
-    CorLane  ln[WF_MAX_LANES];
-    CorridorRunState st;
-    /* trips not yet handed to the output (none at a checkpoint) */
-    WfTrip   trips[TRIP_BUF];
-    size_t   n_trips;
-    /* headway zones: offset (in doubles) of the zone's key in each group's parameters, or -1 */
-    int      hw_off[WF_MAX_GROUPS][WF_CORRIDOR_MAX_ZONES];
-    /* entrance */
-    double  *queue_t;       /* arrival time of each waiting vehicle (FIFO ring) */
-    size_t   q_cap;
-    double   free_share[WF_MAX_CLASSES]; /* class shares among vehicles whose group fixes no class */
-    /* each lane's queue head's free speed, kept while it waits (a pure function of its model, parameters and speed
-     * cap: not saved, computed again after a resume) */
-    struct CorFree {
-        int      valid;
-        uint16_t group;
-        double   v_hi, v_free, params[WF_MAX_MODEL_PARAMS];
-    } vfree[WF_MAX_LANES];
-    int      has_vl;        /* a virtual leader (outflow leader or speed) */
-    long     meas_step;     /* the step being stepped, for measure_after_step */
-    int      meas_in_window;
-    /* measurement */
-    WfDetectors det;
-    WfEdie   edie;
-    long     det_every, edie_every;
-    /* run */
-    long     n_steps, out_every, traj_every, warm_steps;
-    int      nthreads;      /* the run's threads */
-    WfGovernor gov;         /* the threads each step takes (governor.h): at most nthreads */
-    long     fault_slot;    /* the slot of a vehicle with a non-finite state in lane fault_lane, or -1 */
-    size_t   fault_lane;
-    WfRoadOps ops;
-    double  *bound_x, *bound_v;
-    WfChunkOut *chunks;
-    WfCuts   cuts[WF_MAX_LANES]; /* each lane's chunk cuts (WfLane.cuts) */
-    double  *cut_arrays;    /* theirs: 3 (nthreads + 1) per lane */
-    int      has_cap;       /* a speed limit somewhere: the kernel caps accelerations */
-    WfSafetyCount safety;   /* the lanes' safety counts summed (safety_total) */
-    /* lane changes (several lanes, some group with a lane-change model): the decisions' scratch, the road as they
-     * see it (its arrays: every lane's vehicles back to front, and each one's global slot), what they did */
-    WfLaneChanges lcs;
-    struct {
-        double   *x_m, *v_mps;
-        uint16_t *class_id, *group_id;
-        int64_t  *ready;
-        uint8_t  *exiting;  /* bound for the off-ramp */
-        uint32_t *slot;     /* lane l cap + the slot */
-        unsigned char *buf; /* one per-slot array in the new order while vehicles move */
-    } snap;
-    struct {
-        WfLaneCounts total;
-        int64_t  rec_changes, rec_cut_ins, n_rows; /* since the last record; records kept */
-        double   group_vehicle_s[WF_MAX_GROUPS];  /* time on the road of each group's vehicles that left */
-    } lk;
-    /* cooperation at the lanes' ends (src/core/lanes.h): per global slot the bound of the step (+inf: none), and the
-     * slots that have one */
-    double  *coop_cap_mps2;
-    uint32_t *coop_slot;
-    size_t   n_coop;
-    uint32_t *off_src, *off_dst; /* an off-ramp exit: the global slots of the vehicles that move up behind it */
-    double  *lane_rows;     /* per record: t, changes, cut-ins, then lane after lane the WF_LANE_* columns */
-    size_t   lane_row_len, lane_rows_max;
-    CorWindow win;
-    CorPart   pt;
-};
-
-/* The per-slot arrays a checkpoint saves, whole (a vehicle keeps its slot), with their block names, and whether a
- * step changes them (what a time-blocked window keeps to undo); the others (acceleration, gap, leader speed, grade,
- * fuel rate, flag, xold, cell) every step recomputes before reading them. */
-#define SAVED_SLOT_ARRAYS(X)                                                                                       \
-    X("x", veh.x_m, 1) X("v", veh.v_mps, 1) X("length", veh.length_m, 0) X("serial", veh.serial, 0)                \
-    X("class_id", veh.class_id, 0) X("group_id", veh.group_id, 0) X("grade_seg", grade_seg, 1) X("mode", mode, 1)  \
-    X("t_arrival", t_arr, 0) X("t_entry", t_ent, 0) X("v_entry", v_ent, 0) X("trip_fuel", trip.fuel_g, 1)          \
-    X("trip_dist", trip.dist_m, 1) X("trip_stopped", trip.stopped_s, 1) X("trip_stops", trip.stops, 1)             \
-    X("trip_hard", trip.hard_brakes, 1) X("trip_infeasible", trip.infeasible, 1) X("w_fuel", win.fuel_g, 1)        \
-    X("w_dist", win.dist_m, 1) X("w_stopped", win.stopped_s, 1) X("w_steps", win.steps, 1)                         \
-    X("w_stops", win.stops, 1) X("w_hard", win.hard_brakes, 1) X("w_infeasible", win.infeasible, 1)                \
-    X("lane_changes", lane_changes, 0) X("cut_ins", cut_ins, 0) X("lc_ready", lc_ready, 0) X("dest", dest, 0)
-#define STEP_SLOT_ARRAYS(X)                                                                                          \
-    X("", veh.a_mps2, 0) X("", veh.gap_m, 0) X("", veh.v_lead_mps, 0) X("", veh.theta_rad, 0)                      \
-    X("", veh.fuel_rate_gps, 0) X("", veh.flag, 0) X("", xold, 0) X("", cell, 0)
-
-/* A lane's counter-based key of its n-th arrival or entry: lane 0 keys as a single-lane corridor does, lane l from
- * l 2^40 (trips name vehicles by it: /trips/serial). */
-static inline uint64_t lane_key(size_t l, uint64_t n) { return ((uint64_t)l << 40) + n; }
-
-static void window_free(CorWindow *cw);
-static int  window_init(WfCorridor *c, WfError *err);
-static int  part_check(const WfCorridor *c, const WfPartition *p, WfError *err);
-static int  part_init(WfCorridor *c, WfPartition *p, WfError *err);
-static void part_free(CorPart *pt);
-
 static void corridor_destroy(void *eng)
 {
     WfCorridor *c = eng;
@@ -286,8 +52,8 @@ static void corridor_destroy(void *eng)
                     c->snap.buf, c->lane_rows, c->coop_cap_mps2, c->coop_slot, c->snap.exiting, c->off_src,
                     c->off_dst};
     for (size_t i = 0; i < sizeof snap / sizeof snap[0]; i++) free(snap[i]);
-    window_free(&c->win);
-    part_free(&c->pt);
+    cor_window_free(&c->win);
+    cor_part_free(&c->pt);
     free(c);
 }
 
@@ -332,12 +98,6 @@ static const double *params_at(const void *ctx, size_t group, const double *own,
 
 /* ------------------------------------------------------------------------------------------ setup */
 
-#define ALLOC(ptr, count)                                                                            \
-    do {                                                                                             \
-        /* +1: never a 0-byte request */                                                             \
-        if (!((ptr) = calloc((size_t)(count) + 1, sizeof *(ptr))))                                   \
-            return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicles", c->ln[0].veh.cap); \
-    } while (0)
 
 /* The vehicle buffer. Capacity: fronts on the road lie in [0, L) and bodies do not overlap, so consecutive fronts
  * are at least the shortest length apart: n <= floor(L / shortest) + 1; one more slot keeps a margin, and the
@@ -478,7 +238,6 @@ static void init_boundary(WfCorridor *c)
 
 static int lane_init(WfCorridor *c, WfError *err);
 static int lanes_init(WfCorridor *c, WfError *err);
-static WfLead front_leader(const WfCorridor *c, size_t l);
 
 static int corridor_create(WfSim *sim, WfError *err)
 {
@@ -517,8 +276,8 @@ static int corridor_create(WfSim *sim, WfError *err)
     if (!rc) init_boundary(c);
     if (!rc) rc = lane_init(c, err);
     if (!rc) rc = lanes_init(c, err);
-    if (!rc && sim->part && !(rc = part_check(c, sim->part, err))) rc = part_init(c, sim->part, err);
-    if (!rc) rc = window_init(c, err);
+    if (!rc && sim->part && !(rc = cor_part_check(c, sim->part, err))) rc = cor_part_init(c, sim->part, err);
+    if (!rc) rc = cor_window_init(c, err);
     return rc;
 }
 
@@ -586,7 +345,7 @@ static int draw_candidate(WfCorridor *c, size_t l, WfError *err)
 /* Arrivals up to time t join the queue: arrival n happens when the cumulative demand Λ(t) = ∫ q dt / 3600
  * reaches its target (n + 1 for deterministic headways; a sum of n + 1 unit exponentials for Poisson arrivals,
  * the time-rescaled Poisson process of rate q(t)). */
-static int arrivals(WfCorridor *c, double t, WfError *err)
+int cor_arrivals(WfCorridor *c, double t, WfError *err)
 {
     const WfCorridorSpec *cs = c->cs;
     WfCorridorCounts *n = &c->st.counts;
@@ -747,7 +506,7 @@ static int try_insert(WfCorridor *c, size_t l, double t, long step, WfError *err
 }
 
 /* Each lane's queue head tries its lane, lane after lane. */
-static int entrance(WfCorridor *c, double t, long step, WfError *err)
+int cor_entrance(WfCorridor *c, double t, long step, WfError *err)
 {
     for (size_t l = 0; l < c->n_lanes; l++) {
         int rc = try_insert(c, l, t, step, err);
@@ -800,7 +559,7 @@ static int corridor_cap(const void *ctx, size_t lo, size_t m, const double *x, c
  * (WfRoadOps.moved), on the block's thread; an overlap repair calls it again for the vehicle it moves. A loop without
  * control flow: it vectorises, and takes the division out of the measurement. */
 WF_SIMD_CLONES
-static void cells_of(const WfCorridor *c, const double *restrict xa, const double *restrict xb,
+void cor_cells_of(const WfCorridor *c, const double *restrict xa, const double *restrict xb,
                      uint32_t *restrict cell, size_t m)
 {
     /* in doubles until the store (the scenario caps the grid at 5e7 cells, so cell numbers fit in 31 bits): the
@@ -825,7 +584,7 @@ static void step_moved(const void *ctx, size_t lo, size_t m, long step)
     const WfCorridor *c = ln->c;
     const CorWindow *cw = &c->win;
     if (!cw->active) {
-        cells_of(c, ln->xold + lo, ln->veh.x_m + lo, ln->cell + lo, m);
+        cor_cells_of(c, ln->xold + lo, ln->veh.x_m + lo, ln->cell + lo, m);
         return;
     }
     /* a vehicle's position before step s is row s: the window's start, its position after the step before, or where
@@ -959,7 +718,7 @@ static void lanes_road(WfCorridor *c, WfLcRoad *r)
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
         const WfCorridorVehicles *vh = &ln->veh;
-        r->first[l] = i, r->count[l] = vh->n, r->front[l] = front_leader(c, l), r->end_m[l] = ln->end_m;
+        r->first[l] = i, r->count[l] = vh->n, r->front[l] = cor_front_leader(c, l), r->end_m[l] = ln->end_m;
         for (size_t j = 0; j < vh->n; j++, i++) {
             size_t s = vh->first + j < cap ? vh->first + j : vh->first + j - cap; /* back to front */
             c->snap.x_m[i] = vh->x_m[s], c->snap.v_mps[i] = vh->v_mps[s], c->snap.class_id[i] = vh->class_id[s];
@@ -1067,7 +826,7 @@ static void lane_changes(WfCorridor *c, long step)
 
 /* The step's values go to the per-slot arrays (steps with a record or trajectory, which read them before the
  * vehicles move) or stay in the kernel's blocks; the fuel rate is always kept (Edie and detectors read it). */
-static void lane_exports(WfCorridor *c, int on)
+void cor_lane_exports(WfCorridor *c, int on)
 {
     for (size_t l = 0; l < c->n_lanes; l++) {
         WfCorridorVehicles *vh = &c->ln[l].veh;
@@ -1078,7 +837,7 @@ static void lane_exports(WfCorridor *c, int on)
 }
 
 /* The front vehicle's leader: the virtual leader, or a far one at the vehicle's own speed. */
-static WfLead front_leader(const WfCorridor *c, size_t l)
+WfLead cor_front_leader(const WfCorridor *c, size_t l)
 {
     const struct CorEntrance *en = &c->st.lane[l];
     if (isfinite(c->ln[l].end_m)) return (WfLead){c->ln[l].end_m, 0.0, 0.0}; /* the lane's end, standing */
@@ -1089,7 +848,7 @@ static WfLead front_leader(const WfCorridor *c, size_t l)
  * behind it and stopped, front to back so a repaired leader is seen by its follower; each event is counted. A
  * non-finite state is a numerical fault (the run stops). Checks the `upto` front vehicles (the kernel flags
  * overlaps and faults behind the front). */
-static void phase_overlaps(WfCorridor *c, CorLane *ln, int in_window, size_t upto)
+void cor_phase_overlaps(WfCorridor *c, CorLane *ln, int in_window, size_t upto)
 {
     WfCorridorVehicles *vh = &ln->veh;
     for (size_t k = 0; k < vh->n && k < upto; k++) {
@@ -1198,7 +957,7 @@ static size_t first_below(const CorLane *ln, const double *pos, double x, int st
  * beyond the range and the longest length, or end it before the range, add nothing (a 1 m margin covers the
  * rounding of cell indices). Visiting only these, still in road order, gives every sum the same additions in the
  * same order, and lets the threads of the parallel measurement share the vehicles instead of each visiting all. */
-static void measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, size_t i_hi, size_t q_lo,
+void cor_measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, size_t i_hi, size_t q_lo,
                          size_t q_hi, size_t *k0, size_t *k1)
 {
     const WfScenario *sc = c->sc;
@@ -1226,9 +985,6 @@ static void measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, si
  * two classes), one vector holds {distance of class 0, fuel of class 0, distance of class 1, fuel of class 1}. The
  * cell's distance and fuel sums are the two lanes of one vector too: a vehicle's {distance, fuel} is added to them
  * by one instruction and, repeated into four lanes, to the packed class sums. */
-typedef double  V2 __attribute__((vector_size(16)));
-typedef double  V4 __attribute__((vector_size(32)));
-typedef int64_t M4 __attribute__((vector_size(32)));
 
 static inline void lanes_load(V4 *out, const double *base, size_t nx, size_t i, size_t v, size_t nc)
 {
@@ -1300,7 +1056,7 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
         held = SIZE_MAX;                                                                                            \
     } while (0)
     size_t k0, k1;
-    measure_span(c, ln, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
+    cor_measure_span(c, ln, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
     /* Road order is descending slot order, wrapping from slot 0 to the last: at most two segments of slots
      * [lo, hi) visited from hi - 1 down. Along one segment a cell's one-cell steps are consecutive (positions fall
      * along road order), so each run of them is summed by the tight inner loop. */
@@ -1358,7 +1114,7 @@ static inline __attribute__((always_inline)) void measure_nv(WfCorridor *c, cons
 }
 
 WF_SIMD_CLONES
-static void measure_range(WfCorridor *c, const CorLane *ln, long step, int in_window, size_t i_lo, size_t i_hi,
+void cor_measure_range(WfCorridor *c, const CorLane *ln, long step, int in_window, size_t i_lo, size_t i_hi,
                           size_t q_lo, size_t q_hi)
 {
     size_t nc = c->sc->n_classes;
@@ -1372,7 +1128,7 @@ static void measure_range(WfCorridor *c, const CorLane *ln, long step, int in_wi
  * lane's n vehicles behind it, so that the threads visit about as many vehicles each however they crowd along the
  * road (a queue at the entrance holds most of them in a few kilometres). A running maximum over t' <= t keeps the
  * cuts in order whatever the positions. */
-static size_t cell_cut(const WfCorridor *c, const CorLane *ln, size_t t, size_t nt)
+size_t cor_cell_cut(const WfCorridor *c, const CorLane *ln, size_t t, size_t nt)
 {
     size_t n = ln->veh.n, nx = c->edie.nx, cut = 0;
     if (t >= nt) return nx;
@@ -1388,7 +1144,7 @@ static size_t cell_cut(const WfCorridor *c, const CorLane *ln, size_t t, size_t 
 static void measure_share(WfCorridor *c, const CorLane *ln, long step, int in_window, size_t t, size_t nt)
 {
     size_t nd = c->det.n_det;
-    measure_range(c, ln, step, in_window, cell_cut(c, ln, t, nt), cell_cut(c, ln, t + 1, nt), nd * t / nt,
+    cor_measure_range(c, ln, step, in_window, cor_cell_cut(c, ln, t, nt), cor_cell_cut(c, ln, t + 1, nt), nd * t / nt,
                   nd * (t + 1) / nt);
 }
 
@@ -1441,7 +1197,7 @@ static int flush_trips(void *eng, WfError *err)
 
 /* A vehicle's window totals join its class's; its trip joins the buffer. completed: 1 at x = L, 2 by the off-ramp
  * (not a trip of the road's length: not in the trips' means), 0 still on the road. */
-static int finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit, int completed, WfError *err)
+int cor_finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit, int completed, WfError *err)
 {
     if (c->n_lanes > 1)
         c->lk.group_vehicle_s[ln->veh.group_id[s]] +=
@@ -1479,7 +1235,7 @@ static int offramp_exit(WfCorridor *c, CorLane *ln, size_t k, double t_end, WfEr
 {
     WfCorridorVehicles *vh = &ln->veh;
     size_t o = ln->index * vh->cap, m = 0;
-    int rc = finish_vehicle(c, ln, wf_corridor_slot(vh, k), t_end, 2, err);
+    int rc = cor_finish_vehicle(c, ln, wf_corridor_slot(vh, k), t_end, 2, err);
     for (size_t j = k + 1; j < vh->n; j++, m++)
         c->off_src[m] = (uint32_t)(o + wf_corridor_slot(vh, j)), c->off_dst[m] = (uint32_t)(o + wf_corridor_slot(vh, j - 1));
     lanes_move(c, c->off_src, c->off_dst, m);
@@ -1520,7 +1276,7 @@ static int phase_offramp(WfCorridor *c, double t_end, WfError *err)
 /* Vehicles whose front has reached L leave (front first); with the speed outflow each one becomes the virtual
  * leader: its rear bumper drives on at the prescribed speed. Inside a window their trips and totals wait for its
  * end (its slot keeps them: no entry reaches it within a window). */
-static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, size_t most, WfError *err)
+int cor_phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, size_t most, WfError *err)
 {
     WfCorridorVehicles *vh = &ln->veh;
     CorWindow *cw = &c->win;
@@ -1530,7 +1286,7 @@ static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, 
         if (cw->active)
             cw->exit_slot[cw->n_exits] = (uint32_t)s, cw->exit_t[cw->n_exits++] = t_end;
         else
-            rc = finish_vehicle(c, ln, s, t_end, 1, err);
+            rc = cor_finish_vehicle(c, ln, s, t_end, 1, err);
         if (c->cs->outflow == WF_OUTFLOW_SPEED) {
             struct CorEntrance *en = &c->st.lane[ln - c->ln];
             size_t seg = en->vl_seg;
@@ -1547,7 +1303,7 @@ static int phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, 
 }
 
 /* The virtual leader at time t: x = x_ref + ∫ v (exact for the piecewise-linear profile). */
-static void advance_leader(WfCorridor *c, double t)
+void cor_advance_leader(WfCorridor *c, double t)
 {
     if (!c->has_vl) return;
     const WfProfile *p = &c->cs->leader_speed_mps;
@@ -1558,7 +1314,6 @@ static void advance_leader(WfCorridor *c, double t)
     }
 }
 
-static void record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row);
 
 /* A multi-lane corridor's lanes at a record (/lanes, src/observe/lanes.c): each lane's record (the road's rule over
  * that lane alone), as its columns. */
@@ -1570,7 +1325,7 @@ static void lanes_observe(WfCorridor *c, double t)
     c->lk.rec_changes = c->lk.rec_cut_ins = 0;
     for (size_t l = 0; l < c->n_lanes; l++) {
         WfCorridorRow r;
-        record(c, l, l + 1, t, &r);
+        cor_record(c, l, l + 1, t, &r);
         double *o = row + 3 + l * WF_LANE_N_COLS, n = r.v[WF_CTS_VEHICLES];
         o[WF_LANE_VEHICLES] = n;
         o[WF_LANE_DENSITY] = n / (c->L / 1000.0);
@@ -1597,13 +1352,6 @@ static int corridor_lanes(const void *eng, WfLaneObs *out)
     return 1;
 }
 
-/* The running sums of a record's first pass, lane after lane. */
-typedef struct RecordSums {
-    double sv, sg, vmin, vmax, gmin;
-    size_t n, ngap, stopped, waves; /* counts: the same values as the sums of 1.0 they replace */
-    int    prev_slow;               /* the last vehicle added was slower than the wave speed */
-    V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_masks) */
-} RecordSums;
 
 /* Vehicles [k0, k1) of one lane into the record's sums, front first, with nv class vectors (a constant at each
  * call). Every sum is a
@@ -1646,7 +1394,7 @@ static inline __attribute__((always_inline)) void record_lane(const WfScenario *
 /* Lanes [l0, l1) into the record's sums, each lane's vehicles [k0, k1) (SIZE_MAX: all of them), each lane's waves
  * from its front. */
 WF_SIMD_CLONES
-static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size_t k1, RecordSums *r)
+void cor_record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size_t k1, RecordSums *r)
 {
     size_t nc = c->sc->n_classes;
     int nv = nc <= 4 ? 1 : nc <= 8 ? 2 : 4;
@@ -1664,7 +1412,7 @@ static void record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, s
 }
 
 /* The sum of (v - mean)^2 over vehicles [k0, k1) of lane l, front first, added to m2. */
-static double record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, double mean, double m2)
+double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, double mean, double m2)
 {
     const WfCorridorVehicles *vh = &c->ln[l].veh;
     for (size_t k = k0; k < k1 && k < vh->n; k++) {
@@ -1674,21 +1422,20 @@ static double record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, dou
     return m2;
 }
 
-static void record_row(const WfCorridor *c, const RecordSums *r, double m2, double t, WfCorridorRow *row);
 
 /* The record of lanes [l0, l1) (the road's: all of them): sums lane after lane, each lane front first; waves and gaps
  * within each lane. */
-static void record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row)
+void cor_record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row)
 {
     RecordSums r = {.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY};
-    record_lanes(c, l0, l1, 0, SIZE_MAX, &r);
+    cor_record_lanes(c, l0, l1, 0, SIZE_MAX, &r);
     double mean = r.n ? r.sv / (double)r.n : NAN, m2 = 0.0;
-    for (size_t l = l0; l < l1; l++) m2 = record_m2(c, l, 0, SIZE_MAX, mean, m2);
-    record_row(c, &r, m2, t, row);
+    for (size_t l = l0; l < l1; l++) m2 = cor_record_m2(c, l, 0, SIZE_MAX, mean, m2);
+    cor_record_row(c, &r, m2, t, row);
 }
 
 /* A record's row from its sums (record_lanes) and m2 (record_m2). */
-static void record_row(const WfCorridor *c, const RecordSums *rs, double m2, double t, WfCorridorRow *row)
+void cor_record_row(const WfCorridor *c, const RecordSums *rs, double m2, double t, WfCorridorRow *row)
 {
     const WfScenario *sc = c->sc;
     const RecordSums r = *rs;
@@ -1778,7 +1525,7 @@ static void summarize(WfCorridor *c)
     s->on_road = c->st.counts.entered - c->st.counts.exited - c->st.counts.off_ramp;
 }
 
-static int numerical_fault(const WfCorridor *c, long step, WfError *err)
+int cor_numerical_fault(const WfCorridor *c, long step, WfError *err)
 {
     const WfCorridorVehicles *vh = &c->ln[c->fault_lane].veh;
     size_t s = (size_t)c->fault_slot;
@@ -1803,11 +1550,11 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
     if (c->coop_cap_mps2) lane_cooperation(c, NULL);
     if (nl > 1 && step > 0 && !last) lane_changes(c, step);
-    if ((rc = arrivals(c, t, err)) || (rc = entrance(c, t, step, err))) return rc;
+    if ((rc = cor_arrivals(c, t, err)) || (rc = cor_entrance(c, t, step, err))) return rc;
     WfLead front[WF_MAX_LANES];
-    for (size_t l = 0; l < nl; l++) front[l] = front_leader(c, l);
+    for (size_t l = 0; l < nl; l++) front[l] = cor_front_leader(c, l);
     int two_pass = records || traj || last;
-    lane_exports(c, two_pass);
+    cor_lane_exports(c, two_pass);
     c->meas_step = step, c->meas_in_window = in_window; /* for measure_after_step */
     if (two_pass) {
         for (size_t l = 0; l < nl; l++) {
@@ -1818,7 +1565,7 @@ static int step_once(WfCorridor *c, long step, WfError *err)
         }
         if (records) {
             WfCorridorRow row;
-            record(c, 0, c->n_lanes, t, &row);
+            cor_record(c, 0, c->n_lanes, t, &row);
             lanes_observe(c, t);
             if (in_window && on_road) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
             WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
@@ -1839,690 +1586,17 @@ static int step_once(WfCorridor *c, long step, WfError *err)
         }
     }
     for (size_t l = 0; nl > 1 && l < nl; l++) c->lk.total.lane_vehicle_s[l] += (double)c->ln[l].veh.n * sc->dt_s;
-    advance_leader(c, t_next);
+    cor_advance_leader(c, t_next);
     for (size_t l = 0; l < nl; l++) {
         CorLane *ln = &c->ln[l];
-        phase_overlaps(c, ln, in_window, flags[l] ? ln->veh.n : c->has_vl ? 1 : 0);
-        if (c->fault_slot >= 0) return numerical_fault(c, step, err);
+        cor_phase_overlaps(c, ln, in_window, flags[l] ? ln->veh.n : c->has_vl ? 1 : 0);
+        if (c->fault_slot >= 0) return cor_numerical_fault(c, step, err);
     }
     phase_measure(c, step, in_window);
     if (c->cs->has_offramp && (rc = phase_offramp(c, t_next, err))) return rc;
     for (size_t l = 0; l < nl; l++)
-        if ((rc = phase_exits(c, &c->ln[l], t_next, in_window, SIZE_MAX, err))) return rc;
+        if ((rc = cor_phase_exits(c, &c->ln[l], t_next, in_window, SIZE_MAX, err))) return rc;
     return 0;
-}
-
-/* ------------------------------------------------------------------------------ time-blocked windows */
-
-enum { FRONT_MAX = 2 * WF_BLOCK }; /* vehicles of a window's front part at most (else one step at a time) */
-#define REACH_A_MPS2 10.0     /* the acceleration bounding how far a vehicle may get within a window */
-
-/* Windows of time.block_steps steps (0 or 1: none) when the road is a single lane without an off-ramp whose groups
- * all step by the kernel (no commands from outside). Owns what it allocates until destroy. */
-static int window_init(WfCorridor *c, WfError *err)
-{
-    const WfScenario *sc = c->sc;
-    CorWindow *cw = &c->win;
-    CorLane *ln = &c->ln[0];
-    /* Only when asked for: measured on this project's machine (bench/README.md, "Corridor threads under load"), a
-     * corridor of 5000 vehicles steps 13-15 % slower in windows on idle cores, its state being in cache anyway, and
-     * is not faster beside busy processes. */
-    int k = sc->block_steps, ok = k >= 2 && c->n_lanes == 1 && sc->fused_step;
-    ok &= !c->cs->has_offramp && !c->coop_cap_mps2;
-    for (size_t g = 0; g < sc->n_groups; g++) ok &= !sc->groups[g].model->external;
-    size_t cap = ln->veh.cap, nv = 0, bytes = 0;
-    if (!ok || cap / WF_BLOCK < 2) return 0;
-    size_t na = 0, pst = c->pstride * sizeof(double);
-#define SLOT_VAR(nm, field, stepped)                                                                            \
-    cw->all[na++] = (WfStateVar){nm, ln->field, cap * sizeof *ln->field, sizeof *ln->field};                     \
-    if (stepped) cw->vars[nv++] = cw->all[na - 1];
-    SAVED_SLOT_ARRAYS(SLOT_VAR)
-#undef SLOT_VAR
-    cw->all[na++] = (WfStateVar){"params", ln->veh.params, cap * pst, pst};
-    if (c->sstride)
-        cw->vars[nv++] = cw->all[na++] = (WfStateVar){"controller_state", ln->veh.state, cap * c->sstride, c->sstride};
-    for (size_t j = 0; j < nv; j++) bytes += cw->vars[j].size, cw->slot_bytes += cw->vars[j].stride;
-    for (size_t j = 0; j < na; j++) cw->all_bytes += cw->all[j].stride;
-    cw->n_vars = nv, cw->n_all = na;
-    /* a step reads about as many bytes per slot again as it changes (parameters, class, group, step values) */
-    size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(2 * cw->slot_bytes);
-    int rc = wf_window_create(&cw->w, &ln->lane, cap, 0, cap / WF_BLOCK, k, tile, c->out_every, bytes, err);
-    if (rc) return rc;
-    wf_mem_prefault(cw->w.backup, bytes, 0, 1); /* every slot may be in a window: the whole copy's pages now */
-    ALLOC(cw->x, ((size_t)k + 1) * cap);
-    ALLOC(cw->rate, (size_t)k * cap);
-    ALLOC(cw->cell, (size_t)c->nthreads * cap);
-    ALLOC(cw->nf, (size_t)k);
-    ALLOC(cw->nb, (size_t)k);
-    ALLOC(cw->fx, (size_t)k);
-    ALLOC(cw->fv, (size_t)k);
-    ALLOC(cw->exit_slot, (size_t)FRONT_MAX);
-    ALLOC(cw->exit_t, (size_t)FRONT_MAX);
-    ALLOC(cw->keep, (size_t)k * cw->all_bytes + FRONT_MAX * cw->slot_bytes + sizeof c->st + sizeof ln->lane.safety);
-    return 0;
-}
-
-static void window_free(CorWindow *cw)
-{
-    wf_window_destroy(&cw->w);
-    free(cw->x), free(cw->rate), free(cw->cell), free(cw->nf), free(cw->nb);
-    free(cw->fx), free(cw->fv), free(cw->exit_slot), free(cw->exit_t), free(cw->keep);
-}
-
-/* The front part of a window of k steps: the vehicles from the front that could reach L within it (moving off at
- * their speed with REACH_A_MPS2), one more, whose trace the interior follows, and, unless that leaves the interior
- * shorter than two blocks, those behind it in its block of slots, so that the part begins a block: a range that
- * begins inside one draws its block's noise from the block's start again. Should more leave, the window finds it
- * (front_part) and is redone. */
-static size_t front_count(const WfCorridor *c, int k)
-{
-    const WfCorridorVehicles *vh = &c->ln[0].veh;
-    double T = (double)k * c->sc->dt_s;
-    size_t m = 0;
-    for (; m < vh->n && m < WF_BLOCK; m++) {
-        size_t s = wf_corridor_slot(vh, m);
-        if (vh->x_m[s] + T * (vh->v_mps[s] + 0.5 * REACH_A_MPS2 * T) < c->L) break;
-    }
-    m++;
-    size_t aligned = m < vh->n ? m + wf_corridor_slot(vh, m - 1) % WF_BLOCK : m;
-    return aligned + 2 * WF_BLOCK <= vh->n ? aligned : m; /* a short road keeps its interior */
-}
-
-/* `count` slots from lo (wrapping at cap) of a per-slot array, into p (restore: from p); returns the next p. */
-static unsigned char *keep_run(unsigned char *p, const WfStateVar *v, size_t lo, size_t count, size_t cap, int restore)
-{
-    size_t st = v->stride, a = count < cap - lo ? count : cap - lo;
-    unsigned char *d = v->data;
-    if (restore) memcpy(d + lo * st, p, a * st), memcpy(d, p + a * st, (count - a) * st);
-    else memcpy(p, d + lo * st, a * st), memcpy(p + a * st, d, (count - a) * st);
-    return p + count * st;
-}
-
-/* What a window changes outside the interior (window.c keeps that): the scalars, the buffer's indices, the safety
- * counts, the per-slot arrays a step changes of the front part, and every per-slot array of the k slots behind the
- * back, where vehicles may enter (restore: put back as the window began, the unused slots too: a checkpoint saves
- * them). */
-static void window_keep(WfCorridor *c, int k, int restore)
-{
-    CorWindow *cw = &c->win;
-    CorLane *ln = &c->ln[0];
-    size_t cap = ln->veh.cap, nf = cw->n0 - cw->n_int;
-    unsigned char *p = cw->keep;
-    if (restore) {
-        memcpy(&c->st, p, sizeof c->st), memcpy(&ln->lane.safety, p + sizeof c->st, sizeof ln->lane.safety);
-        ln->veh.first = cw->first0, ln->veh.n = cw->n0;
-    } else {
-        memcpy(p, &c->st, sizeof c->st), memcpy(p + sizeof c->st, &ln->lane.safety, sizeof ln->lane.safety);
-    }
-    p += sizeof c->st + sizeof ln->lane.safety;
-    for (size_t j = 0; j < cw->n_all; j++)
-        p = keep_run(p, &cw->all[j], (cw->first0 + cap - (size_t)k) % cap, (size_t)k, cap, restore);
-    for (size_t j = 0; j < cw->n_vars; j++)
-        p = keep_run(p, &cw->vars[j], (cw->first0 + cw->n_int) % cap, nf, cap, restore);
-}
-
-/* The front part k steps one at a time, as step_once steps it (the virtual leader, the repair at the front, the
- * exits, whose trips wait), the trace of its rearmost vehicle into fx, fv. Returns WF_STEP_* flags: any, and the
- * window is redone one step at a time (an overlap behind the front, a fault, the rearmost vehicle left). */
-static int front_part(WfCorridor *c, long step0, int k, int in_window, WfError *err)
-{
-    CorWindow *cw = &c->win;
-    CorLane *ln = &c->ln[0];
-    WfCorridorVehicles *vh = &ln->veh;
-    size_t rear = (cw->first0 + cw->n_int) % vh->cap;
-    for (int s = 0; s < k; s++) {
-        long step = step0 + s;
-        double t_next = (double)(step + 1) * c->sc->dt_s;
-        size_t nf = vh->n - cw->n_int;
-        cw->nf[s] = nf;
-        cw->fx[s] = vh->x_m[rear], cw->fv[s] = vh->v_mps[rear];
-        WfLead front = front_leader(c, 0);
-        c->meas_step = step;
-        int fl = wf_lane_step(&ln->lane, rear, nf, &front, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
-        if (fl) return fl;
-        advance_leader(c, t_next);
-        phase_overlaps(c, ln, in_window, c->has_vl ? 1 : 0);
-        if (c->fault_slot >= 0) return WF_STEP_FAULT;
-        if (phase_exits(c, ln, t_next, in_window, SIZE_MAX, err) || vh->n <= cw->n_int) return WF_STEP_OVERLAP;
-    }
-    return 0;
-}
-
-/* WfWindow.front_first: the front part, on the window's first thread while the others step the interior. */
-static int window_front(void *ctx)
-{
-    WfCorridor *c = ctx;
-    CorWindow *cw = &c->win;
-    return front_part(c, cw->step0, cw->k, cw->in_window, cw->err);
-}
-
-/* The entrance k steps one at a time behind the interior's back vehicle (its trace from the window): arrivals, an
- * insertion against that vehicle's state at the step's start, the vehicles that entered stepped behind it. Returns
- * WF_STEP_* flags (an error of the entrance too: redone one step at a time, the error comes at its step). */
-static int back_part(WfCorridor *c, long step0, int k, int in_window, WfError *err)
-{
-    CorWindow *cw = &c->win;
-    CorLane *ln = &c->ln[0];
-    WfCorridorVehicles *vh = &ln->veh;
-    size_t cap = vh->cap, back = cw->first0, ahead = (back + cap - 1) % cap;
-    const double *bx, *bv;
-    wf_window_back_trace(&cw->w, &bx, &bv);
-    double len = ln->lane.class_length_m[vh->class_id[back]];
-    for (int s = 0; s < k; s++) {
-        long step = step0 + s;
-        double t = (double)step * c->sc->dt_s;
-        cw->back_on = 1, cw->back_slot = back, cw->back_x = bx[s], cw->back_v = bv[s];
-        int rc = arrivals(c, t, err);
-        if (!rc) rc = entrance(c, t, step, err);
-        cw->back_on = 0;
-        if (rc) return WF_STEP_FAULT;
-        size_t nb = (back + cap - vh->first) % cap;
-        if (nb > (s ? cw->nb[s - 1] : 0)) cw->x[(size_t)s * cap + vh->first] = vh->x_m[vh->first]; /* it entered */
-        cw->nb[s] = nb;
-        if (!nb) continue;
-        WfLead lead = {bx[s] - len, bv[s], 0.0};
-        c->meas_step = step;
-        int fl = wf_lane_step(&ln->lane, vh->first, nb, &lead, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
-        double xl = s + 1 < k ? bx[s + 1] : vh->x_m[back];
-        if (fl || xl - len - vh->x_m[ahead] < 0.0) return fl | WF_STEP_OVERLAP;
-    }
-    return 0;
-}
-
-/* Thread t of nt's share of the window's Edie cells and detectors, step after step, from the rows: each thread owns
- * a range of cells (cut by the vehicles at the first step) and of detectors for the whole window, so each sum gets
- * its additions in road order within a step and step after step, as in the per-step path. */
-static void window_measure(WfCorridor *c, size_t t, size_t nt)
-{
-    CorWindow *cw = &c->win;
-    CorLane *ln = &c->ln[0];
-    size_t cap = ln->veh.cap, nd = c->det.n_det, q_lo = nd * t / nt, q_hi = nd * (t + 1) / nt, i_lo = 0, i_hi = 0;
-    CorLane v = *ln;
-    v.cell = cw->cell + t * cap;
-    for (int s = 0; s < cw->k; s++) {
-        size_t r = (size_t)s * cap, k0, k1;
-        v.veh.first = (cw->first0 + cap - cw->nb[s]) % cap, v.veh.n = cw->nf[s] + cw->n_int + cw->nb[s];
-        v.xold = cw->x + r, v.veh.x_m = cw->x + r + cap, v.veh.fuel_rate_gps = cw->rate + r;
-        if (s == 0) i_lo = cell_cut(c, &v, t, nt), i_hi = cell_cut(c, &v, t + 1, nt);
-        /* the cells of the vehicles this thread visits (measure_span's), slots ascending in at most two runs */
-        measure_span(c, &v, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
-        for (size_t k = k0; k < k1;) {
-            size_t top = wf_corridor_slot(&v.veh, k) + 1, len = top < k1 - k ? top : k1 - k, lo = top - len;
-            cells_of(c, v.xold + lo, v.veh.x_m + lo, v.cell + lo, len);
-            k += len;
-        }
-        measure_range(c, &v, cw->step0 + s, cw->in_window, i_lo, i_hi, q_lo, q_hi);
-    }
-}
-
-/* WfWindow.after, on each thread of the window's team once the interior has moved: on the first, the interior's
- * front edge against the front part's rearmost vehicle and the entrance; then, when every part stands, the
- * measurement, shared. */
-static void window_after(void *ctx, int t, int nt, int flags)
-{
-    WfCorridor *c = ctx;
-    CorWindow *cw = &c->win;
-    if (t == 0) {
-        const double *x = c->ln[0].veh.x_m;
-        size_t cap = c->ln[0].veh.cap, rear = (cw->first0 + cw->n_int) % cap, front = (rear + cap - 1) % cap;
-        flags |= cw->w.front_rc;
-        if (!flags && x[rear] - cw->w.open_len_m - x[front] < 0.0) flags |= WF_STEP_OVERLAP;
-        if (!flags) flags = back_part(c, cw->step0, cw->k, cw->in_window, cw->err);
-        cw->flags = flags;
-    }
-#pragma omp barrier
-    if (!cw->flags) window_measure(c, (size_t)t, (size_t)nt);
-}
-
-/* k steps (2 <= k) in one window, in one parallel region: the front part on its first thread while the others step
- * the interior, then the entrance and the measurement (window_after). *done 0 when the road does not fit one (one
- * step at a time then), or when some step overlapped, faulted or a vehicle behind the front part left: the state is
- * as before, and the steps are taken one at a time (their repairs and errors are the per-step path's). */
-static int corridor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
-{
-    CorWindow *cw = &c->win;
-    CorLane *ln = &c->ln[0];
-    WfCorridorVehicles *vh = &ln->veh;
-    size_t nf = front_count(c, k), rows;
-    int rc = 0;
-    *done = 0;
-    if (nf > FRONT_MAX || nf >= vh->n || vh->n + (size_t)k >= vh->cap) return 0;
-    cw->first0 = vh->first, cw->n0 = vh->n, cw->n_int = vh->n - nf;
-    if (!wf_window_range(&cw->w, vh->first, cw->n_int, ln->lane.nthreads)) return 0;
-    lane_exports(c, 0);
-    window_keep(c, k, 0);
-    size_t rear = (cw->first0 + cw->n_int) % vh->cap;
-    cw->active = 1, cw->step0 = step0, cw->k = k, cw->in_window = step0 >= c->warm_steps, cw->err = err;
-    cw->n_exits = 0, cw->flags = 0;
-    cw->w.open_x = cw->fx, cw->w.open_v = cw->fv, cw->w.open_len_m = ln->lane.class_length_m[vh->class_id[rear]];
-    cw->w.front_first = window_front, cw->w.front_ctx = c, cw->w.after = window_after, cw->w.after_ctx = c;
-    wf_window_run(&cw->w, &ln->lane, cw->n_int, step0, k, cw->in_window, cw->vars, cw->n_vars, &rows);
-    cw->active = 0;
-    wf_window_settle(&cw->w, &ln->lane, cw->vars, cw->n_vars, cw->flags);
-    if (cw->flags) {
-        window_keep(c, k, 1);
-        c->fault_slot = -1, cw->n_exits = 0;
-        return 0;
-    }
-    for (size_t e = 0; !rc && e < cw->n_exits; e++) rc = finish_vehicle(c, ln, cw->exit_slot[e], cw->exit_t[e], 1, err);
-    *done = 1;
-    return rc;
-}
-
-/* One step on the threads the governor chooses (time.thread_check_steps), timed for it. */
-/* ------------------------------------------------------------------ a corridor split across processes */
-
-/* One road split across processes (wavefuel/partition.h, docs/mpi.md): rank r holds a segment of the road, cut on
- * Edie cell edges (rank 0 the exit's, the last rank the entrance's), and the vehicles whose fronts are on it.
- * Vehicles only move forward, so a vehicle leaves a rank only for the rank ahead and joins it behind all of its
- * vehicles: road order stays whole without a reordering. What needs the whole road is exchanged or summed in road
- * order: the entrance and the virtual leader run on every rank from the ranks' records (the back vehicle, rank 0's
- * exits); a record's sums pass from rank to rank (chain); each Edie cell and detector is measured by its segment's
- * rank, from its own vehicles then those that crossed into the segment (behind them in road order), and a
- * detector also from the vehicle just ahead (whose body may cover it); summed onto every rank at the end, a cell
- * holds its owner's value (the others' are +0). */
-
-/* The first Edie cell past rank r's segment of a road of nx cells split R ways: rank r holds the cells
- * [part_cell(nx, R, r + 1), part_cell(nx, R, r)). */
-static size_t part_cell(size_t nx, size_t R, size_t r) { return nx * (R - r) / R; }
-
-/* Rank r's upper cut: the fronts at or beyond it are on the segment ahead (rank 0: none). */
-static double part_cut(const WfCorridor *c, int r)
-{
-    size_t R = (size_t)c->pt.p->size;
-    return r <= 0 ? INFINITY : (double)part_cell(c->edie.nx, R, (size_t)r) * c->edie.dx_m;
-}
-
-/* Before the corridor's segments are cut: what a split corridor cannot be, beyond what no split road can
- * (wf_sim_create_part). */
-static int part_check(const WfCorridor *c, const WfPartition *p, WfError *err)
-{
-    const WfScenario *sc = c->sc;
-    const char *why = c->cs->has_offramp ? "corridor.off_ramp: an off-ramp"
-                    : sc->block_steps > 1 ? "time.block_steps: time-blocked windows" : NULL;
-    if (why) return wf_err(err, WF_EINPUT, "%s: %s cannot be split across processes (docs/mpi.md)", sc->path, why);
-    /* every segment longer than two vehicles and PART_MIN_M: a body never spans one, a step never crosses one */
-    double len = 0.0, dx = c->edie.dx_m, least = INFINITY;
-    size_t nx = c->edie.nx, R = (size_t)p->size;
-    for (size_t k = 0; k < sc->n_classes; k++) len = fmax(len, sc->classes[k].length_m);
-    for (size_t r = 0; r < R; r++) {
-        size_t lo = part_cell(nx, R, r + 1), hi = part_cell(nx, R, r);
-        least = fmin(least, (r == 0 ? c->L : (double)hi * dx) - (double)lo * dx);
-    }
-    if (nx < R || !(least >= 2.0 * len + PART_MIN_M))
-        return wf_err(err, WF_EINPUT, "%s: corridor.edie.dx_m %g m: %zu processes split the road's %zu Edie cells "
-                      "into segments as short as %.6g m; each needs at least one cell and %.6g m (two of the longest "
-                      "vehicles and %g m): fewer processes or smaller cells (docs/mpi.md)", sc->path, dx, R, nx,
-                      nx < R ? 0.0 : least, 2.0 * len + PART_MIN_M, PART_MIN_M);
-    return 0;
-}
-
-/* A vehicle's state in the order of part_pack: every saved per-slot array, the step's old position, fuel rate
- * and Edie cell (the rank it crosses to measures it), its controller memory. */
-#define PACK_ARRAYS(X) SAVED_SLOT_ARRAYS(X) X("", xold, 0) X("", veh.fuel_rate_gps, 0) X("", cell, 0)
-
-static int part_init(WfCorridor *c, WfPartition *p, WfError *err)
-{
-    CorPart *pt = &c->pt;
-    CorLane *ln = &c->ln[0];
-    size_t R = (size_t)p->size, r = (size_t)p->rank, nx = c->edie.nx, cap = ln->veh.cap;
-    pt->p = p;
-    pt->i_lo = part_cell(nx, R, r + 1), pt->i_hi = part_cell(nx, R, r);
-    pt->cut_lo = r + 1 == R ? -INFINITY : part_cut(c, (int)r + 1);
-    pt->cut_hi = part_cut(c, (int)r);
-#define SIZE_OF(nm, field, stepped) pt->vbytes += sizeof *ln->field;
-    PACK_ARRAYS(SIZE_OF)
-#undef SIZE_OF
-    pt->vbytes += c->sstride;
-    pt->pre = calloc(R, sizeof *pt->pre);
-    pt->post = calloc(R, sizeof *pt->post);
-    pt->off = calloc(R + 1, sizeof *pt->off);
-    pt->out = malloc(cap * pt->vbytes);
-    pt->in = malloc(cap * pt->vbytes);
-    pt->all = malloc(cap * pt->vbytes);
-    if (!pt->pre || !pt->post || !pt->off || !pt->out || !pt->in || !pt->all)
-        return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicle slots split across processes", cap);
-    ln->lane.after_wanted = 0; /* vehicles crossing in are measured after the step */
-    return 0;
-}
-
-static void part_free(CorPart *pt)
-{
-    void *a[] = {pt->pre, pt->post, pt->off, pt->out, pt->in, pt->all};
-    for (size_t i = 0; i < sizeof a / sizeof a[0]; i++) free(a[i]);
-}
-
-/* Vehicles [k0, k0 + m) of the road, front first, packed into buf (unpack 0) or from it into their slots. */
-static void part_pack(WfCorridor *c, size_t k0, size_t m, unsigned char *buf, int unpack)
-{
-    CorLane *ln = &c->ln[0];
-    for (size_t j = 0; j < m; j++) {
-        size_t s = wf_corridor_slot(&ln->veh, k0 + j);
-#define PACK(nm, field, stepped)                                                                                    \
-    unpack ? memcpy(&ln->field[s], buf, sizeof *ln->field) : memcpy(buf, &ln->field[s], sizeof *ln->field);        \
-    buf += sizeof *ln->field;
-        PACK_ARRAYS(PACK)
-#undef PACK
-        if (c->sstride)
-            unpack ? memcpy(ln->veh.state + s * c->sstride, buf, c->sstride)
-                   : memcpy(buf, ln->veh.state + s * c->sstride, c->sstride);
-        buf += c->sstride;
-    }
-}
-
-/* Every rank's vehicles from the records (pre): the road's count, this rank's road indices and back slot. */
-static void part_layout(WfCorridor *c)
-{
-    CorPart *pt = &c->pt;
-    WfCorridorVehicles *vh = &c->ln[0].veh;
-    size_t n = 0, before = 0, behind = 0;
-    for (int r = 0; r < pt->p->size; r++) {
-        n += pt->pre[r].n;
-        if (r < pt->p->rank) before += pt->pre[r].n;
-        if (r > pt->p->rank) behind += pt->pre[r].n;
-    }
-    vh->n = n;
-    pt->k_lo = before;
-    pt->n_own = pt->pre[pt->p->rank].n;
-    pt->first_own = (vh->first + behind) % vh->cap;
-}
-
-/* The nearest rank ahead of this one that holds vehicles (records rec), or -1. */
-static int part_ahead(const CorPart *pt, const PartRec *rec)
-{
-    int r = pt->p->rank - 1;
-    while (r >= 0 && !rec[r].n) r--;
-    return r;
-}
-
-/* The leader of this rank's front vehicle: the rear vehicle of the nearest rank ahead that holds one, as it was at
- * the step's start, or the road's front leader. */
-static WfLead part_front(const WfCorridor *c)
-{
-    int a = part_ahead(&c->pt, c->pt.pre);
-    if (a < 0) return front_leader(c, 0);
-    const PartRec *r = &c->pt.pre[a];
-    return (WfLead){r->x - r->len, r->v, 0.0};
-}
-
-static int part_lane_step(WfCorridor *c, const WfLead *front, long step, int pass, int in_window)
-{
-    CorPart *pt = &c->pt;
-    if (!pt->n_own) return 0;
-    return wf_lane_step(&c->ln[0].lane, pt->first_own, pt->n_own, front, step, pass, in_window, NULL);
-}
-
-/* A record's two passes in road order: the sums, then the squared deviations from the mean (the chains' steps). */
-typedef struct PartM2 {
-    RecordSums r;
-    double m2;
-} PartM2;
-
-static void part_sums(void *arg, void *buf)
-{
-    const WfCorridor *c = arg;
-    record_lanes(c, 0, 1, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, buf);
-}
-
-static void part_m2(void *arg, void *buf)
-{
-    const WfCorridor *c = arg;
-    PartM2 *m = buf;
-    double mean = m->r.n ? m->r.sv / (double)m->r.n : NAN;
-    m->m2 = record_m2(c, 0, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, mean, m->m2);
-}
-
-/* The record of a step's start, made on rank 0 from the sums along the ranks. */
-static int part_record(WfCorridor *c, double t, int in_window, WfError *err)
-{
-    WfPartition *p = c->pt.p;
-    PartM2 m = {.r = {.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY}};
-    int rc = p->chain(p->ctx, &m.r, sizeof m.r, part_sums, c, err);
-    if (!rc) rc = p->chain(p->ctx, &m, sizeof m, part_m2, c, err);
-    if (rc || p->rank) return rc;
-    WfCorridorRow row;
-    record_row(c, &m.r, m.m2, t, &row);
-    if (in_window && c->ln[0].veh.n) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
-    const WfOutput *out = c->sim->out;
-    WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
-    return out && out->record ? out->record(out->ctx, c->sim, &rec, err) : 0;
-}
-
-/* Rank r's record after the kernel moved its n vehicles, road indices from k0 (PartRec). */
-static void part_moved(const WfCorridor *c, int r, size_t k0, size_t n, PartRec *q)
-{
-    const WfCorridorVehicles *vh = &c->ln[0].veh;
-    /* the cut beyond the segment ahead (for rank 1, the exit): crossing it too skips a segment */
-    double cut = part_cut(c, r), next = r == 1 ? c->L : part_cut(c, r - 1);
-    q->n = n, q->out = q->skip = q->past = 0;
-    if (!n) return;
-    size_t rear = wf_corridor_slot(vh, k0 + n - 1), s;
-    q->x = vh->x_m[rear], q->v = vh->v_mps[rear], q->len = vh->length_m[rear];
-    q->x2 = vh->x_m[wf_corridor_slot(vh, k0)];
-    for (; q->out < n && vh->x_m[s = wf_corridor_slot(vh, k0 + q->out)] >= cut; q->out++) {
-        q->skip |= vh->x_m[s] >= next;
-        q->out_x = vh->x_m[s], q->out_v = vh->v_mps[s], q->out_len = vh->length_m[s];
-    }
-    for (; q->past < n && vh->x_m[s = wf_corridor_slot(vh, k0 + q->past)] >= c->L; q->past++)
-        q->past_x = vh->x_m[s], q->past_len = vh->length_m[s];
-}
-
-/* After the step: every rank's vehicles and rear vehicle at the next step's start (pre) from the records, as the
- * vehicles crossing the cuts and leaving at the exit change them; the speed outflow's leader restarts behind the last
- * vehicle that left, as rank 0's exits set it (phase_exits). */
-static void part_next(WfCorridor *c, double t_end)
-{
-    CorPart *pt = &c->pt;
-    const PartRec *post = pt->post;
-    int R = pt->p->size;
-    uint64_t exits = post[0].past; /* none of the vehicles crossing into rank 0's segment (part_moved) */
-    if (exits && c->cs->outflow == WF_OUTFLOW_SPEED && pt->p->rank) {
-        struct CorEntrance *en = &c->st.lane[0];
-        size_t seg = en->vl_seg;
-        en->vl_xref = post[0].past_x - post[0].past_len;
-        en->vl_iref = wf_profile_integral(&c->cs->leader_speed_mps, t_end, &seg);
-        en->vl_x = en->vl_xref;
-    }
-    for (int r = 0; r < R; r++) {
-        const PartRec *in = r + 1 < R && post[r + 1].out ? &post[r + 1] : NULL;
-        PartRec *q = &pt->pre[r];
-        *q = (PartRec){.n = post[r].n - post[r].out + (in ? in->out : 0) - (r ? 0 : exits)};
-        if (in) q->x = in->out_x, q->v = in->out_v, q->len = in->out_len;
-        else q->x = post[r].x, q->v = post[r].v, q->len = post[r].len;
-    }
-    part_layout(c);
-}
-
-/* The whole road onto every rank (the records' counts), which repairs it as one process does; then every rank's
- * record as its moved vehicles now stand. */
-static int part_repair(WfCorridor *c, int in_window, WfError *err)
-{
-    CorPart *pt = &c->pt;
-    WfPartition *p = pt->p;
-    WfCorridorVehicles *vh = &c->ln[0].veh;
-    size_t k = 0;
-    for (int r = 0; r < p->size; k += pt->post[r++].n) pt->off[r] = k * pt->vbytes;
-    pt->off[p->size] = k * pt->vbytes;
-    part_pack(c, pt->k_lo, pt->n_own, pt->all + pt->k_lo * pt->vbytes, 0);
-    int rc = p->gather(p->ctx, pt->all, pt->off, -1, err);
-    if (rc) return rc;
-    part_pack(c, 0, vh->n, pt->all, 1);
-    phase_overlaps(c, &c->ln[0], in_window, vh->n);
-    k = 0;
-    for (int r = 0; r < p->size; k += pt->post[r++].n) part_moved(c, r, k, pt->post[r].n, &pt->post[r]);
-    return 0;
-}
-
-/* After the kernel moved this rank's vehicles: every rank's record, flags and stop agreed, the edges between ranks
- * tested as the kernel tests a follower against its leader, overlaps repaired (part_repair), then the vehicles that
- * crossed into the segment ahead passed to it and those that crossed into this one taken from the rank behind. */
-static int part_after(WfCorridor *c, int in_window, int kflags, WfError *err)
-{
-    CorPart *pt = &c->pt;
-    WfPartition *p = pt->p;
-    CorLane *ln = &c->ln[0];
-    int me = p->rank, rc;
-    int64_t before = c->st.counts.overlaps;
-    PartRec q = {0};
-    /* the road's front vehicle behind the virtual leader, by the rank that holds it (a full repair repeats it) */
-    if (c->has_vl && pt->n_own && pt->k_lo == 0) {
-        phase_overlaps(c, ln, in_window, 1);
-        if (c->fault_slot >= 0) kflags |= WF_STEP_FAULT, c->fault_slot = -1;
-    }
-    part_moved(c, me, pt->k_lo, pt->n_own, &q);
-    q.repairs = (uint64_t)(c->st.counts.overlaps - before);
-    q.flags = (uint64_t)kflags | (p->stop_own ? (uint64_t)*p->stop_own << PART_STOP_SHIFT : 0);
-    if ((rc = p->allgather(p->ctx, &q, pt->post, sizeof q, err))) return rc;
-    uint64_t flags = 0, stop = 0, skip = 0;
-    for (int r = 0, a = -1; r < p->size; r++) {
-        const PartRec *o = &pt->post[r];
-        flags |= o->flags & ((1u << PART_STOP_SHIFT) - 1), stop |= o->flags >> PART_STOP_SHIFT, skip |= o->skip;
-        if (r != me) c->st.counts.overlaps += (int64_t)o->repairs;
-        if (!o->n) continue;
-        if (a >= 0 && pt->post[a].x - pt->post[a].len - o->x2 < 0.0) flags |= WF_STEP_OVERLAP;
-        a = r;
-    }
-    p->stop_all = (sig_atomic_t)stop;
-    if (skip)
-        return wf_err(err, WF_EINPUT, "%s: a vehicle crossed a whole process's segment of the road in one step (at t "
-                      "= %.6g s): fewer processes (docs/mpi.md)", c->sc->path,
-                      (double)(c->meas_step + 1) * c->sc->dt_s);
-    if (flags && ((rc = part_repair(c, in_window, err)) || c->fault_slot >= 0)) return rc;
-    size_t out = pt->post[me].out;
-    pt->n_in = me + 1 < p->size ? pt->post[me + 1].out : 0;
-    part_pack(c, pt->k_lo, out, pt->out, 0);
-    rc = p->shift(p->ctx, pt->out, out * pt->vbytes, pt->in, pt->n_in * pt->vbytes, err);
-    if (!rc) part_pack(c, pt->k_lo + pt->n_own, pt->n_in, pt->in, 1);
-    pt->repaired = flags != 0;
-    return rc;
-}
-
-/* This rank's Edie cells and detectors from the step: its own vehicles, then those that crossed in (behind them in
- * road order); a detector first from the vehicle just ahead, whose body may cover it (its old and new positions
- * from the records, unless a repair brought the whole road). */
-static void part_measure(WfCorridor *c, long step, int in_window)
-{
-    CorPart *pt = &c->pt;
-    CorLane *ln = &c->ln[0];
-    int a = part_ahead(pt, pt->post);
-    pt->kb = pt->k_lo, pt->ke = pt->k_lo + pt->n_own + pt->n_in;
-    if (a >= 0 && c->det.n_det) {
-        size_t s = wf_corridor_slot(&ln->veh, pt->k_lo - 1);
-        if (!pt->repaired) ln->xold[s] = pt->pre[a].x, ln->veh.x_m[s] = pt->post[a].x;
-        ln->cell[s] = UINT32_MAX, ln->veh.fuel_rate_gps[s] = 0.0;
-        pt->kb--;
-    }
-    /* the cells in even ranges over the threads (each cell's sums are the same bits wherever the cuts fall) */
-    int nth = wf_lane_threads(pt->ke - pt->kb, wf_governor_threads(&c->gov));
-    if (nth <= 1) measure_range(c, ln, step, in_window, pt->i_lo, pt->i_hi, 0, 0);
-    else {
-#pragma omp parallel num_threads(nth) default(none) shared(c, ln, pt, step, in_window)
-        {
-#ifdef _OPENMP
-            size_t t = (size_t)omp_get_thread_num(), nt = (size_t)omp_get_num_threads(), w = pt->i_hi - pt->i_lo;
-#else
-            size_t t = 0, nt = 1, w = pt->i_hi - pt->i_lo;
-#endif
-            measure_range(c, ln, step, in_window, pt->i_lo + w * t / nt, pt->i_lo + w * (t + 1) / nt, 0, 0);
-        }
-    }
-    for (size_t q = 0; q < c->det.n_det; q++)
-        if (c->det.x_m[q] >= pt->cut_lo && c->det.x_m[q] < pt->cut_hi)
-            measure_range(c, ln, step, in_window, 0, 0, q, q + 1);
-}
-
-/* One step of a split corridor (step_once's order on one lane). */
-static int part_step_once(WfCorridor *c, long step, WfError *err)
-{
-    const WfScenario *sc = c->sc;
-    CorPart *pt = &c->pt;
-    CorLane *ln = &c->ln[0];
-    double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
-    int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps, rc, flags;
-    if ((rc = arrivals(c, t, err))) return rc;
-    size_t n0 = ln->veh.n;
-    if ((rc = entrance(c, t, step, err))) return rc;
-    pt->pre[pt->p->size - 1].n += ln->veh.n - n0; /* an entry joins the last rank */
-    part_layout(c);
-    WfLead front = part_front(c);
-    lane_exports(c, records || last);
-    c->meas_step = step, c->meas_in_window = in_window;
-    if (records || last) {
-        part_lane_step(c, &front, step, WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window);
-        if (records && (rc = part_record(c, t, in_window, err))) return rc;
-        if (last) return WF_LOOP_END;
-        flags = part_lane_step(c, &front, step, WF_PASS_ADVANCE, in_window);
-    } else {
-        flags = part_lane_step(c, &front, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window);
-    }
-    advance_leader(c, t_next);
-    if ((rc = part_after(c, in_window, flags, err))) return rc;
-    if (c->fault_slot >= 0) return numerical_fault(c, step, err);
-    part_measure(c, step, in_window);
-    if (pt->p->rank == 0 && (rc = phase_exits(c, ln, t_next, in_window, pt->n_own + pt->n_in, err))) return rc;
-    part_next(c, t_next);
-    return 0;
-}
-
-/* The whole road onto rank 0 (a checkpoint, the summary): every vehicle into its slot, each Edie cell and detector
- * its owner's (summed over the ranks, the others' at +0), the safety counts summed. */
-static int part_collect(WfCorridor *c, WfError *err)
-{
-    CorPart *pt = &c->pt;
-    WfPartition *p = pt->p;
-    int rc;
-    size_t k = 0, nx = c->edie.nx, nc = c->sc->n_classes;
-    for (int r = 0; r < p->size; k += pt->pre[r++].n) pt->off[r] = k * pt->vbytes;
-    pt->off[p->size] = k * pt->vbytes;
-    part_pack(c, pt->k_lo, pt->n_own, pt->all + pt->k_lo * pt->vbytes, 0);
-    if ((rc = p->gather(p->ctx, pt->all, pt->off, 0, err))) return rc;
-    if (p->rank == 0) part_pack(c, 0, c->ln[0].veh.n, pt->all, 1);
-    pt->n_in = 0;
-    WfEdie *e = &c->edie;
-    for (size_t j = 0; j < e->nt + nc; j++) /* the rows of each field, then the class profiles' */
-        for (size_t i = 0; i < nx; i++) {
-            if (i >= pt->i_lo && i < pt->i_hi) continue;
-            if (j < e->nt) e->dist_m[j * nx + i] = e->time_s[j * nx + i] = e->fuel_g[j * nx + i] = 0.0;
-            else e->class_dist_m[(j - e->nt) * nx + i] = e->class_fuel_g[(j - e->nt) * nx + i] = 0.0;
-        }
-    WfDetectors *d = &c->det;
-    for (size_t j = 0; j < d->n_int; j++)
-        for (size_t q = 0; q < d->n_det; q++) {
-            if (d->x_m[q] >= pt->cut_lo && d->x_m[q] < pt->cut_hi) continue;
-            size_t i = j * d->n_det + q;
-            d->count[i] = 0, d->sum_v_mps[i] = d->sum_inv_v_spm[i] = d->occupied_s[i] = 0.0;
-        }
-    size_t ne = e->nt * nx, nd = d->n_int * d->n_det;
-    double *f64[] = {e->dist_m, e->time_s, e->fuel_g, e->class_dist_m, e->class_fuel_g, d->sum_v_mps,
-                     d->sum_inv_v_spm, d->occupied_s};
-    size_t len[] = {ne, ne, ne, nc * nx, nc * nx, nd, nd, nd};
-    for (size_t i = 0; !rc && i < sizeof len / sizeof len[0]; i++)
-        rc = len[i] ? p->sum_f64(p->ctx, f64[i], len[i], err) : 0;
-    if (!rc && nd) rc = p->sum_u64(p->ctx, (uint64_t *)d->count, nd, err);
-    pt->safety_all = c->ln[0].lane.safety;
-    if (!rc) rc = p->sum_u64(p->ctx, pt->safety_all.steps, WF_MAX_GROUPS, err);
-    if (!rc) rc = p->sum_u64(p->ctx, pt->safety_all.hits, WF_MAX_GROUPS, err);
-    return rc;
-}
-
-/* After a restore (every rank holds the whole road): every rank's vehicles, those whose fronts are on its segment,
- * and rear vehicle. */
-static void part_restored(WfCorridor *c)
-{
-    CorPart *pt = &c->pt;
-    const WfCorridorVehicles *vh = &c->ln[0].veh;
-    for (int r = 0, k = 0; r < pt->p->size; r++) {
-        size_t k1 = (size_t)k, s = 0;
-        double lo = r + 1 == pt->p->size ? -INFINITY : part_cut(c, r + 1);
-        while (k1 < vh->n && vh->x_m[s = wf_corridor_slot(vh, k1)] >= lo) k1++;
-        PartRec *q = &pt->pre[r];
-        *q = (PartRec){.n = k1 - (size_t)k};
-        if (q->n) s = wf_corridor_slot(vh, k1 - 1), q->x = vh->x_m[s], q->v = vh->v_mps[s], q->len = vh->length_m[s];
-        k = (int)k1;
-    }
-    part_layout(c);
-    pt->n_in = 0;
-    if (pt->p->rank) c->ln[0].lane.safety = (WfSafetyCount){{0}, {0}}; /* rank 0 holds the restored counts */
 }
 
 static int corridor_step(void *eng, long step, long max_steps, long *steps, WfError *err)
@@ -2540,9 +1614,9 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     /* records step one at a time here: they read the whole road at the step's start */
     long k = wf_window_steps(&c->win.w, step, max_steps, c->n_steps, c->warm_steps,
                              c->sc->trajectories ? c->traj_every : 0, c->out_every);
-    if (k > 1) rc = corridor_window(c, step, (int)k, &done, err);
+    if (k > 1) rc = cor_window(c, step, (int)k, &done, err);
     if (done) *steps = k;
-    else if (!rc) rc = c->pt.p ? part_step_once(c, step, err) : step_once(c, step, err);
+    else if (!rc) rc = c->pt.p ? cor_part_step_once(c, step, err) : step_once(c, step, err);
     if (parallel) wf_governor_done(&c->gov, wf_wall_now() - t0, (double)on_road * (double)*steps);
     return rc;
 }
@@ -2567,7 +1641,7 @@ static WfSafetyCount *safety_total(WfCorridor *c, int restore)
 static int corridor_flush(void *eng, WfError *err)
 {
     WfCorridor *c = eng;
-    int rc = c->pt.p ? part_collect(c, err) : 0;
+    int rc = c->pt.p ? cor_part_collect(c, err) : 0;
     return rc ? rc : flush_trips(c, err);
 }
 
@@ -2575,13 +1649,13 @@ static int corridor_flush(void *eng, WfError *err)
 static int corridor_close(void *eng, WfError *err)
 {
     WfCorridor *c = eng;
-    int rc = c->pt.p ? part_collect(c, err) : 0;
+    int rc = c->pt.p ? cor_part_collect(c, err) : 0;
     if (rc || (c->pt.p && c->pt.p->rank)) return rc; /* split across processes: rank 0 alone sums */
     rc = flush_trips(c, err);
     for (size_t l = 0; l < c->n_lanes; l++) {
         const CorLane *ln = &c->ln[l];
         for (size_t k = 0; !rc && k < ln->veh.n; k++)
-            rc = finish_vehicle(c, ln, wf_corridor_slot(&ln->veh, k), NAN, 0, err);
+            rc = cor_finish_vehicle(c, ln, wf_corridor_slot(&ln->veh, k), NAN, 0, err);
     }
     if (!rc) rc = flush_trips(c, err);
     summarize(c);
@@ -2703,7 +1777,7 @@ static int corridor_restored(void *eng, WfError *err)
         return wf_err(err, WF_EINPUT, "%s: the restored state does not fit this corridor (%s at step %ld)", sc->path,
                       bad, st->steps_done);
     safety_total(c, 1);
-    if (c->pt.p) part_restored(c);
+    if (c->pt.p) cor_part_restored(c);
     c->fault_slot = -1;
     c->n_trips = 0;
     return 0;
@@ -2733,7 +1807,7 @@ static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
             k += m;
             continue;
         }
-        WfLead front = front_leader(c, l);
+        WfLead front = cor_front_leader(c, l);
         /* the front vehicle, then each vehicle behind its leader (the slot after it, wrapping) */
         for (size_t r = 0, s = n ? wf_corridor_slot(vh, 0) : 0, p = 0; r < n; r++, p = s, s = s ? s - 1 : cap - 1) {
             if (gid[s] != g) continue;

@@ -35,7 +35,7 @@ int wf_sim_create(const WfScenario *sc, WfSim **out, WfError *err)
     return wf_sim_create_part(sc, NULL, out, err);
 }
 
-/* What no road split across processes can be (each boundary refuses more: part_check in engine.c, corridor.c). */
+/* What no road split across processes can be (each boundary refuses more: part_check in engine.c, corridor_part.c). */
 static int part_refusals(const WfScenario *sc, WfError *err)
 {
     const char *why = wf_scenario_lanes(sc) > 1 ? "road.lanes: a road of several lanes"

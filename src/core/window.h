@@ -1,7 +1,7 @@
 /* Time-blocked stepping of a lane (issue 20): k fused steps at a time, with one synchronisation of the threads per
  * window instead of one per step, and each tile of vehicles kept in cache across its k steps. Written for the ring
  * (below); a corridor's interior uses it as an open range of its circular buffer whose front chunk follows a trace
- * (open_x, front_first, after: src/core/corridor.c, docs/corridors.md).
+ * (open_x, front_first, after: src/core/corridor_window.c, docs/corridors.md).
  *
  * On a single lane information flows one way: a vehicle's step reads only itself and its leader at the step's
  * start. The ring is cut into chunks of consecutive blocks (WF_WINDOW_CHUNKS per thread), each stepped by one

@@ -1,0 +1,261 @@
+/* Time-blocked windows of a corridor (src/core/corridor_impl.h; the windows themselves: src/core/window.c). */
+#include "core/corridor_impl.h"
+
+#include "util/mem.h"
+
+enum { FRONT_MAX = 2 * WF_BLOCK }; /* vehicles of a window's front part at most (else one step at a time) */
+#define REACH_A_MPS2 10.0     /* the acceleration bounding how far a vehicle may get within a window */
+
+/* Windows of time.block_steps steps (0 or 1: none) when the road is a single lane without an off-ramp whose groups
+ * all step by the kernel (no commands from outside). Owns what it allocates until destroy. */
+int cor_window_init(WfCorridor *c, WfError *err)
+{
+    const WfScenario *sc = c->sc;
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    /* Only when asked for: measured on this project's machine (bench/README.md, "Corridor threads under load"), a
+     * corridor of 5000 vehicles steps 13-15 % slower in windows on idle cores, its state being in cache anyway, and
+     * is not faster beside busy processes. */
+    int k = sc->block_steps, ok = k >= 2 && c->n_lanes == 1 && sc->fused_step;
+    ok &= !c->cs->has_offramp && !c->coop_cap_mps2;
+    for (size_t g = 0; g < sc->n_groups; g++) ok &= !sc->groups[g].model->external;
+    size_t cap = ln->veh.cap, nv = 0, bytes = 0;
+    if (!ok || cap / WF_BLOCK < 2) return 0;
+    size_t na = 0, pst = c->pstride * sizeof(double);
+#define SLOT_VAR(nm, field, stepped)                                                                            \
+    cw->all[na++] = (WfStateVar){nm, ln->field, cap * sizeof *ln->field, sizeof *ln->field};                     \
+    if (stepped) cw->vars[nv++] = cw->all[na - 1];
+    SAVED_SLOT_ARRAYS(SLOT_VAR)
+#undef SLOT_VAR
+    cw->all[na++] = (WfStateVar){"params", ln->veh.params, cap * pst, pst};
+    if (c->sstride)
+        cw->vars[nv++] = cw->all[na++] = (WfStateVar){"controller_state", ln->veh.state, cap * c->sstride, c->sstride};
+    for (size_t j = 0; j < nv; j++) bytes += cw->vars[j].size, cw->slot_bytes += cw->vars[j].stride;
+    for (size_t j = 0; j < na; j++) cw->all_bytes += cw->all[j].stride;
+    cw->n_vars = nv, cw->n_all = na;
+    /* a step reads about as many bytes per slot again as it changes (parameters, class, group, step values) */
+    size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(2 * cw->slot_bytes);
+    int rc = wf_window_create(&cw->w, &ln->lane, cap, 0, cap / WF_BLOCK, k, tile, c->out_every, bytes, err);
+    if (rc) return rc;
+    wf_mem_prefault(cw->w.backup, bytes, 0, 1); /* every slot may be in a window: the whole copy's pages now */
+    ALLOC(cw->x, ((size_t)k + 1) * cap);
+    ALLOC(cw->rate, (size_t)k * cap);
+    ALLOC(cw->cell, (size_t)c->nthreads * cap);
+    ALLOC(cw->nf, (size_t)k);
+    ALLOC(cw->nb, (size_t)k);
+    ALLOC(cw->fx, (size_t)k);
+    ALLOC(cw->fv, (size_t)k);
+    ALLOC(cw->exit_slot, (size_t)FRONT_MAX);
+    ALLOC(cw->exit_t, (size_t)FRONT_MAX);
+    ALLOC(cw->keep, (size_t)k * cw->all_bytes + FRONT_MAX * cw->slot_bytes + sizeof c->st + sizeof ln->lane.safety);
+    return 0;
+}
+
+void cor_window_free(CorWindow *cw)
+{
+    wf_window_destroy(&cw->w);
+    free(cw->x), free(cw->rate), free(cw->cell), free(cw->nf), free(cw->nb);
+    free(cw->fx), free(cw->fv), free(cw->exit_slot), free(cw->exit_t), free(cw->keep);
+}
+
+/* The front part of a window of k steps: the vehicles from the front that could reach L within it (moving off at
+ * their speed with REACH_A_MPS2), one more, whose trace the interior follows, and, unless that leaves the interior
+ * shorter than two blocks, those behind it in its block of slots, so that the part begins a block: a range that
+ * begins inside one draws its block's noise from the block's start again. Should more leave, the window finds it
+ * (front_part) and is redone. */
+static size_t front_count(const WfCorridor *c, int k)
+{
+    const WfCorridorVehicles *vh = &c->ln[0].veh;
+    double T = (double)k * c->sc->dt_s;
+    size_t m = 0;
+    for (; m < vh->n && m < WF_BLOCK; m++) {
+        size_t s = wf_corridor_slot(vh, m);
+        if (vh->x_m[s] + T * (vh->v_mps[s] + 0.5 * REACH_A_MPS2 * T) < c->L) break;
+    }
+    m++;
+    size_t aligned = m < vh->n ? m + wf_corridor_slot(vh, m - 1) % WF_BLOCK : m;
+    return aligned + 2 * WF_BLOCK <= vh->n ? aligned : m; /* a short road keeps its interior */
+}
+
+/* `count` slots from lo (wrapping at cap) of a per-slot array, into p (restore: from p); returns the next p. */
+static unsigned char *keep_run(unsigned char *p, const WfStateVar *v, size_t lo, size_t count, size_t cap, int restore)
+{
+    size_t st = v->stride, a = count < cap - lo ? count : cap - lo;
+    unsigned char *d = v->data;
+    if (restore) memcpy(d + lo * st, p, a * st), memcpy(d, p + a * st, (count - a) * st);
+    else memcpy(p, d + lo * st, a * st), memcpy(p + a * st, d, (count - a) * st);
+    return p + count * st;
+}
+
+/* What a window changes outside the interior (window.c keeps that): the scalars, the buffer's indices, the safety
+ * counts, the per-slot arrays a step changes of the front part, and every per-slot array of the k slots behind the
+ * back, where vehicles may enter (restore: put back as the window began, the unused slots too: a checkpoint saves
+ * them). */
+static void window_keep(WfCorridor *c, int k, int restore)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    size_t cap = ln->veh.cap, nf = cw->n0 - cw->n_int;
+    unsigned char *p = cw->keep;
+    if (restore) {
+        memcpy(&c->st, p, sizeof c->st), memcpy(&ln->lane.safety, p + sizeof c->st, sizeof ln->lane.safety);
+        ln->veh.first = cw->first0, ln->veh.n = cw->n0;
+    } else {
+        memcpy(p, &c->st, sizeof c->st), memcpy(p + sizeof c->st, &ln->lane.safety, sizeof ln->lane.safety);
+    }
+    p += sizeof c->st + sizeof ln->lane.safety;
+    for (size_t j = 0; j < cw->n_all; j++)
+        p = keep_run(p, &cw->all[j], (cw->first0 + cap - (size_t)k) % cap, (size_t)k, cap, restore);
+    for (size_t j = 0; j < cw->n_vars; j++)
+        p = keep_run(p, &cw->vars[j], (cw->first0 + cw->n_int) % cap, nf, cap, restore);
+}
+
+/* The front part k steps one at a time, as step_once steps it (the virtual leader, the repair at the front, the
+ * exits, whose trips wait), the trace of its rearmost vehicle into fx, fv. Returns WF_STEP_* flags: any, and the
+ * window is redone one step at a time (an overlap behind the front, a fault, the rearmost vehicle left). */
+static int front_part(WfCorridor *c, long step0, int k, int in_window, WfError *err)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    WfCorridorVehicles *vh = &ln->veh;
+    size_t rear = (cw->first0 + cw->n_int) % vh->cap;
+    for (int s = 0; s < k; s++) {
+        long step = step0 + s;
+        double t_next = (double)(step + 1) * c->sc->dt_s;
+        size_t nf = vh->n - cw->n_int;
+        cw->nf[s] = nf;
+        cw->fx[s] = vh->x_m[rear], cw->fv[s] = vh->v_mps[rear];
+        WfLead front = cor_front_leader(c, 0);
+        c->meas_step = step;
+        int fl = wf_lane_step(&ln->lane, rear, nf, &front, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
+        if (fl) return fl;
+        cor_advance_leader(c, t_next);
+        cor_phase_overlaps(c, ln, in_window, c->has_vl ? 1 : 0);
+        if (c->fault_slot >= 0) return WF_STEP_FAULT;
+        if (cor_phase_exits(c, ln, t_next, in_window, SIZE_MAX, err) || vh->n <= cw->n_int) return WF_STEP_OVERLAP;
+    }
+    return 0;
+}
+
+/* WfWindow.front_first: the front part, on the window's first thread while the others step the interior. */
+static int window_front(void *ctx)
+{
+    WfCorridor *c = ctx;
+    CorWindow *cw = &c->win;
+    return front_part(c, cw->step0, cw->k, cw->in_window, cw->err);
+}
+
+/* The entrance k steps one at a time behind the interior's back vehicle (its trace from the window): arrivals, an
+ * insertion against that vehicle's state at the step's start, the vehicles that entered stepped behind it. Returns
+ * WF_STEP_* flags (an error of the entrance too: redone one step at a time, the error comes at its step). */
+static int back_part(WfCorridor *c, long step0, int k, int in_window, WfError *err)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    WfCorridorVehicles *vh = &ln->veh;
+    size_t cap = vh->cap, back = cw->first0, ahead = (back + cap - 1) % cap;
+    const double *bx, *bv;
+    wf_window_back_trace(&cw->w, &bx, &bv);
+    double len = ln->lane.class_length_m[vh->class_id[back]];
+    for (int s = 0; s < k; s++) {
+        long step = step0 + s;
+        double t = (double)step * c->sc->dt_s;
+        cw->back_on = 1, cw->back_slot = back, cw->back_x = bx[s], cw->back_v = bv[s];
+        int rc = cor_arrivals(c, t, err);
+        if (!rc) rc = cor_entrance(c, t, step, err);
+        cw->back_on = 0;
+        if (rc) return WF_STEP_FAULT;
+        size_t nb = (back + cap - vh->first) % cap;
+        if (nb > (s ? cw->nb[s - 1] : 0)) cw->x[(size_t)s * cap + vh->first] = vh->x_m[vh->first]; /* it entered */
+        cw->nb[s] = nb;
+        if (!nb) continue;
+        WfLead lead = {bx[s] - len, bv[s], 0.0};
+        c->meas_step = step;
+        int fl = wf_lane_step(&ln->lane, vh->first, nb, &lead, step, WF_PASS_FUSED | WF_PASS_COUNT, in_window, NULL);
+        double xl = s + 1 < k ? bx[s + 1] : vh->x_m[back];
+        if (fl || xl - len - vh->x_m[ahead] < 0.0) return fl | WF_STEP_OVERLAP;
+    }
+    return 0;
+}
+
+/* Thread t of nt's share of the window's Edie cells and detectors, step after step, from the rows: each thread owns
+ * a range of cells (cut by the vehicles at the first step) and of detectors for the whole window, so each sum gets
+ * its additions in road order within a step and step after step, as in the per-step path. */
+static void window_measure(WfCorridor *c, size_t t, size_t nt)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    size_t cap = ln->veh.cap, nd = c->det.n_det, q_lo = nd * t / nt, q_hi = nd * (t + 1) / nt, i_lo = 0, i_hi = 0;
+    CorLane v = *ln;
+    v.cell = cw->cell + t * cap;
+    for (int s = 0; s < cw->k; s++) {
+        size_t r = (size_t)s * cap, k0, k1;
+        v.veh.first = (cw->first0 + cap - cw->nb[s]) % cap, v.veh.n = cw->nf[s] + cw->n_int + cw->nb[s];
+        v.xold = cw->x + r, v.veh.x_m = cw->x + r + cap, v.veh.fuel_rate_gps = cw->rate + r;
+        if (s == 0) i_lo = cor_cell_cut(c, &v, t, nt), i_hi = cor_cell_cut(c, &v, t + 1, nt);
+        /* the cells of the vehicles this thread visits (measure_span's), slots ascending in at most two runs */
+        cor_measure_span(c, &v, i_lo, i_hi, q_lo, q_hi, &k0, &k1);
+        for (size_t k = k0; k < k1;) {
+            size_t top = wf_corridor_slot(&v.veh, k) + 1, len = top < k1 - k ? top : k1 - k, lo = top - len;
+            cor_cells_of(c, v.xold + lo, v.veh.x_m + lo, v.cell + lo, len);
+            k += len;
+        }
+        cor_measure_range(c, &v, cw->step0 + s, cw->in_window, i_lo, i_hi, q_lo, q_hi);
+    }
+}
+
+/* WfWindow.after, on each thread of the window's team once the interior has moved: on the first, the interior's
+ * front edge against the front part's rearmost vehicle and the entrance; then, when every part stands, the
+ * measurement, shared. */
+static void window_after(void *ctx, int t, int nt, int flags)
+{
+    WfCorridor *c = ctx;
+    CorWindow *cw = &c->win;
+    if (t == 0) {
+        const double *x = c->ln[0].veh.x_m;
+        size_t cap = c->ln[0].veh.cap, rear = (cw->first0 + cw->n_int) % cap, front = (rear + cap - 1) % cap;
+        flags |= cw->w.front_rc;
+        if (!flags && x[rear] - cw->w.open_len_m - x[front] < 0.0) flags |= WF_STEP_OVERLAP;
+        if (!flags) flags = back_part(c, cw->step0, cw->k, cw->in_window, cw->err);
+        cw->flags = flags;
+    }
+#pragma omp barrier
+    if (!cw->flags) window_measure(c, (size_t)t, (size_t)nt);
+}
+
+/* k steps (2 <= k) in one window, in one parallel region: the front part on its first thread while the others step
+ * the interior, then the entrance and the measurement (window_after). *done 0 when the road does not fit one (one
+ * step at a time then), or when some step overlapped, faulted or a vehicle behind the front part left: the state is
+ * as before, and the steps are taken one at a time (their repairs and errors are the per-step path's). */
+int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
+{
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    WfCorridorVehicles *vh = &ln->veh;
+    size_t nf = front_count(c, k), rows;
+    int rc = 0;
+    *done = 0;
+    if (nf > FRONT_MAX || nf >= vh->n || vh->n + (size_t)k >= vh->cap) return 0;
+    cw->first0 = vh->first, cw->n0 = vh->n, cw->n_int = vh->n - nf;
+    if (!wf_window_range(&cw->w, vh->first, cw->n_int, ln->lane.nthreads)) return 0;
+    cor_lane_exports(c, 0);
+    window_keep(c, k, 0);
+    size_t rear = (cw->first0 + cw->n_int) % vh->cap;
+    cw->active = 1, cw->step0 = step0, cw->k = k, cw->in_window = step0 >= c->warm_steps, cw->err = err;
+    cw->n_exits = 0, cw->flags = 0;
+    cw->w.open_x = cw->fx, cw->w.open_v = cw->fv, cw->w.open_len_m = ln->lane.class_length_m[vh->class_id[rear]];
+    cw->w.front_first = window_front, cw->w.front_ctx = c, cw->w.after = window_after, cw->w.after_ctx = c;
+    wf_window_run(&cw->w, &ln->lane, cw->n_int, step0, k, cw->in_window, cw->vars, cw->n_vars, &rows);
+    cw->active = 0;
+    wf_window_settle(&cw->w, &ln->lane, cw->vars, cw->n_vars, cw->flags);
+    if (cw->flags) {
+        window_keep(c, k, 1);
+        c->fault_slot = -1, cw->n_exits = 0;
+        return 0;
+    }
+    for (size_t e = 0; !rc && e < cw->n_exits; e++) rc = cor_finish_vehicle(c, ln, cw->exit_slot[e], cw->exit_t[e], 1, err);
+    *done = 1;
+    return rc;
+}
+
+/* One step on the threads the governor chooses (time.thread_check_steps), timed for it. */
