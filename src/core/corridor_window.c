@@ -257,5 +257,3 @@ int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
     *done = 1;
     return rc;
 }
-
-/* One step on the threads the governor chooses (time.thread_check_steps), timed for it. */
