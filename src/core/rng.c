@@ -3,6 +3,7 @@
 #include "wavefuel/rng.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <string.h>
 #include <threads.h>
 #include <time.h>
@@ -176,15 +177,16 @@ static NoiseKernels kernels_of(int code) { return (void)code, (NoiseKernels){box
 #endif
 
 /* The process's kernels, chosen on the first call by one thread while any other waits (timings taken side by side
- * would disturb each other). */
-static int chosen_code;
-static void choose_once(void) { chosen_code = choose(); }
+ * would disturb each other). The choice is an atomic as well: glibc's call_once does not go through the
+ * pthread_once that ThreadSanitizer watches, so it would not see the ordering call_once gives. */
+static _Atomic int chosen_code;
+static void choose_once(void) { atomic_store_explicit(&chosen_code, choose(), memory_order_release); }
 
 static NoiseKernels kernels(void)
 {
     static once_flag once = ONCE_FLAG_INIT;
     call_once(&once, choose_once);
-    return kernels_of(chosen_code);
+    return kernels_of(atomic_load_explicit(&chosen_code, memory_order_acquire));
 }
 
 void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_t step, size_t n, double *out)
