@@ -253,7 +253,8 @@ int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
         c->fault_slot = -1, cw->n_exits = 0;
         return 0;
     }
-    for (size_t e = 0; !rc && e < cw->n_exits; e++) rc = cor_finish_vehicle(c, ln, cw->exit_slot[e], cw->exit_t[e], 1, err);
+    for (size_t e = 0; !rc && e < cw->n_exits; e++)
+        rc = cor_finish_vehicle(c, ln, cw->exit_slot[e], cw->exit_t[e], 1, err);
     *done = 1;
     return rc;
 }

@@ -47,7 +47,7 @@ void wf_rng_normal2(uint64_t seed, uint32_t stream, uint64_t a, uint64_t b, doub
 }
 
 /* The uniforms of Philox calls (c0, c1, c2, first), (c0, c1, c2, first + 1), ...: call j's words (r0, r1, r2, r3)
- * give u1[j] and u2[j] as draw() does. Where the CPU has no AVX2 (philox_vector() otherwise). */
+ * give u1[j] and u2[j] as draw() does. Where the CPU has no AVX2 (a vector kernel otherwise: kernels()). */
 WF_SIMD_CLONES
 static void philox_uniforms(philox4x32_key_t key, uint32_t c0, uint32_t c1, uint32_t c2, uint32_t first,
                             size_t calls, double *restrict u1, double *restrict u2)
@@ -200,11 +200,12 @@ void wf_rng_normal_block(uint64_t seed, uint32_t stream, uint64_t block, uint64_
     double u1[NB_CHUNK], u2[NB_CHUNK], z[2 * NB_CHUNK];
     size_t pairs = (n + 1) / 2;
     for (size_t p0 = 0; p0 < pairs; p0 += NB_CHUNK) {
-        size_t cnt = pairs - p0 < NB_CHUNK ? pairs - p0 : NB_CHUNK, padded = (cnt + BM_LANES - 1) & ~(size_t)(BM_LANES - 1);
+        size_t cnt = pairs - p0 < NB_CHUNK ? pairs - p0 : NB_CHUNK;
+        size_t padded = (cnt + BM_LANES - 1) & ~(size_t)(BM_LANES - 1);
         /* whole vectors of calls, the last vector's extra uniforms unused (each call is independent) */
         if (vec)
-            vec(key.v[0], key.v[1], c0, c1, c2, (uint32_t)p0, (cnt + PHILOX_LANES - 1) & ~(size_t)(PHILOX_LANES - 1), u1,
-                u2);
+            vec(key.v[0], key.v[1], c0, c1, c2, (uint32_t)p0, (cnt + PHILOX_LANES - 1) & ~(size_t)(PHILOX_LANES - 1),
+                u1, u2);
         else
             philox_uniforms(key, c0, c1, c2, (uint32_t)p0, cnt, u1, u2);
         for (size_t j = cnt; j < padded; j++) u1[j] = 0.5, u2[j] = 0.5;
