@@ -47,7 +47,7 @@ fi
 # Interrupted and resumed: 5000 vehicles (windows split between 2 threads), SIGTERM after a checkpoint, resumed on
 # one thread.
 S=tests/data/tiny_ring.yaml
-L="--set fleet.vehicles=5000 --set road.length_m=100000 --set time.duration_s=600 --set output.trajectories=false"
+L="--set fleet.vehicles=5000 --set road.length_m=100000 --set time.duration_s=4000 --set output.trajectories=false"
 $BIN run $S -q -o "$tmp/ref.h5" $L --threads 1 --set time.block_steps=1
 $BIN run $S -q -o "$tmp/r.h5" $L --threads 2 --checkpoint-every 0.2 & pid=$!
 wait_checkpoint "$tmp/r.h5" $pid; signal_running TERM $pid; wait $pid; rc=$?
