@@ -7,20 +7,13 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 
 #include "core/noise.h"
 #include "core/simd.h"
+#include "util/clock.h"
 #include "wavefuel/rng.h"
 
 enum { PAIRS = 128, REPEATS = 5 };
-
-static double seconds(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
 
 static double u1[PAIRS], u2[PAIRS], z[2 * PAIRS], ref[2 * PAIRS];
 
@@ -42,15 +35,15 @@ static void run_block(int k)
 /* Nanoseconds per item (PAIRS items a call) of the best of REPEATS runs of ~20 ms, after 20 ms of warm-up. */
 static double time_ns(Run run, int k)
 {
-    for (double end = seconds() + 0.02; seconds() < end;) run(k);
+    for (double end = wf_wall_now() + 0.02; wf_wall_now() < end;) run(k);
     double best = 1e300;
     for (int r = 0; r < REPEATS; r++) {
         long calls = 0;
-        double t0 = seconds(), t1;
+        double t0 = wf_wall_now(), t1;
         do {
             for (int c = 0; c < 64; c++) run(k);
             calls += 64;
-        } while ((t1 = seconds()) - t0 < 0.02);
+        } while ((t1 = wf_wall_now()) - t0 < 0.02);
         double ns = (t1 - t0) / ((double)calls * PAIRS) * 1e9;
         if (ns < best) best = ns;
     }

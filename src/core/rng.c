@@ -6,11 +6,11 @@
 #include <stdatomic.h>
 #include <string.h>
 #include <threads.h>
-#include <time.h>
 #include <Random123/philox.h>
 
 #include "core/noise.h"
 #include "core/simd.h"
+#include "util/clock.h"
 
 /* The uniform of two Philox words hi:lo: its top 53 bits, (k + 0.5) / 2^53, strictly inside (0, 1) (log never sees
  * 0). The one scalar form of the rule (src/core/philox_kernel.h forms the same value in vectors; tests/test_rng.c). */
@@ -96,13 +96,6 @@ typedef struct {
 #define SPAN_S 1.5e-4
 enum { CALLS = 4 };
 
-static double seconds(void)
-{
-    struct timespec t;
-    clock_gettime(CLOCK_MONOTONIC, &t);
-    return (double)t.tv_sec + 1e-9 * (double)t.tv_nsec;
-}
-
 /* Of the candidates k < n that the CPU runs, the one with the shortest round (CALLS calls), each timed over a
  * stretch of SPAN_S seconds, widest first, twice. A core runs its first wide instructions slowly (on a Xeon the
  * 8-lane Box-Muller ran at half speed for its first 1.5 ms, and timed in short rounds among the others it stayed
@@ -112,12 +105,12 @@ static int fastest(int n, const WfSimdLevel *need, void (*run)(int k, void *arg)
     double best[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
     int top = 0;
     while (top + 1 < n && wf_simd_level() >= need[top + 1]) top++;
-    for (double end = seconds() + warm_s; seconds() < end;) run(top, arg);
+    for (double end = wf_wall_now() + warm_s; wf_wall_now() < end;) run(top, arg);
     for (int pass = 0; pass < 2; pass++)
         for (int k = top; k >= 0; k--)
-            for (double end = seconds() + SPAN_S, t0 = seconds(), t1; t0 < end; t0 = t1) {
+            for (double end = wf_wall_now() + SPAN_S, t0 = wf_wall_now(), t1; t0 < end; t0 = t1) {
                 for (int c = 0; c < CALLS; c++) run(k, arg);
-                t1 = seconds();
+                t1 = wf_wall_now();
                 if (t1 - t0 < best[k]) best[k] = t1 - t0;
             }
     int pick = 0;
