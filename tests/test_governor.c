@@ -5,6 +5,7 @@
  * thread or every = 0; a load that arrives in a stretch ends it after a chunk of WF_GOV_CHUNK steps at under a
  * quarter of the chunk before, an interrupt does not. tests/test_engine_paths.c checks that switching threads every
  * step keeps the bits. */
+#include <limits.h>
 #include <stdio.h>
 
 #include "core/governor.h"
@@ -17,7 +18,7 @@ static long drive(WfGovernor *g, long steps, double one_thread_s, double all_thr
     for (long s = 0; s < steps; s++) {
         int n = wf_governor_threads(g);
         on_one += n == 1;
-        wf_governor_done(g, n == 1 ? one_thread_s : all_threads_s, 1000.0);
+        wf_governor_done(g, n == 1 ? one_thread_s : all_threads_s, 1000.0, 1);
     }
     return on_one;
 }
@@ -36,26 +37,26 @@ static void test_keeps_the_faster(void)
     CHECK(g.switches == 0 && g.interval == 256, "%ld switches at 4 %%, interval %ld", g.switches, g.interval);
     /* a loaded machine: two threads now 8 times slower. The first chunk of WF_GOV_CHUNK such steps, at a fifteenth
      * of the quiet chunk's rate before it, ends the stretch (without it, the interval would: 256 - 16 steps); the
-     * probe of one thread (16 steps) wins; two threads, probed 8 steps later and again after the interval less a
+     * probe of one thread (3 steps: WF_GOV_PROBE_S at 16 ms a step, fewer than interval / 16) wins; two threads, probed 8 steps later and again after the interval less a
      * probe, lose both (cut short after a step), so the interval is 256 again */
     long to_switch = 0;
     for (long s = 0; s < 256; s++) {
         int n = wf_governor_threads(&g);
-        wf_governor_done(&g, n == 1 ? 2e-3 : 16e-3, 1000.0);
+        wf_governor_done(&g, n == 1 ? 2e-3 : 16e-3, 1000.0, 1);
         to_switch += !g.switches;
     }
     CHECK(g.switches == 1 && wf_governor_threads(&g) == 1 && g.interval == 256 && g.alarms == 1,
           "after the load: %ld switches, %d threads, interval %ld, %ld alarms", g.switches, wf_governor_threads(&g),
           g.interval, g.alarms);
-    CHECK(to_switch == WF_GOV_CHUNK + 15, "switched after %ld loaded steps (a chunk on two threads and the probe's "
-          "16, decided at its last)", to_switch);
+    CHECK(to_switch == WF_GOV_CHUNK + 2, "switched after %ld loaded steps (a chunk on two threads and the probe's "
+          "3, decided at its last)", to_switch);
     /* still loaded, two threads now a hundred times slower: each probe of them is cut short after its first step,
      * and probes come ever more rarely */
     long probes0 = g.probes, slow = 0;
     for (long s = 0; s < 64 * 64 * 8; s++) {
         int n = wf_governor_threads(&g);
         slow += n == 2;
-        wf_governor_done(&g, n == 1 ? 2e-3 : 0.2, 1000.0);
+        wf_governor_done(&g, n == 1 ? 2e-3 : 0.2, 1000.0, 1);
     }
     /* probes after 193 steps (the stretch's rest), then at intervals 512, 1024, 2048 and 4096 every interval less
      * a sixteenth plus the probe's step: steps 194, 675, 1636, 3557, then every 3841 steps up to 30444 */
@@ -76,7 +77,7 @@ static long drive_warm(WfGovernor *g, long steps, double one_thread_s, double al
     for (long s = 0; s < steps; s++) {
         int n = wf_governor_threads(g);
         on_all += n > 1;
-        wf_governor_done(g, n == 1 ? one_thread_s : n != last ? warm_s : all_threads_s, 1000.0);
+        wf_governor_done(g, n == 1 ? one_thread_s : n != last ? warm_s : all_threads_s, 1000.0, 1);
         last = n;
     }
     return on_all;
@@ -104,8 +105,8 @@ static void test_settle(void)
     /* the first step of all is a change too (the team starts cold) */
     WfGovernor g;
     wf_governor_init(&g, 2, 64, 1);
-    wf_governor_done(&g, 1.0, 1000.0);
-    wf_governor_done(&g, 1e-3, 1000.0);
+    wf_governor_done(&g, 1.0, 1000.0, 1);
+    wf_governor_done(&g, 1e-3, 1000.0, 1);
     CHECK(g.steps[0] == 1 && g.wall_s[0] == 1e-3, "the first step timed (%ld steps timed, %g s)", g.steps[0],
           g.wall_s[0]);
     CHECK(on_all[0] == 0 && on_all[1] == 0, "steps on two threads besides the probes' (settle 0, 1): %ld, %ld",
@@ -126,21 +127,24 @@ static void test_load_arrives(void)
     long left = g.left, alarms0 = g.alarms;
     CHECK(left > 1000, "the stretch ends in %ld steps: the test needs a long one", left);
     /* one step 100 times slower (an interrupt) moves its chunk's mean by (63 + 100) / 64 < 4: no alarm */
-    for (long s = 0; s < 4 * WF_GOV_CHUNK; s++) wf_governor_done(&g, s == 20 ? 100e-3 : 1e-3, 1000.0);
+    for (long s = 0; s < 4 * WF_GOV_CHUNK; s++) wf_governor_done(&g, s == 20 ? 100e-3 : 1e-3, 1000.0, 1);
     CHECK(g.alarms == alarms0 && !g.probing && g.left == left - 4 * WF_GOV_CHUNK, "an interrupt raised %ld alarms",
           g.alarms - alarms0);
     /* the load: two threads 30 times slower, one thread twice; an alarm after at most two chunks, then the probe of
-     * one thread (a sixteenth of the interval, 4096 steps: the faster count, so never cut short) wins */
-    long steps = 0, on_two = 0;
+     * one thread (the faster count, so never cut short) wins. The probe lasts WF_GOV_PROBE_S at the rate of the chunk
+     * that alarmed (a sixteenth of the interval would be 4096 steps; at the quiet rate before, 50) */
+    long steps = 0, on_two = 0, probe = 0, expect = 0;
     while (g.switches == 0 && steps < 10000) {
         int n = wf_governor_threads(&g);
         on_two += n == 2;
-        wf_governor_done(&g, n == 1 ? 4e-3 : 30e-3, 1000.0);
+        wf_governor_done(&g, n == 1 ? 4e-3 : 30e-3, 1000.0, 1);
         steps++;
+        if (g.probing && !probe) probe = g.left, expect = (long)(WF_GOV_PROBE_S * (double)g.steps[0] / g.wall_s[0]);
     }
-    CHECK(g.switches == 1 && g.alarms == alarms0 + 1 && on_two <= 2 * WF_GOV_CHUNK && steps == on_two + 4096,
-          "switched after %ld loaded steps, %ld of them on two threads (at most two chunks), %ld alarms", steps, on_two,
-          g.alarms - alarms0);
+    CHECK(g.switches == 1 && g.alarms == alarms0 + 1 && on_two <= 2 * WF_GOV_CHUNK && steps == on_two + probe &&
+              probe == expect && probe >= 1 && probe < 50,
+          "switched after %ld loaded steps, %ld of them on two threads (at most two chunks), a probe of %ld steps "
+          "(%ld expected), %ld alarms", steps, on_two, probe, expect, g.alarms - alarms0);
 }
 
 static void test_never_probes(void)
@@ -152,11 +156,63 @@ static void test_never_probes(void)
     CHECK(drive(&g, 10000, 1e-3, 9e-3) == 10000 && g.probes == 0, "one thread probed (%ld)", g.probes);
 }
 
+/* A ring of 10^7 vehicles: a step takes 0.1 s on two threads, 0.2 s on one. The probes last WF_GOV_PROBE_S at the
+ * chosen count's rate, here one step, not interval / 16 = 64 of them (6 s longer a probe); wf_governor_steps_left
+ * says where each stretch ends. */
+static void test_probe_time_cap(void)
+{
+    WfGovernor g;
+    wf_governor_init(&g, 2, 1024, 0);
+    CHECK(wf_governor_steps_left(&g) == 8, "%ld steps before the first probe", wf_governor_steps_left(&g));
+    long one = drive(&g, 8, 0.2, 0.1);
+    CHECK(one == 0 && g.probing && wf_governor_steps_left(&g) == 1, "after 8 steps: %ld on one thread, probing %d, a "
+          "probe of %ld steps (1)", one, g.probing, wf_governor_steps_left(&g));
+    one = drive(&g, 1, 0.2, 0.1);
+    CHECK(one == 1 && !g.probing && wf_governor_threads(&g) == 2 && wf_governor_steps_left(&g) == 2048 - 128,
+          "the probe lost: %d threads next, %ld steps to the next probe (1920)", wf_governor_threads(&g),
+          wf_governor_steps_left(&g));
+    WfGovernor off;
+    wf_governor_init(&off, 2, 0, 0);
+    CHECK(wf_governor_steps_left(&off) == LONG_MAX, "every = 0: %ld steps left", wf_governor_steps_left(&off));
+}
+
+/* A ring's time-blocked windows: one call takes k steps, and the intervals, probes and chunks count steps, not calls.
+ * With every = 1024 and windows of 16 steps (8 ms on two threads, so WF_GOV_PROBE_S does not cut the probes): the
+ * first probe after the first window (8 steps due), of 64 steps (four windows) that lose, then the next after 2048 - 128 steps (120 windows); a load that arrives alarms after one chunk
+ * of WF_GOV_CHUNK steps (four windows) at under a quarter of the rate of the four before. */
+static void test_windows_count_steps(void)
+{
+    WfGovernor g;
+    wf_governor_init(&g, 2, 1024, 0);
+    long on_one = 0;
+    for (long w = 0; w < 125; w++) {
+        int n = wf_governor_threads(&g);
+        on_one += n == 1;
+        wf_governor_done(&g, n == 1 ? 16e-3 : 8e-3, 16000.0, 16);
+        if (w == 4)
+            CHECK(g.probes == 1 && on_one == 4 && g.interval == 2048 && wf_governor_threads(&g) == 2,
+                  "after 5 windows: %ld probes, %ld windows on one thread (4), interval %ld (2048)", g.probes, on_one,
+                  g.interval);
+    }
+    CHECK(g.probes == 2 && on_one == 4 && wf_governor_threads(&g) == 1 && g.probing,
+          "after 125 windows: %ld probes (the second begins), %ld windows on one thread, %d threads next", g.probes,
+          on_one, wf_governor_threads(&g));
+    /* the second probe loses too; then the load: two threads 8 times slower */
+    for (long w = 0; w < 8; w++) wf_governor_done(&g, wf_governor_threads(&g) == 1 ? 16e-3 : 8e-3, 16000.0, 16);
+    long alarms0 = g.alarms, w = 0;
+    while (!g.probing && w < 100) wf_governor_done(&g, 64e-3, 16000.0, 16), w++;
+    CHECK(g.alarms == alarms0 + 1 && w <= 2 * WF_GOV_CHUNK / 16,
+          "the load: an alarm after %ld windows (at most two chunks of %d steps), %ld alarms", w, WF_GOV_CHUNK,
+          g.alarms - alarms0);
+}
+
 int main(void)
 {
     RUN(test_keeps_the_faster);
     RUN(test_settle);
     RUN(test_load_arrives);
     RUN(test_never_probes);
+    RUN(test_windows_count_steps);
+    RUN(test_probe_time_cap);
     TEST_EXIT();
 }

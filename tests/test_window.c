@@ -17,6 +17,7 @@
 #include "wavefuel/corridor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/scenario.h"
+#include "core/window.h"
 #include "wf_test.h"
 
 /* A graded ring of 5000 vehicles (20 blocks: two threads split it), three classes, a speed limit, noisy heterogeneous IDM with the feasible
@@ -65,6 +66,7 @@ typedef struct Out {
     unsigned char *state;
     size_t state_size;
     long windows, redone;
+    long probes, switches;      /* the thread governor's (time.thread_check_steps) */
 } Out;
 
 static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
@@ -124,6 +126,7 @@ static int run(const char *path, const char *const *set, size_t n_set, int threa
         if (f) memcpy(o->x, f->x_m, f->n * sizeof(double)), memcpy(o->v, f->v_mps, f->n * sizeof(double));
         o->state = wf_test_state_copy(sim, &o->state_size);
         wf_sim_window_stats(sim, &o->windows, &o->redone);
+        wf_sim_thread_stats(sim, &o->probes, &o->switches);
     }
     wf_sim_destroy(&sim);
     wf_scenario_destroy(&sc);
@@ -154,9 +157,10 @@ typedef struct Variant {
 } Variant;
 
 /* Every variant against the reference (one step at a time, one thread); returns the reference's last overlap count
- * and the variants' windows and redone windows (summed). */
-static double compare_variants(const char *text, const Variant *vs, size_t nv, const char *const *extra,
-                               size_t n_extra, long *windows, long *redone)
+ * and the variants' windows and redone windows (summed), and their thread governors' probes (summed) in *probes when
+ * it is not NULL. */
+static double compare_variants_probes(const char *text, const Variant *vs, size_t nv, const char *const *extra,
+                                      size_t n_extra, long *windows, long *redone, long *probes)
 {
     char dir[] = "/tmp/wf_test_window.XXXXXX", path[128];
     if (!wf_test_write_yaml(text, dir, path, sizeof path)) return -1;
@@ -166,6 +170,7 @@ static double compare_variants(const char *text, const Variant *vs, size_t nv, c
     CHECK(run(path, set, 1 + n_extra, 1, 0, &ref) == 0, "reference run failed");
     CHECK(ref.windows == 0, "the reference took %ld windows", ref.windows);
     *windows = *redone = 0;
+    if (probes) *probes = 0;
     for (size_t k = 0; k < nv; k++) {
         const char *vset[8];
         size_t n = 0;
@@ -178,12 +183,19 @@ static double compare_variants(const char *text, const Variant *vs, size_t nv, c
         compare(&o, &ref, what);
         CHECK(o.windows > 0, "%s: no window was taken", what);
         *windows += o.windows, *redone += o.redone;
+        if (probes) *probes += o.probes;
         out_free(&o);
     }
     double overlaps = ref.n_rows ? ref.rows[ref.n_rows - 1].v[WF_TS_OVERLAPS] : -1;
     out_free(&ref);
     wf_test_remove_yaml(dir, path);
     return overlaps;
+}
+
+static double compare_variants(const char *text, const Variant *vs, size_t nv, const char *const *extra,
+                               size_t n_extra, long *windows, long *redone)
+{
+    return compare_variants_probes(text, vs, nv, extra, n_extra, windows, redone, NULL);
 }
 
 static const Variant variants[] = {
@@ -227,6 +239,33 @@ static void test_windows_redone_on_overlap(void)
     CHECK(redone > 0 && redone < windows, "%ld of %ld windows redone", redone, windows);
 }
 
+/* The thread governor probing as often as it can (time.thread_check_steps: 1) switches a ring's threads between
+ * windows and between single steps (records every 3 steps): the same bits, and the switches happened. */
+static void test_windows_governed(void)
+{
+    static const Variant governed[] = {
+        {{"time.block_steps=16", "time.thread_check_steps=1"}, 2, 2, 0},
+        {{"time.block_steps=5", "time.thread_check_steps=1"}, 2, 2, 0},
+    };
+    const char *extra[] = {"time.output_interval_s=0.3"};
+    long windows, redone, probes;
+    compare_variants_probes(ring_yaml, governed, 2, extra, 1, &windows, &redone, &probes);
+    printf("  the governor probing as often as it can: %ld probes in %ld windows, the same bits\n", probes, windows);
+    /* 120 steps a run: a probe after the first window, then at most 64 steps apart */
+    CHECK(probes >= 4, "only %ld probes: the threads hardly changed", probes);
+}
+
+/* A ring's default window: 64 steps, or 16 records' worth when records come more often than every 4 steps (the
+ * window keeps each record's block sums), as docs/scenarios.md says. */
+static void test_default_steps(void)
+{
+    static const long out_every[] = {1, 2, 3, 4, 10, 1000};
+    static const int expect[] = {16, 32, 48, 64, 64, 64};
+    for (size_t j = 0; j < sizeof expect / sizeof *expect; j++)
+        CHECK(wf_window_steps_default(out_every[j]) == expect[j], "records every %ld steps: windows of %d steps, "
+              "expected %d", out_every[j], wf_window_steps_default(out_every[j]), expect[j]);
+}
+
 /* Corridors: the front part, the windowed interior and the entrance give the per-step path's records, trips, Edie
  * cells, detector sums and state, bit for bit; records every 3 steps (windows of 2) too. */
 static void test_corridor_windows(void)
@@ -252,6 +291,8 @@ int main(void)
     RUN(test_windows_bitwise_equal);
     RUN(test_windows_records_and_trajectories);
     RUN(test_windows_redone_on_overlap);
+    RUN(test_windows_governed);
+    RUN(test_default_steps);
     RUN(test_corridor_windows);
     RUN(test_corridor_windows_redone);
     TEST_EXIT();

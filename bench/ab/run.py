@@ -33,7 +33,7 @@ SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
 
 
 def steps_for(n):
-    """About 1.6e8 vehicle-steps per run, in whole windows of 16 steps, at least 48."""
+    """About 1.6e8 vehicle-steps per run, in whole windows of 16 steps (the default before session 23), at least 48."""
     return max(48, int(1.6e8 / n) // 16 * 16)
 
 

@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Time-blocked stepping (issue 20): the ring of bench/scaling/ring.yaml (IDM with noise, two energy classes,
 ballistic dt 0.1 s, a record every second, 25 m of road per vehicle) stepped one step at a time
-(time.block_steps: 1) and in windows (the default, 16 steps), side by side in one run.
+(time.block_steps: 1) and in windows (the default, 64 steps), side by side in one run.
 
 For each N and thread count, the two modes alternate within each repeat (so both meet the same load); the tables give
 the best of --repeats as vehicle-steps per second of the step loop (N x /meta/steps_done / /meta/wall_time_s), the
@@ -27,7 +27,7 @@ import h5py
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
-STEPS = {100_000: 800, 1_000_000: 160, 10_000_000: 48}  # multiples of 16: whole windows
+STEPS = {100_000: 800, 1_000_000: 160, 10_000_000: 48}  # multiples of 16: whole windows of the default before session 23
 MODES = {"per-step": ["--set", "time.block_steps=1"], "windows": []}
 
 

@@ -156,8 +156,8 @@ int               wf_sim_ode_stats(const WfSim *sim, WfOdeStats *st);
 /* Time-blocked stepping so far (time.block_steps): the windows stepped and those undone and redone one step at a
  * time (an overlap or a fault in them). Returns the steps per window, or 0 when the run steps one at a time. */
 int               wf_sim_window_stats(const WfSim *sim, long *windows, long *redone);
-/* A corridor's thread governor (time.thread_check_steps): the probes of the other thread count it timed and the
- * switches it made; 0 (and zeros) for a ring. */
+/* The thread governor (time.thread_check_steps): the probes of the other thread count it timed and the switches it
+ * made. Returns 1 when it probes (a road that threads can share, on more than one thread, thread_check_steps > 0). */
 int               wf_sim_thread_stats(const WfSim *sim, long *probes, long *switches);
 /* A multi-lane road's lane observers (borrowed, valid until the next step): per record kept (n_rows of them, row_len
  * doubles each): t, the lane changes and cut-ins since the previous record, then lane after lane the columns of

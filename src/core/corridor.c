@@ -1612,12 +1612,13 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     /* only steps that threads could share are timed: a short road steps on one thread whatever the count */
     double t0 = parallel ? wf_wall_now() : 0.0;
     /* records step one at a time here: they read the whole road at the step's start */
-    long k = wf_window_steps(&c->win.w, step, max_steps, c->n_steps, c->warm_steps,
+    long left = wf_governor_steps_left(&c->gov);
+    long k = wf_window_steps(&c->win.w, step, left < max_steps ? left : max_steps, c->n_steps, c->warm_steps,
                              c->sc->trajectories ? c->traj_every : 0, c->out_every);
     if (k > 1) rc = cor_window(c, step, (int)k, &done, err);
     if (done) *steps = k;
     else if (!rc) rc = c->pt.p ? cor_part_step_once(c, step, err) : step_once(c, step, err);
-    if (parallel) wf_governor_done(&c->gov, wf_wall_now() - t0, (double)on_road * (double)*steps);
+    if (parallel) wf_governor_done(&c->gov, wf_wall_now() - t0, (double)on_road * (double)*steps, *steps);
     return rc;
 }
 
@@ -1668,12 +1669,6 @@ static int corridor_close(void *eng, WfError *err)
 
 const WfCorridor *wf_sim_corridor(const WfSim *sim) { return sim->b == &wf_boundary_open ? sim->eng : NULL; }
 
-int wf_sim_thread_stats(const WfSim *sim, long *probes, long *switches)
-{
-    const WfCorridor *c = wf_sim_corridor(sim);
-    *probes = c ? c->gov.probes : 0, *switches = c ? c->gov.switches : 0;
-    return c != NULL;
-}
 const WfCorridorVehicles *wf_corridor_vehicles(const WfCorridor *c) { return &c->ln[0].veh; }
 size_t wf_corridor_n_lanes(const WfCorridor *c) { return c->n_lanes; }
 const WfCorridorVehicles *wf_corridor_lane(const WfCorridor *c, size_t l) { return &c->ln[l].veh; }
@@ -1833,8 +1828,10 @@ static int corridor_windows(const void *eng, long *windows, long *redone)
     return c->win.w.k_max;
 }
 
+static const WfGovernor *corridor_governor(const void *eng) { return &((const WfCorridor *)eng)->gov; }
+
 const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,
                                      .step = corridor_step, .flush = corridor_flush, .close = corridor_close,
                                      .state = corridor_state, .restored = corridor_restored,
                                      .group = corridor_group, .lanes = corridor_lanes,
-                                     .windows = corridor_windows};
+                                     .windows = corridor_windows, .governor = corridor_governor};

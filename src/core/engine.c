@@ -43,6 +43,8 @@ typedef struct WfRing {
     double   sd_sum;
     long     n_sd;
     WfWindow win;           /* time-blocked stepping (win.k_max 0: one step at a time) */
+    int      win_threads;   /* the threads a window may take (win.nthreads as created) */
+    WfGovernor gov;         /* the threads of each step or window (governor.h): at most nthreads */
     /* a multi-lane ring (f->n_lanes > 1): each lane as the kernel sees it (lane_views), its record blocks, the
      * lane changes' scratch and what they did (totals, and since the last record) */
     WfLane   lanes[WF_MAX_LANES];
@@ -217,7 +219,7 @@ static int lanes_step(WfRing *s, long step, int pass, int in_window, WfStatsBloc
     }
     /* the lanes side by side, each on one thread: the same bits as one after the other (a lane's step does not
      * depend on the threads) */
-    int nth = wf_lane_threads(f->n, s->nthreads);
+    int nth = wf_lane_threads(f->n, s->lane.nthreads);
     if ((size_t)nth > nl) nth = (int)nl;
     WF_PAR_FOR(nth > 1, "omp parallel for schedule(dynamic, 1) num_threads(nth) default(none) shared(s, nl, off, step, pass, in_window, rec) reduction(| : flags)",
     for (size_t l = 0; l < nl; l++) {
@@ -250,13 +252,13 @@ static int ode_init(WfRing *s, WfError *err)
 static int part_halo_ready(void *ctx);
 
 /* Time-blocked stepping (src/core/window.h) for fixed-step schemes on the fused path, when the ring is long enough
- * for the threads: time.block_steps steps per window (0: WF_WINDOW_STEPS; 1: none), tiles of time.tile_vehicles
+ * for the threads: time.block_steps steps per window (0: wf_window_steps_default; 1: none), tiles of time.tile_vehicles
  * (0: from the cache size and the bytes of state per vehicle); split across processes, each window's halo travels
  * while the window's interior steps (part_halo_ready). */
 static int window_init(WfRing *s, WfError *err)
 {
     const WfScenario *sc = s->sc;
-    int k = sc->block_steps ? sc->block_steps : WF_WINDOW_STEPS;
+    int k = sc->block_steps ? sc->block_steps : wf_window_steps_default(s->out_every);
     size_t n = s->f->n;
     if (s->ode || !sc->fused_step || s->f->n_lanes > 1 || !wf_window_fits(n, s->b_lo, s->b_hi, s->nthreads, k))
         return 0;
@@ -558,6 +560,10 @@ static int ring_create(WfSim *sim, WfError *err)
     if (!rc) lane_init(s);
     if (!rc) lane_views(s);
     if (!rc) rc = window_init(s, err);
+    s->win_threads = s->win.nthreads;
+    /* only rings that threads can share are timed: a shorter one steps on one thread whatever the count */
+    int shared = wf_lane_threads((s->b_hi - s->b_lo) * WF_BLOCK, s->nthreads) > 1;
+    wf_governor_init(&s->gov, shared ? s->nthreads : 1, sc->thread_check_steps, 0);
     if (!rc) rc = members_init(s, err);
     if (!rc) prefault_share(s);
     return rc;
@@ -757,7 +763,7 @@ static void lane_changes(WfRing *s, long step)
     if (!s->lcs.active) return;
     WfLcRoad r;
     wf_lanes_ring_road(&s->lcs, s->sc, s->f, &r);
-    if (!wf_lanes_decide(&s->lcs, &r, step, s->nthreads)) return;
+    if (!wf_lanes_decide(&s->lcs, &r, step, s->lane.nthreads)) return;
     WfStateVar vars[WF_MAX_STATE_VARS];
     size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
     int64_t cut0 = s->lk.total.cut_ins, ch0 = s->lk.total.changes;
@@ -786,9 +792,8 @@ static void lanes_observe(WfRing *s, const WfStatsBlock *rec, double t)
  * values (and, fused, advances), the record and the trajectory at the step's start, then the advance when it is a
  * pass of its own, and the overlap repair. *steps: the steps taken. Returns WF_LOOP_END after the final instant
  * (recorded without a step), 0 after the steps, or an error code. */
-static int ring_step(void *eng, long step, long max_steps, long *steps, WfError *err)
+static int ring_advance(WfRing *s, long step, long max_steps, long *steps, WfError *err)
 {
-    WfRing *s = eng;
     long k = wf_window_steps(&s->win, step, max_steps, s->n_steps, s->warm_steps,
                              s->sc->trajectories ? s->traj_every : 0, 0);
     *steps = 1;
@@ -845,6 +850,23 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     if (s->fault_vehicle >= 0) return numerical_fault(s, step, err);
     return 0;
 }
+
+/* ring_advance on the threads the governor chose (the same bits on any count), timed for it. */
+static int ring_step(void *eng, long step, long max_steps, long *steps, WfError *err)
+{
+    WfRing *s = eng;
+    int nt = wf_governor_threads(&s->gov);
+    s->lane.nthreads = nt, s->win.nthreads = nt < s->win_threads ? nt : s->win_threads;
+    long left = wf_governor_steps_left(&s->gov);
+    if (left < max_steps) max_steps = left;
+    double t0 = s->gov.every ? wf_wall_now() : 0.0;
+    int rc = ring_advance(s, step, max_steps, steps, err);
+    if (t0 > 0.0 && !rc)
+        wf_governor_done(&s->gov, wf_wall_now() - t0, (double)s->f->n * (double)*steps, *steps);
+    return rc;
+}
+
+static const WfGovernor *ring_governor(const void *eng) { return &((const WfRing *)eng)->gov; }
 
 /* A multi-lane ring's safety counts: each lane's, summed into the ring's lane (what the summary and the checkpoint
  * read); restored, they stay with lane 0's view. */
@@ -1094,4 +1116,4 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
                                          .step = ring_step, .flush = ring_flush, .close = ring_close, .state = ring_state,
                                          .restored = ring_restored, .group = ring_group, .lanes = ring_lanes,
-                                         .windows = ring_windows};
+                                         .windows = ring_windows, .governor = ring_governor};

@@ -1,11 +1,11 @@
-/* How many threads a run's steps take, chosen by timing them (time.thread_check_steps, docs/corridors.md). Results
+/* How many threads a run's steps take, chosen by timing them (time.thread_check_steps, docs/scenarios.md). Results
  * never depend on it: a step gives the same bits on any number of threads. What it guards against: on a machine
  * whose cores other processes also use, a step that meets its threads at a barrier waits for whichever thread the
  * system has descheduled, and two threads can be several times slower than one.
  *
  * The run steps on its chosen count (at first all its threads); every `interval` steps (after 8 steps at the start,
  * and twice `probe` steps after a switch, when the switch may have won by chance) it times `probe` steps
- * (interval / 16, at least one) on the other count (one thread, or all of them) and switches when the probe did at
+ * (interval / 16, at least one, fewer when they would last over WF_GOV_PROBE_S) on the other count (one thread, or all of them) and switches when the probe did at
  * least 5 % more vehicle-steps per second of wall time. A probe that loses doubles the interval (up to 64 times
  * `every`), so a steady machine pays for few probes; a switch sets it back to `every`. A probe is cut short as
  * soon as its steps so far took twice as long as the chosen count's: on a loaded machine a step whose thread was
@@ -19,14 +19,22 @@
  * interrupt) does not unless it took some 190 times the others. (Chunks of 16 at half the rate alarmed some 30 times
  * in 50 000 steps of an idle but noisy VM, each alarm a probe of one thread that cost more than it could save.)
  *
- * `settle` steps after every change of the count are taken on the new count but neither timed nor counted: where a
- * step lasts microseconds (a batch of RL environments), the first one on another count wakes the team's threads and
+ * `settle` calls after every change of the count are taken on the new count but neither timed nor counted: where a
+ * call lasts microseconds (a batch of RL environments), the first one on another count wakes the team's threads and
  * moves half the state to another core's cache, and alone it lost every probe of two threads on an idle machine. A
- * corridor's steps last milliseconds: 0 there, so that a probe on a loaded machine costs one slow step, not two. */
+ * corridor's steps and a ring's windows last milliseconds: 0 there, so that a probe on a loaded machine costs one
+ * slow call, not two.
+ *
+ * Rings (src/core/engine.c), corridors (src/core/corridor.c) and RL batches (src/core/rl_batch.c) use it. A ring of
+ * 10^5 vehicles on this project's 2-vCPU machine beside two busy processes ran on two threads at 0.71 of one thread's
+ * rate in one run of four before it had one (bench/README.md, "Session 23"). */
 #ifndef WAVEFUEL_CORE_GOVERNOR_H
 #define WAVEFUEL_CORE_GOVERNOR_H
 
 enum { WF_GOV_CHUNK = 64 }; /* steps of the chosen count timed together, each chunk against the one before */
+/* s: a probe lasts no longer at the chosen count's rate (fewer steps than interval / 16 when those would); a step of
+ * a ring of 10^7 vehicles takes 0.06 s on two threads, and 64 steps of it on one thread would cost seconds */
+#define WF_GOV_PROBE_S 0.05
 
 typedef struct WfGovernor {
     int    n_max, now;          /* the run's threads; the threads of the next step */
@@ -43,11 +51,15 @@ typedef struct WfGovernor {
     long   alarms;              /* stretches ended early by a slow chunk */
 } WfGovernor;
 
-/* n_max threads; every: time.thread_check_steps (0: always n_max); settle: steps not timed after a change. */
+/* n_max threads; every: time.thread_check_steps (0: always n_max); settle: calls not timed after a change. */
 void wf_governor_init(WfGovernor *g, int n_max, long every, long settle);
 /* The threads the next step takes. */
 int  wf_governor_threads(const WfGovernor *g);
-/* After the step: its wall time (s) and its work (vehicles stepped). */
-void wf_governor_done(WfGovernor *g, double wall_s, double work);
+/* The steps before the governor's next decision (LONG_MAX when it never probes): a time-blocked window should take no
+ * more, so that a probe times the steps it was meant to and starts and ends on time. */
+long wf_governor_steps_left(const WfGovernor *g);
+/* After a call that took `steps` steps on wf_governor_threads' count (a time-blocked window takes several): its
+ * wall time (s) and its work (vehicle-steps). Intervals, probes and chunks count steps; `settle` counts calls. */
+void wf_governor_done(WfGovernor *g, double wall_s, double work, long steps);
 
 #endif

@@ -354,7 +354,7 @@ int wf_rl_batch_step(WfRlBatch *b, const double *actions, int threads, double *o
     } else {
         rc = wf_runs_each(b->n_runs, nt, step_run, &c, errs);
     }
-    if (t0 > 0.0) wf_governor_done(&b->gov, wf_wall_now() - t0, (double)b->n_veh * (double)b->action_steps);
+    if (t0 > 0.0) wf_governor_done(&b->gov, wf_wall_now() - t0, (double)b->n_veh * (double)b->action_steps, 1);
     if (!rc && obs) wf_rl_batch_observe(b, obs);
     return rc;
 }

@@ -200,6 +200,13 @@ const WfScenario *wf_sim_scenario(const WfSim *s) { return s->sc; }
 int wf_sim_lanes(const WfSim *s, WfLaneObs *out) { return s->b->lanes ? s->b->lanes(s->eng, out) : 0; }
 int wf_sim_window_stats(const WfSim *s, long *windows, long *redone) { return s->b->windows(s->eng, windows, redone); }
 const char *wf_sim_kind(const WfSim *s) { return s->b->kind; }
+
+int wf_sim_thread_stats(const WfSim *s, long *probes, long *switches)
+{
+    const WfGovernor *g = s->b->governor(s->eng);
+    *probes = g->probes, *switches = g->switches;
+    return g->every > 0;
+}
 const WfSummary *wf_sim_summary(const WfSim *s) { return &s->summary; }
 double wf_sim_wall_s(const WfSim *s) { return s->wall_s; }
 long wf_sim_steps_done(const WfSim *s) { return *s->steps_done; }

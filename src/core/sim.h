@@ -7,6 +7,7 @@
 #define WAVEFUEL_CORE_SIM_H
 
 #include "core/block.h"
+#include "core/governor.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/partition.h"
 
@@ -36,6 +37,8 @@ typedef struct WfBoundary {
     int    (*lanes)(const void *eng, WfLaneObs *out);
     /* Time-blocked windows so far (wf_sim_window_stats): returns the steps per window, 0 when none are taken. */
     int    (*windows)(const void *eng, long *windows, long *redone);
+    /* The threads of the steps (wf_sim_thread_stats). */
+    const WfGovernor *(*governor)(const void *eng);
 } WfBoundary;
 
 extern const WfBoundary wf_boundary_periodic, wf_boundary_open;

@@ -33,6 +33,12 @@ size_t wf_window_tile_default(size_t bytes_per_vehicle)
     return v < B ? B : v;
 }
 
+int wf_window_steps_default(long out_every)
+{
+    return out_every > 0 && out_every < WF_WINDOW_STEPS / WF_WINDOW_RECORDS ? (int)(WF_WINDOW_RECORDS * out_every)
+                                                                         : WF_WINDOW_STEPS;
+}
+
 int wf_window_fits(size_t n, size_t b_lo, size_t b_hi, int nthreads, int k)
 {
     size_t m = (b_hi * B < n ? b_hi * B : n) - b_lo * B; /* the vehicles stepped */

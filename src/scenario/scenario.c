@@ -272,12 +272,14 @@ static const WfKeySpec time_rows[] = {
             "record, every accumulator, with and without trajectories). Set false to time the two passes apart in "
             "`/meta/phase_time`"},
     {.key = "block_steps", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, block_steps),
-     .size = sizeof(int), .def = 0, .imin = 0, .imax = 200, .doc_default = "0 (ring: 16; corridor: 1)",
+     .size = sizeof(int), .def = 0, .imin = 0, .imax = 200, .doc_default = "0 (ring: 64; corridor: 1)",
      .doc_range = "0, 1, …, 200",
      .doc = "fixed-step schemes on the fused path: steps per time-blocked window. The road is cut into chunks "
             "(8 per thread) that go to whichever thread is free; a chunk is stepped tile by tile, every tile "
             "`block_steps` steps while it stays in cache, following the tile ahead through the trace of its first "
-            "vehicle, and the threads meet once per window instead of once per step. Results are bit-identical to "
+            "vehicle, and the threads meet once per window instead of once per step. A ring's default, 64, is 16 "
+            "times the steps between records when records come more often than every 4 steps (the window keeps "
+            "each of its records' sums, 0.8 B per vehicle a record). Results are bit-identical to "
             "stepping one step at a time (`tests/test_window.c`); a window in which a vehicle overlaps or a fault "
             "appears is undone and redone one step at a time. A ring copies its state for that (about the run's "
             "memory again). A corridor steps in windows only when asked (0 is 1 there: measured slower on idle "
@@ -292,17 +294,18 @@ static const WfKeySpec time_rows[] = {
      .size = sizeof(long), .def = 0, .imin = 0, .imax = 1000000000L, .doc_default = "0 (from the L2 cache)",
      .doc = "vehicles per tile of a time-blocked window, rounded up to blocks of 256; 0: half the L2 cache of a "
             "core over the bytes of state per vehicle. Results do not depend on it"},
-    {.key = "thread_check_steps", .type = WF_KEY_INTEGER, .on = WF_ON_CORRIDOR,
+    {.key = "thread_check_steps", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH,
      .offset = offsetof(WfScenario, thread_check_steps), .size = sizeof(long), .def = 1024, .imin = 0,
      .imax = 1000000000L, .doc_range = "0, 1, …",
-     .off_msg = "time.thread_check_steps applies to corridors: a ring's threads meet once per time-blocked window",
-     .doc = "corridor on more than one thread: every `thread_check_steps` steps that threads can share (a lane of "
-            "at least 4096 vehicles) the run times 1/16 of them (at least one) on the other thread count (one thread, or all of them) and keeps whichever steps more vehicles per "
-            "second of wall time; a probe that loses doubles the interval (up to 64 times), a switch sets it back, "
-            "and 64 steps at under a quarter of the rate of the 64 before them (a load that arrived) probe at once. "
-            "On a machine whose cores other processes also use, a step whose threads meet at a barrier waits for "
-            "whichever thread was descheduled, and two threads can be several times slower than one. Results do "
-            "not depend on it (a step gives the same bits on any number of threads). 0: always all threads"},
+     .doc = "a run on more than one thread: every `thread_check_steps` steps that threads can share (a ring, or a "
+            "corridor's lane, of at least 4096 vehicles) the run times 1/16 of them (at least one; whole "
+            "time-blocked windows) on the other thread count (one thread, or all of them) and keeps whichever steps "
+            "more vehicles per second of wall time; a probe that loses doubles the interval (up to 64 times), a "
+            "switch sets it back, and 64 steps at under a quarter of the rate of the 64 before them (a load that "
+            "arrived) probe at once. On a machine whose cores other processes also use, threads that meet at a "
+            "barrier wait for whichever thread was descheduled, and two threads can be several times slower than "
+            "one. Results do not depend on it (a step gives the same bits on any number of threads). 0: always all "
+            "threads"},
 };
 static const WfKeyTable time_keys = {"time", time_rows, sizeof time_rows / sizeof *time_rows};
 
