@@ -11,6 +11,16 @@
 #include "core/governor.h"
 #include "wf_test.h"
 
+/* The first call after init, on all threads, which the governor does not time (the team starts cold): even a call
+ * of 10 s changes nothing of what it counts. */
+static void first_call(WfGovernor *g)
+{
+    long left = g->left;
+    wf_governor_done(g, 10.0, 1000.0, 1);
+    CHECK(g->steps[0] == 0 && g->wall_s[0] == 0.0 && g->left == left && wf_governor_threads(g) == g->n_max,
+          "the first call was timed: %ld steps, %g s, %ld steps left (%ld)", g->steps[0], g->wall_s[0], g->left, left);
+}
+
 /* Steps of the governor where a step on n threads takes cost(n) seconds; returns the steps taken on one thread. */
 static long drive(WfGovernor *g, long steps, double one_thread_s, double all_threads_s)
 {
@@ -28,6 +38,7 @@ static void test_keeps_the_faster(void)
     WfGovernor g;
     wf_governor_init(&g, 2, 64, 0);
     CHECK(wf_governor_threads(&g) == 2, "starts on %d threads, not all", wf_governor_threads(&g));
+    first_call(&g);
     /* two threads faster: the first probe (steps 8..11 on one thread) loses, the interval doubles */
     long one = drive(&g, 12, 2e-3, 1e-3);
     CHECK(one == 4 && g.probes == 1 && g.switches == 0 && g.interval == 128,
@@ -37,7 +48,7 @@ static void test_keeps_the_faster(void)
     CHECK(g.switches == 0 && g.interval == 256, "%ld switches at 4 %%, interval %ld", g.switches, g.interval);
     /* a loaded machine: two threads now 8 times slower. The first chunk of WF_GOV_CHUNK such steps, at a fifteenth
      * of the quiet chunk's rate before it, ends the stretch (without it, the interval would: 256 - 16 steps); the
-     * probe of one thread (3 steps: WF_GOV_PROBE_S at 16 ms a step, fewer than interval / 16) wins; two threads, probed 8 steps later and again after the interval less a
+     * probe of one thread (12 steps: WF_GOV_PROBE_S at 16 ms a step, fewer than interval / 16) wins; two threads, probed 8 steps later and again after the interval less a
      * probe, lose both (cut short after a step), so the interval is 256 again */
     long to_switch = 0;
     for (long s = 0; s < 256; s++) {
@@ -48,8 +59,8 @@ static void test_keeps_the_faster(void)
     CHECK(g.switches == 1 && wf_governor_threads(&g) == 1 && g.interval == 256 && g.alarms == 1,
           "after the load: %ld switches, %d threads, interval %ld, %ld alarms", g.switches, wf_governor_threads(&g),
           g.interval, g.alarms);
-    CHECK(to_switch == WF_GOV_CHUNK + 2, "switched after %ld loaded steps (a chunk on two threads and the probe's "
-          "3, decided at its last)", to_switch);
+    CHECK(to_switch == WF_GOV_CHUNK + 11, "switched after %ld loaded steps (a chunk on two threads and the probe's "
+          "12, decided at its last)", to_switch);
     /* still loaded, two threads now a hundred times slower: each probe of them is cut short after its first step,
      * and probes come ever more rarely */
     long probes0 = g.probes, slow = 0;
@@ -132,7 +143,7 @@ static void test_load_arrives(void)
           g.alarms - alarms0);
     /* the load: two threads 30 times slower, one thread twice; an alarm after at most two chunks, then the probe of
      * one thread (the faster count, so never cut short) wins. The probe lasts WF_GOV_PROBE_S at the rate of the chunk
-     * that alarmed (a sixteenth of the interval would be 4096 steps; at the quiet rate before, 50) */
+     * that alarmed (a sixteenth of the interval would be 4096 steps; at the quiet rate before, 200) */
     long steps = 0, on_two = 0, probe = 0, expect = 0;
     while (g.switches == 0 && steps < 10000) {
         int n = wf_governor_threads(&g);
@@ -156,24 +167,75 @@ static void test_never_probes(void)
     CHECK(drive(&g, 10000, 1e-3, 9e-3) == 10000 && g.probes == 0, "one thread probed (%ld)", g.probes);
 }
 
-/* A ring of 10^7 vehicles: a step takes 0.1 s on two threads, 0.2 s on one. The probes last WF_GOV_PROBE_S at the
- * chosen count's rate, here one step, not interval / 16 = 64 of them (6 s longer a probe); wf_governor_steps_left
- * says where each stretch ends. */
+/* The margins: one thread must be 20 % faster to be chosen, all threads 5 % faster to be chosen back. */
+static void test_margins(void)
+{
+    WfGovernor g;
+    wf_governor_init(&g, 2, 64, 0);
+    first_call(&g);
+    drive(&g, 200, 1.0e-3 / 1.15, 1.0e-3); /* one thread 15 % faster: every probe of it loses */
+    CHECK(g.probes >= 2 && g.switches == 0 && wf_governor_threads(&g) == 2, "one thread 15 %% faster: %ld probes, "
+          "%ld switches", g.probes, g.switches);
+    drive(&g, 2000, 1.0e-3 / 1.25, 1.0e-3); /* 25 % faster: the next probe wins */
+    CHECK(g.switches == 1 && wf_governor_threads(&g) == 1, "one thread 25 %% faster: %ld switches, %d threads",
+          g.switches, wf_governor_threads(&g));
+    drive(&g, 64 * 64 * 2, 1.0e-3, 1.0e-3 / 1.08); /* all threads 8 % faster: back to them at the next probe */
+    CHECK(g.switches == 2 && (wf_governor_threads(&g) == 2 || g.probing), "all threads 8 %% faster: %ld switches, %d "
+          "threads", g.switches, wf_governor_threads(&g));
+}
+
+/* A ring of 10^7 vehicles: a step takes 0.1 s on two threads, 0.19 s on one (under twice: not cut short). The
+ * probes last WF_GOV_PROBE_S at the chosen count's rate, here two steps, not interval / 16 = 64 of them (6 s longer a probe); wf_governor_probe_left
+ * says how many steps of the probe are left (a window is cut there), and nothing outside a probe. */
 static void test_probe_time_cap(void)
 {
     WfGovernor g;
     wf_governor_init(&g, 2, 1024, 0);
-    CHECK(wf_governor_steps_left(&g) == 8, "%ld steps before the first probe", wf_governor_steps_left(&g));
-    long one = drive(&g, 8, 0.2, 0.1);
-    CHECK(one == 0 && g.probing && wf_governor_steps_left(&g) == 1, "after 8 steps: %ld on one thread, probing %d, a "
-          "probe of %ld steps (1)", one, g.probing, wf_governor_steps_left(&g));
-    one = drive(&g, 1, 0.2, 0.1);
-    CHECK(one == 1 && !g.probing && wf_governor_threads(&g) == 2 && wf_governor_steps_left(&g) == 2048 - 128,
-          "the probe lost: %d threads next, %ld steps to the next probe (1920)", wf_governor_threads(&g),
-          wf_governor_steps_left(&g));
-    WfGovernor off;
-    wf_governor_init(&off, 2, 0, 0);
-    CHECK(wf_governor_steps_left(&off) == LONG_MAX, "every = 0: %ld steps left", wf_governor_steps_left(&off));
+    first_call(&g);
+    CHECK(wf_governor_probe_left(&g) == LONG_MAX, "no probe under way: %ld steps left", wf_governor_probe_left(&g));
+    long one = drive(&g, 8, 0.19, 0.1);
+    CHECK(one == 0 && g.probing && wf_governor_probe_left(&g) == 2, "after 8 steps: %ld on one thread, probing %d, a "
+          "probe of %ld steps (2)", one, g.probing, wf_governor_probe_left(&g));
+    one = drive(&g, 2, 0.19, 0.1);
+    CHECK(one == 2 && !g.probing && wf_governor_threads(&g) == 2 && wf_governor_probe_left(&g) == LONG_MAX &&
+              g.left == 2048 - 128,
+          "the probe lost: %d threads next, %ld steps to the next probe (1920)", wf_governor_threads(&g), g.left);
+}
+
+/* Made-up clocks: the wall advances as the made-up calls say; the process's CPU time by cpu_per_wall times that. */
+static double fake_wall_s, fake_cpu_per_wall;
+static double fake_wall(void) { return fake_wall_s; }
+static double fake_cpu(void) { return fake_wall_s * fake_cpu_per_wall; }
+
+static long drive_clocked(WfGovernor *g, long steps, double one_thread_s, double all_threads_s)
+{
+    long on_one = 0;
+    for (long s = 0; s < steps; s++) {
+        int n = wf_governor_threads(g);
+        double t = n == 1 ? one_thread_s : all_threads_s;
+        on_one += n == 1;
+        fake_wall_s += t;
+        wf_governor_done(g, t, 1000.0, 1);
+    }
+    return on_one;
+}
+
+/* The ring of test_probe_time_cap with both threads busy all the time (CPU time 1.95 s per second): the probe is
+ * WF_GOV_PROBE_IDLE_S long, a step; with CPU time 1.2 s per second (threads waiting for cores), WF_GOV_PROBE_S, two. */
+static void test_brief_probe_when_idle(void)
+{
+    static const double cpu_per_wall[] = {1.95, 1.2};
+    static const long expect[] = {1, 2};
+    for (int j = 0; j < 2; j++) {
+        WfGovernor g;
+        wf_governor_init(&g, 2, 1024, 0);
+        g.wall_now = fake_wall, g.cpu_now = fake_cpu;
+        fake_wall_s = 100.0, fake_cpu_per_wall = cpu_per_wall[j];
+        drive_clocked(&g, 9, 0.19, 0.1); /* the first call (not timed), then 8 */
+        CHECK(g.probing && wf_governor_probe_left(&g) == expect[j] && g.short_probes == (j == 0),
+              "CPU %.2f s per s: a probe of %ld steps (%ld expected), %ld short", cpu_per_wall[j],
+              wf_governor_probe_left(&g), expect[j], g.short_probes);
+    }
 }
 
 /* A ring's time-blocked windows: one call takes k steps, and the intervals, probes and chunks count steps, not calls.
@@ -184,6 +246,7 @@ static void test_windows_count_steps(void)
 {
     WfGovernor g;
     wf_governor_init(&g, 2, 1024, 0);
+    first_call(&g);
     long on_one = 0;
     for (long w = 0; w < 125; w++) {
         int n = wf_governor_threads(&g);
@@ -214,5 +277,7 @@ int main(void)
     RUN(test_never_probes);
     RUN(test_windows_count_steps);
     RUN(test_probe_time_cap);
+    RUN(test_margins);
+    RUN(test_brief_probe_when_idle);
     TEST_EXIT();
 }

@@ -1612,7 +1612,7 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     /* only steps that threads could share are timed: a short road steps on one thread whatever the count */
     double t0 = parallel ? wf_wall_now() : 0.0;
     /* records step one at a time here: they read the whole road at the step's start */
-    long left = wf_governor_steps_left(&c->gov);
+    long left = wf_governor_probe_left(&c->gov);
     long k = wf_window_steps(&c->win.w, step, left < max_steps ? left : max_steps, c->n_steps, c->warm_steps,
                              c->sc->trajectories ? c->traj_every : 0, c->out_every);
     if (k > 1) rc = cor_window(c, step, (int)k, &done, err);

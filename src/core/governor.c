@@ -3,7 +3,16 @@
 
 #include <limits.h>
 
+#include "util/clock.h"
+
 enum { WF_GOV_PROBE_PART = 16, WF_GOV_BACKOFF_MAX = 64, WF_GOV_FIRST = 8 };
+
+/* How much more work per second a probe must do to switch: to one thread 20 %, back to all of them 5 %. A short
+ * probe of one thread on a loaded machine measures high (7-9e7 vehicle-steps/s where whole runs on one thread gave
+ * 6.4e7: a ring of 10^5 vehicles beside two busy processes), and lost the run the 1.1-1.2 times one thread's rate
+ * that two threads keep there over windows of 64 steps; where two threads really lose, they lose by far more. */
+#define WF_GOV_GAIN_ONE 1.20
+#define WF_GOV_GAIN_ALL 1.05
 
 static long probe_steps(const WfGovernor *g)
 {
@@ -11,13 +20,23 @@ static long probe_steps(const WfGovernor *g)
     return p > 0 ? p : 1;
 }
 
-/* The steps of the probe that begins: probe_steps, or as many as last WF_GOV_PROBE_S at the rate of the chosen
- * count's stretch that just ended, at least one. */
-static long probe_len(const WfGovernor *g)
+/* Whether every thread of the chosen count ran all the time since its stretch began (the process's CPU time at least
+ * 90 % of threads x wall time): a thread that waits for a core, or at a barrier for one that waits, runs less. */
+static int cores_free(const WfGovernor *g)
+{
+    double wall_s = g->wall_now() - g->mark_wall_s, cpu_s = g->cpu_now() - g->mark_cpu_s;
+    return wall_s > 0.0 && cpu_s >= 0.9 * (double)g->now * wall_s;
+}
+
+static void mark(WfGovernor *g) { g->mark_wall_s = g->wall_now(), g->mark_cpu_s = g->cpu_now(); }
+
+/* The steps of the probe that begins: probe_steps, or as many as last probe_s at the rate of the chosen count's
+ * stretch that just ended, at least one. */
+static long probe_len(const WfGovernor *g, double probe_s)
 {
     long p = probe_steps(g);
     if (g->steps[0] > 0 && g->wall_s[0] > 0.0) {
-        double fit = WF_GOV_PROBE_S * (double)g->steps[0] / g->wall_s[0];
+        double fit = probe_s * (double)g->steps[0] / g->wall_s[0];
         if (fit < (double)p) p = fit >= 1.0 ? (long)fit : 1;
     }
     return p;
@@ -42,36 +61,44 @@ static int slow_chunk(WfGovernor *g, double wall_s, double work, long steps)
 void wf_governor_init(WfGovernor *g, int n_max, long every, long settle)
 {
     *g = (WfGovernor){.n_max = n_max, .now = n_max, .every = n_max > 1 ? every : 0, .interval = every,
-                      .settle = settle > 0 ? settle : 0};
-    g->unsettled = g->settle; /* the first steps too: the team starts cold */
+                      .settle = settle > 0 ? settle : 0, .wall_now = wf_wall_now, .cpu_now = wf_cpu_now};
+    /* the first call too, whatever settle: the team starts cold (a ring of 10^5 vehicles beside two busy processes
+     * took its first 8 steps on two threads at half the rate of the steps after them, and lost its first probe) */
+    g->unsettled = g->settle > 0 ? g->settle : 1;
     /* the first probe soon: on a busy machine a step on all threads can take a hundred times one thread's */
     g->left = WF_GOV_FIRST < 2 * probe_steps(g) ? WF_GOV_FIRST : 2 * probe_steps(g);
 }
 
 int wf_governor_threads(const WfGovernor *g) { return g->now; }
 
-long wf_governor_steps_left(const WfGovernor *g) { return g->every && g->left > 0 ? g->left : LONG_MAX; }
+long wf_governor_probe_left(const WfGovernor *g) { return g->probing && g->left > 0 ? g->left : LONG_MAX; }
 
 void wf_governor_done(WfGovernor *g, double wall_s, double work, long steps)
 {
     if (!g->every) return;
     if (g->unsettled > 0) {
-        g->unsettled--;
+        if (--g->unsettled == 0 && !g->probing) mark(g); /* the chosen count's stretch is timed from here */
         return;
     }
     int p = g->probing;
     g->wall_s[p] += wall_s, g->work[p] += work, g->steps[p] += steps;
-    if (!p && slow_chunk(g, wall_s, work, steps)) g->alarms++, g->left = 1; /* the load changed: probe now */
+    int alarm = !p && slow_chunk(g, wall_s, work, steps);
+    if (alarm) g->alarms++, g->left = 1; /* the load changed: probe now */
     /* a probe whose steps so far took twice as long as the chosen count's has lost */
     int lost = p && g->steps[0] && g->wall_s[1] > 2.0 * (double)g->steps[1] * g->wall_s[0] / (double)g->steps[0];
     if ((g->left -= steps) > 0 && !lost) return;
     int other = g->now == 1 ? g->n_max : 1;
-    if (!p) { /* the chosen count's stretch is over: probe the other */
-        g->probing = 1, g->now = other, g->left = probe_len(g), g->probes++, g->unsettled = g->settle;
+    if (!p) { /* the chosen count's stretch is over: probe the other, briefly when its threads had their cores */
+        int brief = !alarm && cores_free(g);
+        g->short_probes += brief;
+        g->probing = 1, g->now = other, g->probes++, g->unsettled = g->settle;
+        g->left = probe_len(g, brief ? WF_GOV_PROBE_IDLE_S : WF_GOV_PROBE_S);
         return;
     }
-    /* the probe is over: switch when it did 5 % more work per second (work1 / wall1 > 1.05 work0 / wall0) */
-    int probe_won = !lost && g->work[1] * g->wall_s[0] > 1.05 * g->work[0] * g->wall_s[1];
+    /* the probe is over: switch when it did more work per second by the margin toward its count
+     * (work1 / wall1 > gain work0 / wall0) */
+    double gain = g->now == 1 ? WF_GOV_GAIN_ONE : WF_GOV_GAIN_ALL; /* g->now: the probe's count */
+    int probe_won = !lost && g->work[1] * g->wall_s[0] > gain * g->work[0] * g->wall_s[1];
     if (probe_won) {
         g->switches++, g->interval = g->every; /* g->now stays the probe's count */
         g->chunk_wall_s = g->chunk_work = g->ref_wall_s = g->ref_work = 0.0, g->chunk_steps = 0;
@@ -84,4 +111,5 @@ void wf_governor_done(WfGovernor *g, double wall_s, double work, long steps)
     if (g->left < 1) g->left = 1;
     g->wall_s[0] = g->wall_s[1] = g->work[0] = g->work[1] = 0.0;
     g->steps[0] = g->steps[1] = 0;
+    if (!g->unsettled) mark(g);
 }

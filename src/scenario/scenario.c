@@ -298,14 +298,15 @@ static const WfKeySpec time_rows[] = {
      .offset = offsetof(WfScenario, thread_check_steps), .size = sizeof(long), .def = 1024, .imin = 0,
      .imax = 1000000000L, .doc_range = "0, 1, …",
      .doc = "a run on more than one thread: every `thread_check_steps` steps that threads can share (a ring, or a "
-            "corridor's lane, of at least 4096 vehicles) the run times 1/16 of them (at least one; whole "
-            "time-blocked windows) on the other thread count (one thread, or all of them) and keeps whichever steps "
-            "more vehicles per second of wall time; a probe that loses doubles the interval (up to 64 times), a "
-            "switch sets it back, and 64 steps at under a quarter of the rate of the 64 before them (a load that "
-            "arrived) probe at once. On a machine whose cores other processes also use, threads that meet at a "
-            "barrier wait for whichever thread was descheduled, and two threads can be several times slower than "
-            "one. Results do not depend on it (a step gives the same bits on any number of threads). 0: always all "
-            "threads"},
+            "corridor's lane, of at least 4096 vehicles) the run times 1/16 of them on the other thread count (one "
+            "thread, or all of them): at least one step, at most 0.2 s of steps, 0.02 s when the process's CPU time "
+            "showed every thread running all the time. It moves to one thread when that did 20 % more vehicle-steps "
+            "per second of wall time, back to all when they did 5 % more; a probe that loses doubles the interval "
+            "(up to 64 times), a switch sets it back, and 64 steps at under a quarter of the rate of the 64 before "
+            "them (a load that arrived) probe at once. The first step (or window) is not timed. On a machine whose "
+            "cores other processes also use, threads that meet at a barrier wait for whichever thread was "
+            "descheduled, and two threads can be several times slower than one. Results do not depend on it (a "
+            "step gives the same bits on any number of threads). 0: always all threads"},
 };
 static const WfKeyTable time_keys = {"time", time_rows, sizeof time_rows / sizeof *time_rows};
 

@@ -1,4 +1,4 @@
-/* wf_wall_now (clock.h): CLOCK_MONOTONIC in seconds; wf_sleep_ms. */
+/* wf_wall_now (clock.h): CLOCK_MONOTONIC in seconds; wf_cpu_now; wf_sleep_ms. */
 #include "util/clock.h"
 
 #include <time.h>
@@ -7,6 +7,13 @@ double wf_wall_now(void)
 {
     struct timespec ts;
     clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+double wf_cpu_now(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
