@@ -856,7 +856,8 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
 {
     WfRing *s = eng;
     int nt = wf_governor_threads(&s->gov);
-    s->lane.nthreads = nt, s->win.nthreads = nt < s->win_threads ? nt : s->win_threads;
+    s->lane.nthreads = nt;
+    if (s->win.k_max) wf_window_threads(&s->win, nt < s->win_threads ? nt : s->win_threads);
     long left = wf_governor_probe_left(&s->gov);
     if (left < max_steps) max_steps = left;
     double t0 = s->gov.every ? wf_wall_now() : 0.0;

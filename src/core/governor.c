@@ -7,12 +7,13 @@
 
 enum { WF_GOV_PROBE_PART = 16, WF_GOV_BACKOFF_MAX = 64, WF_GOV_FIRST = 8 };
 
-/* How much more work per second a probe must do to switch: to one thread 20 %, back to all of them 5 %. A short
- * probe of one thread on a loaded machine measures high (7-9e7 vehicle-steps/s where whole runs on one thread gave
- * 6.4e7: a ring of 10^5 vehicles beside two busy processes), and lost the run the 1.1-1.2 times one thread's rate
- * that two threads keep there over windows of 64 steps; where two threads really lose, they lose by far more. */
-#define WF_GOV_GAIN_ONE 1.20
-#define WF_GOV_GAIN_ALL 1.05
+/* How much more work per second a probe must do to switch: 20 %. Beside busy processes a probe's rate is a gamble:
+ * a short probe of one thread measured 7-9e7 vehicle-steps/s where whole runs on one thread gave 6.4e7 (a ring of
+ * 10^5 vehicles), and at 5 % the run lost the 1.1-1.2 times one thread's rate that two threads keep there over
+ * windows of 64 steps; a ring of 10^4 vehicles, where two threads are 2.5 times slower, went back to them after
+ * lucky probes. Where a count really wins (two threads on a quiet machine, one thread where two meet at barriers
+ * every few milliseconds) it wins by far more. */
+#define WF_GOV_GAIN 1.20
 
 static long probe_steps(const WfGovernor *g)
 {
@@ -95,10 +96,8 @@ void wf_governor_done(WfGovernor *g, double wall_s, double work, long steps)
         g->left = probe_len(g, brief ? WF_GOV_PROBE_IDLE_S : WF_GOV_PROBE_S);
         return;
     }
-    /* the probe is over: switch when it did more work per second by the margin toward its count
-     * (work1 / wall1 > gain work0 / wall0) */
-    double gain = g->now == 1 ? WF_GOV_GAIN_ONE : WF_GOV_GAIN_ALL; /* g->now: the probe's count */
-    int probe_won = !lost && g->work[1] * g->wall_s[0] > gain * g->work[0] * g->wall_s[1];
+    /* the probe is over: switch when it did WF_GOV_GAIN times the work per second (work1 / wall1 > gain work0 / wall0) */
+    int probe_won = !lost && g->work[1] * g->wall_s[0] > WF_GOV_GAIN * g->work[0] * g->wall_s[1];
     if (probe_won) {
         g->switches++, g->interval = g->every; /* g->now stays the probe's count */
         g->chunk_wall_s = g->chunk_work = g->ref_wall_s = g->ref_work = 0.0, g->chunk_steps = 0;

@@ -120,10 +120,17 @@ int wf_window_range(WfWindow *w, size_t first, size_t n, int nthreads)
     size_t nb = wf_lane_blocks(first, n);
     int nt = wf_lane_threads(n, nthreads);
     if (w->k_max + 1 >= B || nb < 2 * (size_t)nt || !w->n_halos) return 0;
-    size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)nt, nc = nb / 2 < most ? nb / 2 : most;
-    w->first = first, w->n = n, w->nb = nb, w->b_lo = 0, w->b_hi = nb, w->nthreads = nt;
-    w->n_chunks = nc < w->n_halos ? nc : w->n_halos;
+    w->first = first, w->n = n, w->nb = nb, w->b_lo = 0, w->b_hi = nb;
+    wf_window_threads(w, nt);
     return 1;
+}
+
+void wf_window_threads(WfWindow *w, int nthreads)
+{
+    size_t span = w->b_hi - w->b_lo, most = (size_t)WF_WINDOW_CHUNKS * (size_t)nthreads;
+    size_t nc = span / 2 < most ? span / 2 : most;
+    w->nthreads = nthreads;
+    w->n_chunks = nc < w->n_halos ? nc : w->n_halos;
 }
 
 /* The first slot of logical block j of the window's range (j = nb: block 0, the periodic wrap). */

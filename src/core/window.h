@@ -103,6 +103,12 @@ void wf_window_prefault(WfWindow *w, const WfStateVar *vars, size_t n_vars, int 
 long wf_window_steps(const WfWindow *w, long step, long max_steps, long n_steps, long warm_steps, long traj_every,
                      long rec_every);
 
+/* The threads the next windows take (at most those it was created for: wf_lane_threads of them), and as many chunks
+ * as they need (WF_WINDOW_CHUNKS each, at most those allocated): one thread of a window created for two steps 8
+ * chunks, not 16, each with its halo of k + 1 vehicles stepped again (a tenth more work at 10^4 vehicles). Any count
+ * gives the same bits. */
+void wf_window_threads(WfWindow *w, int nthreads);
+
 /* An open lane's window over the logical range of n vehicles from slot first (window.h: a corridor's interior),
  * stepped on nthreads: the range's blocks and chunks, as many as were allocated. Returns 0 when the range does not
  * fit (wf_window_fits' rules), else 1. */
