@@ -28,8 +28,9 @@
  *
  * Rings (src/core/engine.c), corridors (src/core/corridor.c) and RL batches (src/core/rl_batch.c) use it. Rings of
  * 10^4 and 10^5 vehicles on this project's 2-vCPU machine beside two busy processes ran on two threads at 0.13-0.90
- * and 0.70-1.04 of one thread's rate before they had one, 0.88-0.96 and 1.06-1.21 with it and windows of 64 steps
- * (bench/README.md, "Session 23"). */
+ * and 0.67-1.07 of one thread's rate before they had one, 0.77-0.98 and 1.06-1.24 with it and windows of 64 steps
+ * (runs of 1e8 vehicle-steps; 10^4 in runs ten times longer: 0.23-0.99 before, 0.96-1.05 with it; bench/README.md,
+ * "Session 23"). */
 #ifndef WAVEFUEL_CORE_GOVERNOR_H
 #define WAVEFUEL_CORE_GOVERNOR_H
 
