@@ -7,9 +7,9 @@
  * and twice `probe` steps after a switch, when the switch may have won by chance) it times `probe` steps
  * (interval / 16, at least one, fewer when they would last over WF_GOV_PROBE_S, or WF_GOV_PROBE_IDLE_S when the
  * threads had their cores) on the other count (one thread, or all of them) and switches when the probe did at
- * least 20 % more vehicle-steps per second of wall time (governor.c: WF_GOV_GAIN). A probe that loses doubles the interval (up to 64 times
- * `every`), so a steady machine pays for few probes; a switch sets it back to `every`. A probe is cut short as
- * soon as its steps so far took twice as long as the chosen count's: on a loaded machine a step whose thread was
+ * least 20 % more vehicle-steps per second of wall time (governor.c: WF_GOV_GAIN). A probe that loses doubles the
+ * interval (up to 64 times `every`), so a steady machine pays for few probes; a switch sets it back to `every`. A
+ * probe is cut short as soon as its steps so far took twice as long as the chosen count's: on a loaded machine a step whose thread was
  * descheduled can take a hundred times longer, and a whole probe of them would cost more than it could save.
  *
  * A load that arrives while the chosen count runs ends its stretch at once: the chosen count's steps are timed in
