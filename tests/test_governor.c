@@ -43,13 +43,14 @@ static void test_keeps_the_faster(void)
     long one = drive(&g, 12, 2e-3, 1e-3);
     CHECK(one == 4 && g.probes == 1 && g.switches == 0 && g.interval == 128,
           "%ld steps on one thread, %ld probes, %ld switches, interval %ld", one, g.probes, g.switches, g.interval);
-    /* within 5 %: no switch */
+    /* one thread 4 % faster: no switch (the margin is 20 %) */
     drive(&g, 128, 1.0e-3, 1.04e-3);
     CHECK(g.switches == 0 && g.interval == 256, "%ld switches at 4 %%, interval %ld", g.switches, g.interval);
-    /* a loaded machine: two threads now 8 times slower. The first chunk of WF_GOV_CHUNK such steps, at a fifteenth
-     * of the quiet chunk's rate before it, ends the stretch (without it, the interval would: 256 - 16 steps); the
-     * probe of one thread (12 steps: WF_GOV_PROBE_S at 16 ms a step, fewer than interval / 16) wins; two threads, probed 8 steps later and again after the interval less a
-     * probe, lose both (cut short after a step), so the interval is 256 again */
+    /* a loaded machine: two threads now 8 times slower. The first chunk of WF_GOV_CHUNK such steps, at a fifteenth of
+     * the quiet chunk's rate before it, ends the stretch (without it, the interval would: 256 - 16 steps); the probe of
+     * one thread (12 steps: WF_GOV_PROBE_S at 16 ms a step, fewer than interval / 16) wins; two threads, probed 8 steps
+     * later and again after the interval less a probe, lose both (cut short after a step), so the interval is 256
+     * again */
     long to_switch = 0;
     for (long s = 0; s < 256; s++) {
         int n = wf_governor_threads(&g);
@@ -187,9 +188,10 @@ static void test_margins(void)
           "threads", g.switches, wf_governor_threads(&g));
 }
 
-/* A ring of 10^7 vehicles: a step takes 0.1 s on two threads, 0.19 s on one (under twice: not cut short). The
- * probes last WF_GOV_PROBE_S at the chosen count's rate, here two steps, not interval / 16 = 64 of them (6 s longer a probe); wf_governor_probe_left
- * says how many steps of the probe are left (a window is cut there), and nothing outside a probe. */
+/* A ring of 10^7 vehicles: a step takes 0.1 s on two threads, 0.19 s on one (under twice: not cut short). The probes
+ * last WF_GOV_PROBE_S at the chosen count's rate, here two steps, not interval / 16 = 64 of them (6 s longer a probe);
+ * wf_governor_probe_left says how many steps of the probe are left (a window is cut there), and nothing outside a
+ * probe. */
 static void test_probe_time_cap(void)
 {
     WfGovernor g;
@@ -242,9 +244,10 @@ static void test_brief_probe_when_idle(void)
 }
 
 /* A ring's time-blocked windows: one call takes k steps, and the intervals, probes and chunks count steps, not calls.
- * With every = 1024 and windows of 16 steps (8 ms on two threads, so WF_GOV_PROBE_S does not cut the probes): the
- * first probe after the first window (8 steps due), of 64 steps (four windows) that lose, then the next after 2048 - 128 steps (120 windows); a load that arrives alarms after one chunk
- * of WF_GOV_CHUNK steps (four windows) at under a quarter of the rate of the four before. */
+ * With every = 1024 and windows of 16 steps (8 ms on two threads, so WF_GOV_PROBE_S does not cut the probes): the first
+ * probe after the first window (8 steps due), of 64 steps (four windows) that lose, then the next after 2048 - 128
+ * steps (120 windows); a load that arrives alarms after one chunk of WF_GOV_CHUNK steps (four windows) at under a
+ * quarter of the rate of the four before. */
 static void test_windows_count_steps(void)
 {
     WfGovernor g;

@@ -2,7 +2,8 @@
 """Ring threads on a quiet and on a loaded machine (issue 20: two threads never slower than one).
 
 The ring of bench/scaling/ring.yaml (IDM with noise, two energy classes, ballistic dt 0.1 s, a record every second,
-25 m of road per vehicle) for about --work vehicle-steps (1e8: 1.5 s on two busy cores), in three cases that alternate within each repeat:
+25 m of road per vehicle) for about --work vehicle-steps (1e8: 1.5 s on two busy cores), in three cases that
+alternate within each repeat:
 
 - `one`: one thread;
 - `two-before`: two threads as before session 23, windows of 16 steps and no thread governor
@@ -42,8 +43,8 @@ def one_run(binary, n, case, work, tmp):
     threads, sets = CASES[case]
     out = os.path.join(tmp, "r.h5")
     steps = max(160, int(work / n) // 16 * 16)
-    cmd = [binary, "run", SCENARIO, "-q", "-o", out, "--force", "--threads", str(threads),
-           "--set", f"fleet.vehicles={n}", "--set", f"road.length_m={25 * n}", "--set", f"time.duration_s={steps / 10:g}"]
+    cmd = [binary, "run", SCENARIO, "-q", "-o", out, "--force", "--threads", str(threads), "--set",
+           f"fleet.vehicles={n}", "--set", f"road.length_m={25 * n}", "--set", f"time.duration_s={steps / 10:g}"]
     for s in sets:
         cmd += ["--set", s]
     p = subprocess.run(cmd, capture_output=True, text=True)
@@ -76,8 +77,8 @@ def table(runs, title):
             rates = [r["rate"] for r in rs if r["case"] == case]
             cells.append(f"{max(rates):.3g} ({statistics.median(rates):.3g})")
         for case in ("two-before", "two"):
-            q = [next(r["rate"] for r in rs if r["rep"] == k and r["case"] == case) /
-                 next(r["rate"] for r in rs if r["rep"] == k and r["case"] == "one") for k in sorted({r["rep"] for r in rs})]
+            rate = {(r["rep"], r["case"]): r["rate"] for r in rs}
+            q = [rate[k, case] / rate[k, "one"] for k in sorted({r["rep"] for r in rs})]
             ratio[case] = f"{min(q):.2f}–{max(q):.2f} (median {statistics.median(q):.2f})"
         loads = [r["load"] for r in rs]
         print(f"| {n:.0e} | {' | '.join(cells)} | {ratio['two-before']} | {ratio['two']} | "

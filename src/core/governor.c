@@ -96,7 +96,8 @@ void wf_governor_done(WfGovernor *g, double wall_s, double work, long steps)
         g->left = probe_len(g, brief ? WF_GOV_PROBE_IDLE_S : WF_GOV_PROBE_S);
         return;
     }
-    /* the probe is over: switch when it did WF_GOV_GAIN times the work per second (work1 / wall1 > gain work0 / wall0) */
+    /* the probe is over: switch when it did WF_GOV_GAIN times the work per second
+     * (work1 / wall1 > gain work0 / wall0) */
     int probe_won = !lost && g->work[1] * g->wall_s[0] > WF_GOV_GAIN * g->work[0] * g->wall_s[1];
     if (probe_won) {
         g->switches++, g->interval = g->every; /* g->now stays the probe's count */

@@ -9,8 +9,9 @@
  * threads had their cores) on the other count (one thread, or all of them) and switches when the probe did at
  * least 20 % more vehicle-steps per second of wall time (governor.c: WF_GOV_GAIN). A probe that loses doubles the
  * interval (up to 64 times `every`), so a steady machine pays for few probes; a switch sets it back to `every`. A
- * probe is cut short as soon as its steps so far took twice as long as the chosen count's: on a loaded machine a step whose thread was
- * descheduled can take a hundred times longer, and a whole probe of them would cost more than it could save.
+ * probe is cut short as soon as its steps so far took twice as long as the chosen count's: on a loaded machine a
+ * step whose thread was descheduled can take a hundred times longer, and a whole probe of them would cost more than
+ * it could save.
  *
  * A load that arrives while the chosen count runs ends its stretch at once: the chosen count's steps are timed in
  * chunks of WF_GOV_CHUNK, and a chunk at less than a quarter of the rate of the chunk before it (a process started
@@ -69,7 +70,8 @@ int  wf_governor_threads(const WfGovernor *g);
 /* The steps left in the probe under way (LONG_MAX when none is): a time-blocked window should take no more, so that
  * a probe of a long road lasts WF_GOV_PROBE_S, not a whole window on the slower count. The chosen count's stretches
  * take whole windows: short ones meet the threads more often per step, and beside busy processes, where each meeting
- * waits for a descheduled thread, windows of 8 steps ran at half the rate of windows of 64 and lost every first probe. */
+ * waits for a descheduled thread, windows of 8 steps ran at half the rate of windows of 64 and lost every first
+ * probe. */
 long wf_governor_probe_left(const WfGovernor *g);
 /* After a call that took `steps` steps on wf_governor_threads' count (a time-blocked window takes several): its
  * wall time (s) and its work (vehicle-steps). Intervals, probes and chunks count steps; `settle` counts calls. */
