@@ -71,9 +71,9 @@ typedef struct WfWindow {
 /* Defaults: the vehicles of a tile from the cache of one core (half its L2 over bytes_per_vehicle, the state a step
  * reads and writes), and the steps per window for records every out_every steps: WF_WINDOW_STEPS, or
  * WF_WINDOW_RECORDS * out_every when fewer (a window keeps each of its records' block sums, 0.8 B per vehicle a
- * record). Why 64 steps (bench/README.md, "Session 23"): on idle cores 4-7 % faster than 16 from 10^4 to 10^7
+ * record). Why 64 steps (bench/README.md, "Session 23"): on idle cores 3-6 % faster than 16 from 10^4 to 10^7
  * vehicles, and beside two busy processes, where every meeting of the threads waits for whichever one the system
- * descheduled, two threads at 10^5 vehicles went from 0.66-0.98 of one thread's rate to 1.09-1.24. */
+ * descheduled, two threads at 10^5 vehicles went from 0.67-0.98 of one thread's rate to 1.09-1.24. */
 enum { WF_WINDOW_STEPS = 64, WF_WINDOW_RECORDS = 16, WF_WINDOW_CHUNKS = 8 /* per thread */ };
 size_t wf_window_tile_default(size_t bytes_per_vehicle);
 int    wf_window_steps_default(long out_every);
