@@ -24,6 +24,9 @@ import tempfile
 
 import h5py
 
+sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+from busy_load import start_load  # noqa: E402
+
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
@@ -47,11 +50,6 @@ def one_run(binary, n, threads, mode, tmp):
     os.unlink(out)
     return {"n": n, "threads": threads, "mode": mode, "steps": done, "wall_s": wall, "rate": n * done / wall,
             "rss_b_per_vehicle": rss_kib * 1024 / n, "load": os.getloadavg()[0]}
-
-
-def start_load(seconds):
-    busy = "import time\nt = time.time() + %g\nwhile time.time() < t: pass\n" % seconds
-    return [subprocess.Popen(["/usr/bin/python3", "-c", busy]) for _ in range(2)]
 
 
 def table(runs, title):
