@@ -8,3 +8,14 @@ def start_load(seconds, n=2):
     done with them."""
     busy = "import time\nt = time.time() + %g\nwhile time.time() < t: pass\n" % seconds
     return [subprocess.Popen(["/usr/bin/python3", "-c", busy]) for _ in range(n)]
+
+
+def beside_load(fn, seconds, n=2):
+    """fn() with n busy loops (start_load) running beside it; the loops are killed and waited for however fn ends."""
+    procs = start_load(seconds, n)
+    try:
+        return fn()
+    finally:
+        for p in procs:
+            p.kill()
+            p.wait()

@@ -27,7 +27,7 @@ SCENARIO = os.path.join(ROOT, "bench", "corridor_vs_ring", "corridor.yaml")
 sys.path.insert(0, os.path.join(ROOT, "tests"))
 from h5same import compare  # noqa: E402 (the one comparison of two results)
 sys.path.insert(0, os.path.dirname(HERE))
-from busy_load import start_load  # noqa: E402
+from busy_load import beside_load  # noqa: E402
 # (name, threads, time.thread_check_steps, time.block_steps)
 CASES = [("1 thread", 1, 1024, 1), ("2 threads, always", 2, 0, 1), ("2 threads, governor", 2, 1024, 1),
          ("1 thread, windows", 1, 1024, 9), ("2 threads, always, windows", 2, 0, 9),
@@ -68,12 +68,7 @@ def main():
             _, bad = compare(ref, os.path.join(tmp, "quiet_%d_%d_%d.h5" % (threads, check, block)))
             if bad:
                 sys.exit("run.py: results differ between thread or window settings: " + ", ".join(bad[:5]))
-        load = start_load(args.load_timeout)
-        try:
-            loaded = measure(args.bin, args, tmp, "load")
-        finally:
-            for p in load:
-                p.kill()
+        loaded = beside_load(lambda: measure(args.bin, args, tmp, "load"), args.load_timeout)
         with open("/proc/loadavg") as f:
             loadavg = f.read().split()[0]
     print("| case | wall s, machine as it is | wall s, beside 2 busy processes |")

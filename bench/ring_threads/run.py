@@ -34,7 +34,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
 SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
 sys.path.insert(0, os.path.dirname(HERE))
-from busy_load import start_load  # noqa: E402
+from busy_load import beside_load  # noqa: E402
 
 CASES = {"one": (1, []), "two-before": (2, ["time.block_steps=16", "time.thread_check_steps=0"]), "two": (2, [])}
 
@@ -106,13 +106,7 @@ def main():
     try:
         res["quiet"] = series(binary, sizes, a.work, a.repeats, tmp)
         if a.load:
-            procs = start_load(a.load_timeout)
-            try:
-                res["loaded"] = series(binary, sizes, a.work, a.repeats, tmp)
-            finally:
-                for p in procs:
-                    p.kill()
-                    p.wait()
+            res["loaded"] = beside_load(lambda: series(binary, sizes, a.work, a.repeats, tmp), a.load_timeout)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     if a.json:

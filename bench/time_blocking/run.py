@@ -25,7 +25,7 @@ import tempfile
 import h5py
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-from busy_load import start_load  # noqa: E402
+from busy_load import beside_load  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(os.path.dirname(HERE))
@@ -93,18 +93,9 @@ def main():
                     for mode in MODES:
                         res["quiet"].append(one_run(binary, n, th, mode, tmp))
         if a.load:
-            procs = start_load(a.load_timeout)
-            try:
-                for rep in range(a.repeats):
-                    for n in sizes:
-                        if n > 1_000_000:
-                            continue
-                        for th in (1, 2):
-                            for mode in MODES:
-                                res["loaded"].append(one_run(binary, n, th, mode, tmp))
-            finally:
-                for p in procs:
-                    p.kill()
+            loaded = [(n, th, mode) for _ in range(a.repeats) for n in sizes if n <= 1_000_000 for th in (1, 2)
+                      for mode in MODES]
+            res["loaded"] = beside_load(lambda: [one_run(binary, *c, tmp) for c in loaded], a.load_timeout)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     with open(a.out, "w") as f:

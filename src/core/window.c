@@ -1,6 +1,7 @@
 /* Time-blocked stepping of a periodic lane (window.h). */
 #include "core/window.h"
 
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -81,12 +82,11 @@ int wf_window_create(WfWindow *w, const WfLane *ln, size_t n, size_t b_lo, size_
                      size_t tile_vehicles, long out_every, size_t state_bytes, WfError *err)
 {
     size_t m = (b_hi * B < n ? b_hi * B : n) - b_lo * B;
-    *w = (WfWindow){.k_max = k_max, .tile_blocks = (tile_vehicles + B - 1) / B,
-                    .nthreads = wf_lane_threads(m, ln->nthreads), .nb = wf_lane_blocks(0, n), .b_lo = b_lo,
-                    .b_hi = b_hi, .n = n, .out_every = out_every};
+    *w = (WfWindow){.k_max = k_max, .tile_blocks = (tile_vehicles + B - 1) / B, .nb = wf_lane_blocks(0, n),
+                    .b_lo = b_lo, .b_hi = b_hi, .n = n, .out_every = out_every, .n_halos = SIZE_MAX};
     if (!w->tile_blocks) w->tile_blocks = 1;
-    size_t most = (size_t)WF_WINDOW_CHUNKS * (size_t)w->nthreads;
-    w->n_chunks = w->n_halos = (b_hi - b_lo) / 2 < most ? (b_hi - b_lo) / 2 : most;
+    wf_window_threads(w, wf_lane_threads(m, ln->nthreads)); /* the chunks of all the threads: one halo each */
+    w->n_halos = w->n_chunks;
     w->rec_rows = (size_t)k_max / (size_t)out_every + 1;
     w->halo = calloc(w->n_chunks, sizeof *w->halo);
     w->rec = malloc(w->rec_rows * w->nb * sizeof *w->rec);
