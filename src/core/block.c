@@ -571,6 +571,7 @@ static int run_block(WfLane *ln, size_t lo, size_t m, const WfLead *ld, long ste
     if ((pass & WF_PASS_ENERGY) && ln->out.fuel_rate_gps) memcpy(ln->out.fuel_rate_gps + lo, b.fr, m * sizeof *b.fr);
     if ((pass & WF_PASS_ENERGY) && ln->out.flag) memcpy(ln->out.flag + lo, b.fl, m * sizeof *b.fl);
     if (!(pass & WF_PASS_ADVANCE)) return 0;
+    if (ln->out.v_mps) memcpy(ln->out.v_mps + lo, ln->v_mps + lo, m * sizeof *ln->v_mps);
     return advance_block(ln, lo, m, b.a, b.gap, b.vl, b.fr, b.fl, b.ll, in_window);
 }
 

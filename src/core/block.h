@@ -91,10 +91,12 @@ typedef struct WfRoadOps {
 } WfRoadOps;
 
 /* The step's values per slot, written by a pass with WF_PASS_ACCEL / WF_PASS_ENERGY and read by a pass with
- * WF_PASS_ADVANCE alone; NULL where not kept (the fused step keeps them per block). */
+ * WF_PASS_ADVANCE alone; NULL where not kept (the fused step keeps them per block). v_mps: each vehicle's speed at
+ * the step's start, kept before its advance (what a record reads after a fused step). */
 typedef struct WfLaneValues {
     double  *a_mps2, *gap_m, *v_lead_mps, *theta_rad, *fuel_rate_gps;
     uint8_t *flag;
+    double  *v_mps;
 } WfLaneValues;
 
 /* Chunks of a lane's step on all its threads cut where their wall times come out equal (a corridor's free-flowing

@@ -824,15 +824,19 @@ static void lane_changes(WfCorridor *c, long step)
     if (c->coop_cap_mps2) lane_cooperation(c, &r);
 }
 
-/* The step's values go to the per-slot arrays (steps with a record or trajectory, which read them before the
- * vehicles move) or stay in the kernel's blocks; the fuel rate is always kept (Edie and detectors read it). */
-void cor_lane_exports(WfCorridor *c, int on)
+/* The step's values go to the per-slot arrays (COR_EXPORT_ALL: steps with a trajectory, which read them before the
+ * vehicles move; COR_EXPORT_RECORD: what a record reads after a fused step) or stay in the kernel's blocks; the fuel
+ * rate is always kept (Edie and detectors read it). */
+void cor_lane_exports(WfCorridor *c, int what)
 {
     for (size_t l = 0; l < c->n_lanes; l++) {
         WfCorridorVehicles *vh = &c->ln[l].veh;
-        c->ln[l].lane.out = on ? (WfLaneValues){vh->a_mps2, vh->gap_m, vh->v_lead_mps, vh->theta_rad,
-                                                vh->fuel_rate_gps, vh->flag}
-                               : (WfLaneValues){.fuel_rate_gps = vh->fuel_rate_gps};
+        c->ln[l].lane.out = what == COR_EXPORT_ALL ? (WfLaneValues){vh->a_mps2, vh->gap_m, vh->v_lead_mps,
+                                                                    vh->theta_rad, vh->fuel_rate_gps, vh->flag, NULL}
+                          : what == COR_EXPORT_RECORD
+                              ? (WfLaneValues){.gap_m = vh->gap_m, .fuel_rate_gps = vh->fuel_rate_gps,
+                                               .v_mps = c->ln[l].v_start}
+                              : (WfLaneValues){.fuel_rate_gps = vh->fuel_rate_gps};
     }
 }
 
@@ -1317,7 +1321,7 @@ void cor_advance_leader(WfCorridor *c, double t)
 
 /* A multi-lane corridor's lanes at a record (/lanes, src/observe/lanes.c): each lane's record (the road's rule over
  * that lane alone), as its columns. */
-static void lanes_observe(WfCorridor *c, double t)
+static void lanes_observe(WfCorridor *c, double t, int at_start)
 {
     if (c->n_lanes < 2 || c->lk.n_rows >= (int64_t)c->lane_rows_max) return;
     double *row = c->lane_rows + (size_t)c->lk.n_rows++ * c->lane_row_len;
@@ -1325,7 +1329,7 @@ static void lanes_observe(WfCorridor *c, double t)
     c->lk.rec_changes = c->lk.rec_cut_ins = 0;
     for (size_t l = 0; l < c->n_lanes; l++) {
         WfCorridorRow r;
-        cor_record(c, l, l + 1, t, &r);
+        cor_record(c, l, l + 1, t, at_start, &r);
         double *o = row + 3 + l * WF_LANE_N_COLS, n = r.v[WF_CTS_VEHICLES];
         o[WF_LANE_VEHICLES] = n;
         o[WF_LANE_DENSITY] = n / (c->L / 1000.0);
@@ -1394,7 +1398,7 @@ static inline __attribute__((always_inline)) void record_lane(const WfScenario *
 /* Lanes [l0, l1) into the record's sums, each lane's vehicles [k0, k1) (SIZE_MAX: all of them), each lane's waves
  * from its front. */
 WF_SIMD_CLONES
-void cor_record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size_t k1, RecordSums *r)
+void cor_record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size_t k1, int at_start, RecordSums *r)
 {
     size_t nc = c->sc->n_classes;
     int nv = nc <= 4 ? 1 : nc <= 8 ? 2 : 4;
@@ -1402,7 +1406,9 @@ void cor_record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size
     lane_masks(mk, nc, nv, 1);
     const M4(*masks)[4] = (const M4(*)[4])mk;
     for (size_t l = l0; l < l1; l++) {
-        const WfCorridorVehicles *vh = &c->ln[l].veh;
+        WfCorridorVehicles veh = c->ln[l].veh;
+        const WfCorridorVehicles *vh = &veh;
+        if (at_start) veh.v_mps = c->ln[l].v_start;
         size_t e = k1 < vh->n ? k1 : vh->n;
         if (k1 == SIZE_MAX) r->prev_slow = 0;
         if (nv == 1) record_lane(c->sc, vh, masks, r, k0, e, 1);
@@ -1412,11 +1418,12 @@ void cor_record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size
 }
 
 /* The sum of (v - mean)^2 over vehicles [k0, k1) of lane l, front first, added to m2. */
-double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, double mean, double m2)
+double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, int at_start, double mean, double m2)
 {
     const WfCorridorVehicles *vh = &c->ln[l].veh;
+    const double *v = at_start ? c->ln[l].v_start : vh->v_mps;
     for (size_t k = k0; k < k1 && k < vh->n; k++) {
-        double d = vh->v_mps[wf_corridor_slot(vh, k)] - mean;
+        double d = v[wf_corridor_slot(vh, k)] - mean;
         m2 += d * d;
     }
     return m2;
@@ -1425,12 +1432,12 @@ double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, double
 
 /* The record of lanes [l0, l1) (the road's: all of them): sums lane after lane, each lane front first; waves and gaps
  * within each lane. */
-void cor_record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row)
+void cor_record(const WfCorridor *c, size_t l0, size_t l1, double t, int at_start, WfCorridorRow *row)
 {
     RecordSums r = {.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY};
-    cor_record_lanes(c, l0, l1, 0, SIZE_MAX, &r);
+    cor_record_lanes(c, l0, l1, 0, SIZE_MAX, at_start, &r);
     double mean = r.n ? r.sv / (double)r.n : NAN, m2 = 0.0;
-    for (size_t l = l0; l < l1; l++) m2 = cor_record_m2(c, l, 0, SIZE_MAX, mean, m2);
+    for (size_t l = l0; l < l1; l++) m2 = cor_record_m2(c, l, 0, SIZE_MAX, at_start, mean, m2);
     cor_record_row(c, &r, m2, t, row);
 }
 
@@ -1537,14 +1544,30 @@ int cor_numerical_fault(const WfCorridor *c, long step, WfError *err)
                   c->sc->classes[vh->class_id[s]].vc.name, vh->x_m[s], vh->v_mps[s]);
 }
 
-/* One step: the kernel's pass that computes the step's values (fused with the advance unless a record or a
- * trajectory must see them first), then the open boundary: the virtual leader, overlap repair, Edie and detectors,
- * exits. Returns WF_LOOP_END after the final instant (recorded without a step), 0 after a step, or an error code. */
+/* The record of instant t, from the vehicles' values at the step's start (at_start: a fused step kept the speeds
+ * before it moved the vehicles; else they have not moved yet). */
+static int record_now(WfCorridor *c, double t, int in_window, int at_start, WfError *err)
+{
+    const WfOutput *out = c->sim->out;
+    size_t on_road = 0;
+    for (size_t l = 0; l < c->n_lanes; l++) on_road += c->ln[l].veh.n;
+    WfCorridorRow row;
+    cor_record(c, 0, c->n_lanes, t, at_start, &row);
+    lanes_observe(c, t, at_start);
+    if (in_window && on_road) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
+    WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
+    return out && out->record ? out->record(out->ctx, c->sim, &rec, err) : 0;
+}
+
+/* One step: the kernel's pass that computes the step's values, fused with the advance unless a trajectory or the
+ * final instant must see them first (a record reads what the fused pass keeps: COR_EXPORT_RECORD), then the open
+ * boundary: the virtual leader, overlap repair, Edie and detectors, exits. Returns WF_LOOP_END after the final
+ * instant (recorded without a step), 0 after a step, or an error code. */
 static int step_once(WfCorridor *c, long step, WfError *err)
 {
     const WfOutput *out = c->sim->out;
     const WfScenario *sc = c->sc;
-    size_t nl = c->n_lanes, on_road = 0;
+    size_t nl = c->n_lanes;
     double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
     int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
     int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
@@ -1553,24 +1576,16 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     if ((rc = cor_arrivals(c, t, err)) || (rc = cor_entrance(c, t, step, err))) return rc;
     WfLead front[WF_MAX_LANES];
     for (size_t l = 0; l < nl; l++) front[l] = cor_front_leader(c, l);
-    int two_pass = records || traj || last;
-    cor_lane_exports(c, two_pass);
+    int two_pass = traj || last;
+    cor_lane_exports(c, two_pass ? COR_EXPORT_ALL : records ? COR_EXPORT_RECORD : COR_EXPORT_NONE);
     c->meas_step = step, c->meas_in_window = in_window; /* for measure_after_step */
     if (two_pass) {
         for (size_t l = 0; l < nl; l++) {
             CorLane *ln = &c->ln[l];
             wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step,
                          WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window, NULL);
-            on_road += ln->veh.n;
         }
-        if (records) {
-            WfCorridorRow row;
-            cor_record(c, 0, c->n_lanes, t, &row);
-            lanes_observe(c, t);
-            if (in_window && on_road) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
-            WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
-            if (out && out->record && (rc = out->record(out->ctx, c->sim, &rec, err))) return rc;
-        }
+        if (records && (rc = record_now(c, t, in_window, 0, err))) return rc;
         if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c->sim, t, err))) return rc;
         if (last) return WF_LOOP_END;
         for (size_t l = 0; l < nl; l++) {
@@ -1584,6 +1599,8 @@ static int step_once(WfCorridor *c, long step, WfError *err)
             flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_FUSED | WF_PASS_COUNT,
                                     in_window, NULL);
         }
+        /* before the repairs and exits that follow, as a record between the two passes is */
+        if (records && (rc = record_now(c, t, in_window, 1, err))) return rc;
     }
     for (size_t l = 0; nl > 1 && l < nl; l++) c->lk.total.lane_vehicle_s[l] += (double)c->ln[l].veh.n * sc->dt_s;
     cor_advance_leader(c, t_next);

@@ -66,6 +66,7 @@ typedef struct CorLane {
     size_t    index;        /* the lane's number */
     WfCorridorVehicles veh;
     double   *xold;
+    double   *v_start;      /* speeds at the step's start, kept by a fused step that records (COR_EXPORT_RECORD) */
     uint32_t *cell;         /* the Edie cell of the step when it lies inside one cell, else UINT32_MAX */
     uint32_t *grade_seg;
     uint8_t  *mode;
@@ -231,7 +232,7 @@ struct WfCorridor {
     X("lane_changes", lane_changes, 0) X("cut_ins", cut_ins, 0) X("lc_ready", lc_ready, 0) X("dest", dest, 0)
 #define STEP_SLOT_ARRAYS(X)                                                                                          \
     X("", veh.a_mps2, 0) X("", veh.gap_m, 0) X("", veh.v_lead_mps, 0) X("", veh.theta_rad, 0)                      \
-    X("", veh.fuel_rate_gps, 0) X("", veh.flag, 0) X("", xold, 0) X("", cell, 0)
+    X("", veh.fuel_rate_gps, 0) X("", veh.flag, 0) X("", xold, 0) X("", cell, 0) X("", v_start, 0)
 
 /* A lane's counter-based key of its n-th arrival or entry: lane 0 keys as a single-lane corridor does, lane l from
  * l 2^40 (trips name vehicles by it: /trips/serial). */
@@ -262,7 +263,10 @@ int cor_arrivals(WfCorridor *c, double t, WfError *err);
 int cor_entrance(WfCorridor *c, double t, long step, WfError *err);
 void cor_cells_of(const WfCorridor *c, const double *restrict xa, const double *restrict xb, uint32_t *restrict cell,
                   size_t m);
-void cor_lane_exports(WfCorridor *c, int on);
+/* What a step keeps per slot (cor_lane_exports): the fuel rate alone; every value of the step (its first pass, for
+ * a trajectory); what a record reads (a fused step that records: gaps, fuel rates, and the speeds before it moved). */
+enum { COR_EXPORT_NONE, COR_EXPORT_ALL, COR_EXPORT_RECORD };
+void cor_lane_exports(WfCorridor *c, int what);
 WfLead cor_front_leader(const WfCorridor *c, size_t l);
 void cor_phase_overlaps(WfCorridor *c, CorLane *ln, int in_window, size_t upto);
 void cor_measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, size_t i_hi, size_t q_lo, size_t q_hi,
@@ -273,9 +277,10 @@ size_t cor_cell_cut(const WfCorridor *c, const CorLane *ln, size_t t, size_t nt)
 int cor_finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit, int completed, WfError *err);
 int cor_phase_exits(WfCorridor *c, CorLane *ln, double t_end, int in_window, size_t most, WfError *err);
 void cor_advance_leader(WfCorridor *c, double t);
-void cor_record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size_t k1, RecordSums *r);
-double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, double mean, double m2);
-void cor_record(const WfCorridor *c, size_t l0, size_t l1, double t, WfCorridorRow *row);
+/* at_start: the speeds a fused step kept before it moved the vehicles (v_start), else the vehicles' own */
+void cor_record_lanes(const WfCorridor *c, size_t l0, size_t l1, size_t k0, size_t k1, int at_start, RecordSums *r);
+double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, int at_start, double mean, double m2);
+void cor_record(const WfCorridor *c, size_t l0, size_t l1, double t, int at_start, WfCorridorRow *row);
 void cor_record_row(const WfCorridor *c, const RecordSums *rs, double m2, double t, WfCorridorRow *row);
 int cor_numerical_fault(const WfCorridor *c, long step, WfError *err);
 

@@ -154,7 +154,7 @@ typedef struct PartM2 {
 static void part_sums(void *arg, void *buf)
 {
     const WfCorridor *c = arg;
-    cor_record_lanes(c, 0, 1, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, buf);
+    cor_record_lanes(c, 0, 1, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, 0, buf);
 }
 
 static void part_m2(void *arg, void *buf)
@@ -162,7 +162,7 @@ static void part_m2(void *arg, void *buf)
     const WfCorridor *c = arg;
     PartM2 *m = buf;
     double mean = m->r.n ? m->r.sv / (double)m->r.n : NAN;
-    m->m2 = cor_record_m2(c, 0, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, mean, m->m2);
+    m->m2 = cor_record_m2(c, 0, c->pt.k_lo, c->pt.k_lo + c->pt.n_own, 0, mean, m->m2);
 }
 
 /* The record of a step's start, made on rank 0 from the sums along the ranks. */
@@ -338,7 +338,7 @@ int cor_part_step_once(WfCorridor *c, long step, WfError *err)
     pt->pre[pt->p->size - 1].n += ln->veh.n - n0; /* an entry joins the last rank */
     part_layout(c);
     WfLead front = part_front(c);
-    cor_lane_exports(c, records || last);
+    cor_lane_exports(c, records || last ? COR_EXPORT_ALL : COR_EXPORT_NONE);
     c->meas_step = step, c->meas_in_window = in_window;
     if (records || last) {
         part_lane_step(c, &front, step, WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window);

@@ -238,7 +238,7 @@ int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
     if (nf > FRONT_MAX || nf >= vh->n || vh->n + (size_t)k >= vh->cap) return 0;
     cw->first0 = vh->first, cw->n0 = vh->n, cw->n_int = vh->n - nf;
     if (!wf_window_range(&cw->w, vh->first, cw->n_int, ln->lane.nthreads)) return 0;
-    cor_lane_exports(c, 0);
+    cor_lane_exports(c, COR_EXPORT_NONE);
     window_keep(c, k, 0);
     size_t rear = (cw->first0 + cw->n_int) % vh->cap;
     cw->active = 1, cw->step0 = step0, cw->k = k, cw->in_window = step0 >= c->warm_steps, cw->err = err;

@@ -184,7 +184,7 @@ static void lane_views(WfRing *s)
 #undef SHIFT
         WfLaneValues *o = &v->out;
         *o = (WfLaneValues){OFF(o->a_mps2), OFF(o->gap_m), OFF(o->v_lead_mps), OFF(o->theta_rad),
-                            OFF(o->fuel_rate_gps), OFF(o->flag)};
+                            OFF(o->fuel_rate_gps), OFF(o->flag), OFF(o->v_mps)};
         v->key0 = (size_t)l << 40;
         v->ctx = &s->lane_ctx[l];
         v->nthreads = 1, v->chunks = &s->lane_chunk[l], v->bound_x = &s->lane_bx[l], v->bound_v = &s->lane_bv[l];
@@ -197,7 +197,7 @@ static void lane_views(WfRing *s)
 static void lane_exports(WfRing *s, int on)
 {
     WfFleet *f = s->f;
-    s->lane.out = on ? (WfLaneValues){f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps, f->flag}
+    s->lane.out = on ? (WfLaneValues){f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps, f->flag, NULL}
                      : (WfLaneValues){0};
     lane_views(s);
 }
