@@ -44,7 +44,9 @@ static int rec_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
     WfCorridorRow *row = &r->rows[r->n++];
     WF_TEST_KEEP_RECORD(row, rec, wf_sim_scenario(c)->n_classes);
     if (!r->check) return 0;
-    /* Conservation and road order at this instant, recomputed from the vehicles. */
+    /* Conservation and road order, recomputed from the vehicles as the output sees them: at the record's instant or
+     * one step further (WfOutput.record), never half-way through a step. The record's own counts against the trips:
+     * trips_vs_rows. */
     const WfCorridorVehicles *vh = wf_corridor_vehicles(wf_sim_corridor(c));
     const WfCorridorCounts *k = wf_corridor_counts(wf_sim_corridor(c));
     double t = row->v[WF_CTS_T];
@@ -53,7 +55,6 @@ static int rec_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
     bad += k->arrived != k->entered + k->queued;
     bad += row->v[WF_CTS_ENTERED] != row->v[WF_CTS_EXITED] + row->v[WF_CTS_VEHICLES];
     bad += row->v[WF_CTS_ARRIVED] != row->v[WF_CTS_ENTERED] + row->v[WF_CTS_QUEUED];
-    bad += row->v[WF_CTS_VEHICLES] != (double)vh->n;
     for (size_t i = 0; i < vh->n; i++) {
         size_t s = wf_corridor_slot(vh, i);
         bad += !(vh->x_m[s] >= 0.0 && vh->x_m[s] < r->L) || !(vh->v_mps[s] >= 0.0);
@@ -66,6 +67,24 @@ static int rec_row(void *ctx, const WfSim *c, const WfRecord *rec, WfError *err)
     if (bad && r->bad < 3) printf("  t = %g: %ld invariant violations\n", t, bad);
     r->bad += bad;
     return 0;
+}
+
+/* Records whose vehicles on the road, entries and exits differ from the trips': a vehicle is on the road at instant
+ * t when it entered at t or before and had not yet reached L (t_exit > t; an exit's time lies within its step). */
+static long trips_vs_rows(const Rec *r)
+{
+    long bad = 0;
+    for (size_t j = 0; j < r->n; j++) {
+        double t = r->rows[j].v[WF_CTS_T] + 1e-9, on = 0, entered = 0, exited = 0;
+        for (size_t i = 0; i < r->n_trips; i++) {
+            const WfTrip *p = &r->trips[i];
+            int in = p->t_entry_s <= t, out = p->completed && p->t_exit_s <= t;
+            entered += in, exited += out, on += in && !out;
+        }
+        bad += r->rows[j].v[WF_CTS_VEHICLES] != on || r->rows[j].v[WF_CTS_ENTERED] != entered ||
+               r->rows[j].v[WF_CTS_EXITED] != exited;
+    }
+    return bad;
 }
 
 static int rec_trips(void *ctx, const WfSim *c, const WfTrip *t, size_t n, WfError *err)
@@ -292,6 +311,9 @@ static void test_conservation(void)
             time_lo += (t->completed ? t->t_exit_s : 900.0) - t->t_entry_s;
         }
         CHECK(bad == 0, "%ld trips out of order or with inconsistent times", bad);
+        long off = trips_vs_rows(&ra);
+        CHECK(off == 0, "%ld of %zu records count other vehicles on the road, entries or exits than the trips", off,
+              ra.n);
         CHECK(done == k->exited, "%ld completed trips, %lld exits", done, (long long)k->exited);
         CHECK(delayed == k->delayed, "%ld trips waited, counter says %lld", delayed, (long long)k->delayed);
         CHECK_REL(delay, k->queue_delay_s, 1e-9);

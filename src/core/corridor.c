@@ -1544,65 +1544,31 @@ int cor_numerical_fault(const WfCorridor *c, long step, WfError *err)
                   c->sc->classes[vh->class_id[s]].vc.name, vh->x_m[s], vh->v_mps[s]);
 }
 
-/* The record of instant t, from the vehicles' values at the step's start (at_start: a fused step kept the speeds
- * before it moved the vehicles; else they have not moved yet). */
-static int record_now(WfCorridor *c, double t, int in_window, int at_start, WfError *err)
+/* The record of instant t into *row, from the vehicles' values at the step's start (at_start: a fused step kept the
+ * speeds before it moved the vehicles; else they have not moved yet). */
+static void record_row(WfCorridor *c, double t, int in_window, int at_start, WfCorridorRow *row)
 {
-    const WfOutput *out = c->sim->out;
     size_t on_road = 0;
     for (size_t l = 0; l < c->n_lanes; l++) on_road += c->ln[l].veh.n;
-    WfCorridorRow row;
-    cor_record(c, 0, c->n_lanes, t, at_start, &row);
+    cor_record(c, 0, c->n_lanes, t, at_start, row);
     lanes_observe(c, t, at_start);
-    if (in_window && on_road) c->st.sd_sum += row.v[WF_CTS_SD_V], c->st.n_sd++;
-    WfRecord rec = {row.v, WF_CTS_N_COLS, row.class_fuel_rate_gps};
+    if (in_window && on_road) c->st.sd_sum += row->v[WF_CTS_SD_V], c->st.n_sd++;
+}
+
+static int record_out(WfCorridor *c, const WfCorridorRow *row, WfError *err)
+{
+    const WfOutput *out = c->sim->out;
+    WfRecord rec = {row->v, WF_CTS_N_COLS, row->class_fuel_rate_gps};
     return out && out->record ? out->record(out->ctx, c->sim, &rec, err) : 0;
 }
 
-/* One step: the kernel's pass that computes the step's values, fused with the advance unless a trajectory or the
- * final instant must see them first (a record reads what the fused pass keeps: COR_EXPORT_RECORD), then the open
- * boundary: the virtual leader, overlap repair, Edie and detectors, exits. Returns WF_LOOP_END after the final
- * instant (recorded without a step), 0 after a step, or an error code. */
-static int step_once(WfCorridor *c, long step, WfError *err)
+/* The open boundary after the vehicles moved: the virtual leader, overlap repair, Edie and detectors, exits. */
+static int boundary_after(WfCorridor *c, long step, int in_window, const int *flags, WfError *err)
 {
-    const WfOutput *out = c->sim->out;
-    const WfScenario *sc = c->sc;
     size_t nl = c->n_lanes;
-    double t = (double)step * sc->dt_s, t_next = (double)(step + 1) * sc->dt_s;
-    int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
-    int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
-    if (c->coop_cap_mps2) lane_cooperation(c, NULL);
-    if (nl > 1 && step > 0 && !last) lane_changes(c, step);
-    if ((rc = cor_arrivals(c, t, err)) || (rc = cor_entrance(c, t, step, err))) return rc;
-    WfLead front[WF_MAX_LANES];
-    for (size_t l = 0; l < nl; l++) front[l] = cor_front_leader(c, l);
-    int two_pass = traj || last;
-    cor_lane_exports(c, two_pass ? COR_EXPORT_ALL : records ? COR_EXPORT_RECORD : COR_EXPORT_NONE);
-    c->meas_step = step, c->meas_in_window = in_window; /* for measure_after_step */
-    if (two_pass) {
-        for (size_t l = 0; l < nl; l++) {
-            CorLane *ln = &c->ln[l];
-            wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step,
-                         WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window, NULL);
-        }
-        if (records && (rc = record_now(c, t, in_window, 0, err))) return rc;
-        if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c->sim, t, err))) return rc;
-        if (last) return WF_LOOP_END;
-        for (size_t l = 0; l < nl; l++) {
-            CorLane *ln = &c->ln[l];
-            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_ADVANCE, in_window,
-                                    NULL);
-        }
-    } else {
-        for (size_t l = 0; l < nl; l++) {
-            CorLane *ln = &c->ln[l];
-            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_FUSED | WF_PASS_COUNT,
-                                    in_window, NULL);
-        }
-        /* before the repairs and exits that follow, as a record between the two passes is */
-        if (records && (rc = record_now(c, t, in_window, 1, err))) return rc;
-    }
-    for (size_t l = 0; nl > 1 && l < nl; l++) c->lk.total.lane_vehicle_s[l] += (double)c->ln[l].veh.n * sc->dt_s;
+    double t_next = (double)(step + 1) * c->sc->dt_s;
+    int rc;
+    for (size_t l = 0; nl > 1 && l < nl; l++) c->lk.total.lane_vehicle_s[l] += (double)c->ln[l].veh.n * c->sc->dt_s;
     cor_advance_leader(c, t_next);
     for (size_t l = 0; l < nl; l++) {
         CorLane *ln = &c->ln[l];
@@ -1614,6 +1580,61 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     for (size_t l = 0; l < nl; l++)
         if ((rc = cor_phase_exits(c, &c->ln[l], t_next, in_window, SIZE_MAX, err))) return rc;
     return 0;
+}
+
+/* One step: the kernel's pass that computes the step's values, fused with the advance unless a trajectory or the
+ * final instant must see them first, then the open boundary (boundary_after). A record is taken between the two
+ * passes, or after the fused pass from what it kept (COR_EXPORT_RECORD) and handed to the output once the step is
+ * complete, so that the output never sees vehicles moved but not yet repaired or gone (WfOutput.record: they may be
+ * one step further). Returns WF_LOOP_END after the final instant (recorded without a step), 0 after a step, or an
+ * error code. */
+static int step_once(WfCorridor *c, long step, WfError *err)
+{
+    const WfOutput *out = c->sim->out;
+    const WfScenario *sc = c->sc;
+    size_t nl = c->n_lanes;
+    double t = (double)step * sc->dt_s;
+    int in_window = step >= c->warm_steps, records = step % c->out_every == 0, last = step == c->n_steps;
+    int traj = sc->trajectories && step % c->traj_every == 0, rc, flags[WF_MAX_LANES] = {0};
+    if (c->coop_cap_mps2) lane_cooperation(c, NULL);
+    if (nl > 1 && step > 0 && !last) lane_changes(c, step);
+    if ((rc = cor_arrivals(c, t, err)) || (rc = cor_entrance(c, t, step, err))) return rc;
+    WfLead front[WF_MAX_LANES];
+    for (size_t l = 0; l < nl; l++) front[l] = cor_front_leader(c, l);
+    int two_pass = traj || last;
+    cor_lane_exports(c, two_pass ? COR_EXPORT_ALL : records ? COR_EXPORT_RECORD : COR_EXPORT_NONE);
+    c->meas_step = step, c->meas_in_window = in_window; /* for measure_after_step */
+    WfCorridorRow row;
+    if (two_pass) {
+        for (size_t l = 0; l < nl; l++) {
+            CorLane *ln = &c->ln[l];
+            wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step,
+                         WF_PASS_ACCEL | WF_PASS_ENERGY | (last ? 0 : WF_PASS_COUNT), in_window, NULL);
+        }
+        if (records) record_row(c, t, in_window, 0, &row);
+        if (records && (rc = record_out(c, &row, err))) return rc;
+        if (traj && out && out->trajectory && (rc = out->trajectory(out->ctx, c->sim, t, err))) return rc;
+        if (last) return WF_LOOP_END;
+        for (size_t l = 0; l < nl; l++) {
+            CorLane *ln = &c->ln[l];
+            flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_ADVANCE, in_window,
+                                    NULL);
+        }
+        return boundary_after(c, step, in_window, flags, err);
+    }
+    for (size_t l = 0; l < nl; l++) {
+        CorLane *ln = &c->ln[l];
+        flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_FUSED | WF_PASS_COUNT,
+                                in_window, NULL);
+    }
+    /* before the repairs and exits, which change the counts and the vehicles a record sums */
+    if (records) record_row(c, t, in_window, 1, &row);
+    rc = boundary_after(c, step, in_window, flags, err);
+    if (!records) return rc;
+    if (!rc) return record_out(c, &row, err);
+    WfError lost = {0}; /* the step's error is the run's: the row still goes out, as it did before the step */
+    record_out(c, &row, &lost);
+    return rc;
 }
 
 static int corridor_step(void *eng, long step, long max_steps, long *steps, WfError *err)
