@@ -1154,10 +1154,26 @@ static void measure_share(WfCorridor *c, const CorLane *ln, long step, int in_wi
 
 /* WfRoadOps.after_step: the measurement inside the step's own parallel region, when the step needs no repair and
  * nothing else happens between the step and the measurement (one lane, no virtual leader: step_once). */
+static double record_sums(const WfCorridor *c, size_t l0, size_t l1, int at_start, RecordSums *r);
+
 static void measure_after_step(const void *ctx, int t, int nt)
 {
     const CorLane *ln = ctx;
-    measure_share(ln->c, ln, ln->c->meas_step, ln->c->meas_in_window, (size_t)t, (size_t)nt);
+    WfCorridor *c = ln->c;
+    if (!c->rec_in_step || nt < 2) {
+        measure_share(c, ln, c->meas_step, c->meas_in_window, (size_t)t, (size_t)nt);
+        return;
+    }
+    /* a record step: its sums are serial chains in road order, as long as a share of the measurement; the first
+     * thread takes them, the others the measurement */
+    if (t > 0) {
+        measure_share(c, ln, c->meas_step, c->meas_in_window, (size_t)t - 1, (size_t)nt - 1);
+        return;
+    }
+    RecordSums r;
+    c->rec_m2 = record_sums(c, 0, c->n_lanes, 1, &r);
+    memcpy(c->rec_sums, &r, sizeof r);
+    c->rec_summed = 1;
 }
 
 /* Edie cells, class profiles and detectors from each vehicle's step (xold -> x over [t, t + dt]). Several vehicles
@@ -1432,12 +1448,20 @@ double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, int at
 
 /* The record of lanes [l0, l1) (the road's: all of them): sums lane after lane, each lane front first; waves and gaps
  * within each lane. */
+/* The sums of the record of lanes [l0, l1) into *r; returns the sum of squared deviations from the mean speed. */
+static double record_sums(const WfCorridor *c, size_t l0, size_t l1, int at_start, RecordSums *r)
+{
+    *r = (RecordSums){.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY};
+    cor_record_lanes(c, l0, l1, 0, SIZE_MAX, at_start, r);
+    double mean = r->n ? r->sv / (double)r->n : NAN, m2 = 0.0;
+    for (size_t l = l0; l < l1; l++) m2 = cor_record_m2(c, l, 0, SIZE_MAX, at_start, mean, m2);
+    return m2;
+}
+
 void cor_record(const WfCorridor *c, size_t l0, size_t l1, double t, int at_start, WfCorridorRow *row)
 {
-    RecordSums r = {.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY};
-    cor_record_lanes(c, l0, l1, 0, SIZE_MAX, at_start, &r);
-    double mean = r.n ? r.sv / (double)r.n : NAN, m2 = 0.0;
-    for (size_t l = l0; l < l1; l++) m2 = cor_record_m2(c, l, 0, SIZE_MAX, at_start, mean, m2);
+    RecordSums r;
+    double m2 = record_sums(c, l0, l1, at_start, &r);
     cor_record_row(c, &r, m2, t, row);
 }
 
@@ -1550,7 +1574,13 @@ static void record_row(WfCorridor *c, double t, int in_window, int at_start, WfC
 {
     size_t on_road = 0;
     for (size_t l = 0; l < c->n_lanes; l++) on_road += c->ln[l].veh.n;
-    cor_record(c, 0, c->n_lanes, t, at_start, row);
+    if (c->rec_summed) { /* summed inside the step (measure_after_step) */
+        RecordSums r;
+        memcpy(&r, c->rec_sums, sizeof r);
+        cor_record_row(c, &r, c->rec_m2, t, row);
+    } else {
+        cor_record(c, 0, c->n_lanes, t, at_start, row);
+    }
     lanes_observe(c, t, at_start);
     if (in_window && on_road) c->st.sd_sum += row->v[WF_CTS_SD_V], c->st.n_sd++;
 }
@@ -1622,6 +1652,7 @@ static int step_once(WfCorridor *c, long step, WfError *err)
         }
         return boundary_after(c, step, in_window, flags, err);
     }
+    c->rec_in_step = records, c->rec_summed = 0;
     for (size_t l = 0; l < nl; l++) {
         CorLane *ln = &c->ln[l];
         flags[l] = wf_lane_step(&ln->lane, ln->veh.first, ln->veh.n, &front[l], step, WF_PASS_FUSED | WF_PASS_COUNT,
@@ -1629,6 +1660,7 @@ static int step_once(WfCorridor *c, long step, WfError *err)
     }
     /* before the repairs and exits, which change the counts and the vehicles a record sums */
     if (records) record_row(c, t, in_window, 1, &row);
+    c->rec_in_step = c->rec_summed = 0;
     rc = boundary_after(c, step, in_window, flags, err);
     if (!records) return rc;
     if (!rc) return record_out(c, &row, err);

@@ -144,6 +144,18 @@ typedef struct CorPart {
 } CorPart;
 #define PART_MIN_M 50.0      /* a segment's length beyond two of the longest vehicles, at least (part_check) */
 
+typedef double  V2 __attribute__((vector_size(16)));
+typedef double  V4 __attribute__((vector_size(32)));
+typedef int64_t M4 __attribute__((vector_size(32)));
+
+/* The running sums of a record's first pass, lane after lane. */
+typedef struct RecordSums {
+    double sv, sg, vmin, vmax, gmin;
+    size_t n, ngap, stopped, waves; /* counts: the same values as the sums of 1.0 they replace */
+    int    prev_slow;               /* the last vehicle added was slower than the wave speed */
+    V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_masks) */
+} RecordSums;
+
 struct WfCorridor {
     WfSim                *sim; /* the run this engine is the boundary of (outputs, threads, summary) */
     const WfScenario     *sc;  /* borrowed */
@@ -173,6 +185,11 @@ struct WfCorridor {
     int      has_vl;        /* a virtual leader (outflow leader or speed) */
     long     meas_step;     /* the step being stepped, for measure_after_step */
     int      meas_in_window;
+    /* a record step on several threads: its first thread sums the record inside the step while the others measure
+     * (measure_after_step); the sums as bytes (RecordSums holds vectors this allocation need not align) */
+    int      rec_in_step, rec_summed;
+    unsigned char rec_sums[sizeof(RecordSums)];
+    double   rec_m2;
     /* measurement */
     WfDetectors det;
     WfEdie   edie;
@@ -239,17 +256,6 @@ struct WfCorridor {
 static inline uint64_t lane_key(size_t l, uint64_t n) { return ((uint64_t)l << 40) + n; }
 
 
-typedef double  V2 __attribute__((vector_size(16)));
-typedef double  V4 __attribute__((vector_size(32)));
-typedef int64_t M4 __attribute__((vector_size(32)));
-
-/* The running sums of a record's first pass, lane after lane. */
-typedef struct RecordSums {
-    double sv, sg, vmin, vmax, gmin;
-    size_t n, ngap, stopped, waves; /* counts: the same values as the sums of 1.0 they replace */
-    int    prev_slow;               /* the last vehicle added was slower than the wave speed */
-    V4     cf[4];                   /* class fuel rates: classes 4 v .. 4 v + 3 in vector v (lane_masks) */
-} RecordSums;
 
 #define ALLOC(ptr, count)                                                                            \
     do {                                                                                             \
