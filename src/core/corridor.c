@@ -1152,10 +1152,11 @@ static void measure_share(WfCorridor *c, const CorLane *ln, long step, int in_wi
                   nd * (t + 1) / nt);
 }
 
-/* WfRoadOps.after_step: the measurement inside the step's own parallel region, when the step needs no repair and
- * nothing else happens between the step and the measurement (one lane, no virtual leader: step_once). */
 static double record_sums(const WfCorridor *c, size_t l0, size_t l1, int at_start, RecordSums *r);
 
+/* WfRoadOps.after_step: the measurement inside the step's own parallel region, when the step needs no repair and
+ * nothing else happens between the step and the measurement (one lane, no virtual leader: step_once); on a record
+ * step, the record's sums too (record_row takes them). */
 static void measure_after_step(const void *ctx, int t, int nt)
 {
     const CorLane *ln = ctx;
@@ -1446,9 +1447,8 @@ double cor_record_m2(const WfCorridor *c, size_t l, size_t k0, size_t k1, int at
 }
 
 
-/* The record of lanes [l0, l1) (the road's: all of them): sums lane after lane, each lane front first; waves and gaps
- * within each lane. */
-/* The sums of the record of lanes [l0, l1) into *r; returns the sum of squared deviations from the mean speed. */
+/* The sums of the record of lanes [l0, l1) into *r, lane after lane, each lane front first; waves and gaps within
+ * each lane. Returns the sum of squared deviations from the mean speed. */
 static double record_sums(const WfCorridor *c, size_t l0, size_t l1, int at_start, RecordSums *r)
 {
     *r = (RecordSums){.vmin = INFINITY, .vmax = -INFINITY, .gmin = INFINITY};
@@ -1458,6 +1458,7 @@ static double record_sums(const WfCorridor *c, size_t l0, size_t l1, int at_star
     return m2;
 }
 
+/* The record of lanes [l0, l1) (the road's: all of them). */
 void cor_record(const WfCorridor *c, size_t l0, size_t l1, double t, int at_start, WfCorridorRow *row)
 {
     RecordSums r;
