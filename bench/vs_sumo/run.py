@@ -15,8 +15,8 @@ SUMO inserts every vehicle, taken out (timed by 1-step runs), as wavefuel's loop
 wavefuel: N x /meta/steps_done / /meta/wall_time_s, over at least 5e7 vehicle-steps (same ring and dt, more steps
 than SUMO runs: a 0.1 s run is spoilt by one burst of load on a shared machine). SUMO runs without and with its
 emission device (HBEFA3/PC_G_EU4, the default class of SUMO 1.15, on every vehicle: --device.emissions.probability
-1). wavefuel always evaluates its energy model; "without fuel" for wavefuel is therefore not measured but
-estimated by subtracting the energy phase (/meta/phase_time) of a run with time.fused_step=false, and labelled so.
+1). wavefuel always evaluates its energy model, and its one-pass step does not time the energy apart (in
+/meta/phase_time the energy phase stays 0): it is compared, fuel included, with SUMO without and with the device.
 
 SUMO is optional: without `sumo` and `netconvert` on PATH the SUMO columns are skipped (and said so), and only
 wavefuel runs. Writes bench/vs_sumo/results.json and results.csv; --table prints the Markdown table again.
@@ -256,21 +256,15 @@ def tables(res):
                  fmt(s1 and w2 / s1["vsteps_per_s"], ".0f"), f"{r['load_before']:.1f}–{r['load_after']:.1f}"]
         out.append("| " + " | ".join(cells) + " |")
     out.append("")
-    out.append("wavefuel without fuel cannot be switched off; estimate from the unfused step (time.fused_step=false), "
-               "its energy phase subtracted:")
+    out.append("wavefuel's rates include its energy model, which cannot be switched off. What SUMO's emission device "
+               "costs SUMO (its loop time with the device over without):")
     out.append("")
-    out.append("| N | wavefuel unfused, 1 thr | energy phase share | estimate without fuel | ratio to SUMO (no "
-               "emissions) | SUMO: emission device cost |")
-    out.append("|---|---|---|---|---|---|")
+    out.append("| N | SUMO: emission device cost |")
+    out.append("|---|---|")
     for r in res["rows"]:
-        u = r["wf1_unfused"]
-        share = u["phases"].get("energy", 0.0) / u["loop_s"]
-        est = u["vsteps_per_s"] / (1.0 - share)
         s0, s1 = r.get("sumo"), r.get("sumo_fuel")
         cost = (s0["vsteps_per_s"] / s1["vsteps_per_s"] - 1.0) if s0 and s1 else None
-        out.append(f"| {fmt_n(r['n'])} | {fmt(u['vsteps_per_s'])} | {100 * share:.1f} % | {fmt(est)} | "
-                   f"{fmt(s0 and est / s0['vsteps_per_s'], '.0f')} | "
-                   f"{format(100 * cost, '+.0f') + ' % time' if cost is not None else '—'} |")
+        out.append(f"| {fmt_n(r['n'])} | {format(100 * cost, '+.0f') + ' % time' if cost is not None else '—'} |")
     out.append("")
     out.append("Same dynamics (mean speed, m/s; SUMO --summary-output, wavefuel /timeseries/mean_speed), and the "
                "cost of SUMO's first step (insertion of all vehicles, included in its UPS) and process figures:")
@@ -345,7 +339,6 @@ def main():
             row["wf_steps"] = wf_steps = max(steps, math.ceil(WF_MIN_VSTEPS / n))
             row["wf1"] = wavefuel_measure(binary, d, n, wf_steps, 1, args.repeats)
             row["wf2"] = wavefuel_measure(binary, d, n, wf_steps, 2, args.repeats)
-            row["wf1_unfused"] = wavefuel_measure(binary, d, n, wf_steps, 1, args.repeats, ["time.fused_step=false"])
             row["load_after"] = loadavg()
             res["rows"].append(row)
             s = row.get("sumo")
@@ -362,13 +355,11 @@ def main():
     with open(os.path.join(args.out, "results.csv"), "w", newline="") as f:
         w = csv.writer(f)
         w.writerow(["n", "steps", "wavefuel_steps", "sumo_vsteps_per_s", "sumo_emissions_vsteps_per_s", "wavefuel_1t_vsteps_per_s",
-                    "wavefuel_2t_vsteps_per_s", "wavefuel_1t_unfused_vsteps_per_s", "wavefuel_1t_unfused_energy_s",
-                    "sumo_first_step_s", "load_before", "load_after"])
+                    "wavefuel_2t_vsteps_per_s", "sumo_first_step_s", "load_before", "load_after"])
         for r in res["rows"]:
             g = lambda k: r[k]["vsteps_per_s"] if k in r else ""  # noqa: E731
-            w.writerow([r["n"], r["steps"], r["wf_steps"], g("sumo"), g("sumo_fuel"), g("wf1"), g("wf2"), g("wf1_unfused"),
-                        r["wf1_unfused"]["phases"].get("energy", ""), r.get("sumo_first_step_s", ""),
-                        r["load_before"], r["load_after"]])
+            w.writerow([r["n"], r["steps"], r["wf_steps"], g("sumo"), g("sumo_fuel"), g("wf1"), g("wf2"),
+                        r.get("sumo_first_step_s", ""), r["load_before"], r["load_after"]])
     print()
     print(tables(res))
     return 0
