@@ -270,7 +270,8 @@ static const WfKeySpec time_rows[] = {
             "those values fleet-wide for the writer (so runs with trajectories hold 49 B more per vehicle), the "
             "second advancing. Results are bit-identical either way (`tests/test_engine_paths.c`: final state, every "
             "record, every accumulator, with and without trajectories). Set false to time the two passes apart in "
-            "`/meta/phase_time`"},
+            "`/meta/phase_time` (rings; a corridor always takes the fused step, as docs/corridors.md says, and writes "
+            "no phase times)"},
     {.key = "block_steps", .type = WF_KEY_INTEGER, .on = WF_ON_BOTH, .offset = offsetof(WfScenario, block_steps),
      .size = sizeof(int), .def = 0, .imin = 0, .imax = 200, .doc_default = "0 (ring: 64; corridor: 1)",
      .doc_range = "0, 1, …, 200",
