@@ -2,13 +2,15 @@
 # One road split across MPI ranks (`mpirun -n R bin/wavefuel-mpi run`, issue 20). A ring: the result file equals
 # `wavefuel run` of the same scenario in every dataset outside /meta (and /meta/steps_done, /meta/completed), bit for
 # bit, for 2 and 3 ranks, 1 and 2 threads, time-blocked windows of 16 steps and one step at a time: a graded
-# heterogeneous noisy ring with two classes and a speed limit, controllers with memory under a safety filter, a ring
-# whose overlaps are repaired, a numerical fault on rank 1 (the same exit status, message and partial file); a run
-# stopped by SIGTERM (to mpirun, or to rank 1 alone) resumes on another rank count and in one process to the
-# uninterrupted result; what the ranks cannot split is refused with exit status 2, the key named and no file
-# written; uneven shares are refused or give the one-process result. A corridor: the same for 2, 3 and 4 ranks, 1 and
-# 2 threads, with detectors at and beside the cuts between the ranks' segments, overlaps repaired across them, a
-# stop by SIGTERM resumed on another rank count and in one process, and its own refusals.
+# heterogeneous noisy ring with two classes and a speed limit, a ring whose initial equilibrium sums run across the
+# ranks' shares (each rank builds only its own) and whose initial overlaps are found by one rank alone, a checkpoint
+# of one process resumed on 3 ranks that read back only their shares, controllers with memory under a safety filter, a
+# ring whose overlaps are repaired, a numerical fault on rank 1 (the same exit status, message and partial file); a
+# run stopped by SIGTERM (to mpirun, or to rank 1 alone) resumes on another rank count and in one process to the
+# uninterrupted result; what the ranks cannot split is refused with exit status 2, the key named and no file written;
+# uneven shares are refused or give the one-process result. A corridor: the same for 2, 3 and 4 ranks, 1 and 2
+# threads, with detectors at and beside the cuts between the ranks' segments, overlaps repaired across them, a stop by
+# SIGTERM resumed on another rank count and in one process, and its own refusals.
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 MPIBIN=${WAVEFUEL_MPI_BIN:-bin/wavefuel-mpi}
@@ -78,6 +80,67 @@ for r in 2 3; do
     done
   done
 done
+
+# (a2) Each rank builds only its share of the fleet (docs/mpi.md, Memory). 13 000 heterogeneous vehicles: the
+# equilibrium speed sums 4 blocks of 4096, two of which run past a share's end on 3 ranks ([4096, 8192) from rank 0
+# into rank 1, [8192, 12288) from rank 1 into rank 2); PI with saturation, whose memory starts from its leader's speed;
+# rank 1's first vehicle (the leader of rank 0's last) perturbed, jitter everywhere; 2 ranks too.
+cat >"$tmp/build.yaml" <<'EOF2'
+seed: 5
+road: {length_m: 346000, speed_limit_mps: 24}
+time: {duration_s: 3, dt_s: 0.1, output_interval_s: 0.5}
+fleet:
+  vehicles: 13000
+  placement: random
+  classes:
+    - {class: midsize_sedan, fraction: 0.8}
+    - {class: class8_tractor, fraction: 0.2}
+  drivers:
+    - {model: idm, count: 11700, noise_mps2: 0.2, heterogeneity: {spread: {T_s: 0.2, v0_mps: 0.1}}}
+    - {model: pi_saturation, count: 1300}
+initial: {state: equilibrium, jitter_m: 0.4, perturbation: {vehicle: 4352, dx_m: -1.5, dv_mps: -3}}
+output: {trajectories: false}
+EOF2
+run "$tmp/build.yaml" -o "$tmp/build_ref.h5" --threads 1
+mpi_same share_build_R3_threads1_block16 "$tmp/build_ref.h5" 3 1 16 "$tmp/build.yaml"
+mpi_same share_build_R2_threads2_block1 "$tmp/build_ref.h5" 2 2 1 "$tmp/build.yaml"
+# An overlap found by one rank alone, the same message as one process on every rank, exit status 2, no file:
+# vehicle 9000 (rank 2's) pushed onto its leader; rank 1's first vehicle pushed back onto rank 0's last (4351), which
+# only rank 0 sees, through the leader it builds.
+for c in 9000:40:9000 4352:-40:4351; do
+  IFS=: read -r pv dx who <<<"$c"
+  name=share_build_error_vehicle$who
+  want=$($BIN run "$tmp/build.yaml" -q -o "$tmp/bad.h5" --set initial.perturbation.vehicle=$pv \
+         --set initial.perturbation.dx_m=$dx 2>&1); rc1=$?
+  msg=$(mpi 3 run "$tmp/build.yaml" -q -o "$tmp/bad.h5" --set initial.perturbation.vehicle=$pv \
+        --set initial.perturbation.dx_m=$dx 2>&1); rc=$?
+  if [ $rc1 -eq 2 ] && [ $rc -eq 2 ] && echo "$want" | grep -q "vehicle $who overlap" &&
+     [ "$(echo "$msg" | grep -c -F -- "$want")" -ge 1 ] && [ -z "$(ls "$tmp" | grep '^bad\.h5')" ]; then ok "$name"
+  else ko "$name" "rc $rc1 / $rc: one process: $want; 3 ranks: $msg"; fi
+  rm -f "$tmp"/bad.h5*
+done
+
+# A checkpoint of one process resumed on 3 ranks, each reading back only its share of the per-vehicle blocks and of
+# the controllers' memory (12.5 MB for PI with saturation), in pieces of 64 KiB, all summed: the uninterrupted result;
+# one byte changed in the last share's positions fails the checksum (exit status 2).
+. tests/interrupt.sh
+BLONG="$tmp/build.yaml --set time.duration_s=3000 --set time.output_interval_s=10"
+run $BLONG -o "$tmp/blong_ref.h5" --threads 2
+$BIN run $BLONG -q -o "$tmp/blong.h5" --threads 1 --checkpoint-every 0.2 >"$tmp/blong.log" 2>&1 & bpid=$!
+if wait_checkpoint "$tmp/blong.h5" $bpid && signal_running TERM $bpid; then
+  wait $bpid; rc=$?
+  cp "$tmp/blong.h5.ckpt" "$tmp/bad_ckpt.h5.ckpt"; cp "$tmp/blong.h5.partial" "$tmp/bad_ckpt.h5.partial"
+  $PY -c "import h5py,sys; d=h5py.File(sys.argv[1],'r+')['state/x']; d[d.shape[0]-5]^=1" "$tmp/bad_ckpt.h5.ckpt"
+  MPI_TIMEOUT=400 mpi 3 run --resume "$tmp/blong.h5" -q --threads 1 >"$tmp/blong_r.log" 2>&1; rc2=$?
+  if [ $rc -eq 3 ] && [ $rc2 -eq 0 ] && msg=$(same "$tmp/blong_ref.h5" "$tmp/blong.h5" 2>&1); then
+    ok "share_resume_one_process_checkpoint_on_3_ranks ($msg)"
+  else ko share_resume_one_process_checkpoint_on_3_ranks "rc $rc / $rc2: $(tail -3 "$tmp/blong_r.log") ${msg:-}"; fi
+  msg=$(mpi 3 run --resume "$tmp/bad_ckpt.h5" -q --threads 1 2>&1); rc=$?
+  if [ $rc -eq 2 ] && echo "$msg" | grep -q "does not match the contents"; then ok share_resume_checksum
+  else ko share_resume_checksum "rc $rc: $msg"; fi
+else
+  ko share_resume_one_process_checkpoint_on_3_ranks "no checkpoint to interrupt: $(tail -3 "$tmp/blong.log")"
+fi
 
 # (b) Controllers: scenarios/sugiyama_followerstopper.yaml at 1536 vehicles (the same density, one AV in 24), and the
 # ring of scenarios/ring_waves_av.yaml with 10 % PI with saturation (per-vehicle memory) under a Gipps safety filter

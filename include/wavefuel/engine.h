@@ -143,6 +143,10 @@ typedef struct WfStateVar {
     void       *data;
     size_t      size;   /* bytes */
     size_t      stride; /* bytes per vehicle when the block is a ring's per-vehicle array (in road order); else 0 */
+    /* A ring split across processes: only bytes [lo, hi) of the block are this process's, the only ones a resumed
+     * run reads back (the rest is never taken: docs/mpi.md, Memory). partial 0: the whole block. */
+    int         partial;
+    size_t      lo, hi;
 } WfStateVar;
 /* Room for the blocks of a checkpoint: a ring has at most 25 + WF_MAX_GROUPS, a corridor at most 56, and the
  * result writer adds at most 22 (rows of compressed datasets still in memory). */

@@ -7,10 +7,14 @@
 #include <stddef.h>
 #include <stdint.h>
 #include "wavefuel/err.h"
+#include "wavefuel/partition.h"
 #include "wavefuel/scenario.h"
 
 typedef struct WfFleet {
     size_t n;
+    /* The vehicles whose state this process holds: all of them, or its share of a ring split across processes
+     * (wf_fleet_create_part), where only class_id and group_id are whole. */
+    size_t share_lo, share_hi;
     /* state: front-bumper position (unwrapped, m), speed (m/s) */
     double *x_m, *v_mps;
     /* per-step values at the step's start: applied acceleration, bumper-to-bumper gap, leader speed, grade,
@@ -64,6 +68,12 @@ enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };
  * is rejected by its model, or when a perturbation makes vehicles overlap. Ownership: sc is borrowed (the fleet
  * keeps no pointer to it); *out is the caller's until wf_fleet_destroy(); NULL on failure. */
 int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err);
+/* The same fleet for a ring split across processes (part non-NULL; NULL: wf_fleet_create): this process builds its
+ * share (wf_partition_blocks) and the parameters of the vehicles it reads ahead of it; every array stays whole
+ * (indexed by vehicle), but only class_id and group_id are written outside the share, so the rest of the pages is
+ * never taken. The sums along the ring run in ring order across the processes: every value of the share, and every
+ * error, is one process's. Collective. Ownership as wf_fleet_create; part is borrowed for the call. */
+int wf_fleet_create_part(const WfScenario *sc, const WfPartition *part, WfFleet **out, WfError *err);
 /* Open the statistics window now: positions become the reference of distances and passages. */
 void wf_fleet_open_window(WfFleet *f);
 void wf_fleet_destroy(WfFleet **f);
@@ -73,6 +83,10 @@ void wf_fleet_destroy(WfFleet **f);
  * out holds the model's parameter struct (param_size bytes). Used by the corridor, which draws at entry with the
  * vehicle's serial number. Fails (WF_EINPUT) when 1000 draws are all rejected. */
 int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, double *out, WfError *err);
+
+/* Vehicle i's parameters (wf_fleet_params), also outside this process's share: drawn into buf (the model's
+ * param_size bytes) as the build draws them. NULL with err set when the draws fail. */
+const void *wf_fleet_params_of(const WfFleet *f, const WfScenario *sc, size_t i, double *buf, WfError *err);
 
 /* Vehicle i's index within its group (0 when no group keeps per-vehicle parameters or state). */
 static inline size_t wf_fleet_slot(const WfFleet *f, size_t i) { return f->slot ? f->slot[i] : 0; }

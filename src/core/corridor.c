@@ -1773,10 +1773,11 @@ static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
     size_t cap = vh->cap, nl = c->n_lanes, k = 0, nd = c->det.n_int * c->det.n_det;
     size_t ne = nl * c->edie.nx * c->edie.nt;
     size_t ncx = c->edie.nx * c->sc->n_classes;
-#define VAR(nm, ptr, count)                                                                     \
-    do {                                                                                        \
-        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (size_t)(count) * sizeof *(ptr), 0}; \
-        k++;                                                                                    \
+#define VAR(nm, ptr, count)                                                                          \
+    do {                                                                                             \
+        if (k < max)                                                                                 \
+            vars[k] = (WfStateVar){.name = (nm), .data = (void *)(ptr), .size = (size_t)(count) * sizeof *(ptr)}; \
+        k++;                                                                                         \
     } while (0)
     VAR("scalars", &c->st, 1);
     /* each lane's buffer indices: lane 0's as "first" and "n", lane l's as "firstL" and "nL" */

@@ -23,13 +23,15 @@ int cor_window_init(WfCorridor *c, WfError *err)
     if (!ok || cap / WF_BLOCK < 2) return 0;
     size_t na = 0, pst = c->pstride * sizeof(double);
 #define SLOT_VAR(nm, field, stepped)                                                                            \
-    cw->all[na++] = (WfStateVar){nm, ln->field, cap * sizeof *ln->field, sizeof *ln->field};                     \
+    cw->all[na++] = (WfStateVar){.name = nm, .data = ln->field, .size = cap * sizeof *ln->field,                    \
+                                 .stride = sizeof *ln->field};                                                      \
     if (stepped) cw->vars[nv++] = cw->all[na - 1];
     SAVED_SLOT_ARRAYS(SLOT_VAR)
 #undef SLOT_VAR
-    cw->all[na++] = (WfStateVar){"params", ln->veh.params, cap * pst, pst};
+    cw->all[na++] = (WfStateVar){.name = "params", .data = ln->veh.params, .size = cap * pst, .stride = pst};
     if (c->sstride)
-        cw->vars[nv++] = cw->all[na++] = (WfStateVar){"controller_state", ln->veh.state, cap * c->sstride, c->sstride};
+        cw->vars[nv++] = cw->all[na++] = (WfStateVar){.name = "controller_state", .data = ln->veh.state,
+                                                      .size = cap * c->sstride, .stride = c->sstride};
     for (size_t j = 0; j < nv; j++) bytes += cw->vars[j].size, cw->slot_bytes += cw->vars[j].stride;
     for (size_t j = 0; j < na; j++) cw->all_bytes += cw->all[j].stride;
     cw->n_vars = nv, cw->n_all = na;

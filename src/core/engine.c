@@ -279,11 +279,11 @@ static int window_init(WfRing *s, WfError *err)
 
 /* ------------------------------------------------------------------ a ring split across processes */
 
-/* This rank steps the blocks [b_lo, b_hi) of the ring (wavefuel/partition.h, docs/mpi.md): every array is whole on
- * every rank, but only this part's entries are current. What the part reads of the next part (its first vehicle,
- * the leader of this part's last; its first k + 1 vehicles, which a window's halo steps again) arrives in messages
- * and is written into the same arrays; whatever needs the whole ring (a record's block sums, the overlap repair,
- * the summary, a checkpoint) is gathered. Each step or window ends with one agreement of every rank on its flags and
+/* This rank steps the blocks [b_lo, b_hi) of the ring (wavefuel/partition.h, docs/mpi.md): every array is indexed
+ * by vehicle on every rank, but only this part's entries are built and current (wf_fleet_create_part). What the
+ * part reads of the next part (its first vehicle, the leader of this part's last; its first k + 1 vehicles, which a
+ * window's halo steps again) arrives in messages and is written into the same arrays; whatever needs the whole ring
+ * (a record's block sums, the overlap repair, the summary, a checkpoint) is gathered. Each step or window ends with one agreement of every rank on its flags and
  * on a stop, so all ranks repair, redo or stop at the same step. */
 enum { WF_PART_STOP_SHIFT = 8 }; /* the agreed word: WF_STEP_* flags below, the stop's signal number above */
 
@@ -532,7 +532,7 @@ static int ring_create(WfSim *sim, WfError *err)
     s->nthreads = sim->nthreads;
     int rc = sc->adaptive ? 0 : wf_integrator_find(sc->integrator, &s->ig, err);
     if (!rc && sim->part) rc = part_check(sc, sim->part, err);
-    if (!rc) rc = wf_fleet_create(sc, &s->f, err);
+    if (!rc) rc = wf_fleet_create_part(sc, sim->part, &s->f, err);
     if (rc) return rc;
     s->n_steps = wf_scenario_n_steps(sc);
     s->out_every = wf_scenario_output_every(sc);
@@ -966,13 +966,15 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
     lanes_safety(s, 0);
 #define VAR(nm, ptr, bytes)                                                  \
     do {                                                                     \
-        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), (bytes), 0}; \
+        if (k < max) vars[k] = (WfStateVar){.name = (nm), .data = (void *)(ptr), .size = (bytes)}; \
         k++;                                                                 \
     } while (0)
-    /* a per-vehicle array: time-blocked windows copy it tile by tile */
+    /* a per-vehicle array: time-blocked windows copy it tile by tile; split across processes, this rank's share is
+     * its part */
 #define VEH(nm, ptr)                                                                                      \
     do {                                                                                                 \
-        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), n * sizeof *(ptr), sizeof *(ptr)};       \
+        if (k < max) vars[k] = (WfStateVar){(nm), (void *)(ptr), n * sizeof *(ptr), sizeof *(ptr), s->part != NULL, \
+                                            f->share_lo * sizeof *(ptr), f->share_hi * sizeof *(ptr)};           \
         k++;                                                                                             \
     } while (0)
     VAR("scalars", &s->ck, sizeof s->ck);
@@ -1009,8 +1011,11 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
                                                            "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
                                                            "ctrl12", "ctrl13", "ctrl14", "ctrl15"};
     for (size_t g = 0; g < f->n_groups; g++) {
-        size_t ssz = s->sc->groups[g].model->state_size;
+        size_t ssz = s->sc->groups[g].model->state_size, ns = s->part ? (size_t)s->part->size + 1 : 0;
         if (ssz) VAR(state_names[g], f->group_state[g], f->group_n[g] * ssz);
+        if (ssz && s->part && k <= max) /* this rank's members: a run of the group's (part_init) */
+            vars[k - 1].partial = 1, vars[k - 1].lo = s->group_before[g * ns + (size_t)s->part->rank] * ssz,
+            vars[k - 1].hi = s->group_before[g * ns + (size_t)s->part->rank + 1] * ssz;
     }
 #undef VAR
 #undef VEH

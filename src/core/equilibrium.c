@@ -67,69 +67,98 @@ double wf_equilibrium_gap(const WfCfModel *m, const void *params, double v, doub
 }
 
 typedef struct RingCtx {
-    const WfScenario *sc;
-    const WfFleet    *f;
-    double           *gap;
-    double           *block_sum;
+    const WfScenario  *sc;
+    const WfFleet     *f;
+    double            *gap;
+    double            *block_sum;
+    /* a ring split across processes: this process sums the blocks that start among [lo, hi) */
+    const WfPartition *part;
+    size_t             lo, hi;
+    WfError           *err;
+    int                failed;
 } RingCtx;
 
-enum { EQ_BLOCK = 4096 };
+void wf_equilibrium_ring_gaps(const WfScenario *sc, const WfFleet *f, double v, size_t lo, size_t hi, double *gap)
+{
+    const void *prev = NULL;
+    for (size_t i = lo; i < hi; i++) {
+        /* Vehicles sharing a parameter block (a group without heterogeneity) share their gap: same inputs, same
+         * root, so reusing it changes no bit and saves a root solve per vehicle. */
+        const void *p = wf_fleet_params(f, sc, i);
+        gap[i] = p == prev ? gap[i - 1] : wf_equilibrium_gap(sc->groups[f->group_id[i]].model, p, v, sc->road.length_m);
+        prev = p;
+    }
+}
 
 /* Fleet length at common speed v minus the ring length: increasing in v. Each vehicle's gap is capped at L
  * (no equilibrium within the ring at this speed counts as "too long"). */
 static double ring_fn(double v, const void *vctx)
 {
-    const RingCtx *c = vctx;
+    RingCtx *c = (RingCtx *)vctx;
     const WfFleet *f = c->f;
     const WfScenario *sc = c->sc;
-    size_t n = f->n, nb = (n + EQ_BLOCK - 1) / EQ_BLOCK;
-    double L = sc->road.length_m, *gap = c->gap, *bs = c->block_sum;
-    WF_PAR_FOR(n >= 2 * EQ_BLOCK, "omp parallel for schedule(dynamic, 1) default(none) shared(n, nb, f, sc, L, v, gap, bs)",
+    size_t n = f->n, nb = (n + WF_EQ_BLOCK - 1) / WF_EQ_BLOCK;
+    size_t b_lo = c->part ? (c->lo + WF_EQ_BLOCK - 1) / WF_EQ_BLOCK : 0;
+    size_t b_hi = c->part ? (c->hi + WF_EQ_BLOCK - 1) / WF_EQ_BLOCK : nb;
+    double *gap = c->gap, *bs = c->block_sum;
+    WF_PAR_FOR(n >= 2 * WF_EQ_BLOCK,
+               "omp parallel for schedule(dynamic, 1) default(none) shared(n, nb, b_lo, b_hi, f, sc, v, gap, bs)",
     for (size_t b = 0; b < nb; b++) {
-        size_t end = (b + 1) * EQ_BLOCK < n ? (b + 1) * EQ_BLOCK : n;
+        bs[b] = 0.0; /* another process's block: +0 here, its sum there */
+        if (b < b_lo || b >= b_hi) continue;
+        size_t end = (b + 1) * WF_EQ_BLOCK < n ? (b + 1) * WF_EQ_BLOCK : n;
+        wf_equilibrium_ring_gaps(sc, f, v, b * WF_EQ_BLOCK, end, gap);
         double s = 0.0;
-        const void *prev = NULL;
-        for (size_t i = b * EQ_BLOCK; i < end; i++) {
-            /* Vehicles sharing a parameter block (a group without heterogeneity) share their gap: same inputs,
-             * same root, so reusing it changes no bit and saves a root solve per vehicle. */
-            const void *p = wf_fleet_params(f, sc, i);
-            gap[i] = p == prev ? gap[i - 1] : wf_equilibrium_gap(sc->groups[f->group_id[i]].model, p, v, L);
-            prev = p;
-            s += gap[i] + wf_fleet_length(f, i);
-        }
+        for (size_t i = b * WF_EQ_BLOCK; i < end; i++) s += gap[i] + wf_fleet_length(f, i);
         bs[b] = s;
     });
+    if (c->part && !c->failed && c->part->sum_f64(c->part->ctx, bs, nb, c->err)) c->failed = 1;
     double total = 0.0;
     for (size_t b = 0; b < nb; b++) total += bs[b];
-    return total - L;
+    return total - sc->road.length_m;
 }
 
-double wf_equilibrium_ring(const WfScenario *sc, const WfFleet *f, double v_hi, double *gap)
+static double equilibrium_ring(RingCtx *c, double v_hi)
 {
-    size_t nb = (f->n + EQ_BLOCK - 1) / EQ_BLOCK;
+    size_t nb = (c->f->n + WF_EQ_BLOCK - 1) / WF_EQ_BLOCK;
     double *bs = malloc((nb + 1) * sizeof *bs);
     if (!bs) return NAN;
-    RingCtx c = {sc, f, gap, bs};
-    double lo = 0.0, hi = v_hi, glo = ring_fn(lo, &c), v;
+    c->block_sum = bs;
+    double lo = 0.0, hi = v_hi, glo = ring_fn(lo, c), v;
     if (glo >= 0.0) {
         v = 0.0; /* jammed: the caller has checked that the standstill gaps fit */
     } else {
-        double ghi = ring_fn(hi, &c);
+        double ghi = ring_fn(hi, c);
         if (ghi <= 0.0) {
             v = v_hi;
         } else {
             /* Gaps capped at L make the top of the bracket huge and flat: bisect to 1/4096 of it first. */
             for (int it = 0; it < 12; it++) {
-                double mid = 0.5 * (lo + hi), g = ring_fn(mid, &c);
+                double mid = 0.5 * (lo + hi), g = ring_fn(mid, c);
                 if (g < 0.0) lo = mid, glo = g;
                 else hi = mid, ghi = g;
             }
             /* The fleet length is a sum of N roots, each exact to ~1 ulp: below 1e-12 m/s the bracket only chases
              * that rounding noise, so stop there (the spare length is shared out by the caller anyway). */
-            v = ghi == 0.0 ? hi : illinois(ring_fn, &c, lo, hi, glo, ghi, 1e-12, 100);
+            v = ghi == 0.0 ? hi : illinois(ring_fn, c, lo, hi, glo, ghi, 1e-12, 100);
         }
     }
-    ring_fn(v, &c); /* leave the gaps of the chosen speed in gap[] */
+    if (!c->part) ring_fn(v, c); /* leave the gaps of the chosen speed in gap[] */
     free(bs);
+    return c->failed ? NAN : v;
+}
+
+double wf_equilibrium_ring(const WfScenario *sc, const WfFleet *f, double v_hi, double *gap)
+{
+    RingCtx c = {.sc = sc, .f = f, .gap = gap};
+    return equilibrium_ring(&c, v_hi);
+}
+
+double wf_equilibrium_ring_part(const WfScenario *sc, const WfFleet *f, double v_hi, const WfPartition *part,
+                                size_t lo, size_t hi, double *gap, WfError *err)
+{
+    RingCtx c = {.sc = sc, .f = f, .gap = gap, .part = part, .lo = lo, .hi = hi, .err = err};
+    double v = equilibrium_ring(&c, v_hi);
+    if (isnan(v) && !c.failed) wf_err(err, WF_ESYS, "out of memory");
     return v;
 }

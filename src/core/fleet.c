@@ -8,6 +8,7 @@
 
 #include "wavefuel/equilibrium.h"
 #include "wavefuel/rng.h"
+#include "core/block.h"
 
 void wf_fleet_destroy(WfFleet **pf)
 {
@@ -171,6 +172,22 @@ static int place_all(const WfScenario *sc, WfFleet *f, WfError *err)
     return 0;
 }
 
+/* The build's errors, in one place: a process of a split ring formats the one its processes agreed on. */
+static int err_draws(const WfScenario *sc, const WfDriverGroup *g, size_t vehicle, WfError *err)
+{
+    return wf_err(err, WF_EINPUT,
+                  "%s: driver group '%s': 1000 draws of the heterogeneous parameters for vehicle %zu were all out of "
+                  "range or rejected by the model: reduce heterogeneity.spread",
+                  sc->path, g->name, vehicle);
+}
+
+static int err_overlap(const WfScenario *sc, size_t vehicle, double gap_m, WfError *err)
+{
+    return wf_err(err, WF_EINPUT,
+                  "%s: the initial perturbation or jitter makes vehicle %zu overlap its leader (gap %.6g m)", sc->path,
+                  vehicle, gap_m);
+}
+
 /* One vehicle's parameters: base values times (1 + spread * z), z a standard normal truncated to |z| <= 2 or
  * a uniform on [-1, 1]; values outside the spec's range or rejected by check() are redrawn (deterministic:
  * attempt number is part of the counter). */
@@ -205,10 +222,7 @@ static int draw_params(const WfScenario *sc, const WfDriverGroup *g, size_t vehi
         if (ok && m->check && m->check(out, NULL) != 0) ok = 0;
         if (ok) return 0;
     }
-    return wf_err(err, WF_EINPUT,
-                  "%s: driver group '%s': 1000 draws of the heterogeneous parameters for vehicle %zu were all out of "
-                  "range or rejected by the model: reduce heterogeneity.spread",
-                  sc->path, g->name, vehicle);
+    return err_draws(sc, g, vehicle, err);
 }
 
 int wf_fleet_draw_params(const WfScenario *sc, size_t group, uint64_t vehicle, double *out, WfError *err)
@@ -256,9 +270,73 @@ static int fleet_alloc(const WfScenario *sc, WfFleet *f, WfError *err)
     return 0;
 }
 
+/* ------------------------------------------------------------------ the vehicles one process builds */
+
+/* All of them, or this process's share of a ring split across processes (wavefuel/partition.h): the vehicles it
+ * steps, [lo, hi), and those whose parameters it reads, [hi, reach) (the equilibrium's blocks that start in the
+ * share, a window's halo) and [0, wrap) (the last process's halo). Every process places every vehicle's class and
+ * group, as one process does; the other per-vehicle arrays are written only where it builds (pages never written
+ * take no memory). The sums along the whole ring run in ring order across the processes, so every value is one
+ * process's, bit for bit. */
+typedef struct Share {
+    const WfPartition *part; /* NULL: one process */
+    size_t lo, hi, reach, wrap;
+} Share;
+
+static int share_holds(const Share *sh, size_t i) { return (i >= sh->lo && i < sh->reach) || i < sh->wrap; }
+
+/* A build error of a split ring: every process takes the one of the lowest vehicle (the one a single process meets
+ * first) and formats the same message. */
+typedef struct Fault {
+    uint64_t vehicle;
+    int64_t  kind, group;
+    double   gap_m;
+} Fault;
+enum { FAULT_NONE, FAULT_NOMEM, FAULT_DRAWS, FAULT_OVERLAP };
+
+/* rc: this process's (mine says what failed); the agreed one on every process. Collective when split. */
+static int share_agree(const Share *sh, const WfScenario *sc, int rc, Fault mine, WfError *err)
+{
+    if (!sh->part) return rc;
+    const WfPartition *p = sh->part;
+    if (!rc) mine.kind = FAULT_NONE;
+    Fault *all = malloc((size_t)p->size * sizeof *all), *first = NULL;
+    if (!all) return wf_err(err, WF_ESYS, "out of memory");
+    int arc = p->allgather(p->ctx, &mine, all, sizeof mine, err);
+    for (int r = 0; !arc && r < p->size; r++)
+        if (all[r].kind != FAULT_NONE && (!first || all[r].vehicle < first->vehicle)) first = &all[r];
+    Fault f = first ? *first : (Fault){0};
+    free(all);
+    if (arc || !first) return arc;
+    if (f.kind == FAULT_DRAWS) return err_draws(sc, &sc->groups[f.group], (size_t)f.vehicle, err);
+    if (f.kind == FAULT_OVERLAP) return err_overlap(sc, (size_t)f.vehicle, f.gap_m, err);
+    return wf_err(err, WF_ESYS, "out of memory for %zu vehicles", (size_t)sc->n_vehicles);
+}
+
+/* A sum along the ring: fn(arg, buf) over each process's share in turn, in ring order (wavefuel/partition.h: chain);
+ * with `all`, every process then holds the whole ring's result. One process: fn alone. */
+static int share_chain(const Share *sh, void *buf, size_t bytes, void (*fn)(void *, void *), void *arg, int all,
+                       WfError *err)
+{
+    if (!sh->part) {
+        fn(arg, buf);
+        return 0;
+    }
+    const WfPartition *p = sh->part;
+    int rc = p->chain(p->ctx, buf, bytes, fn, arg, err);
+    if (rc || !all) return rc;
+    size_t *off = malloc(((size_t)p->size + 1) * sizeof *off);
+    if (!off) return wf_err(err, WF_ESYS, "out of memory");
+    for (int r = 0; r <= p->size; r++) off[r] = r ? bytes : 0; /* rank 0's bytes onto every rank */
+    rc = p->gather(p->ctx, buf, off, -1, err);
+    free(off);
+    return rc;
+}
+
 /* Each group's parameter blocks (one copy with stride 0 without heterogeneity: every member has the group's
- * parameters) and controller memory, the members' slots and their drawn parameters. */
-static int fleet_groups(const WfScenario *sc, WfFleet *f, WfError *err)
+ * parameters) and controller memory, the members' slots and the parameters drawn for the vehicles built here
+ * (*bad: the vehicle whose draws failed). */
+static int fleet_groups(const WfScenario *sc, WfFleet *f, const Share *sh, size_t *bad, WfError *err)
 {
     for (size_t c = 0; c < sc->n_classes; c++) f->class_length_m[c] = sc->classes[c].length_m;
     for (size_t g = 0; g < sc->n_groups; g++) {
@@ -276,11 +354,12 @@ static int fleet_groups(const WfScenario *sc, WfFleet *f, WfError *err)
         size_t c = f->class_id[i], g = f->group_id[i];
         f->class_n[c]++;
         size_t slot = f->group_n[g]++;
+        if (!share_holds(sh, i)) continue;
         if (f->slot) f->slot[i] = (uint32_t)slot;
         if (!f->group_param_stride[g]) continue;
         int rc = draw_params(sc, &sc->groups[g], i, (double *)(f->group_params[g] + slot * f->group_param_stride[g]),
                              err);
-        if (rc) return rc;
+        if (rc) return *bad = i, rc;
     }
     return 0;
 }
@@ -293,20 +372,62 @@ static double ring_gap(const WfFleet *f, double L, size_t i)
     return xl - wf_fleet_length(f, lead) - f->x_m[i];
 }
 
-/* Initial gaps (equilibrium, or equal at rest) into gap[n], and the initial speed; fails when the vehicles do not
- * fit at their standstill gaps. */
-static int initial_gaps(const WfScenario *sc, WfFleet *f, double *gap, double *v0, WfError *err)
+/* The running sums of the build along the ring (share_chain), over a share's vehicles. */
+typedef struct RingSums {
+    const WfScenario *sc;
+    WfFleet          *f;
+    const Share      *sh;
+    const double     *gap;
+} RingSums;
+
+/* buf: the vehicles' lengths and their standstill gaps. */
+static void sum_standstill(void *arg, void *buf)
+{
+    const RingSums *c = arg;
+    double *t = buf, jam_i = 0.0;
+    const void *prev = NULL;
+    for (size_t i = c->sh->lo; i < c->sh->hi; i++) {
+        t[0] += wf_fleet_length(c->f, i);
+        /* Vehicles sharing a parameter block share their standstill gap: solve once per block. */
+        const void *p = wf_fleet_params(c->f, c->sc, i);
+        if (p != prev)
+            jam_i = wf_equilibrium_gap(c->sc->groups[c->f->group_id[i]].model, p, 0.0, c->sc->road.length_m), prev = p;
+        t[1] += jam_i;
+    }
+}
+
+/* buf: the gaps and lengths. */
+static void sum_used(void *arg, void *buf)
+{
+    const RingSums *c = arg;
+    double *t = buf;
+    for (size_t i = c->sh->lo; i < c->sh->hi; i++) t[0] += c->gap[i] + wf_fleet_length(c->f, i);
+}
+
+/* buf: the position of the share's first vehicle; afterwards, of the next share's first, which is also written
+ * (the leader of the share's last vehicle). x_0 = length_0 so vehicle 0's rear bumper sits at 0;
+ * x_{i+1} = x_i + gap_i + length_{i+1}. */
+static void sum_positions(void *arg, void *buf)
+{
+    const RingSums *c = arg;
+    WfFleet *f = c->f;
+    size_t lo = c->sh->lo, hi = c->sh->hi;
+    double *t = buf;
+    f->x_m[lo] = t[0];
+    for (size_t i = lo; i + 1 < hi; i++) f->x_m[i + 1] = f->x_m[i] + c->gap[i] + wf_fleet_length(f, i + 1);
+    if (hi < f->n) t[0] = f->x_m[hi] = f->x_m[hi - 1] + c->gap[hi - 1] + wf_fleet_length(f, hi);
+}
+
+/* Initial gaps of the share (equilibrium, or equal at rest) into gap, and the initial speed; fails when the
+ * vehicles do not fit at their standstill gaps. */
+static int initial_gaps(const WfScenario *sc, WfFleet *f, const Share *sh, double *gap, double *v0, WfError *err)
 {
     size_t n = f->n;
-    double L = sc->road.length_m, total_len = 0.0, jam = 0.0, jam_i = 0.0;
-    const void *prev = NULL;
-    for (size_t i = 0; i < n; i++) {
-        total_len += wf_fleet_length(f, i);
-        /* Vehicles sharing a parameter block share their standstill gap: solve once per block. */
-        const void *p = wf_fleet_params(f, sc, i);
-        if (p != prev) jam_i = wf_equilibrium_gap(sc->groups[f->group_id[i]].model, p, 0.0, L), prev = p;
-        jam += jam_i;
-    }
+    double L = sc->road.length_m, fit[2] = {0.0, 0.0}, used = 0.0;
+    RingSums c = {sc, f, sh, gap};
+    int rc = share_chain(sh, fit, sizeof fit, sum_standstill, &c, 1, err);
+    if (rc) return rc;
+    double total_len = fit[0], jam = fit[1];
     if (total_len + jam > L)
         return wf_err(err, WF_EINPUT,
                       "%s: %zu vehicles need %.6g m at their standstill gaps (lengths %.6g m + gaps %.6g m) but the "
@@ -314,76 +435,97 @@ static int initial_gaps(const WfScenario *sc, WfFleet *f, double *gap, double *v
                       sc->path, n, total_len + jam, total_len, jam, L);
     *v0 = 0.0;
     if (sc->init_state != WF_INIT_EQUILIBRIUM) {
-        for (size_t i = 0; i < n; i++) gap[i] = (L - total_len) / (double)n;
+        for (size_t i = sh->lo; i < sh->hi; i++) gap[i] = (L - total_len) / (double)n;
         return 0;
     }
     double v_hi = isfinite(sc->road.speed_limit_mps) ? sc->road.speed_limit_mps : 100.0;
-    *v0 = wf_equilibrium_ring(sc, f, v_hi, gap);
-    if (isnan(*v0)) return wf_err(err, WF_ESYS, "out of memory");
-    double used = 0.0;
-    for (size_t i = 0; i < n; i++) used += gap[i] + wf_fleet_length(f, i);
+    if (!sh->part) {
+        *v0 = wf_equilibrium_ring(sc, f, v_hi, gap);
+        if (isnan(*v0)) return wf_err(err, WF_ESYS, "out of memory");
+    } else {
+        *v0 = wf_equilibrium_ring_part(sc, f, v_hi, sh->part, sh->lo, sh->hi, gap, err);
+        if (isnan(*v0)) return WF_ESYS;
+        wf_equilibrium_ring_gaps(sc, f, *v0, sh->lo, sh->hi, gap);
+    }
+    if ((rc = share_chain(sh, &used, sizeof used, sum_used, &c, 1, err))) return rc;
     /* Spare length (speed limit reached, or bisection residue) is shared equally. */
-    for (size_t i = 0; i < n; i++) gap[i] += (L - used) / (double)n;
+    for (size_t i = sh->lo; i < sh->hi; i++) gap[i] += (L - used) / (double)n;
     return 0;
 }
 
 /* Positions and speeds from the gaps, jitter and perturbation; modes and controller memory. f: the fleet, or one
  * lane of it, whose first vehicle is vehicle `first` of the fleet (jitter draws and the perturbation name vehicles
- * of the fleet). */
-static int initial_state(const WfScenario *sc, WfFleet *f, size_t first, const double *gap, double v0, WfError *err)
+ * of the fleet). A share also places its last vehicle's leader. */
+static int initial_state(const WfScenario *sc, WfFleet *f, const Share *sh, size_t first, const double *gap,
+                         double v0, WfError *err)
 {
-    size_t n = f->n;
-    double L = sc->road.length_m;
+    size_t n = f->n, lo = sh->lo, hi = sh->hi, lead = hi < n ? hi : 0;
+    double L = sc->road.length_m, x0 = wf_fleet_length(f, 0);
+    RingSums c = {sc, f, sh, gap};
+    int rc = share_chain(sh, &x0, sizeof x0, sum_positions, &c, 0, err);
+    if (rc) return rc;
+    if (lead == 0) f->x_m[0] = wf_fleet_length(f, 0);
     long pv = sc->perturb_vehicle >= (long)first && sc->perturb_vehicle < (long)(first + n)
                   ? sc->perturb_vehicle - (long)first : -1;
-    /* x_0 = length_0 so vehicle 0's rear bumper sits at 0; x_{i+1} = x_i + gap_i + length_{i+1}. */
-    f->x_m[0] = wf_fleet_length(f, 0);
-    for (size_t i = 0; i + 1 < n; i++) f->x_m[i + 1] = f->x_m[i] + gap[i] + wf_fleet_length(f, i + 1);
-    for (size_t i = 0; i < n; i++) f->v_mps[i] = v0;
-    for (size_t i = 0; sc->jitter_m > 0 && i < n; i++) {
-        double u[2];
-        wf_rng_uniform2(sc->seed, WF_RNG_JITTER, first + i, 0, u);
-        f->x_m[i] += sc->jitter_m * (2.0 * u[0] - 1.0);
+    /* the share's vehicles, then (split) its last one's leader */
+    for (size_t k = lo; k <= hi; k++) {
+        size_t i = k < hi ? k : lead;
+        if (k == hi && lead >= lo && lead < hi) break;
+        f->v_mps[i] = v0;
+        if (sc->jitter_m > 0) {
+            double u[2];
+            wf_rng_uniform2(sc->seed, WF_RNG_JITTER, first + i, 0, u);
+            f->x_m[i] += sc->jitter_m * (2.0 * u[0] - 1.0);
+        }
+        if ((long)i == pv) f->x_m[i] += sc->perturb_dx_m, f->v_mps[i] += sc->perturb_dv_mps;
     }
-    if (pv >= 0) {
-        f->x_m[pv] += sc->perturb_dx_m;
-        f->v_mps[pv] += sc->perturb_dv_mps;
-        if (f->v_mps[pv] < 0.0)
-            return wf_err(err, WF_EINPUT,
-                          "%s: initial.perturbation.dv_mps makes vehicle %ld's speed negative (%.6g m/s)", sc->path,
-                          sc->perturb_vehicle, f->v_mps[pv]);
-    }
-    for (size_t i = 0; i < n; i++)
-        if (!(ring_gap(f, L, i) >= 0.0))
-            return wf_err(err, WF_EINPUT,
-                          "%s: the initial perturbation or jitter makes vehicle %zu overlap its leader (gap %.6g m)",
-                          sc->path, first + i, ring_gap(f, L, i));
-    for (size_t i = 0; i < n; i++) {
+    if (pv >= 0 && v0 + sc->perturb_dv_mps < 0.0)
+        return wf_err(err, WF_EINPUT, "%s: initial.perturbation.dv_mps makes vehicle %ld's speed negative (%.6g m/s)",
+                      sc->path, sc->perturb_vehicle, v0 + sc->perturb_dv_mps);
+    Fault bad = {.kind = FAULT_OVERLAP};
+    for (size_t i = lo; !rc && i < hi; i++)
+        if (!(ring_gap(f, L, i) >= 0.0)) bad.vehicle = first + i, bad.gap_m = ring_gap(f, L, i), rc = WF_EINPUT;
+    if (rc && !sh->part) return err_overlap(sc, (size_t)bad.vehicle, bad.gap_m, err);
+    if ((rc = share_agree(sh, sc, rc, bad, err))) return rc;
+    for (size_t i = lo; i < hi; i++) {
         f->mode[i] = f->v_mps[i] > sc->v_go_mps ? WF_MODE_MOVING : 0;
-        size_t g = f->group_id[i], lead = i + 1 < n ? i + 1 : 0;
+        size_t g = f->group_id[i], lead_i = i + 1 < n ? i + 1 : 0;
         const WfCfModel *m = sc->groups[g].model;
         if (m->state_size && m->init_state)
             m->init_state(wf_fleet_params(f, sc, i), f->group_state[g] + wf_fleet_slot(f, i) * m->state_size,
-                          ring_gap(f, L, i), f->v_mps[i], f->v_mps[lead]);
+                          ring_gap(f, L, i), f->v_mps[i], f->v_mps[lead_i]);
     }
     return 0;
 }
 
-int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
+int wf_fleet_create_part(const WfScenario *sc, const WfPartition *part, WfFleet **out, WfError *err)
 {
     *out = NULL;
     WfFleet *f = calloc(1, sizeof *f);
     if (!f) return wf_err(err, WF_ESYS, "out of memory");
-    f->n = (size_t)sc->n_vehicles;
+    size_t n = f->n = (size_t)sc->n_vehicles;
     f->n_groups = sc->n_groups;
     f->n_classes = sc->n_classes;
+    Share sh = {part, 0, n, n, 0};
+    if (part) {
+        size_t b0, b1;
+        wf_partition_blocks(wf_lane_blocks(0, n), part->size, part->rank, &b0, &b1);
+        sh.lo = b0 * WF_BLOCK, sh.hi = b1 * WF_BLOCK < n ? b1 * WF_BLOCK : n;
+        sh.reach = sh.hi + WF_EQ_BLOCK < n ? sh.hi + WF_EQ_BLOCK : n;
+        sh.wrap = sh.hi == n ? WF_BLOCK : 0; /* the last share's halo: the ring's first vehicles */
+    }
+    f->share_lo = sh.lo, f->share_hi = sh.hi;
     double v0 = 0.0, *gap = NULL;
+    size_t bad = 0;
     int rc = fleet_alloc(sc, f, err);
     if (!rc) rc = place_all(sc, f, err);
-    if (!rc) rc = fleet_groups(sc, f, err);
     /* The gaps: the fleet's array when it has one, else scratch until the first step. */
     if (!rc && !(gap = f->gap_m ? f->gap_m : malloc(f->n * sizeof *gap)))
         rc = wf_err(err, WF_ESYS, "out of memory for %zu vehicles", f->n);
+    if (!rc) rc = fleet_groups(sc, f, &sh, &bad, err);
+    rc = share_agree(&sh, sc, rc,
+                     (Fault){bad, rc == WF_EINPUT ? FAULT_DRAWS : FAULT_NOMEM, f->group_id ? f->group_id[bad] : 0, 0.0},
+                     err);
     /* Each lane starts as a single-lane ring of its vehicles would. */
     for (size_t l = 0, first = 0; !rc && l < f->n_lanes; first += f->lane_n[l++]) {
         WfFleet lf = *f;
@@ -391,8 +533,9 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
         lf.x_m += first, lf.v_mps += first, lf.class_id += first, lf.group_id += first, lf.mode += first;
         if (f->slot) lf.slot += first;
         if (!lf.n) continue;
-        rc = initial_gaps(sc, &lf, gap + first, &v0, err);
-        if (!rc) rc = initial_state(sc, &lf, first, gap + first, v0, err);
+        Share lsh = part ? sh : (Share){NULL, 0, lf.n, lf.n, 0};
+        rc = initial_gaps(sc, &lf, &lsh, gap + first, &v0, err);
+        if (!rc) rc = initial_state(sc, &lf, &lsh, first, gap + first, v0, err);
         if (!l) f->v_init_mps = v0;
     }
     if (gap != f->gap_m) free(gap);
@@ -404,8 +547,20 @@ int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
     return 0;
 }
 
+int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err)
+{
+    return wf_fleet_create_part(sc, NULL, out, err);
+}
+
+const void *wf_fleet_params_of(const WfFleet *f, const WfScenario *sc, size_t i, double *buf, WfError *err)
+{
+    size_t g = f->group_id[i];
+    if (!f->group_param_stride[g] || (i >= f->share_lo && i < f->share_hi)) return wf_fleet_params(f, sc, i);
+    return draw_params(sc, &sc->groups[g], i, buf, err) ? NULL : buf;
+}
+
 void wf_fleet_open_window(WfFleet *f)
 {
-    memcpy(f->x_start_m, f->x_m, f->n * sizeof *f->x_m);
+    memcpy(f->x_start_m + f->share_lo, f->x_m + f->share_lo, (f->share_hi - f->share_lo) * sizeof *f->x_m);
     f->window_open = 1;
 }

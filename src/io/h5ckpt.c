@@ -32,9 +32,9 @@ typedef struct WfCkptCursor {
 } WfCkptCursor;
 
 /* FNV-1a over everything a checkpoint restores, in a fixed order; strings with their terminating NUL so that
- * moving bytes from one field to the next changes the sum. */
-static uint64_t checksum(const char *kind, const WfScenario *sc, int64_t steps_done, const WfCkptCursor *cur,
-                         size_t n_cur, const WfStateVar *vars, size_t n_vars)
+ * moving bytes from one field to the next changes the sum. The head, then each block: its name, size and bytes. */
+static uint64_t checksum_head(const char *kind, const WfScenario *sc, int64_t steps_done, const WfCkptCursor *cur,
+                              size_t n_cur)
 {
     uint64_t h = WF_FNV1A64_INIT;
     h = wf_fnv1a64(h, kind, strlen(kind) + 1);
@@ -45,12 +45,21 @@ static uint64_t checksum(const char *kind, const WfScenario *sc, int64_t steps_d
         h = wf_fnv1a64(h, cur[i].name, strlen(cur[i].name) + 1);
         h = wf_fnv1a64(h, &cur[i].rows, sizeof cur[i].rows);
     }
-    for (size_t i = 0; i < n_vars; i++) {
-        uint64_t size = vars[i].size;
-        h = wf_fnv1a64(h, vars[i].name, strlen(vars[i].name) + 1);
-        h = wf_fnv1a64(h, &size, sizeof size);
-        h = wf_fnv1a64(h, vars[i].data, vars[i].size);
-    }
+    return h;
+}
+
+static uint64_t checksum_block(uint64_t h, const WfStateVar *v)
+{
+    uint64_t size = v->size;
+    h = wf_fnv1a64(h, v->name, strlen(v->name) + 1);
+    return wf_fnv1a64(h, &size, sizeof size);
+}
+
+static uint64_t checksum(const char *kind, const WfScenario *sc, int64_t steps_done, const WfCkptCursor *cur,
+                         size_t n_cur, const WfStateVar *vars, size_t n_vars)
+{
+    uint64_t h = checksum_head(kind, sc, steps_done, cur, n_cur);
+    for (size_t i = 0; i < n_vars; i++) h = wf_fnv1a64(checksum_block(h, &vars[i]), vars[i].data, vars[i].size);
     return h;
 }
 
@@ -84,7 +93,8 @@ static int pending_blocks(const WfCkptSeries *sp, size_t ns, WfStateVar *vars, s
         if (!s->pend) continue;
         if (*n_vars >= WF_MAX_STATE_VARS)
             return wf_err(err, WF_ESYS, "checkpoint: more than %d state blocks", WF_MAX_STATE_VARS);
-        vars[(*n_vars)++] = (WfStateVar){s->block, s->pend, s->n_pend * (s->cols ? s->cols : 1) * sizeof *s->pend, 0};
+        vars[(*n_vars)++] = (WfStateVar){.name = s->block, .data = s->pend,
+                                         .size = s->n_pend * (s->cols ? s->cols : 1) * sizeof *s->pend};
     }
     return 0;
 }
@@ -135,8 +145,33 @@ int wf_ckpt_save(const char *result, const char *kind, const WfScenario *sc, int
     return rc;
 }
 
-/* The /state group must hold exactly the blocks the engine lists, each of exactly its size. */
-static int load_blocks(hid_t f, const char *ck, const WfStateVar *vars, size_t n_vars, WfError *err)
+/* A state block's bytes into its memory, added to the checksum *h; a block of which this process keeps only
+ * [lo, hi) (WfStateVar.partial) is read whole in pieces of at most `piece` bytes, each summed and only its part in
+ * [lo, hi) kept, so the whole checkpoint is still checked. */
+static herr_t read_block(hid_t d, hid_t fsp, const WfStateVar *v, unsigned char *buf, size_t piece, uint64_t *h)
+{
+    if (!v->partial) {
+        herr_t e = H5Dread(d, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, v->data);
+        if (e >= 0) *h = wf_fnv1a64(*h, v->data, v->size);
+        return e;
+    }
+    for (size_t off = 0; off < v->size; off += piece) {
+        hsize_t o = off, cnt = v->size - off < piece ? v->size - off : piece;
+        hid_t msp = H5Screate_simple(1, &cnt, NULL);
+        herr_t e = msp < 0 || H5Sselect_hyperslab(fsp, H5S_SELECT_SET, &o, NULL, &cnt, NULL) < 0
+                       ? -1 : H5Dread(d, H5T_NATIVE_UINT8, msp, fsp, H5P_DEFAULT, buf);
+        if (msp >= 0) H5Sclose(msp);
+        if (e < 0) return e;
+        *h = wf_fnv1a64(*h, buf, cnt);
+        size_t a = off > v->lo ? off : v->lo, b = off + cnt < v->hi ? off + cnt : v->hi;
+        if (a < b) memcpy((unsigned char *)v->data + a, buf + (a - off), b - a);
+    }
+    return 0;
+}
+
+/* The /state group must hold exactly the blocks the engine lists, each of exactly its size; *h: the checksum of
+ * the head, then of every block read. */
+static int load_blocks(hid_t f, const char *ck, const WfStateVar *vars, size_t n_vars, uint64_t *h, WfError *err)
 {
     hid_t g = H5Lexists(f, "state", H5P_DEFAULT) > 0 ? H5Gopen2(f, "state", H5P_DEFAULT) : H5I_INVALID_HID;
     H5G_info_t info;
@@ -145,7 +180,11 @@ static int load_blocks(hid_t f, const char *ck, const WfStateVar *vars, size_t n
         return wf_err(err, WF_EINPUT, "%s: no state group: damaged checkpoint", ck);
     }
     int rc = 0;
-    if (info.nlinks != n_vars)
+    enum { PIECE = 1 << 16 }; /* small: a process keeps a share of a split ring's blocks */
+    unsigned char *buf = NULL;
+    for (size_t i = 0; i < n_vars; i++)
+        if (vars[i].partial && !buf && !(buf = malloc(PIECE))) rc = wf_err(err, WF_ESYS, "out of memory");
+    if (!rc && info.nlinks != n_vars)
         rc = wf_err(err, WF_EINPUT, "%s: %llu state blocks where this run has %zu: a checkpoint of another "
                     "scenario or version", ck, (unsigned long long)info.nlinks, n_vars);
     for (size_t i = 0; !rc && i < n_vars; i++) {
@@ -153,14 +192,16 @@ static int load_blocks(hid_t f, const char *ck, const WfStateVar *vars, size_t n
         hid_t d = H5Lexists(g, name, H5P_DEFAULT) > 0 ? H5Dopen2(g, name, H5P_DEFAULT) : H5I_INVALID_HID;
         hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
         hssize_t np = sp >= 0 ? H5Sget_simple_extent_npoints(sp) : -1;
+        *h = checksum_block(*h, &vars[i]);
         if (d < 0 || np != (hssize_t)vars[i].size)
             rc = wf_err(err, WF_EINPUT, "%s: state block '%s' is missing or has %lld bytes, this scenario needs %zu",
                         ck, name, (long long)np, vars[i].size);
-        else if (vars[i].size && H5Dread(d, H5T_NATIVE_UINT8, H5S_ALL, H5S_ALL, H5P_DEFAULT, vars[i].data) < 0)
+        else if (vars[i].size && read_block(d, sp, &vars[i], buf, PIECE, h) < 0)
             rc = wf_err(err, WF_EINPUT, "%s: cannot read state block '%s': damaged checkpoint", ck, name);
         if (sp >= 0) H5Sclose(sp);
         if (d >= 0) H5Dclose(d);
     }
+    free(buf);
     H5Gclose(g);
     return rc;
 }
@@ -208,14 +249,14 @@ int wf_ckpt_restore(const char *result, const char *kind, const WfScenario *sc, 
         rc = wf_h5_series_resume(sp[i].s, path, sp[i].cols, sp[i].fixed_rows, sp[i].chunk_rows, sp[i].compress,
                                  (hsize_t)cur[sp[i].cursor].rows, err);
     }
-    if (!rc) rc = pending_blocks(sp, ns, vars, &n_vars, err);
-    if (!rc) rc = load_blocks(f, ck, vars, n_vars, err);
-    H5Fclose(f);
-    if (rc) return rc;
     /* The scenario was rebuilt from this file's text and overrides: the sum covers them through sc, and the kind
      * through the one expected. */
-    snprintf(sum, sizeof sum, "%016llx",
-             (unsigned long long)checksum(kind, sc, steps_done, cur, n_cur, vars, n_vars));
+    uint64_t h = checksum_head(kind, sc, steps_done, cur, n_cur);
+    if (!rc) rc = pending_blocks(sp, ns, vars, &n_vars, err);
+    if (!rc) rc = load_blocks(f, ck, vars, n_vars, &h, err);
+    H5Fclose(f);
+    if (rc) return rc;
+    snprintf(sum, sizeof sum, "%016llx", (unsigned long long)h);
     if (strcmp(sum, stored) != 0)
         return wf_err(err, WF_EINPUT, "%s: checksum %s does not match the contents (%s): damaged checkpoint", ck,
                       stored, sum);

@@ -117,8 +117,14 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
         WfObsData data = {d, 1, {n, 0}};
         rc = wf_h5_put_columns(g, col, &data, 1, pass, err);
     }
-    /* NaN for vehicles whose model lacks the key; a key shared by several groups' models is written once. */
+    /* NaN for vehicles whose model lacks the key; a key shared by several groups' models is written once. A
+     * vehicle of another process's share (a split ring) has its parameters drawn again into pbuf. */
     hsize_t dn = n;
+    size_t most = 0;
+    for (size_t gi = 0; gi < sc->n_groups; gi++)
+        if (sc->groups[gi].model->param_size > most) most = sc->groups[gi].model->param_size;
+    double *pbuf = !fill ? malloc(most + sizeof(double)) : NULL;
+    if (!rc && !fill && !pbuf) rc = wf_err(err, WF_ESYS, "out of memory");
     for (size_t gi = 0; !rc && !fill && gi < sc->n_groups; gi++) {
         const WfCfModel *m = sc->groups[gi].model;
         for (size_t p = 0; !rc && p < m->n_spec; p++) {
@@ -130,15 +136,18 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
                 const WfCfModel *mj = sc->groups[gj].model;
                 sp_of[gj] = wf_param_find(mj->spec, mj->n_spec, m->spec[p].key);
             }
-            for (size_t id = 0; id < n; id++) {
+            for (size_t id = 0; !rc && id < n; id++) {
                 size_t i = f->pos ? f->pos[id] : id; /* its slot */
                 const WfParamSpec *sp = sp_of[f->group_id[i]];
-                d[id] = sp ? wf_param_get(wf_fleet_params(f, sc, i), sp) : NAN;
+                const void *pv = sp ? wf_fleet_params_of(f, sc, i, pbuf, err) : NULL;
+                if (sp && !pv) rc = WF_EINPUT;
+                d[id] = pv ? wf_param_get(pv, sp) : NAN;
             }
-            rc = wf_h5_write_f64(g, name, 1, &dn, d, m->spec[p].unit, m->spec[p].doc, err);
+            if (!rc) rc = wf_h5_write_f64(g, name, 1, &dn, d, m->spec[p].unit, m->spec[p].doc, err);
         }
     }
     free(d);
+    free(pbuf);
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
 }
