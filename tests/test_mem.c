@@ -87,7 +87,8 @@ static void test_prefault_parts(void)
 }
 
 /* A ring of 100 000 vehicles with noise and two classes: every per-vehicle sum of its step resident right after
- * creation, before any step; split in three, the middle share's sums alone. */
+ * creation, before any step; split in three, the middle share's sums alone, and its positions and speeds (the
+ * fleet's build writes no other share's). */
 static const char *ring_yaml =
     "seed: 3\n"
     "road: {length_m: 2500000}\n"
@@ -120,6 +121,31 @@ static size_t pages_in(const void *a, size_t stride, size_t n, size_t lo, size_t
 
 static int no_call(void *ctx, WfError *err) { (void)ctx, (void)err; return 0; }
 
+/* A rank alone: every collective of the fleet's build answers as if the other ranks had added nothing to it (which
+ * pages a share takes is checked here, not its values, which tests/test_partition.c and tests/t_mpi.sh check). */
+static int alone_chain(void *ctx, void *buf, size_t bytes, void (*fn)(void *, void *), void *arg, WfError *err)
+{
+    (void)ctx, (void)bytes, (void)err;
+    fn(arg, buf);
+    return 0;
+}
+static int alone_gather(void *ctx, void *buf, const size_t *off, int root, WfError *err)
+{
+    (void)ctx, (void)buf, (void)off, (void)root, (void)err;
+    return 0;
+}
+static int alone_sum_f64(void *ctx, double *v, size_t m, WfError *err)
+{
+    (void)ctx, (void)v, (void)m, (void)err;
+    return 0;
+}
+static int alone_allgather(void *ctx, const void *mine, void *all, size_t bytes, WfError *err)
+{
+    (void)err;
+    for (int r = 0; r < *(const int *)ctx; r++) memcpy((char *)all + (size_t)r * bytes, mine, bytes);
+    return 0;
+}
+
 /* Whether calloc leaves the pages of an array of `bytes` untouched (glibc's mappings do; a sanitizer's allocator may
  * clear or reuse them): only then can pages outside a share show what the run took. */
 static int calloc_untouched(size_t bytes)
@@ -144,7 +170,9 @@ static void check_share(const char *what, int size, int rank, int check_outside)
     WfScenario *sc = NULL;
     WfSim *sim = NULL;
     volatile sig_atomic_t own = 0;
-    WfPartition part = {.rank = rank, .size = size, .wait_next = no_call, .stop_own = &own};
+    WfPartition part = {.rank = rank, .size = size, .ctx = &size, .wait_next = no_call, .chain = alone_chain,
+                        .gather = alone_gather, .sum_f64 = alone_sum_f64, .allgather = alone_allgather,
+                        .stop_own = &own};
     const char *p = wf_test_write_yaml(ring_yaml, dir, path, sizeof path);
     int rc = p ? wf_scenario_load(p, NULL, 0, &sc, &err) : -1;
     if (!rc) rc = wf_sim_create_part(sc, size > 1 ? &part : NULL, &sim, &err);
@@ -164,6 +192,16 @@ static void check_share(const char *what, int size, int rank, int check_outside)
                   missing, pages);
             CHECK(outside == 0 || !check_outside, "%s: %s: %zu pages outside the share [%zu, %zu) taken", what,
                   sums[j].name, outside, lo, hi);
+        }
+        /* The state the build writes (wf_fleet_create_part): the share's, and its last vehicle's leader (one more
+         * page when the share ends at a page's end). */
+        struct { const char *name; const void *a; size_t stride; } built[] = {
+            {"x_m", f->x_m, sizeof *f->x_m}, {"v_mps", f->v_mps, sizeof *f->v_mps}};
+        for (size_t j = 0; j < sizeof built / sizeof *built; j++) {
+            size_t missing, outside;
+            pages_in(built[j].a, built[j].stride, n, lo, hi, &missing, &outside);
+            CHECK(outside <= 1 || !check_outside, "%s: %s: %zu pages outside the share [%zu, %zu) written", what,
+                  built[j].name, outside, lo, hi);
         }
     }
     wf_sim_destroy(&sim);

@@ -124,6 +124,17 @@ const char       *wf_sim_kind(const WfSim *sim);
  * side by side still held comes back first); the corridor's engine for its accessors (wavefuel/corridor.h; NULL on
  * a ring). Borrowed from the run. */
 const WfFleet    *wf_sim_fleet(const WfSim *sim);
+/* A ring's vehicles at the end of its run, for the result's per-vehicle datasets: fn(ctx, lo, hi, err) on the fleet's
+ * vehicles [lo, hi), current in wf_sim_fleet's arrays, piece after piece in ring order. One process: one piece, the
+ * whole ring. A ring split across processes (wavefuel/partition.h): every rank calls this, rank 0 with fn and the
+ * others with NULL; each share is gathered onto rank 0 for its call and given back afterwards (rank 0 holds its own
+ * share and one other at a time). fn's first error is returned; 0 and no call for a corridor. */
+typedef int (*WfShareFn)(void *ctx, size_t lo, size_t hi, WfError *err);
+int               wf_sim_shares(const WfSim *sim, WfShareFn fn, void *ctx, WfError *err);
+/* A ring split across processes: its whole state (what a checkpoint saves) onto rank 0, collectively, e.g. to read
+ * it after the run. Rank 0 then holds the whole road. 0 and nothing for one process or a corridor (whose state rank 0
+ * gathers when its run ends). */
+int               wf_sim_collect(WfSim *sim, WfError *err);
 const struct WfCorridor *wf_sim_corridor(const WfSim *sim);
 const WfSummary  *wf_sim_summary(const WfSim *sim); /* valid after wf_sim_run */
 double            wf_sim_wall_s(const WfSim *sim);  /* wall time of the step loop */

@@ -12,9 +12,6 @@
 
 typedef struct WfFleet {
     size_t n;
-    /* The vehicles whose state this process holds: all of them, or its share of a ring split across processes
-     * (wf_fleet_create_part), where only class_id and group_id are whole. */
-    size_t share_lo, share_hi;
     /* state: front-bumper position (unwrapped, m), speed (m/s) */
     double *x_m, *v_mps;
     /* per-step values at the step's start: applied acceleration, bumper-to-bumper gap, leader speed, grade,
@@ -59,6 +56,9 @@ typedef struct WfFleet {
     /* per slot: whole laps the vehicle's x_m was moved by to fit a new lane's order; x_m + lap_m is its position
      * continuous in time (what /trajectories/x and /vehicles/final_x report) */
     double   *lap_m;
+    /* The vehicles whose state this process holds: all of them, or its share of a ring split across processes
+     * (wf_fleet_create_part), where only class_id and group_id are whole. */
+    size_t    share_lo, share_hi;
 } WfFleet;
 
 enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };

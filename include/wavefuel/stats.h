@@ -55,4 +55,15 @@ void wf_stats_combine_lanes(const WfStatsBlock *blocks, const size_t *lane_nb, s
 void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, long n_sd, long window_steps,
                       int64_t overlaps, WfSummary *s);
 
+/* The same in two steps, for a fleet whose vehicles are held in pieces (a ring split across processes): the sums
+ * over the vehicles, in ring order, piece after piece (zero them first: the first add runs from vehicle 0), then the
+ * summary from them. wf_stats_summary is add over [0, n) and end. */
+typedef struct WfSummarySums {
+    double fuel_g[WF_MAX_CLASSES], dist_m[WF_MAX_CLASSES], stops[WF_MAX_CLASSES], infeasible_steps[WF_MAX_CLASSES];
+    double hard_brakes, stopped_s, laps;
+} WfSummarySums;
+void wf_stats_summary_add(const WfFleet *f, const WfScenario *sc, size_t lo, size_t hi, WfSummarySums *sums);
+void wf_stats_summary_end(const WfFleet *f, const WfScenario *sc, const WfSummarySums *sums, double sd_sum, long n_sd,
+                          long window_steps, int64_t overlaps, WfSummary *s);
+
 #endif

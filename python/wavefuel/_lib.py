@@ -143,7 +143,7 @@ class WfFleet(C.Structure):
                 ("infeasible_steps", _u32p), ("mode", _u8p), ("v_init_mps", C.c_double),
                 ("n_lanes", C.c_size_t), ("lane_n", C.c_size_t * WF_MAX_LANES), ("lane", _u8p), ("id", _u32p),
                 ("pos", _u32p), ("lc_ready_step", C.POINTER(C.c_int64)), ("lane_changes", _u32p), ("cut_ins", _u32p),
-                ("lap_m", _dp)]
+                ("lap_m", _dp), ("share_lo", C.c_size_t), ("share_hi", C.c_size_t)]
 
 
 class WfCorridorVehicles(C.Structure):

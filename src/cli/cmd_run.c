@@ -231,6 +231,14 @@ static int no_checkpoint(void *ctx, const WfSim *sim, WfError *err)
     return 0;
 }
 
+/* The other ranks' end: their shares of a ring, to rank 0's writer as it writes the per-vehicle results
+ * (wf_sim_shares; nothing on a corridor). */
+static int send_shares(void *ctx, const WfSim *sim, int completed, const char *reason, WfError *err)
+{
+    (void)ctx, (void)completed, (void)reason;
+    return wf_sim_shares(sim, NULL, NULL, err);
+}
+
 /* Every rank's status agreed; an error that rank 0 did not have is printed by the rank that had it. */
 static int agree(int rank, int rc, const WfError *err)
 {
@@ -248,7 +256,7 @@ static int open_output(const RunArgs *a, WfScenario *sc, WfSim *sim, int rank, W
     int rc;
 #ifdef WF_MPI
     if (rank) {
-        *ops = (WfOutput){.checkpoint = no_checkpoint};
+        *ops = (WfOutput){.checkpoint = no_checkpoint, .end = send_shares};
         return a->resume ? wf_h5out_restore(a->resume, sim, err) : 0;
     }
 #else

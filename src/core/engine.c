@@ -443,9 +443,17 @@ static int part_gather_motion(WfRing *s, WfError *err)
     return rc;
 }
 
-/* The whole state onto rank 0 (a checkpoint, the summary): every per-vehicle array, each group's controller
- * memory (a group's members are numbered in ring order, so a part's are a run of them) and the safety counts of
- * every rank. */
+/* The safety counts of every rank, into safety_all on every rank (what the summary and a checkpoint read). */
+static int part_safety(WfRing *s, WfError *err)
+{
+    WfPartition *p = s->part;
+    s->safety_all = s->lane.safety;
+    int rc = p->sum_u64(p->ctx, s->safety_all.steps, WF_MAX_GROUPS, err);
+    return rc ? rc : p->sum_u64(p->ctx, s->safety_all.hits, WF_MAX_GROUPS, err);
+}
+
+/* The whole state onto rank 0 (a checkpoint): every per-vehicle array, each group's controller memory (a group's
+ * members are numbered in ring order, so a part's are a run of them) and the safety counts of every rank. */
 static int part_collect(WfRing *s, WfError *err)
 {
     WfPartition *p = s->part;
@@ -461,10 +469,42 @@ static int part_collect(WfRing *s, WfError *err)
         for (size_t r = 0; r < ns; r++) s->off[r] = s->group_before[g * ns + r] * ssz;
         rc = p->gather(p->ctx, f->group_state[g], s->off, 0, err);
     }
-    s->safety_all = s->lane.safety;
-    if (!rc) rc = p->sum_u64(p->ctx, s->safety_all.steps, WF_MAX_GROUPS, err);
-    if (!rc) rc = p->sum_u64(p->ctx, s->safety_all.hits, WF_MAX_GROUPS, err);
-    return rc;
+    return rc ? rc : part_safety(s, err);
+}
+
+/* WfPartition.chain: the summary's sums over this rank's share, after those of the ranks behind it. */
+static void part_summary_add(void *arg, void *buf)
+{
+    const WfRing *s = arg;
+    wf_stats_summary_add(s->f, s->sc, s->f->share_lo, s->f->share_hi, buf);
+}
+
+/* The ring's vehicles a share at a time on rank 0, in ring order (WfBoundary.shares): each other rank's share is
+ * gathered into rank 0's arrays, handed to fn (rank 0 only) and its pages given back, so that rank 0 never holds
+ * more than its own share and one other. Every rank calls this; an error of fn skips fn for the later shares but
+ * not the gathers, which every rank makes. One process: fn over the whole ring. */
+static int ring_shares(void *eng, WfShareFn fn, void *ctx, WfError *err)
+{
+    WfRing *s = eng;
+    WfPartition *p = s->part;
+    if (!p) return fn ? fn(ctx, 0, s->f->n, err) : 0;
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS);
+    int rc = 0, frc = 0;
+    for (int r = 0; !rc && r < p->size; r++) {
+        size_t lo, hi;
+        part_range(s, r, &lo, &hi);
+        for (size_t j = 0; !rc && r && j < nv; j++) {
+            if (!vars[j].stride) continue;
+            for (int q = 0; q <= p->size; q++) s->off[q] = (q <= r ? lo : hi) * vars[j].stride;
+            rc = p->gather(p->ctx, vars[j].data, s->off, 0, err);
+        }
+        if (rc || p->rank) continue;
+        if (fn && !frc) frc = fn(ctx, lo, hi, err);
+        for (size_t j = 0; r && j < nv; j++)
+            if (vars[j].stride) wf_mem_release((char *)vars[j].data + lo * vars[j].stride, (hi - lo) * vars[j].stride);
+    }
+    return rc ? rc : frc;
 }
 
 /* One pass of a step over this part (src/core/block.c: wf_lane_step_part), its leader refreshed first; *flags:
@@ -892,15 +932,22 @@ static int ring_flush(void *eng, WfError *err)
     return s->part ? part_collect(s, err) : 0;
 }
 
-/* The run's totals (also after an interruption or an error). */
+/* The run's totals (also after an interruption or an error). Split across processes, the vehicles' sums run along
+ * the ranks in ring order and rank 0 alone makes the summary; no rank gathers the state (ring_shares does, a
+ * share at a time, for the result's per-vehicle datasets). */
 static int ring_close(void *eng, WfError *err)
 {
     WfRing *s = eng;
     lanes_safety(s, 0);
-    int rc = s->part ? part_collect(s, err) : 0;
-    if (rc || (s->part && s->part->rank)) return rc; /* split across processes: rank 0 alone sums */
+    WfSummarySums sums;
+    memset(&sums, 0, sizeof sums);
+    int rc = s->part ? part_safety(s, err) : 0;
+    if (!rc && s->part) rc = s->part->chain(s->part->ctx, &sums, sizeof sums, part_summary_add, s, err);
+    if (rc || (s->part && s->part->rank)) return rc;
+    if (!s->part) wf_stats_summary_add(s->f, s->sc, 0, s->f->n, &sums);
     long window = s->steps_done - s->warm_steps;
-    wf_stats_summary(s->f, s->sc, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps, &s->sim->summary);
+    wf_stats_summary_end(s->f, s->sc, &sums, s->sd_sum, s->n_sd, window > 0 ? window : 0, s->overlaps,
+                         &s->sim->summary);
     WfLane all = s->lane;
     if (s->part) all.safety = s->safety_all;
     wf_lane_safety_summary(&all, &s->sim->summary);
@@ -1122,4 +1169,4 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
                                          .step = ring_step, .flush = ring_flush, .close = ring_close, .state = ring_state,
                                          .restored = ring_restored, .group = ring_group, .lanes = ring_lanes,
-                                         .windows = ring_windows, .governor = ring_governor};
+                                         .windows = ring_windows, .governor = ring_governor, .shares = ring_shares};

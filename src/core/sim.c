@@ -198,6 +198,17 @@ int wf_sim_run(WfSim *s, const WfOutput *out, WfProgressFn progress, void *pctx,
 
 const WfScenario *wf_sim_scenario(const WfSim *s) { return s->sc; }
 int wf_sim_lanes(const WfSim *s, WfLaneObs *out) { return s->b->lanes ? s->b->lanes(s->eng, out) : 0; }
+int wf_sim_shares(const WfSim *s, WfShareFn fn, void *ctx, WfError *err)
+{
+    /* the run itself is not const: rank 0 gathers the other shares into its arrays */
+    return s->b->shares ? s->b->shares(s->eng, fn, ctx, err) : 0;
+}
+
+int wf_sim_collect(WfSim *s, WfError *err)
+{
+    return s->part && s->b == &wf_boundary_periodic ? s->b->flush(s->eng, err) : 0;
+}
+
 int wf_sim_window_stats(const WfSim *s, long *windows, long *redone) { return s->b->windows(s->eng, windows, redone); }
 const char *wf_sim_kind(const WfSim *s) { return s->b->kind; }
 

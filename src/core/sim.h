@@ -39,6 +39,8 @@ typedef struct WfBoundary {
     int    (*windows)(const void *eng, long *windows, long *redone);
     /* The threads of the steps (wf_sim_thread_stats). */
     const WfGovernor *(*governor)(const void *eng);
+    /* A ring's vehicles at the end, a share at a time (wf_sim_shares); NULL: not a ring. */
+    int    (*shares)(void *eng, WfShareFn fn, void *ctx, WfError *err);
 } WfBoundary;
 
 extern const WfBoundary wf_boundary_periodic, wf_boundary_open;

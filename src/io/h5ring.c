@@ -88,26 +88,60 @@ static int ring_traj_attrs(hid_t g, const WfH5Run *r, WfError *err)
     return wf_h5_attr_f64(g, "ring_length_m", r->sc->road.length_m, err);
 }
 
+/* The end-of-run columns of /vehicles for vehicles [lo, hi) (a piece of wf_sim_shares). */
+typedef struct VehicleRows {
+    hid_t          g;
+    WfVehicleView  view;
+    size_t         ncol;
+} VehicleRows;
+
+static int vehicle_rows(void *ctx, size_t lo, size_t hi, WfError *err)
+{
+    const VehicleRows *vr = ctx;
+    /* One buffer for both element types (8 bytes each) */
+    double *d = malloc((hi > lo ? hi - lo : 1) * sizeof *d);
+    int rc = !d ? wf_err(err, WF_ESYS, "out of memory") : 0;
+    for (size_t c = 0; !rc && c < vr->ncol; c++) {
+        const WfObsColumn *col = &wf_vehicle_columns[c];
+        if (col->at_start) continue;
+        for (size_t i = lo; i < hi; i++) {
+            double x = wf_vehicle_value(&vr->view, c, i);
+            if (col->type == WF_COL_I64) {
+                int64_t k = (int64_t)x;
+                memcpy(&d[i - lo], &k, sizeof k);
+            } else d[i - lo] = x;
+        }
+        rc = wf_h5_put_rows(vr->g, col->col.name, col->type == WF_COL_I64, lo, hi - lo, d, err);
+    }
+    free(d);
+    return rc;
+}
+
 /* /vehicles from its column table (src/observe/vehicles.c), then every driver-model parameter drawn for each vehicle
  * (fixed from the start). ALLOCATE writes what is known from the start and allocates the end-of-run statistics;
- * FILL writes those. */
+ * FILL writes those, a piece of the ring at a time (wf_sim_shares: a ring split across processes has its shares
+ * gathered on rank 0 one after another). */
 static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *err)
 {
     const WfScenario *sc = wf_sim_scenario(sim);
     const WfFleet *f = wf_sim_fleet(sim);
-    WfVehicleView view = {.f = f, .sc = sc, .window_s = wf_sim_summary(sim)->window_s};
-    size_t n = f->n;
-    int fill = pass == WF_H5_FILL;
+    size_t n = f->n, ncol = f->n_lanes > 1 ? WF_VEH_N_COLS : WF_VEH_N_SINGLE;
     hid_t g = wf_h5_group_pass(fid, "vehicles", pass, err);
+    if (pass == WF_H5_FILL) {
+        /* every rank of a split ring gathers, whatever rank 0's file does */
+        VehicleRows vr = {g, {.f = f, .sc = sc, .window_s = wf_sim_summary(sim)->window_s}, ncol};
+        int rc = wf_sim_shares(sim, g >= 0 ? vehicle_rows : NULL, &vr, err);
+        if (g >= 0) H5Gclose(g);
+        return rc || g < 0 ? WF_ESYS : 0;
+    }
     if (g < 0) return WF_ESYS;
+    WfVehicleView view = {.f = f, .sc = sc};
     /* One buffer for both element types (8 bytes each): at 10^7 vehicles a second one would be 80 MB more peak. */
     double *d = malloc((n ? n : 1) * sizeof *d);
     int rc = !d ? wf_err(err, WF_ESYS, "out of memory") : 0;
-    size_t ncol = f->n_lanes > 1 ? WF_VEH_N_COLS : WF_VEH_N_SINGLE;
     for (size_t c = 0; !rc && c < ncol; c++) {
         const WfObsColumn *col = &wf_vehicle_columns[c];
-        if (col->at_start && fill) continue;
-        for (size_t i = 0; (col->at_start || fill) && i < n; i++) {
+        for (size_t i = 0; col->at_start && i < n; i++) {
             double x = wf_vehicle_value(&view, c, i);
             if (col->type == WF_COL_I64) {
                 int64_t k = (int64_t)x;
@@ -123,9 +157,9 @@ static int write_vehicles(hid_t fid, const WfSim *sim, WfH5Pass pass, WfError *e
     size_t most = 0;
     for (size_t gi = 0; gi < sc->n_groups; gi++)
         if (sc->groups[gi].model->param_size > most) most = sc->groups[gi].model->param_size;
-    double *pbuf = !fill ? malloc(most + sizeof(double)) : NULL;
-    if (!rc && !fill && !pbuf) rc = wf_err(err, WF_ESYS, "out of memory");
-    for (size_t gi = 0; !rc && !fill && gi < sc->n_groups; gi++) {
+    double *pbuf = malloc(most + sizeof(double));
+    if (!rc && !pbuf) rc = wf_err(err, WF_ESYS, "out of memory");
+    for (size_t gi = 0; !rc && gi < sc->n_groups; gi++) {
         const WfCfModel *m = sc->groups[gi].model;
         for (size_t p = 0; !rc && p < m->n_spec; p++) {
             char name[160];

@@ -483,6 +483,29 @@ static int put_any(hid_t loc, const char *name, WfH5Pass pass, int rank, const h
     return rc;
 }
 
+int wf_h5_put_rows(hid_t loc, const char *name, int i64, hsize_t first, hsize_t m, const void *data, WfError *err)
+{
+    if (!m) return 0;
+    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT);
+    if (d < 0) return h5fail_at(err, "open dataset", loc, name);
+    hid_t fsp = H5Dget_space(d), msp = H5Screate_simple(1, &m, NULL);
+    hssize_t np = fsp >= 0 ? H5Sget_simple_extent_npoints(fsp) : -1;
+    int rc = 0;
+    if (np < (hssize_t)(first + m)) {
+        char path[512];
+        obj_path(loc, name, path, sizeof path);
+        rc = wf_err(err, WF_ESYS, "HDF5: dataset '%s' has %lld values, %llu expected (written by another version of "
+                    "wavefuel?)", path, (long long)np, (unsigned long long)(first + m));
+    } else if (msp < 0 || H5Sselect_hyperslab(fsp, H5S_SELECT_SET, &first, NULL, &m, NULL) < 0 ||
+               H5Dwrite(d, i64 ? H5T_NATIVE_INT64 : H5T_NATIVE_DOUBLE, msp, fsp, H5P_DEFAULT, data) < 0) {
+        rc = h5fail_at(err, "write dataset", loc, name);
+    }
+    if (msp >= 0) H5Sclose(msp);
+    if (fsp >= 0) H5Sclose(fsp);
+    H5Dclose(d);
+    return rc;
+}
+
 int wf_h5_put_f64(hid_t loc, const char *name, WfH5Pass pass, int rank, const hsize_t *dims, const double *data,
                   const char *units, const char *desc, WfError *err)
 {

@@ -97,6 +97,9 @@ int wf_h5_put_f64(hid_t loc, const char *name, WfH5Pass pass, int rank, const hs
                   const char *units, const char *desc, WfError *err);
 int wf_h5_put_i64(hid_t loc, const char *name, WfH5Pass pass, int rank, const hsize_t *dims, const int64_t *data,
                   const char *units, const char *desc, WfError *err);
+/* FILL of rows [first, first + m) of an allocated one-dimensional dataset (int64 when i64, else double): the result's
+ * per-vehicle columns a piece at a time (wf_sim_shares). Fails if the dataset has fewer rows. */
+int wf_h5_put_rows(hid_t loc, const char *name, int i64, hsize_t first, hsize_t m, const void *data, WfError *err);
 int wf_h5_put_scalar_f64(hid_t loc, const char *name, WfH5Pass pass, double v, const char *units, const char *desc,
                          WfError *err);
 int wf_h5_put_scalar_i64(hid_t loc, const char *name, WfH5Pass pass, int64_t v, const char *units,

@@ -101,28 +101,43 @@ void wf_stats_combine_lanes(const WfStatsBlock *b, const size_t *lane_nb, size_t
     row->v[WF_TS_OVERLAPS] = (double)overlaps;
 }
 
+void wf_stats_summary_add(const WfFleet *f, const WfScenario *sc, size_t lo, size_t hi, WfSummarySums *a)
+{
+    double dt = sc->dt_s, L = sc->road.length_m;
+    for (size_t i = lo; i < hi; i++) {
+        size_t c = f->class_id[i];
+        a->fuel_g[c] += f->fuel_g[i];
+        a->dist_m[c] += wf_fleet_distance(f, i);
+        a->stops[c] += f->stops[i];
+        a->infeasible_steps[c] += f->infeasible_steps[i];
+        a->hard_brakes += f->hard_brakes[i];
+        a->stopped_s += (double)f->stopped_steps[i] * dt;
+        a->laps += (double)wf_fleet_laps(f, L, i);
+    }
+}
+
 void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, long n_sd, long window_steps,
                       int64_t overlaps, WfSummary *s)
 {
+    WfSummarySums a;
+    memset(&a, 0, sizeof a);
+    wf_stats_summary_add(f, sc, 0, f->n, &a);
+    wf_stats_summary_end(f, sc, &a, sd_sum, n_sd, window_steps, overlaps, s);
+}
+
+void wf_stats_summary_end(const WfFleet *f, const WfScenario *sc, const WfSummarySums *a, double sd_sum, long n_sd,
+                          long window_steps, int64_t overlaps, WfSummary *s)
+{
     memset(s, 0, sizeof *s);
-    double dt = sc->dt_s;
-    s->window_s = (double)window_steps * dt;
-    double stops = 0, hard = 0, infeas = 0, stopped_s = 0, laps = 0, litres = 0, gallons = 0;
-    double L = sc->road.length_m;
-    for (size_t i = 0; i < f->n; i++) {
-        WfClassSummary *cs = &s->cls[f->class_id[i]];
-        cs->fuel_g += f->fuel_g[i];
-        cs->dist_m += wf_fleet_distance(f, i);
-        cs->stops_per_vkm += f->stops[i];          /* counts until the loop below */
-        cs->infeasible_share += f->infeasible_steps[i];
-        hard += f->hard_brakes[i];
-        stopped_s += (double)f->stopped_steps[i] * dt;
-        laps += (double)wf_fleet_laps(f, L, i);
-    }
+    s->window_s = (double)window_steps * sc->dt_s;
+    double stops = 0, infeas = 0, litres = 0, gallons = 0, hard = a->hard_brakes, stopped_s = a->stopped_s;
+    double laps = a->laps;
     for (size_t c = 0; c < f->n_classes; c++) {
         WfClassSummary *cs = &s->cls[c];
         const WfVehicleClass *vc = &sc->classes[c].vc;
-        double cstops = cs->stops_per_vkm, cinf = cs->infeasible_share;
+        double cstops = a->stops[c], cinf = a->infeasible_steps[c];
+        cs->fuel_g = a->fuel_g[c];
+        cs->dist_m = a->dist_m[c];
         cs->count = (long)f->class_n[c];
         cs->l_per_100km = wf_l_per_100km(vc, cs->fuel_g, cs->dist_m);
         cs->mpg = wf_mpg(vc, cs->fuel_g, cs->dist_m);

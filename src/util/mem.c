@@ -1,4 +1,4 @@
-/* First touch of large arrays (mem.h). */
+/* First touch of large arrays, and giving pages back (mem.h). */
 #define _DEFAULT_SOURCE
 #include "util/mem.h"
 
@@ -29,4 +29,12 @@ void wf_mem_prefault(void *p, size_t bytes, int part, int parts)
     uintptr_t lo = (uintptr_t)p & ~(page - 1), hi = ((uintptr_t)p + bytes + page - 1) & ~(page - 1);
     uintptr_t a = part ? cut(lo, hi, part, parts) : lo, b = cut(lo, hi, part + 1, parts);
     if (b > a) (void)madvise((void *)a, b - a, MADV_POPULATE_WRITE);
+}
+
+void wf_mem_release(void *p, size_t bytes)
+{
+    if (!p || !bytes) return;
+    uintptr_t page = (uintptr_t)sysconf(_SC_PAGESIZE);
+    uintptr_t lo = ((uintptr_t)p + page - 1) & ~(page - 1), hi = ((uintptr_t)p + bytes) & ~(page - 1);
+    if (hi > lo) (void)madvise((void *)lo, hi - lo, MADV_DONTNEED);
 }

@@ -1,4 +1,5 @@
-/* First touch of the large per-vehicle arrays. Internal to wavefuel.
+/* First touch of the large per-vehicle arrays, and giving back the pages of those a process has done with. Internal
+ * to wavefuel.
  *
  * A road of 10^7 vehicles keeps some 2 GB of arrays. The step's sums are first touched by `+=`: each 4 KiB page is
  * then mapped to the shared zero page on the read and faults again, copy-on-write, on the write, with the other
@@ -16,5 +17,9 @@
  * changing their contents: part `part` of `parts` of them, cut at 2 MiB-aligned addresses, so that threads taking
  * the parts at once share no page (the kernel's clearing of new pages is then split between them). */
 void wf_mem_prefault(void *p, size_t bytes, int part, int parts);
+
+/* Give back the pages wholly inside [p, p + bytes) (madvise MADV_DONTNEED): they read as zeros afterwards. The
+ * pages at either end, which may hold bytes outside the range, are kept. */
+void wf_mem_release(void *p, size_t bytes);
 
 #endif
