@@ -163,6 +163,15 @@ typedef struct WfStateVar {
  * result writer adds at most 22 (rows of compressed datasets still in memory). */
 #define WF_MAX_STATE_VARS 96
 size_t wf_sim_state(WfSim *sim, WfStateVar *vars, size_t max);
+/* The run's state blocks vars[0..n) (wf_sim_state's) a piece at a time, for a checkpoint: fn(ctx, j, lo, hi, err) on
+ * bytes [lo, hi) of block j, current in its memory, the blocks in order and each block's pieces in order; a block
+ * held whole is one piece. A ring split across processes holds its per-vehicle blocks and its controllers' memory in
+ * shares (WfStateVar.partial): every rank calls this with its own vars, rank 0 with fn and the others with NULL, and
+ * each other rank's share of such a block is gathered onto rank 0 for fn and its pages given back afterwards. fn's
+ * first error is returned (the gathers still run). */
+typedef int (*WfStatePieceFn)(void *ctx, size_t j, size_t lo, size_t hi, WfError *err);
+int               wf_sim_state_pieces(WfSim *sim, const WfStateVar *vars, size_t n, WfStatePieceFn fn, void *ctx,
+                                      WfError *err);
 int    wf_sim_restored(WfSim *sim, WfError *err);
 /* Call out->checkpoint every `wall_s` seconds of wall time (0: only when interrupted). */
 void   wf_sim_set_checkpoint_interval(WfSim *sim, double wall_s);

@@ -224,11 +224,14 @@ static int trips_or_abort(void *ctx, const WfSim *sim, const struct WfTrip *trip
     return 0;
 }
 
-/* The other ranks save nothing: their state is gathered onto rank 0 before it saves a checkpoint. */
-static int no_checkpoint(void *ctx, const WfSim *sim, WfError *err)
+/* The other ranks save nothing: their shares of a ring's state go to rank 0 as it saves a checkpoint (nothing on a
+ * corridor, whose state is gathered onto rank 0 before). */
+static int send_state(void *ctx, const WfSim *sim, WfError *err)
 {
-    (void)ctx, (void)sim, (void)err;
-    return 0;
+    (void)ctx;
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = wf_sim_state((WfSim *)sim, vars, WF_MAX_STATE_VARS);
+    return wf_sim_state_pieces((WfSim *)sim, vars, nv, NULL, NULL, err);
 }
 
 /* The other ranks' end: their shares of a ring, to rank 0's writer as it writes the per-vehicle results
@@ -256,7 +259,7 @@ static int open_output(const RunArgs *a, WfScenario *sc, WfSim *sim, int rank, W
     int rc;
 #ifdef WF_MPI
     if (rank) {
-        *ops = (WfOutput){.checkpoint = no_checkpoint, .end = send_shares};
+        *ops = (WfOutput){.checkpoint = send_state, .end = send_shares};
         return a->resume ? wf_h5out_restore(a->resume, sim, err) : 0;
     }
 #else

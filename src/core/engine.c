@@ -479,6 +479,57 @@ static void part_summary_add(void *arg, void *buf)
     wf_stats_summary_add(s->f, s->sc, s->f->share_lo, s->f->share_hi, buf);
 }
 
+/* Bytes [*lo, *hi) of state block v held by rank r: its share of a per-vehicle array, or its members' run of a
+ * group's controller memory (part_init: group_before). */
+static void part_block_range(const WfRing *s, const WfStateVar *v, int r, size_t *lo, size_t *hi)
+{
+    if (v->stride) {
+        part_range(s, r, lo, hi);
+        *lo *= v->stride, *hi *= v->stride;
+        return;
+    }
+    size_t ns = (size_t)s->part->size + 1;
+    for (size_t g = 0; g < s->f->n_groups; g++)
+        if (s->f->group_state[g] == v->data) {
+            size_t ssz = s->sc->groups[g].model->state_size;
+            *lo = s->group_before[g * ns + (size_t)r] * ssz, *hi = s->group_before[g * ns + (size_t)r + 1] * ssz;
+            return;
+        }
+    *lo = *hi = 0;
+}
+
+/* Rank r's bytes [lo, hi) of block v onto rank 0 (every rank calls this; nothing moves for rank 0's own). */
+static int part_gather_piece(WfRing *s, const WfStateVar *v, int r, size_t lo, size_t hi, WfError *err)
+{
+    WfPartition *p = s->part;
+    if (!r) return 0;
+    for (int q = 0; q <= p->size; q++) s->off[q] = q <= r ? lo : hi;
+    return p->gather(p->ctx, v->data, s->off, 0, err);
+}
+
+/* WfBoundary.state_pieces (wf_sim_state_pieces): a split ring's blocks held in shares come to rank 0 one share at a
+ * time, each handed to fn and its pages given back (but rank 0's own). */
+static int ring_state_pieces(void *eng, const WfStateVar *vars, size_t nv, WfStatePieceFn fn, void *ctx, WfError *err)
+{
+    WfRing *s = eng;
+    WfPartition *p = s->part;
+    int rc = 0, frc = 0;
+    for (size_t j = 0; !rc && j < nv; j++) {
+        if (!p || !vars[j].partial) {
+            if (fn && !frc && (!p || !p->rank)) frc = fn(ctx, j, 0, vars[j].size, err);
+            continue;
+        }
+        for (int r = 0; !rc && r < p->size; r++) {
+            size_t lo, hi;
+            part_block_range(s, &vars[j], r, &lo, &hi);
+            if ((rc = part_gather_piece(s, &vars[j], r, lo, hi, err)) || p->rank) continue;
+            if (fn && !frc) frc = fn(ctx, j, lo, hi, err);
+            if (r) wf_mem_release((char *)vars[j].data + lo, hi - lo);
+        }
+    }
+    return rc ? rc : frc;
+}
+
 /* The ring's vehicles a share at a time on rank 0, in ring order (WfBoundary.shares): each other rank's share is
  * gathered into rank 0's arrays, handed to fn (rank 0 only) and its pages given back, so that rank 0 never holds
  * more than its own share and one other. Every rank calls this; an error of fn skips fn for the later shares but
@@ -494,11 +545,9 @@ static int ring_shares(void *eng, WfShareFn fn, void *ctx, WfError *err)
     for (int r = 0; !rc && r < p->size; r++) {
         size_t lo, hi;
         part_range(s, r, &lo, &hi);
-        for (size_t j = 0; !rc && r && j < nv; j++) {
-            if (!vars[j].stride) continue;
-            for (int q = 0; q <= p->size; q++) s->off[q] = (q <= r ? lo : hi) * vars[j].stride;
-            rc = p->gather(p->ctx, vars[j].data, s->off, 0, err);
-        }
+        for (size_t j = 0; !rc && j < nv; j++)
+            if (vars[j].stride)
+                rc = part_gather_piece(s, &vars[j], r, lo * vars[j].stride, hi * vars[j].stride, err);
         if (rc || p->rank) continue;
         if (fn && !frc) frc = fn(ctx, lo, hi, err);
         for (size_t j = 0; r && j < nv; j++)
@@ -925,11 +974,17 @@ static void lanes_safety(WfRing *s, int restore)
             all->steps[g] += s->lanes[l].safety.steps[g], all->hits[g] += s->lanes[l].safety.hits[g];
 }
 
-/* Before a checkpoint of a ring split across processes: the whole state onto rank 0, which saves it. */
+/* Before a checkpoint of a ring split across processes: every rank's safety counts (the checkpoint's per-vehicle
+ * blocks and controller memory come to rank 0 a share at a time: ring_state_pieces). */
 static int ring_flush(void *eng, WfError *err)
 {
     WfRing *s = eng;
-    return s->part ? part_collect(s, err) : 0;
+    return s->part ? part_safety(s, err) : 0;
+}
+
+int wf_sim_collect(WfSim *sim, WfError *err)
+{
+    return sim->part && sim->b == &wf_boundary_periodic ? part_collect(sim->eng, err) : 0;
 }
 
 /* The run's totals (also after an interruption or an error). Split across processes, the vehicles' sums run along
@@ -1169,4 +1224,5 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
                                          .step = ring_step, .flush = ring_flush, .close = ring_close, .state = ring_state,
                                          .restored = ring_restored, .group = ring_group, .lanes = ring_lanes,
-                                         .windows = ring_windows, .governor = ring_governor, .shares = ring_shares};
+                                         .windows = ring_windows, .governor = ring_governor, .shares = ring_shares,
+                                         .state_pieces = ring_state_pieces};

@@ -204,9 +204,12 @@ int wf_sim_shares(const WfSim *s, WfShareFn fn, void *ctx, WfError *err)
     return s->b->shares ? s->b->shares(s->eng, fn, ctx, err) : 0;
 }
 
-int wf_sim_collect(WfSim *s, WfError *err)
+int wf_sim_state_pieces(WfSim *s, const WfStateVar *vars, size_t n, WfStatePieceFn fn, void *ctx, WfError *err)
 {
-    return s->part && s->b == &wf_boundary_periodic ? s->b->flush(s->eng, err) : 0;
+    if (s->b->state_pieces) return s->b->state_pieces(s->eng, vars, n, fn, ctx, err);
+    int rc = 0;
+    for (size_t j = 0; fn && !rc && j < n; j++) rc = fn(ctx, j, 0, vars[j].size, err);
+    return rc;
 }
 
 int wf_sim_window_stats(const WfSim *s, long *windows, long *redone) { return s->b->windows(s->eng, windows, redone); }

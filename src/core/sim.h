@@ -41,6 +41,8 @@ typedef struct WfBoundary {
     const WfGovernor *(*governor)(const void *eng);
     /* A ring's vehicles at the end, a share at a time (wf_sim_shares); NULL: not a ring. */
     int    (*shares)(void *eng, WfShareFn fn, void *ctx, WfError *err);
+    /* A checkpoint's state blocks a piece at a time (wf_sim_state_pieces); NULL: each whole. */
+    int    (*state_pieces)(void *eng, const WfStateVar *vars, size_t n, WfStatePieceFn fn, void *ctx, WfError *err);
 } WfBoundary;
 
 extern const WfBoundary wf_boundary_periodic, wf_boundary_open;

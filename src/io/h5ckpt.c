@@ -55,14 +55,6 @@ static uint64_t checksum_block(uint64_t h, const WfStateVar *v)
     return wf_fnv1a64(h, &size, sizeof size);
 }
 
-static uint64_t checksum(const char *kind, const WfScenario *sc, int64_t steps_done, const WfCkptCursor *cur,
-                         size_t n_cur, const WfStateVar *vars, size_t n_vars)
-{
-    uint64_t h = checksum_head(kind, sc, steps_done, cur, n_cur);
-    for (size_t i = 0; i < n_vars; i++) h = wf_fnv1a64(checksum_block(h, &vars[i]), vars[i].data, vars[i].size);
-    return h;
-}
-
 static int cursor_attr(const char *name, char *out, size_t len, WfError *err)
 {
     int w = snprintf(out, len, "rows_%s", name);
@@ -99,9 +91,42 @@ static int pending_blocks(const WfCkptSeries *sp, size_t ns, WfStateVar *vars, s
     return 0;
 }
 
+/* The blocks being saved: the dataset of the block being written (its pieces come in order) and the running
+ * checksum, which covers each block's name, size and bytes as it is written. */
+typedef struct SaveBlocks {
+    hid_t             g, d;
+    const WfStateVar *vars;
+    size_t            open;
+    uint64_t          h;
+} SaveBlocks;
+
+static int save_piece(void *ctx, size_t j, size_t lo, size_t hi, WfError *err)
+{
+    SaveBlocks *sb = ctx;
+    const WfStateVar *v = &sb->vars[j];
+    if (sb->d < 0 || sb->open != j) {
+        if (sb->d >= 0) H5Dclose(sb->d);
+        sb->open = j;
+        sb->h = checksum_block(sb->h, v);
+        sb->d = wf_h5_create_u8(sb->g, v->name, v->size, "1", "raw bytes of a state block", err);
+        if (sb->d < 0) return WF_ESYS;
+    }
+    const unsigned char *p = (const unsigned char *)v->data + lo;
+    sb->h = wf_fnv1a64(sb->h, p, hi - lo);
+    return wf_h5_write_u8_at(sb->d, lo, hi - lo, p, err);
+}
+
+/* Blocks [j0, j1) of vars whole, from their memory (one process). */
+static int walk_whole(const WfStateVar *vars, size_t j0, size_t j1, WfStatePieceFn put, void *ctx, WfError *err)
+{
+    int rc = 0;
+    for (size_t j = j0; !rc && j < j1; j++) rc = put(ctx, j, 0, vars[j].size, err);
+    return rc;
+}
+
 int wf_ckpt_save(const char *result, const char *kind, const WfScenario *sc, int64_t steps_done,
                  const char *const *cursor, size_t n_cur, const WfCkptSeries *sp, size_t ns, WfStateVar *vars,
-                 size_t n_vars, WfError *err)
+                 size_t n_vars, WfCkptWalk walk, void *walk_ctx, WfError *err)
 {
     char ck[CKPT_PATH_MAX], tmp[CKPT_PATH_MAX], sum[32], attr[96];
     WfCkptCursor cur[8];
@@ -112,27 +137,37 @@ int wf_ckpt_save(const char *result, const char *kind, const WfScenario *sc, int
         for (size_t j = 0; j < ns; j++)
             if (sp[j].cursor == i) cur[i].rows = (int64_t)(sp[j].s->rows + sp[j].s->n_pend);
     }
+    size_t n_engine = n_vars;
     if (!rc) rc = pending_blocks(sp, ns, vars, &n_vars, err);
-    if (rc) return rc;
-    snprintf(sum, sizeof sum, "%016llx",
-             (unsigned long long)checksum(kind, sc, steps_done, cur, n_cur, vars, n_vars));
+    /* the engine's blocks must reach the walk's other processes even when this one cannot write */
+    if (rc) return walk ? walk(walk_ctx, vars, n_engine, NULL, NULL, &(WfError){0}), rc : rc;
     errno = 0;
     hid_t f = H5Fcreate(tmp, H5F_ACC_TRUNC, H5P_DEFAULT, H5P_DEFAULT);
     if (f < 0)
-        return wf_err(err, WF_ESYS, "%s: cannot create the checkpoint (%s)", tmp, errno ? strerror(errno) : "HDF5");
-    rc = wf_h5_attr_str(f, "kind", kind, err) || wf_h5_attr_str(f, "scenario_path", sc->path, err) ||
-         wf_h5_attr_i64(f, "steps_done", steps_done, err) || wf_h5_attr_str(f, "checksum", sum, err) ||
-         wf_h5_scalar_str(f, "scenario_text", sc->text, "scenario file verbatim", err) ||
-         wf_h5_scalar_str(f, "overrides", sc->overrides, "--set assignments, one per line", err);
+        rc = wf_err(err, WF_ESYS, "%s: cannot create the checkpoint (%s)", tmp, errno ? strerror(errno) : "HDF5");
+    if (!rc)
+        rc = wf_h5_attr_str(f, "kind", kind, err) || wf_h5_attr_str(f, "scenario_path", sc->path, err) ||
+             wf_h5_attr_i64(f, "steps_done", steps_done, err) ||
+             wf_h5_scalar_str(f, "scenario_text", sc->text, "scenario file verbatim", err) ||
+             wf_h5_scalar_str(f, "overrides", sc->overrides, "--set assignments, one per line", err);
     for (size_t i = 0; !rc && i < n_cur; i++)
         rc = cursor_attr(cur[i].name, attr, sizeof attr, err) || wf_h5_attr_i64(f, attr, cur[i].rows, err);
-    hid_t g = rc ? H5I_INVALID_HID : wf_h5_group(f, "state", err);
-    if (!rc && g < 0) rc = WF_ESYS;
-    for (size_t i = 0; !rc && i < n_vars; i++) {
-        hsize_t dim = vars[i].size;
-        rc = wf_h5_write_u8(g, vars[i].name, 1, &dim, vars[i].data, "1", "raw bytes of a state block", err);
+    SaveBlocks sb = {.vars = vars, .d = H5I_INVALID_HID, .h = checksum_head(kind, sc, steps_done, cur, n_cur)};
+    sb.g = rc ? H5I_INVALID_HID : wf_h5_group(f, "state", err);
+    if (!rc && sb.g < 0) rc = WF_ESYS;
+    /* the engine's blocks (a piece at a time on a split ring: every process walks them), then the pending rows */
+    WfError lost = {0};
+    int wrc = walk ? walk(walk_ctx, vars, n_engine, rc ? NULL : save_piece, &sb, rc ? &lost : err)
+                   : rc ? 0 : walk_whole(vars, 0, n_engine, save_piece, &sb, err);
+    if (!rc) rc = wrc;
+    if (!rc) rc = walk_whole(vars, n_engine, n_vars, save_piece, &sb, err);
+    if (sb.d >= 0) H5Dclose(sb.d);
+    if (sb.g >= 0) H5Gclose(sb.g);
+    if (!rc) {
+        snprintf(sum, sizeof sum, "%016llx", (unsigned long long)sb.h);
+        rc = wf_h5_attr_str(f, "checksum", sum, err);
     }
-    if (g >= 0) H5Gclose(g);
+    if (f < 0) return rc;
     if (H5Fclose(f) < 0 && !rc) rc = wf_err(err, WF_ESYS, "HDF5: close failed (disk full?)");
     if (rc) {
         unlink(tmp);

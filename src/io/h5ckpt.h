@@ -31,13 +31,19 @@ typedef struct WfCkptSeries {
 /* Create the series sp[0..n) in the file fid (their groups must exist). WF_ESYS naming the dataset. */
 int wf_ckpt_series_create(hid_t fid, const WfCkptSeries *sp, size_t n, WfError *err);
 
+/* How the engine's blocks reach the saver (wf_sim_state_pieces): put(put_ctx, j, lo, hi, err) for bytes [lo, hi) of
+ * block j, current in its memory, the blocks in order and each one's pieces in order. */
+typedef int (*WfCkptWalk)(void *walk_ctx, const WfStateVar *vars, size_t n_vars, WfStatePieceFn put, void *put_ctx,
+                          WfError *err);
+
 /* Replace the checkpoint of `result` with one of this run: its scenario, kind, step, the engine's state blocks
  * vars[0..n_vars) (read only; the array has room for WF_MAX_STATE_VARS, the series' pending rows are added to
- * it) and the series, whose file rows must already be flushed. The cursors are named cursor[0..n_cur). WF_ESYS
+ * it), handed over by walk (NULL: each block whole, from its memory; a ring split across processes has rank 0 gather
+ * the other ranks' shares of a block one at a time), and the series, whose file rows must already be flushed. The cursors are named cursor[0..n_cur). WF_ESYS
  * naming the file on failure; the previous checkpoint then stays. */
 int wf_ckpt_save(const char *result, const char *kind, const WfScenario *sc, int64_t steps_done,
                  const char *const *cursor, size_t n_cur, const WfCkptSeries *sp, size_t ns, WfStateVar *vars,
-                 size_t n_vars, WfError *err);
+                 size_t n_vars, WfCkptWalk walk, void *walk_ctx, WfError *err);
 
 /* Resume, step 1: read the checkpoint of `result` into the engine blocks vars[0..n_vars) (room for
  * WF_MAX_STATE_VARS) of an engine built from the scenario `sc` the checkpoint holds, and set up the series with

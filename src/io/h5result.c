@@ -394,6 +394,12 @@ static int h5_end(void *ctx, const WfSim *sim, int completed, const char *reason
     return rc;
 }
 
+/* WfCkptWalk: the engine's blocks as the run hands them over, a piece at a time on a split ring. */
+static int state_walk(void *sim, const WfStateVar *vars, size_t n, WfStatePieceFn put, void *ctx, WfError *err)
+{
+    return wf_sim_state_pieces(sim, vars, n, put, ctx, err);
+}
+
 /* ---- checkpoints (FILE.h5.ckpt, src/io/h5ckpt.h) and resumption ---- */
 
 static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
@@ -410,7 +416,7 @@ static int h5_checkpoint(void *ctx, const WfSim *sim, WfError *err)
     /* The state function packs the engine's scalars before listing the blocks; they are only read here. */
     size_t nv = wf_sim_state((WfSim *)sim, vars, WF_MAX_STATE_VARS);
     return wf_ckpt_save(w->file->path, w->b->kind, wf_sim_scenario(sim), wf_sim_steps_done(sim), w->cur,
-                        w->b->n_cursors, w->sp, w->ns, vars, nv, err);
+                        w->b->n_cursors, w->sp, w->ns, vars, nv, state_walk, (void *)sim, err);
 }
 
 /* The reopened file back at the checkpoint: the counters at its rows (lowering a counter is always safe), the

@@ -349,9 +349,10 @@ static int label(hid_t d, const char *units, const char *desc, WfError *err)
     return 0;
 }
 
-/* rank 0: a scalar. */
-static int write_any(hid_t loc, const char *name, int rank, const hsize_t *dims, hid_t mem_type, hid_t file_type,
-                     const void *data, const char *units, const char *desc, WfError *err)
+/* The dataset write_any writes, created and labelled, nothing written; rank 0: a scalar. H5I_INVALID_HID on
+ * failure. */
+static hid_t create_any(hid_t loc, const char *name, int rank, const hsize_t *dims, hid_t file_type,
+                        const char *units, const char *desc, WfError *err)
 {
     hsize_t total = 1;
     for (int i = 0; i < rank; i++) total *= dims[i];
@@ -370,13 +371,41 @@ static int write_any(hid_t loc, const char *name, int rank, const hsize_t *dims,
         if (H5Pset_chunk(dcpl, rank, chunk) < 0 || H5Pset_shuffle(dcpl) < 0 || H5Pset_deflate(dcpl, 1) < 0) rc = 1;
     }
     if (!rc && (d = H5Dcreate2(loc, name, file_type, sp, H5P_DEFAULT, dcpl, H5P_DEFAULT)) < 0) rc = 1;
-    if (!rc && total && H5Dwrite(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0) rc = 1;
-    if (rc) rc = h5fail_at(err, "write dataset", loc, name);
-    if (!rc) rc = label(d, units, desc, err);
-    if (d >= 0) H5Dclose(d);
+    if (rc) h5fail_at(err, "write dataset", loc, name);
+    if (!rc && label(d, units, desc, err)) rc = 1;
     if (dcpl >= 0) H5Pclose(dcpl);
     if (sp >= 0) H5Sclose(sp);
+    if (rc && d >= 0) H5Dclose(d);
+    return rc ? H5I_INVALID_HID : d;
+}
+
+static int write_any(hid_t loc, const char *name, int rank, const hsize_t *dims, hid_t mem_type, hid_t file_type,
+                     const void *data, const char *units, const char *desc, WfError *err)
+{
+    hsize_t total = 1;
+    for (int i = 0; i < rank; i++) total *= dims[i];
+    hid_t d = create_any(loc, name, rank, dims, file_type, units, desc, err);
+    if (d < 0) return WF_ESYS;
+    int rc = total && H5Dwrite(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, data) < 0
+                 ? h5fail_at(err, "write dataset", loc, name) : 0;
+    H5Dclose(d);
     return rc;
+}
+
+hid_t wf_h5_create_u8(hid_t loc, const char *name, hsize_t n, const char *units, const char *desc, WfError *err)
+{
+    return create_any(loc, name, 1, &n, H5T_STD_U8LE, units, desc, err);
+}
+
+int wf_h5_write_u8_at(hid_t d, hsize_t first, hsize_t m, const void *data, WfError *err)
+{
+    if (!m) return 0;
+    hid_t fsp = H5Dget_space(d), msp = H5Screate_simple(1, &m, NULL);
+    int rc = fsp < 0 || msp < 0 || H5Sselect_hyperslab(fsp, H5S_SELECT_SET, &first, NULL, &m, NULL) < 0 ||
+             H5Dwrite(d, H5T_NATIVE_UINT8, msp, fsp, H5P_DEFAULT, data) < 0;
+    if (msp >= 0) H5Sclose(msp);
+    if (fsp >= 0) H5Sclose(fsp);
+    return rc ? h5fail_at(err, "write dataset", d, ".") : 0;
 }
 
 int wf_h5_write_f64(hid_t loc, const char *name, int rank, const hsize_t *dims, const double *data,

@@ -59,6 +59,10 @@ int wf_h5_write_i64(hid_t loc, const char *name, int rank, const hsize_t *dims, 
                     const char *units, const char *desc, WfError *err);
 int wf_h5_write_u8(hid_t loc, const char *name, int rank, const hsize_t *dims, const uint8_t *data,
                    const char *units, const char *desc, WfError *err);
+/* The dataset wf_h5_write_u8 writes (the same layout and labels), created and not yet written: then written in
+ * pieces, bytes [first, first + m) at a time (wf_h5_write_u8_at). H5I_INVALID_HID with err set on failure. */
+hid_t wf_h5_create_u8(hid_t loc, const char *name, hsize_t n, const char *units, const char *desc, WfError *err);
+int wf_h5_write_u8_at(hid_t d, hsize_t first, hsize_t m, const void *data, WfError *err);
 /* A 1-D dataset of variable-length strings. */
 int wf_h5_write_strings(hid_t loc, const char *name, size_t n, const char *const *s, const char *desc,
                         WfError *err);
