@@ -57,7 +57,7 @@ typedef struct WfFleet {
      * continuous in time (what /trajectories/x and /vehicles/final_x report) */
     double   *lap_m;
     /* The vehicles whose state this process holds: all of them, or its share of a ring split across processes
-     * (wf_fleet_create_part), where only class_id and group_id are whole. */
+     * (wf_fleet_create_part), where only class_id and group_id are written for every vehicle. */
     size_t    share_lo, share_hi;
 } WfFleet;
 
@@ -69,10 +69,11 @@ enum { WF_MODE_MOVING = 1, WF_MODE_BRAKING = 2, WF_MODE_FAULT = 4 };
  * keeps no pointer to it); *out is the caller's until wf_fleet_destroy(); NULL on failure. */
 int wf_fleet_create(const WfScenario *sc, WfFleet **out, WfError *err);
 /* The same fleet for a ring split across processes (part non-NULL; NULL: wf_fleet_create): this process builds its
- * share (wf_partition_blocks) and the parameters of the vehicles it reads ahead of it; every array stays whole
- * (indexed by vehicle), but only class_id and group_id are written outside the share, so the rest of the pages is
- * never taken. The sums along the ring run in ring order across the processes: every value of the share, and every
- * error, is one process's. Collective. Ownership as wf_fleet_create; part is borrowed for the call. */
+ * share (wf_partition_blocks) and what it reads of the vehicles ahead of it (their parameters, its last vehicle's
+ * leader). Every array stays indexed by vehicle, but only class_id and group_id are written for every vehicle: the
+ * pages of the other arrays outside the share are never taken. The sums along the ring run in ring order across the
+ * processes: every value of the share, and every error, is one process's. Collective. Ownership as wf_fleet_create;
+ * part is borrowed for the call. */
 int wf_fleet_create_part(const WfScenario *sc, const WfPartition *part, WfFleet **out, WfError *err);
 /* Open the statistics window now: positions become the reference of distances and passages. */
 void wf_fleet_open_window(WfFleet *f);

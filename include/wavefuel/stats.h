@@ -50,14 +50,10 @@ void wf_stats_combine_lanes(const WfStatsBlock *blocks, const size_t *lane_nb, s
 
 /* Aggregates over the statistics window: WfSummary (wavefuel/summary.h). */
 
-/* Compute the summary from the accumulators. sd_sum / n_sd is the sum / number of the spatial speed s.d.
- * of the records inside the window; window_steps the number of steps in the window. */
-void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, long n_sd, long window_steps,
-                      int64_t overlaps, WfSummary *s);
-
-/* The same in two steps, for a fleet whose vehicles are held in pieces (a ring split across processes): the sums
- * over the vehicles, in ring order, piece after piece (zero them first: the first add runs from vehicle 0), then the
- * summary from them. wf_stats_summary is add over [0, n) and end. */
+/* The summary from the accumulators, in two steps, so that a fleet held in pieces (a ring split across processes)
+ * can be summed piece after piece: the sums over vehicles [lo, hi), added in ring order (zero them before the first
+ * piece, which starts at vehicle 0), then the summary from them. sd_sum / n_sd is the sum / number of the spatial
+ * speed s.d. of the records inside the window; window_steps the number of steps in the window. */
 typedef struct WfSummarySums {
     double fuel_g[WF_MAX_CLASSES], dist_m[WF_MAX_CLASSES], stops[WF_MAX_CLASSES], infeasible_steps[WF_MAX_CLASSES];
     double hard_brakes, stopped_s, laps;

@@ -94,7 +94,7 @@ void wf_equilibrium_ring_gaps(const WfScenario *sc, const WfFleet *f, double v, 
  * (no equilibrium within the ring at this speed counts as "too long"). */
 static double ring_fn(double v, const void *vctx)
 {
-    RingCtx *c = (RingCtx *)vctx;
+    RingCtx *c = (RingCtx *)vctx; /* the root finders pass it as const; a failed sum over the processes is noted */
     const WfFleet *f = c->f;
     const WfScenario *sc = c->sc;
     size_t n = f->n, nb = (n + WF_EQ_BLOCK - 1) / WF_EQ_BLOCK;

@@ -464,13 +464,14 @@ static int initial_state(const WfScenario *sc, WfFleet *f, const Share *sh, size
     RingSums c = {sc, f, sh, gap};
     int rc = share_chain(sh, &x0, sizeof x0, sum_positions, &c, 0, err);
     if (rc) return rc;
-    if (lead == 0) f->x_m[0] = wf_fleet_length(f, 0);
+    /* the share's vehicles, and (a share of a split ring) its last one's leader: the next share's first, placed by
+     * the chain, or the ring's first */
+    size_t outside = lead < lo || lead >= hi;
+    if (outside && lead == 0) f->x_m[0] = wf_fleet_length(f, 0);
     long pv = sc->perturb_vehicle >= (long)first && sc->perturb_vehicle < (long)(first + n)
                   ? sc->perturb_vehicle - (long)first : -1;
-    /* the share's vehicles, then (split) its last one's leader */
-    for (size_t k = lo; k <= hi; k++) {
+    for (size_t k = lo; k < hi + outside; k++) {
         size_t i = k < hi ? k : lead;
-        if (k == hi && lead >= lo && lead < hi) break;
         f->v_mps[i] = v0;
         if (sc->jitter_m > 0) {
             double u[2];

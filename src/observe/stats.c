@@ -116,15 +116,6 @@ void wf_stats_summary_add(const WfFleet *f, const WfScenario *sc, size_t lo, siz
     }
 }
 
-void wf_stats_summary(const WfFleet *f, const WfScenario *sc, double sd_sum, long n_sd, long window_steps,
-                      int64_t overlaps, WfSummary *s)
-{
-    WfSummarySums a;
-    memset(&a, 0, sizeof a);
-    wf_stats_summary_add(f, sc, 0, f->n, &a);
-    wf_stats_summary_end(f, sc, &a, sd_sum, n_sd, window_steps, overlaps, s);
-}
-
 void wf_stats_summary_end(const WfFleet *f, const WfScenario *sc, const WfSummarySums *a, double sd_sum, long n_sd,
                           long window_steps, int64_t overlaps, WfSummary *s)
 {
