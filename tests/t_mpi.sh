@@ -265,6 +265,20 @@ sigterm_cases() {
 }
 sigterm_cases "" 60000 "$tmp/long_ref.h5" $LONG
 
+# A checkpoint whose per-vehicle blocks span several chunks of the file (2.4 MB: 300 000 vehicles), saved by rank 0
+# of 2 a share at a time (its pieces cross the chunks' edges) when a signal to rank 1 stops the run, resumed on 3
+# ranks: the uninterrupted result.
+BIG="bench/scaling/ring.yaml --set fleet.vehicles=300000 --set road.length_m=7500000 --set time.duration_s=200"
+run $BIG -o "$tmp/big_ref.h5" --threads 2
+interrupted big rank1 $BIG
+if [ $rc -ne 0 ] && msg=$(stopped big 2000 2>&1); then
+  MPI_TIMEOUT=400 mpi 3 run --resume "$tmp/big.h5" -q --threads 1 >"$tmp/big_r.log" 2>&1; rc=$?
+  if [ $rc -eq 0 ] && msg=$(same "$tmp/big_ref.h5" "$tmp/big.h5" 2>&1); then ok "share_checkpoint_chunks_resume_on_3_ranks ($msg)"
+  else ko share_checkpoint_chunks_resume_on_3_ranks "rc $rc: $(tail -3 "$tmp/big_r.log") ${msg:-}"; fi
+else
+  ko share_checkpoint_chunks_resume_on_3_ranks "not stopped: rc $rc, ${msg:-}: $(tail -3 "$tmp/big.log")"
+fi
+
 # (e) A corridor (tests/test_partition.c's): Poisson arrivals above capacity, noisy heterogeneous IDM, PI with
 # saturation under a safety filter, two classes, grades, a headway and a speed-limit zone, a prescribed-speed virtual
 # leader that drops; Edie cells of 250 m, so the ranks' segments are cut at 6000 m (2 ranks), 4000 and 8000 m (3),
