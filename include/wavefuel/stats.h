@@ -47,6 +47,22 @@ void wf_stats_combine(const WfStatsBlock *blocks, size_t n_blocks, size_t n_clas
 void wf_stats_combine_lanes(const WfStatsBlock *blocks, const size_t *lane_nb, size_t n_lanes, size_t n_classes,
                             const WfScenario *sc, double t_s, int64_t overlaps, WfTsRow *row);
 
+/* The combination in steps, for blocks held in pieces (a ring split across processes): begin; fold each lane's blocks
+ * in order, piece after piece, and end the lane; then the second moments about the mean, piece after piece; then the
+ * row. wf_stats_combine_lanes is these over one piece. */
+typedef struct WfStatsFold {
+    double n, sv, sg, stopped, waves, vmin, vmax, gmin, mean, m2;
+    double lane_waves, lane_vmax;
+    size_t lane_blocks;
+    int    lane_first_slow, last_slow;
+    double class_fuel_rate_gps[WF_MAX_CLASSES];
+} WfStatsFold;
+void wf_stats_fold_begin(WfStatsFold *a);
+void wf_stats_fold(WfStatsFold *a, const WfStatsBlock *blocks, size_t n_blocks, size_t n_classes);
+void wf_stats_fold_lane_end(WfStatsFold *a, const WfScenario *sc);
+void wf_stats_fold_m2(WfStatsFold *a, const WfStatsBlock *blocks, size_t n_blocks);
+void wf_stats_fold_row(const WfStatsFold *a, size_t n_classes, double t_s, int64_t overlaps, WfTsRow *row);
+
 
 /* Aggregates over the statistics window: WfSummary (wavefuel/summary.h). */
 

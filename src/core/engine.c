@@ -420,17 +420,37 @@ static int part_gather(WfRing *s, void *buf, size_t stride, int root, WfError *e
     return p->gather(p->ctx, buf, s->off, root, err);
 }
 
-/* A record's block sums onto rank 0, which alone combines them. */
-static int part_gather_blocks(WfRing *s, WfStatsBlock *rec, WfError *err)
+/* WfPartition.chain over this rank's blocks of a record (part_record). */
+struct PartFold {
+    const WfRing       *s;
+    const WfStatsBlock *rec;
+    int                 m2;
+};
+static void part_fold(void *arg, void *buf)
+{
+    const struct PartFold *pf = arg;
+    size_t nb = pf->s->b_hi - pf->s->b_lo;
+    const WfStatsBlock *b = pf->rec + pf->s->b_lo;
+    if (pf->m2) wf_stats_fold_m2(buf, b, nb);
+    else wf_stats_fold(buf, b, nb, pf->s->f->n_classes);
+}
+
+/* A record of a ring split across processes from each rank's block sums (rec, indexed by block), combined as one
+ * process combines them (wf_stats_combine): the sums run from rank 0 to the last rank in block order and back, then
+ * the second moments about the mean the same way, 2R messages of 240 bytes instead of every block onto rank 0.
+ * Every rank calls this; rank 0 alone gets the row. */
+static int part_record(WfRing *s, const WfStatsBlock *rec, double t, WfTsRow *row, WfError *err)
 {
     WfPartition *p = s->part;
-    size_t nb = wf_lane_blocks(0, s->f->n), b0, b1;
-    for (int r = 0; r < p->size; r++) {
-        wf_partition_blocks(nb, p->size, r, &b0, &b1);
-        s->off[r] = b0 * sizeof *rec;
-    }
-    s->off[p->size] = nb * sizeof *rec;
-    return p->gather(p->ctx, rec, s->off, 0, err);
+    WfStatsFold a;
+    wf_stats_fold_begin(&a);
+    struct PartFold pf = {s, rec, 0};
+    int rc = p->chain(p->ctx, &a, sizeof a, part_fold, &pf, err);
+    if (!rc && !p->rank) wf_stats_fold_lane_end(&a, s->sc); /* the mean, which the second pass carries */
+    pf.m2 = 1;
+    if (!rc) rc = p->chain(p->ctx, &a, sizeof a, part_fold, &pf, err);
+    if (!rc && !p->rank) wf_stats_fold_row(&a, s->f->n_classes, t, s->overlaps, row);
+    return rc;
 }
 
 /* Before the overlap repair, which sweeps the whole ring: positions, speeds and modes onto every rank. */
@@ -830,12 +850,12 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     for (long q = step; q < step + k && j < rows; q++) {
         if (q % s->out_every) continue;
         WfStatsBlock *blocks = s->win.rec + nb * j++;
-        if (s->part && ((rc = part_gather_blocks(s, blocks, err)) || s->part->rank)) {
+        WfTsRow row;
+        if (s->part && ((rc = part_record(s, blocks, (double)q * sc->dt_s, &row, err)) || s->part->rank)) {
             if (rc) return rc;
             continue; /* rank 0 alone records */
         }
-        WfTsRow row;
-        wf_stats_combine(blocks, nb, s->f->n_classes, sc, (double)q * sc->dt_s, s->overlaps, &row);
+        if (!s->part) wf_stats_combine(blocks, nb, s->f->n_classes, sc, (double)q * sc->dt_s, s->overlaps, &row);
         if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
         lap(s, WF_PHASE_STATISTICS, &tp);
         WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
@@ -907,10 +927,10 @@ static int ring_advance(WfRing *s, long step, long max_steps, long *steps, WfErr
     if (s->part && (rc = part_step(s, step, pass, in_window, records ? s->stat_blocks : NULL, &flags, err))) return rc;
     if (!s->part) flags = lanes_step(s, step, pass, in_window, records ? s->stat_blocks : NULL);
     lap(s, fused ? WF_PHASE_FUSED : WF_PHASE_CAR_FOLLOWING, &tp);
-    if (records && s->part && (rc = part_gather_blocks(s, s->stat_blocks, err))) return rc;
+    WfTsRow row;
+    if (records && s->part && (rc = part_record(s, s->stat_blocks, t, &row, err))) return rc;
     if (records && !(s->part && s->part->rank)) { /* split across processes: rank 0 alone records */
-        WfTsRow row;
-        lanes_record(s, s->stat_blocks, t, &row);
+        if (!s->part) lanes_record(s, s->stat_blocks, t, &row);
         lanes_observe(s, s->stat_blocks, t);
         if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
         lap(s, WF_PHASE_STATISTICS, &tp);

@@ -57,48 +57,79 @@ void wf_stats_combine(const WfStatsBlock *b, size_t nb, size_t nc, const WfScena
     wf_stats_combine_lanes(b, &nb, 1, nc, sc, t_s, overlaps, row);
 }
 
+void wf_stats_fold_begin(WfStatsFold *a)
+{
+    memset(a, 0, sizeof *a);
+    a->vmin = a->gmin = INFINITY, a->vmax = a->lane_vmax = -INFINITY;
+}
+
+void wf_stats_fold(WfStatsFold *a, const WfStatsBlock *b, size_t nb, size_t nc)
+{
+    for (size_t k = 0; k < nb; k++) {
+        a->n += b[k].n, a->sv += b[k].sum_v, a->sg += b[k].sum_gap, a->stopped += b[k].stopped;
+        a->lane_waves += b[k].waves;
+        /* The follower of a block's first vehicle is the previous block's last; the lane's first block's is the
+         * lane's last block's, settled in wf_stats_fold_lane_end (the counts are whole numbers: any order gives the
+         * same sum). */
+        if (a->lane_blocks++) a->lane_waves += b[k].first_slow && !a->last_slow;
+        else a->lane_first_slow = b[k].first_slow;
+        a->last_slow = b[k].last_slow;
+        a->vmin = fmin(a->vmin, b[k].vmin);
+        a->lane_vmax = fmax(a->lane_vmax, b[k].vmax);
+        a->gmin = fmin(a->gmin, b[k].gmin);
+        for (size_t c = 0; c < nc; c++) a->class_fuel_rate_gps[c] += b[k].class_fuel_rate_gps[c];
+    }
+}
+
+void wf_stats_fold_lane_end(WfStatsFold *a, const WfScenario *sc)
+{
+    if (a->lane_blocks) a->lane_waves += a->lane_first_slow && !a->last_slow;
+    /* Every vehicle of a lane slow: one wave spanning it (no start was found above). */
+    a->waves += (a->lane_blocks && a->lane_waves == 0 && a->lane_vmax < sc->wave_speed_mps) ? 1.0 : a->lane_waves;
+    a->vmax = fmax(a->vmax, a->lane_vmax);
+    a->lane_waves = 0, a->lane_vmax = -INFINITY, a->lane_blocks = 0;
+    a->mean = a->sv / a->n;
+}
+
+void wf_stats_fold_m2(WfStatsFold *a, const WfStatsBlock *b, size_t nb)
+{
+    for (size_t k = 0; k < nb; k++) {
+        double d = b[k].sum_v / b[k].n - a->mean;
+        a->m2 += b[k].m2 + b[k].n * d * d;
+    }
+}
+
+void wf_stats_fold_row(const WfStatsFold *a, size_t nc, double t_s, int64_t overlaps, WfTsRow *row)
+{
+    double n = a->n, fuel = 0.0;
+    memset(row, 0, sizeof *row);
+    for (size_t c = 0; c < nc; c++) row->class_fuel_rate_gps[c] = a->class_fuel_rate_gps[c];
+    for (size_t c = 0; c < nc; c++) fuel += row->class_fuel_rate_gps[c];
+    row->v[WF_TS_T] = t_s;
+    row->v[WF_TS_MEAN_V] = a->mean;
+    row->v[WF_TS_SD_V] = sqrt(a->m2 / n);
+    row->v[WF_TS_MIN_V] = a->vmin;
+    row->v[WF_TS_MAX_V] = a->vmax;
+    row->v[WF_TS_FRAC_STOPPED] = a->stopped / n;
+    row->v[WF_TS_WAVES] = a->waves;
+    row->v[WF_TS_FUEL_RATE] = fuel;
+    row->v[WF_TS_MEAN_GAP] = a->sg / n;
+    row->v[WF_TS_MIN_GAP] = a->gmin;
+    row->v[WF_TS_OVERLAPS] = (double)overlaps;
+}
+
 void wf_stats_combine_lanes(const WfStatsBlock *b, const size_t *lane_nb, size_t n_lanes, size_t nc,
                             const WfScenario *sc, double t_s, int64_t overlaps, WfTsRow *row)
 {
-    double n = 0, sv = 0, sg = 0, stopped = 0, waves = 0, vmin = INFINITY, vmax = -INFINITY, gmin = INFINITY;
-    double v_wave = sc->wave_speed_mps;
+    WfStatsFold a;
+    wf_stats_fold_begin(&a);
     size_t nb = 0;
-    memset(row, 0, sizeof *row);
-    for (size_t l = 0; l < n_lanes; l++) {
-        size_t b0 = nb, nl = lane_nb[l];
-        double lane_waves = 0, lane_vmax = -INFINITY;
-        for (size_t k = b0; k < b0 + nl; k++) {
-            n += b[k].n, sv += b[k].sum_v, sg += b[k].sum_gap, stopped += b[k].stopped, lane_waves += b[k].waves;
-            /* The follower of block k's first vehicle is the previous block's last (the lane's last block's for its
-             * first). */
-            lane_waves += b[k].first_slow && !b[k > b0 ? k - 1 : b0 + nl - 1].last_slow;
-            vmin = fmin(vmin, b[k].vmin);
-            lane_vmax = fmax(lane_vmax, b[k].vmax);
-            gmin = fmin(gmin, b[k].gmin);
-            for (size_t c = 0; c < nc; c++) row->class_fuel_rate_gps[c] += b[k].class_fuel_rate_gps[c];
-        }
-        /* Every vehicle of a lane slow: one wave spanning it (no start was found above). */
-        waves += (nl && lane_waves == 0 && lane_vmax < v_wave) ? 1.0 : lane_waves;
-        vmax = fmax(vmax, lane_vmax);
-        nb += nl;
+    for (size_t l = 0; l < n_lanes; nb += lane_nb[l++]) {
+        wf_stats_fold(&a, b + nb, lane_nb[l], nc);
+        wf_stats_fold_lane_end(&a, sc);
     }
-    double mean = sv / n, m2 = 0.0, fuel = 0.0;
-    for (size_t k = 0; k < nb; k++) {
-        double d = b[k].sum_v / b[k].n - mean;
-        m2 += b[k].m2 + b[k].n * d * d;
-    }
-    for (size_t c = 0; c < nc; c++) fuel += row->class_fuel_rate_gps[c];
-    row->v[WF_TS_T] = t_s;
-    row->v[WF_TS_MEAN_V] = mean;
-    row->v[WF_TS_SD_V] = sqrt(m2 / n);
-    row->v[WF_TS_MIN_V] = vmin;
-    row->v[WF_TS_MAX_V] = vmax;
-    row->v[WF_TS_FRAC_STOPPED] = stopped / n;
-    row->v[WF_TS_WAVES] = waves;
-    row->v[WF_TS_FUEL_RATE] = fuel;
-    row->v[WF_TS_MEAN_GAP] = sg / n;
-    row->v[WF_TS_MIN_GAP] = gmin;
-    row->v[WF_TS_OVERLAPS] = (double)overlaps;
+    wf_stats_fold_m2(&a, b, nb);
+    wf_stats_fold_row(&a, nc, t_s, overlaps, row);
 }
 
 void wf_stats_summary_add(const WfFleet *f, const WfScenario *sc, size_t lo, size_t hi, WfSummarySums *a)
