@@ -1,13 +1,12 @@
-/* One road split across processes (docs/mpi.md): what a run needs of its communicator. The library holds no
- * MPI: bin/wavefuel-mpi implements these calls with MPI (src/mpi/partition_mpi.c), and any other transport can.
- *
- * A ring: rank r of size steps a contiguous range of the ring's vehicles, whole blocks of WF_STATS_BLOCK (the same
- * split on every rank: wf_partition_blocks). Every rank builds only its own range of the fleet (wf_fleet_create_part:
- * the same bits as one process) in arrays indexed by vehicle, steps it and refreshes the few vehicles ahead of it that
- * it reads from the next rank. A corridor: rank r owns a segment of the road (rank 0 the exit's, the last rank the entrance's) and the
- * vehicles on it, which pass to the rank ahead as they cross into its segment (src/core/corridor_part.c).
- * Every call below is collective: every rank makes it, in the same order. Each returns 0, or an error code with err
- * set (the run then stops with that error on every rank that saw it). */
+/* One road split across processes (docs/mpi.md): what a run needs of its communicator. The library holds no MPI:
+ * bin/wavefuel-mpi implements these calls with MPI (src/mpi/partition_mpi.c), and any other transport can. A ring: rank
+ * r of size steps a contiguous range of the ring's vehicles, whole blocks of WF_STATS_BLOCK (the same split on every
+ * rank: wf_partition_blocks). Every rank builds only its own range of the fleet (wf_fleet_create_part: the same bits as
+ * one process) in arrays indexed by vehicle, steps it and refreshes the few vehicles ahead of it that it reads from the
+ * next rank. A corridor: rank r owns a segment of the road (rank 0 the exit's, the last rank the entrance's) and the
+ * vehicles on it, which pass to the rank ahead as they cross into its segment (src/core/corridor_part.c). Every call
+ * below is collective: every rank makes it, in the same order. Each returns 0, or an error code with err set (the run
+ * then stops with that error on every rank that saw it). */
 #ifndef WAVEFUEL_PARTITION_H
 #define WAVEFUEL_PARTITION_H
 

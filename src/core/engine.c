@@ -279,12 +279,13 @@ static int window_init(WfRing *s, WfError *err)
 
 /* ------------------------------------------------------------------ a ring split across processes */
 
-/* This rank steps the blocks [b_lo, b_hi) of the ring (wavefuel/partition.h, docs/mpi.md): every array is indexed
- * by vehicle on every rank, but only this part's entries are built and current (wf_fleet_create_part). What the
- * part reads of the next part (its first vehicle, the leader of this part's last; its first k + 1 vehicles, which a
- * window's halo steps again) arrives in messages and is written into the same arrays; whatever needs the whole ring
- * (a record's block sums, the overlap repair, the summary, a checkpoint) is gathered. Each step or window ends with one agreement of every rank on its flags and
- * on a stop, so all ranks repair, redo or stop at the same step. */
+/* This rank steps the blocks [b_lo, b_hi) of the ring (wavefuel/partition.h, docs/mpi.md): every array is indexed by
+ * vehicle on every rank, but only this part's entries are built and current (wf_fleet_create_part). What the part reads
+ * of the next part (its first vehicle, the leader of this part's last; its first k + 1 vehicles, which a window's halo
+ * steps again) arrives in messages and is written into the same arrays. Sums over the ring (a record, the summary)
+ * run along the ranks in ring order; the end's per-vehicle results and a checkpoint come to rank 0 a share at a time;
+ * only the overlap repair gathers the whole ring (positions, speeds, modes) onto every rank. Each step or window ends
+ * with one agreement of every rank on its flags and on a stop, so all ranks repair, redo or stop at the same step. */
 enum { WF_PART_STOP_SHIFT = 8 }; /* the agreed word: WF_STEP_* flags below, the stop's signal number above */
 
 static void part_range(const WfRing *s, int r, size_t *lo, size_t *hi)

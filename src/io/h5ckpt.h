@@ -37,10 +37,10 @@ typedef int (*WfCkptWalk)(void *walk_ctx, const WfStateVar *vars, size_t n_vars,
                           WfError *err);
 
 /* Replace the checkpoint of `result` with one of this run: its scenario, kind, step, the engine's state blocks
- * vars[0..n_vars) (read only; the array has room for WF_MAX_STATE_VARS, the series' pending rows are added to
- * it), handed over by walk (NULL: each block whole, from its memory; a ring split across processes has rank 0 gather
- * the other ranks' shares of a block one at a time), and the series, whose file rows must already be flushed. The cursors are named cursor[0..n_cur). WF_ESYS
- * naming the file on failure; the previous checkpoint then stays. */
+ * vars[0..n_vars) (read only; the array has room for WF_MAX_STATE_VARS, the series' pending rows are added to it),
+ * handed over by walk (NULL: each block whole, from its memory; a ring split across processes has rank 0 gather the
+ * other ranks' shares of a block one at a time), and the series, whose file rows must already be flushed. The cursors
+ * are named cursor[0..n_cur). WF_ESYS naming the file on failure; the previous checkpoint then stays. */
 int wf_ckpt_save(const char *result, const char *kind, const WfScenario *sc, int64_t steps_done,
                  const char *const *cursor, size_t n_cur, const WfCkptSeries *sp, size_t ns, WfStateVar *vars,
                  size_t n_vars, WfCkptWalk walk, void *walk_ctx, WfError *err);
