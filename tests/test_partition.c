@@ -82,8 +82,8 @@ static const char *corridor_sparse_yaml =
     "  outflow: {type: speed, points: [[0, 22], [600, 18], [1200, 22]]}\n"
     "  detectors: {x_m: [1999, 3000, 4000], interval_s: 60}\n  edie: {dx_m: 500, dt_s: 30}\n";
 
-/* What a run leaves: its records (and a corridor's trips) as doubles, its state after the run (rank 0: gathered),
- * its summary, its steps. */
+/* What a run leaves: its records (and a corridor's trips) as doubles, its state after the run (rank 0: gathered a
+ * share at a time), its summary, its steps. */
 typedef struct Out {
     WfTestVals vals;
     size_t n_rows, n_trips;
@@ -92,6 +92,9 @@ typedef struct Out {
     WfSummary summary;
     long steps, windows, redone;
     int rc;
+    const WfFleet *f;         /* a ring's fleet */
+    double *x_end, *fuel_end; /* rank 0: its vehicles' positions and fuel at the end, n_end of each */
+    size_t n_end;
 } Out;
 
 static int keep_row(void *ctx, const WfSim *sim, const WfRecord *rec, WfError *err)
@@ -265,6 +268,55 @@ typedef struct Job {
     Out *out;
 } Job;
 
+/* The state after the run as a checkpoint takes it (wf_sim_state_pieces: a split ring's shares of a block come to
+ * rank 0 one at a time), concatenated on rank 0; every rank takes part. */
+typedef struct Pieces {
+    unsigned char    *buf;
+    const size_t     *off;
+    const WfStateVar *vars;
+} Pieces;
+
+static int copy_piece(void *ctx, size_t j, size_t lo, size_t hi, WfError *err)
+{
+    (void)err;
+    const Pieces *p = ctx;
+    memcpy(p->buf + p->off[j] + lo, (const unsigned char *)p->vars[j].data + lo, hi - lo);
+    return 0;
+}
+
+static void state_on_rank0(WfSim *sim, int rank, Out *o)
+{
+    WfStateVar vars[WF_MAX_STATE_VARS];
+    size_t nv = wf_sim_state(sim, vars, WF_MAX_STATE_VARS), off[WF_MAX_STATE_VARS + 1] = {0};
+    for (size_t k = 0; k < nv; k++) off[k + 1] = off[k] + vars[k].size;
+    o->state_size = off[nv];
+    Pieces p = {rank ? NULL : calloc(off[nv] ? off[nv] : 1, 1), off, vars};
+    WfError err = {0};
+    if (wf_sim_state_pieces(sim, vars, nv, p.buf ? copy_piece : NULL, &p, &err)) printf("  rank %d: %s\n", rank, err.msg);
+    o->state = p.buf;
+}
+
+/* A ring's positions and fuel at the end as the result writer takes them (wf_sim_shares: a share at a time on
+ * rank 0); nothing for a corridor. */
+static int copy_share(void *ctx, size_t lo, size_t hi, WfError *err)
+{
+    (void)err;
+    Out *o = ctx;
+    memcpy(o->x_end + lo, o->f->x_m + lo, (hi - lo) * sizeof *o->x_end);
+    memcpy(o->fuel_end + lo, o->f->fuel_g + lo, (hi - lo) * sizeof *o->fuel_end);
+    return 0;
+}
+
+static void ends_on_rank0(WfSim *sim, int rank, Out *o)
+{
+    o->f = wf_sim_fleet(sim);
+    if (!o->f) return;
+    o->n_end = o->f->n;
+    if (!rank) o->x_end = calloc(o->n_end, sizeof *o->x_end), o->fuel_end = calloc(o->n_end, sizeof *o->fuel_end);
+    WfError err = {0};
+    if (wf_sim_shares(sim, rank ? NULL : copy_share, o, &err)) printf("  rank %d: %s\n", rank, err.msg);
+}
+
 static void *job_main(void *arg)
 {
     Job *j = arg;
@@ -286,10 +338,9 @@ static void *job_main(void *arg)
     if (!o->rc) o->rc = wf_sim_create_part(sc, j->sh ? &part : NULL, &sim, &err);
     if (!o->rc) o->rc = wf_sim_run(sim, &out, NULL, NULL, j->sh ? &part.stop_all : NULL, &err);
     if (o->rc && o->rc != WF_EINTR) printf("  rank %d: %s\n", j->rank, err.msg);
-    /* a split ring's end leaves each rank its share: the whole state onto rank 0 to compare it */
-    if (sim && !o->rc && wf_sim_collect(sim, &err)) printf("  rank %d: %s\n", j->rank, err.msg);
     if (sim) {
-        o->state = wf_test_state_copy(sim, &o->state_size);
+        state_on_rank0(sim, j->rank, o);
+        ends_on_rank0(sim, j->rank, o);
         o->summary = *wf_sim_summary(sim);
         o->steps = wf_sim_steps_done(sim);
         wf_sim_window_stats(sim, &o->windows, &o->redone);
@@ -327,7 +378,10 @@ static void run_one(const char *path, const char *const *set, size_t n_set, Out 
 
 static void out_free(Out *o, int n)
 {
-    for (int k = 0; k < n; k++) free(o[k].state), free(o[k].vals.v), o[k].state = NULL, o[k].vals = (WfTestVals){0};
+    for (int k = 0; k < n; k++) {
+        free(o[k].state), free(o[k].vals.v), free(o[k].x_end), free(o[k].fuel_end);
+        o[k].state = NULL, o[k].vals = (WfTestVals){0}, o[k].x_end = o[k].fuel_end = NULL;
+    }
 }
 
 static void compare(const Out *o, const Out *ref, const char *what)
@@ -343,6 +397,9 @@ static void compare(const Out *o, const Out *ref, const char *what)
     CHECK(o->state_size == ref->state_size && memcmp(o->state, ref->state, o->state_size) == 0,
           "%s: the state after the run (accumulators, modes, controller memory, safety counts) differs", what);
     CHECK(memcmp(&o->summary, &ref->summary, sizeof o->summary) == 0, "%s: the summary differs", what);
+    CHECK(o->n_end == ref->n_end && (!o->n_end || (!memcmp(o->x_end, ref->x_end, o->n_end * sizeof *o->x_end) &&
+                                                   !memcmp(o->fuel_end, ref->fuel_end, o->n_end * sizeof *o->fuel_end))),
+          "%s: the positions or fuel handed to the result writer a share at a time differ", what);
 }
 
 /* Every split against one process, windows of 16 and single steps. */

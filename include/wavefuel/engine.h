@@ -131,10 +131,6 @@ const WfFleet    *wf_sim_fleet(const WfSim *sim);
  * share and one other at a time). fn's first error is returned; 0 and no call for a corridor. */
 typedef int (*WfShareFn)(void *ctx, size_t lo, size_t hi, WfError *err);
 int               wf_sim_shares(const WfSim *sim, WfShareFn fn, void *ctx, WfError *err);
-/* A ring split across processes: its whole state (what a checkpoint saves) onto rank 0, collectively, e.g. to read
- * it after the run. Rank 0 then holds the whole road. 0 and nothing for one process or a corridor (whose state rank 0
- * gathers when its run ends). */
-int               wf_sim_collect(WfSim *sim, WfError *err);
 const struct WfCorridor *wf_sim_corridor(const WfSim *sim);
 const WfSummary  *wf_sim_summary(const WfSim *sim); /* valid after wf_sim_run */
 double            wf_sim_wall_s(const WfSim *sim);  /* wall time of the step loop */

@@ -473,26 +473,6 @@ static int part_safety(WfRing *s, WfError *err)
     return rc ? rc : p->sum_u64(p->ctx, s->safety_all.hits, WF_MAX_GROUPS, err);
 }
 
-/* The whole state onto rank 0 (a checkpoint): every per-vehicle array, each group's controller memory (a group's
- * members are numbered in ring order, so a part's are a run of them) and the safety counts of every rank. */
-static int part_collect(WfRing *s, WfError *err)
-{
-    WfPartition *p = s->part;
-    WfFleet *f = s->f;
-    WfStateVar vars[WF_MAX_STATE_VARS];
-    size_t nv = ring_state(s, vars, WF_MAX_STATE_VARS), ns = (size_t)p->size + 1;
-    int rc = 0;
-    for (size_t j = 0; !rc && j < nv; j++)
-        if (vars[j].stride) rc = part_gather(s, vars[j].data, vars[j].stride, 0, err);
-    for (size_t g = 0; !rc && g < f->n_groups; g++) {
-        size_t ssz = s->sc->groups[g].model->state_size;
-        if (!ssz) continue;
-        for (size_t r = 0; r < ns; r++) s->off[r] = s->group_before[g * ns + r] * ssz;
-        rc = p->gather(p->ctx, f->group_state[g], s->off, 0, err);
-    }
-    return rc ? rc : part_safety(s, err);
-}
-
 /* WfPartition.chain: the summary's sums over this rank's share, after those of the ranks behind it. */
 static void part_summary_add(void *arg, void *buf)
 {
@@ -1003,10 +983,6 @@ static int ring_flush(void *eng, WfError *err)
     return s->part ? part_safety(s, err) : 0;
 }
 
-int wf_sim_collect(WfSim *sim, WfError *err)
-{
-    return sim->part && sim->b == &wf_boundary_periodic ? part_collect(sim->eng, err) : 0;
-}
 
 /* The run's totals (also after an interruption or an error). Split across processes, the vehicles' sums run along
  * the ranks in ring order and rank 0 alone makes the summary; no rank gathers the state (ring_shares does, a
@@ -1128,7 +1104,7 @@ static size_t ring_state(void *eng, WfStateVar *vars, size_t max)
         VEH("cut_ins", f->cut_ins);
         VEH("lap", f->lap_m);
     }
-    /* absent without a safety filter; split across processes, every rank's (part_collect) */
+    /* absent without a safety filter; split across processes, every rank's (part_safety) */
     if (s->lane.safe) VAR("safety", s->part ? &s->safety_all : &s->lane.safety, sizeof s->lane.safety);
     static const char *const state_names[WF_MAX_GROUPS] = {"ctrl0", "ctrl1", "ctrl2", "ctrl3", "ctrl4", "ctrl5",
                                                            "ctrl6", "ctrl7", "ctrl8", "ctrl9", "ctrl10", "ctrl11",
