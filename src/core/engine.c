@@ -284,8 +284,9 @@ static int window_init(WfRing *s, WfError *err)
  * of the next part (its first vehicle, the leader of this part's last; its first k + 1 vehicles, which a window's halo
  * steps again) arrives in messages and is written into the same arrays. Sums over the ring (a record, the summary)
  * run along the ranks in ring order; the end's per-vehicle results and a checkpoint come to rank 0 a share at a time;
- * only the overlap repair gathers the whole ring (positions, speeds, modes) onto every rank. Each step or window ends
- * with one agreement of every rank on its flags and on a stop, so all ranks repair, redo or stop at the same step. */
+ * overlaps are repaired share after share; only a numerical fault gathers the whole ring (positions, speeds, modes)
+ * onto every rank. Each step or window ends with one agreement of every rank on its flags and on a stop, so all ranks
+ * repair, redo or stop at the same step. */
 enum { WF_PART_STOP_SHIFT = 8 }; /* the agreed word: WF_STEP_* flags below, the stop's signal number above */
 
 static void part_range(const WfRing *s, int r, size_t *lo, size_t *hi)
@@ -454,7 +455,8 @@ static int part_record(WfRing *s, const WfStatsBlock *rec, double t, WfTsRow *ro
     return rc;
 }
 
-/* Before the overlap repair, which sweeps the whole ring: positions, speeds and modes onto every rank. */
+/* After a numerical fault, which phase_overlaps finds as one process does: positions, speeds and modes onto every
+ * rank. */
 static int part_gather_motion(WfRing *s, WfError *err)
 {
     WfFleet *f = s->f;
@@ -775,6 +777,69 @@ static long phase_overlaps(WfRing *s)
     return total;
 }
 
+/* One backward sweep of the overlap repair over this rank's share (part_overlaps): *lead_x, the position of its last
+ * vehicle's leader (lap included) as the share ahead left it, becomes its first vehicle's. */
+static long part_sweep(WfRing *s, double *lead_x)
+{
+    WfFleet *f = s->f;
+    size_t lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < f->n ? s->b_hi * WF_BLOCK : f->n;
+    long fixed = 0;
+    for (size_t j = hi; j-- > lo;) {
+        size_t lead = j + 1 < f->n ? j + 1 : 0;
+        double xl = j + 1 < hi ? f->x_m[lead] + 0.0 : *lead_x;
+        if (xl - wf_fleet_length(f, lead) - f->x_m[j] < 0.0) {
+            f->x_m[j] = xl - wf_fleet_length(f, lead);
+            f->v_mps[j] = 0.0;
+            fixed++;
+        }
+    }
+    *lead_x = f->x_m[lo];
+    return fixed;
+}
+
+/* phase_overlaps for a ring split across processes, without the whole ring on any rank: the same sweeps from the
+ * ring's last vehicle to its first, each share after the share ahead of it (from the last rank to rank 0, one message
+ * of 8 bytes a rank), the last rank's last vehicle behind vehicle 0 as the sweep found it; the fixes of each sweep
+ * summed over the ranks. A numerical fault anywhere gathers the whole ring's motion first, as before, so that
+ * phase_overlaps names the vehicle as one process does. Every rank calls this. */
+static int part_overlaps(WfRing *s, long *repaired, WfError *err)
+{
+    WfPartition *p = s->part;
+    WfFleet *f = s->f;
+    size_t n = f->n, lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < n ? s->b_hi * WF_BLOCK : n;
+    double L = s->sc->road.length_m;
+    uint64_t faulty = 0, bad[1] = {0};
+    for (size_t i = lo; i < hi; i++) {
+        faulty |= !isfinite(f->x_m[i]) || !isfinite(f->v_mps[i]) || (f->mode[i] & WF_MODE_FAULT);
+        size_t lead = i + 1 < n ? i + 1 : 0; /* the next share's first as it moved (part_agree) */
+        bad[0] += f->x_m[lead] + (lead ? 0.0 : L) - wf_fleet_length(f, lead) - f->x_m[i] < 0.0;
+    }
+    uint64_t flags[2] = {faulty, bad[0]};
+    int rc = p->sum_u64(p->ctx, flags, 2, err);
+    if (rc) return rc;
+    if (flags[0]) {
+        if (!(rc = part_gather_motion(s, err))) *repaired = phase_overlaps(s);
+        return rc;
+    }
+    *repaired = 0;
+    for (int pass = 0; flags[1] && pass < 3; pass++) {
+        for (int q = 0; q <= p->size; q++) s->off[q] = q ? sizeof(double) : 0; /* vehicle 0 as rank 0 has it */
+        if ((rc = p->gather(p->ctx, f->x_m, s->off, -1, err))) return rc;
+        double lead_x = f->x_m[0] + L, got = 0.0;
+        uint64_t fixed[1] = {0};
+        if (p->rank == p->size - 1) fixed[0] = (uint64_t)part_sweep(s, &lead_x);
+        for (int k = p->size - 1; k > 0; k--) { /* the share of rank k hands its first vehicle to rank k - 1 */
+            if ((rc = p->shift(p->ctx, &lead_x, sizeof lead_x, &got, sizeof got, err))) return rc;
+            if (p->rank == k - 1) lead_x = got, fixed[0] = (uint64_t)part_sweep(s, &lead_x);
+        }
+        if ((rc = p->sum_u64(p->ctx, fixed, 1, err))) return rc;
+        s->overlaps += (int64_t)fixed[0];
+        *repaired += (long)fixed[0];
+        if (!fixed[0]) break;
+    }
+    return 0;
+}
+
 /* The error of a numerical fault: which vehicle, when, its model and the inputs of the step that failed. */
 static int numerical_fault(WfRing *s, long step, WfError *err)
 {
@@ -932,8 +997,10 @@ static int ring_advance(WfRing *s, long step, long max_steps, long *steps, WfErr
     } else if (!fused) {
         flags = lanes_step(s, step, WF_PASS_ADVANCE, in_window, NULL);
     }
-    if (flags && s->part && (rc = part_gather_motion(s, err))) return rc;
-    s->repaired = flags ? phase_overlaps(s) > 0 : 0;
+    long fixed = 0;
+    if (flags && s->part && (rc = part_overlaps(s, &fixed, err))) return rc;
+    if (flags && !s->part) fixed = phase_overlaps(s);
+    s->repaired = fixed > 0;
     /* A fused step without an overlap did its integration in its one pass: no clock read (a small ring's step
      * costs a few of them: RL environments step many). */
     if (!fused || flags) lap(s, WF_PHASE_INTEGRATION, &tp);
