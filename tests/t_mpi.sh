@@ -273,8 +273,9 @@ run $BIG -o "$tmp/big_ref.h5" --threads 2
 interrupted big rank1 $BIG
 if [ $rc -ne 0 ] && msg=$(stopped big 2000 2>&1); then
   MPI_TIMEOUT=400 mpi 3 run --resume "$tmp/big.h5" -q --threads 1 >"$tmp/big_r.log" 2>&1; rc=$?
-  if [ $rc -eq 0 ] && msg=$(same "$tmp/big_ref.h5" "$tmp/big.h5" 2>&1); then ok "share_checkpoint_chunks_resume_on_3_ranks ($msg)"
-  else ko share_checkpoint_chunks_resume_on_3_ranks "rc $rc: $(tail -3 "$tmp/big_r.log") ${msg:-}"; fi
+  name=share_checkpoint_chunks_resume_on_3_ranks
+  if [ $rc -eq 0 ] && msg=$(same "$tmp/big_ref.h5" "$tmp/big.h5" 2>&1); then ok "$name ($msg)"
+  else ko $name "rc $rc: $(tail -3 "$tmp/big_r.log") ${msg:-}"; fi
 else
   ko share_checkpoint_chunks_resume_on_3_ranks "not stopped: rc $rc, ${msg:-}: $(tail -3 "$tmp/big.log")"
 fi

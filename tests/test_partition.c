@@ -292,7 +292,8 @@ static void state_on_rank0(WfSim *sim, int rank, Out *o)
     o->state_size = off[nv];
     Pieces p = {rank ? NULL : calloc(off[nv] ? off[nv] : 1, 1), off, vars};
     WfError err = {0};
-    if (wf_sim_state_pieces(sim, vars, nv, p.buf ? copy_piece : NULL, &p, &err)) printf("  rank %d: %s\n", rank, err.msg);
+    if (wf_sim_state_pieces(sim, vars, nv, p.buf ? copy_piece : NULL, &p, &err))
+        printf("  rank %d: %s\n", rank, err.msg);
     o->state = p.buf;
 }
 
@@ -397,9 +398,10 @@ static void compare(const Out *o, const Out *ref, const char *what)
     CHECK(o->state_size == ref->state_size && memcmp(o->state, ref->state, o->state_size) == 0,
           "%s: the state after the run (accumulators, modes, controller memory, safety counts) differs", what);
     CHECK(memcmp(&o->summary, &ref->summary, sizeof o->summary) == 0, "%s: the summary differs", what);
-    CHECK(o->n_end == ref->n_end && (!o->n_end || (!memcmp(o->x_end, ref->x_end, o->n_end * sizeof *o->x_end) &&
-                                                   !memcmp(o->fuel_end, ref->fuel_end, o->n_end * sizeof *o->fuel_end))),
-          "%s: the positions or fuel handed to the result writer a share at a time differ", what);
+    int ends_same = o->n_end == ref->n_end &&
+                    (!o->n_end || (!memcmp(o->x_end, ref->x_end, o->n_end * sizeof *o->x_end) &&
+                                   !memcmp(o->fuel_end, ref->fuel_end, o->n_end * sizeof *o->fuel_end)));
+    CHECK(ends_same, "%s: the positions or fuel handed to the result writer a share at a time differ", what);
 }
 
 /* Every split against one process, windows of 16 and single steps. */

@@ -808,13 +808,12 @@ static int part_overlaps(WfRing *s, long *repaired, WfError *err)
     WfFleet *f = s->f;
     size_t n = f->n, lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < n ? s->b_hi * WF_BLOCK : n;
     double L = s->sc->road.length_m;
-    uint64_t faulty = 0, bad[1] = {0};
+    uint64_t flags[2] = {0, 0}; /* vehicles with a non-finite state, overlapping vehicles */
     for (size_t i = lo; i < hi; i++) {
-        faulty |= !isfinite(f->x_m[i]) || !isfinite(f->v_mps[i]) || (f->mode[i] & WF_MODE_FAULT);
+        flags[0] += !isfinite(f->x_m[i]) || !isfinite(f->v_mps[i]) || (f->mode[i] & WF_MODE_FAULT);
         size_t lead = i + 1 < n ? i + 1 : 0; /* the next share's first as it moved (part_agree) */
-        bad[0] += f->x_m[lead] + (lead ? 0.0 : L) - wf_fleet_length(f, lead) - f->x_m[i] < 0.0;
+        flags[1] += f->x_m[lead] + (lead ? 0.0 : L) - wf_fleet_length(f, lead) - f->x_m[i] < 0.0;
     }
-    uint64_t flags[2] = {faulty, bad[0]};
     int rc = p->sum_u64(p->ctx, flags, 2, err);
     if (rc) return rc;
     if (flags[0]) {
@@ -1049,7 +1048,6 @@ static int ring_flush(void *eng, WfError *err)
     WfRing *s = eng;
     return s->part ? part_safety(s, err) : 0;
 }
-
 
 /* The run's totals (also after an interruption or an error). Split across processes, the vehicles' sums run along
  * the ranks in ring order and rank 0 alone makes the summary; no rank gathers the state (ring_shares does, a
