@@ -49,6 +49,15 @@ typedef struct WfPartition {
     volatile sig_atomic_t *stop_own, stop_all;
 } WfPartition;
 
+/* Bytes [lo, hi) of buf, which rank r holds, onto rank `root` (-1: every rank): a gather in which no other rank
+ * holds any. off: room for size + 1 offsets. Collective. */
+static inline int wf_partition_from(const WfPartition *p, void *buf, int r, size_t lo, size_t hi, int root, size_t *off,
+                                    WfError *err)
+{
+    for (int q = 0; q <= p->size; q++) off[q] = q <= r ? lo : hi;
+    return p->gather(p->ctx, buf, off, root, err);
+}
+
 /* Rank r's blocks of a ring of n_blocks blocks: [*b0, *b1). */
 static inline void wf_partition_blocks(size_t n_blocks, int size, int r, size_t *b0, size_t *b1)
 {

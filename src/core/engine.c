@@ -504,10 +504,7 @@ static void part_block_range(const WfRing *s, const WfStateVar *v, int r, size_t
 /* Rank r's bytes [lo, hi) of block v onto rank 0 (every rank calls this; nothing moves for rank 0's own). */
 static int part_gather_piece(WfRing *s, const WfStateVar *v, int r, size_t lo, size_t hi, WfError *err)
 {
-    WfPartition *p = s->part;
-    if (!r) return 0;
-    for (int q = 0; q <= p->size; q++) s->off[q] = q <= r ? lo : hi;
-    return p->gather(p->ctx, v->data, s->off, 0, err);
+    return r ? wf_partition_from(s->part, v->data, r, lo, hi, 0, s->off, err) : 0;
 }
 
 /* WfBoundary.state_pieces (wf_sim_state_pieces): a split ring's blocks held in shares come to rank 0 one share at a
@@ -782,7 +779,7 @@ static long phase_overlaps(WfRing *s)
 static long part_sweep(WfRing *s, double *lead_x)
 {
     WfFleet *f = s->f;
-    size_t lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < f->n ? s->b_hi * WF_BLOCK : f->n;
+    size_t lo = f->share_lo, hi = f->share_hi;
     long fixed = 0;
     for (size_t j = hi; j-- > lo;) {
         size_t lead = j + 1 < f->n ? j + 1 : 0;
@@ -806,7 +803,7 @@ static int part_overlaps(WfRing *s, long *repaired, WfError *err)
 {
     WfPartition *p = s->part;
     WfFleet *f = s->f;
-    size_t n = f->n, lo = s->b_lo * WF_BLOCK, hi = s->b_hi * WF_BLOCK < n ? s->b_hi * WF_BLOCK : n;
+    size_t n = f->n, lo = f->share_lo, hi = f->share_hi;
     double L = s->sc->road.length_m;
     uint64_t flags[2] = {0, 0}; /* vehicles with a non-finite state, overlapping vehicles */
     for (size_t i = lo; i < hi; i++) {
@@ -822,8 +819,8 @@ static int part_overlaps(WfRing *s, long *repaired, WfError *err)
     }
     *repaired = 0;
     for (int pass = 0; flags[1] && pass < 3; pass++) {
-        for (int q = 0; q <= p->size; q++) s->off[q] = q ? sizeof(double) : 0; /* vehicle 0 as rank 0 has it */
-        if ((rc = p->gather(p->ctx, f->x_m, s->off, -1, err))) return rc;
+        /* vehicle 0 as rank 0 has it */
+        if ((rc = wf_partition_from(p, f->x_m, 0, 0, sizeof *f->x_m, -1, s->off, err))) return rc;
         double lead_x = f->x_m[0] + L, got = 0.0;
         uint64_t fixed[1] = {0};
         if (p->rank == p->size - 1) fixed[0] = (uint64_t)part_sweep(s, &lead_x);

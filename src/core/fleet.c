@@ -327,8 +327,7 @@ static int share_chain(const Share *sh, void *buf, size_t bytes, void (*fn)(void
     if (rc || !all) return rc;
     size_t *off = malloc(((size_t)p->size + 1) * sizeof *off);
     if (!off) return wf_err(err, WF_ESYS, "out of memory");
-    for (int r = 0; r <= p->size; r++) off[r] = r ? bytes : 0; /* rank 0's bytes onto every rank */
-    rc = p->gather(p->ctx, buf, off, -1, err);
+    rc = wf_partition_from(p, buf, 0, 0, bytes, -1, off, err); /* rank 0's result onto every rank */
     free(off);
     return rc;
 }
