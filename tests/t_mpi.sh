@@ -9,7 +9,8 @@
 # run stopped by SIGTERM (to mpirun, or to rank 1 alone) resumes on another rank count and in one process to the
 # uninterrupted result; what the ranks cannot split is refused with exit status 2, the key named and no file written;
 # uneven shares are refused or give the one-process result. A corridor: the same for 2, 3 and 4 ranks, 1 and 2
-# threads, with detectors at and beside the cuts between the ranks' segments, overlaps repaired across them, a stop by
+# threads, with detectors at and beside the cuts between the ranks' segments, overlaps repaired across them, time-blocked
+# windows (the halo of the rank ahead stepped again on each rank; windows redone on every rank), a stop by
 # SIGTERM resumed on another rank count and in one process, and its own refusals.
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
@@ -352,6 +353,40 @@ if $PY -c "import h5py,sys; n=h5py.File(sys.argv[1])['timeseries/vehicles'][-1];
 then mpi_same corridor_threads_R2_threads2 "$tmp/bigc_ref.h5" 2 2 1 $BIGC
 else ko corridor_threads "the reference corridor holds too few vehicles for two threads on a rank"; fi
 
+# (g2) A corridor in time-blocked windows (tests/test_partition.c's): a queue behind a leader that slows to 4 m/s,
+# vehicles crossing the cuts (Edie cells of 500 m: 12 000 m; 8000 and 16 000 m; 6000, 12 000 and 18 000 m) and
+# leaving inside windows of 16 steps, each rank behind the halo of the rank ahead; then noise beyond what the
+# brakes absorb, so that windows overlap and are redone on every rank. Against one process stepping one step at a time.
+cat >"$tmp/cwin.yaml" <<'EOF'
+seed: 21
+road:
+  type: corridor
+  length_m: 24000
+  speed_limit_mps: 14
+  grade: {points: [[0, 0], [9000, 0.01], [15000, -0.01], [24000, 0]]}
+time: {duration_s: 1800, dt_s: 0.1, output_interval_s: 10.0, warmup_s: 600}
+fleet:
+  classes:
+    - {class: midsize_sedan, fraction: 0.8}
+    - {class: class8_tractor, fraction: 0.2}
+  drivers:
+    - {model: idm, fraction: 0.85, noise_mps2: 0.2, heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}
+    - {model: pi_saturation, fraction: 0.15, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}
+corridor:
+  inflow: {flow_vph: 3000, arrivals: poisson}
+  outflow: {type: speed, points: [[0, 14], [100, 14], [200, 4], [1800, 4]]}
+  detectors: {x_m: [3000, 7990, 8000, 11998, 12000, 12004, 16000, 16010, 20000], interval_s: 60}
+  edie: {dx_m: 500, dt_s: 60}
+EOF
+run "$tmp/cwin.yaml" -o "$tmp/cwin_ref.h5" --threads 1
+for rt in "2 2" "3 1" "4 1"; do
+  set -- $rt
+  mpi_same "corridor_windows_R$1_threads$2" "$tmp/cwin_ref.h5" "$1" "$2" 16 "$tmp/cwin.yaml"
+done
+NOISY="--set fleet.drivers[0].noise_mps2=3 --set fleet.drivers[0].decel_max_mps2=0.6"
+run "$tmp/cwin.yaml" $NOISY -o "$tmp/cwin_noisy_ref.h5" --threads 1
+mpi_same corridor_windows_overlaps_R3_threads1 "$tmp/cwin_noisy_ref.h5" 3 1 16 "$tmp/cwin.yaml" $NOISY
+
 # (h) A corridor stopped by SIGTERM (to mpirun, to rank 1) resumes on 3 ranks and in one process to the
 # uninterrupted result.
 CLONG="$tmp/cor.yaml --set time.duration_s=30000"
@@ -387,7 +422,6 @@ CSHORT="$tmp/cor.yaml --set time.duration_s=60 --set time.warmup_s=0"
 refused corridor_refuses_lanes road.lanes 2 scenarios/corridor_bottleneck_lanes.yaml --set time.duration_s=60 \
   --set time.warmup_s=0
 refused corridor_refuses_trajectories output.trajectories 2 tests/data/tiny_corridor.yaml --set time.duration_s=40
-refused corridor_refuses_windows time.block_steps 2 $CSHORT --set time.block_steps=4
 refused corridor_refuses_unfused time.fused_step 2 $CSHORT --set time.fused_step=false
 refused corridor_refuses_external external 2 $CSHORT --set 'fleet.drivers[1].model=external'
 # 12 km in Edie cells of 3 km: 4 cells, fewer than 5 ranks

@@ -82,6 +82,24 @@ static const char *corridor_sparse_yaml =
     "  outflow: {type: speed, points: [[0, 22], [600, 18], [1200, 22]]}\n"
     "  detectors: {x_m: [1999, 3000, 4000], interval_s: 60}\n  edie: {dx_m: 500, dt_s: 30}\n";
 
+/* A queue behind a prescribed-speed leader that slows to 4 m/s, filling the road from the exit (Edie cells of 500 m:
+ * cuts at 12 000 m; 8000 and 16 000 m), long enough by 1000 s for every rank's vehicles to step in windows of 16
+ * behind the halo of the rank ahead, with vehicles crossing the cuts and leaving at the exit inside windows; noisy
+ * heterogeneous IDM with PI with saturation under a safety filter, two classes, a grade, detectors at and beside the
+ * cuts. */
+static const char *corridor_window_yaml =
+    "seed: 21\nroad:\n  type: corridor\n  length_m: 24000\n  speed_limit_mps: 14\n"
+    "  grade: {points: [[0, 0], [9000, 0.01], [15000, -0.01], [24000, 0]]}\n"
+    "time: {duration_s: 1800, dt_s: 0.1, output_interval_s: 10.0, warmup_s: 600}\n"
+    "fleet:\n  classes:\n    - {class: midsize_sedan, fraction: 0.8}\n    - {class: class8_tractor, fraction: 0.2}\n"
+    "  drivers:\n"
+    "    - {model: idm, fraction: 0.85, noise_mps2: 0.2, heterogeneity: {spread: {v0_mps: 0.1, T_s: 0.15}}}\n"
+    "    - {model: pi_saturation, fraction: 0.15, class: midsize_sedan, safety: {kind: gipps, gap_min_m: 4}}\n"
+    "corridor:\n  inflow: {flow_vph: 3000, arrivals: poisson}\n"
+    "  outflow: {type: speed, points: [[0, 14], [100, 14], [200, 4], [1800, 4]]}\n"
+    "  detectors: {x_m: [3000, 7990, 8000, 11998, 12000, 12004, 16000, 16010, 20000], interval_s: 60}\n"
+    "  edie: {dx_m: 500, dt_s: 60}\n";
+
 /* What a run leaves: its records (and a corridor's trips) as doubles, its state after the run (rank 0: gathered a
  * share at a time), its summary, its steps. */
 typedef struct Out {
@@ -131,8 +149,9 @@ typedef struct Rank {
     Shared *sh;
     int rank;
     long exchanges;
-    void *recv; /* the exchange posted */
+    void *recv; /* the exchange posted: bytes from rank `from` (-1: none) */
     size_t bytes;
+    int from;
     volatile sig_atomic_t own_stop;
 } Rank;
 
@@ -145,7 +164,17 @@ static int post_next(void *ctx, const void *send, void *recv, size_t bytes, WfEr
     Rank *r = ctx;
     if (++r->exchanges == r->sh->stop_after[r->rank]) r->own_stop = 1;
     r->sh->ptr[r->rank] = send;
-    r->recv = recv, r->bytes = bytes;
+    r->recv = recv, r->bytes = bytes, r->from = (r->rank + 1) % r->sh->size;
+    pthread_barrier_wait(&r->sh->bar);
+    return 0;
+}
+
+static int post_back(void *ctx, const void *send, size_t send_bytes, void *recv, size_t recv_bytes, WfError *err)
+{
+    (void)err, (void)send_bytes;
+    Rank *r = ctx;
+    r->sh->ptr[r->rank] = send;
+    r->recv = recv, r->bytes = recv_bytes, r->from = r->rank - 1;
     pthread_barrier_wait(&r->sh->bar);
     return 0;
 }
@@ -154,7 +183,7 @@ static int wait_next(void *ctx, WfError *err)
 {
     (void)err;
     Rank *r = ctx;
-    memcpy(r->recv, r->sh->ptr[(r->rank + 1) % r->sh->size], r->bytes);
+    if (r->from >= 0) memcpy(r->recv, r->sh->ptr[r->from], r->bytes);
     pthread_barrier_wait(&r->sh->bar);
     return 0;
 }
@@ -260,7 +289,7 @@ static int sum_f64(void *ctx, double *v, size_t m, WfError *err)
 
 typedef struct Job {
     const char *path;
-    const char *set[2];
+    const char *set[3];
     size_t n_set;
     int threads;
     Shared *sh;   /* NULL: one process */
@@ -330,7 +359,7 @@ static void *job_main(void *arg)
 #endif
     Rank rk = {.sh = j->sh, .rank = j->rank};
     WfPartition part = {.rank = j->rank, .size = j->sh ? j->sh->size : 1, .ctx = &rk, .post_next = post_next,
-                        .wait_next = wait_next, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
+                        .wait_next = wait_next, .post_back = post_back, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
                         .allgather = allgather, .shift = shift, .chain = chain, .sum_f64 = sum_f64,
                         .stop_own = &rk.own_stop};
     WfOutput out = {.record = keep_row, .trips = keep_trips, .ctx = o};
@@ -436,27 +465,37 @@ static void split_equals_one(const char *yaml, const char *name, int need_redone
     wf_test_remove_yaml(dir, path);
 }
 
-/* A corridor split 2 and 3 ways (1 and 2 threads) against one process: every record, trip, the whole state after
- * the run (vehicles, Edie cells, detectors, counters, controller memory, safety counts) and the summary. */
-static void corridor_split_equals_one(const char *yaml, const char *name, int need_overlaps)
+/* A corridor split 2 and 3 ways (1 and 2 threads) against one process stepped one step at a time: every record,
+ * trip, the whole state after the run (vehicles, Edie cells, detectors, counters, controller memory, safety counts)
+ * and the summary. set[0], when n_set > 0: the split runs' time.block_steps, and windows must then be taken, the same
+ * number on every rank (and some redone where overlaps are needed); the others: keys for every run. */
+static void corridor_split_equals_one(const char *yaml, const char *name, int need_overlaps, const char *const *set,
+                                      size_t n_set)
 {
     char dir[] = "/tmp/wf_part_XXXXXX", path[64];
     if (!wf_test_write_yaml(yaml, dir, path, sizeof path)) return;
     Out *ref = calloc(1, sizeof *ref), *out = calloc(MAX_RANKS, sizeof *out);
-    run_one(path, NULL, 0, ref);
+    const char *block = n_set ? set[0] : NULL;
+    long windows = 0, redone = 0;
+    run_one(path, set + 1, n_set > 1 ? n_set - 1 : 0, ref);
     for (int size = 2; size <= 3; size++)
         for (int threads = 1; threads <= (size == 2 ? 2 : 1); threads++) {
-            char what[128];
-            snprintf(what, sizeof what, "%s, %d ranks, %d threads", name, size, threads);
-            run_split(path, NULL, 0, size, threads, -1, 0, out);
+            char what[160];
+            snprintf(what, sizeof what, "%s, %d ranks, %d threads%s%s", name, size, threads, block ? ", " : "",
+                     block ? block : "");
+            run_split(path, set, n_set, size, threads, -1, 0, out);
             compare(&out[0], ref, what);
+            windows += out[0].windows, redone += out[0].redone;
             for (int r = 1; r < size; r++)
-                CHECK(out[r].rc == 0 && out[r].steps == ref->steps, "%s: rank %d took %ld steps of %ld", what, r,
-                      out[r].steps, ref->steps);
+                CHECK(out[r].rc == 0 && out[r].steps == ref->steps && out[r].windows == out[0].windows,
+                      "%s: rank %d took %ld steps and %ld windows, rank 0 %ld and %ld", what, r, out[r].steps,
+                      out[r].windows, out[0].steps, out[0].windows);
             out_free(out, size);
         }
-    printf("  %s: %zu records, %zu trips, %lld overlaps repaired\n", name, ref->n_rows, ref->n_trips,
-           (long long)ref->summary.counts.overlaps);
+    printf("  %s: %zu records, %zu trips, %lld overlaps repaired; %ld windows over the split runs, %ld redone\n", name,
+           ref->n_rows, ref->n_trips, (long long)ref->summary.counts.overlaps, windows, redone);
+    if (block) CHECK(windows > 0, "%s: no split run took a window", name);
+    if (block && need_overlaps) CHECK(redone > 0, "%s: no window was redone: the undo was not exercised", name);
     CHECK(ref->n_trips > 10, "%s: only %zu trips", name, ref->n_trips);
     if (need_overlaps) CHECK(ref->summary.counts.overlaps > 0, "%s: no overlap was repaired", name);
     out_free(ref, 1);
@@ -464,11 +503,21 @@ static void corridor_split_equals_one(const char *yaml, const char *name, int ne
     wf_test_remove_yaml(dir, path);
 }
 
-static void test_corridor(void) { corridor_split_equals_one(corridor_yaml, "corridor", 0); }
-static void test_corridor_sparse(void) { corridor_split_equals_one(corridor_sparse_yaml, "sparse corridor", 0); }
+static void test_corridor(void) { corridor_split_equals_one(corridor_yaml, "corridor", 0, NULL, 0); }
+static void test_corridor_sparse(void) { corridor_split_equals_one(corridor_sparse_yaml, "sparse corridor", 0, NULL, 0); }
 static void test_corridor_overlaps(void)
 {
-    corridor_split_equals_one(corridor_overlap_yaml, "overlapping corridor", 1);
+    corridor_split_equals_one(corridor_overlap_yaml, "overlapping corridor", 1, NULL, 0);
+}
+/* Windows across the ranks; then with noise beyond what the brakes absorb, so that windows overlap and are undone on
+ * every rank. */
+static void test_corridor_windows(void)
+{
+    static const char *k16[] = {"time.block_steps=16"};
+    static const char *noisy[] = {"time.block_steps=16", "fleet.drivers[0].noise_mps2=3",
+                                  "fleet.drivers[0].decel_max_mps2=0.6"};
+    corridor_split_equals_one(corridor_window_yaml, "corridor in windows", 0, k16, 1);
+    corridor_split_equals_one(corridor_window_yaml, "overlapping corridor in windows", 1, noisy, 3);
 }
 
 static void test_noisy_ring_with_controllers(void) { split_equals_one(ring_yaml, "graded ring, controllers", 0); }
@@ -499,5 +548,6 @@ int main(void)
     RUN(test_corridor);
     RUN(test_corridor_overlaps);
     RUN(test_corridor_sparse);
+    RUN(test_corridor_windows);
     TEST_EXIT();
 }

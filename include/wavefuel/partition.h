@@ -25,6 +25,9 @@ typedef struct WfPartition {
      * exchange at a time; both calls on the thread that initialised the transport. */
     int (*post_next)(void *ctx, const void *send, void *recv, size_t bytes, WfError *err);
     int (*wait_next)(void *ctx, WfError *err);
+    /* The other way on an open road, completed by wait_next as well: send_bytes of send to rank + 1 (the last rank
+     * sends nothing), recv_bytes from rank - 1 into recv (rank 0 receives nothing). */
+    int (*post_back)(void *ctx, const void *send, size_t send_bytes, void *recv, size_t recv_bytes, WfError *err);
     /* The bitwise OR of *flags over the ranks, into *flags on every rank. */
     int (*or_all)(void *ctx, int *flags, WfError *err);
     /* The sums of m integers over the ranks, into v on every rank. */

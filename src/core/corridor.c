@@ -393,7 +393,7 @@ static double free_speed(WfCorridor *c, size_t l, size_t g, const double *p, dou
 static void back_vehicle(const WfCorridor *c, const CorLane *ln, double *x, double *v, double *len)
 {
     const WfCorridorVehicles *vh = &ln->veh;
-    for (int r = c->pt.p ? c->pt.p->size - 1 : -1; r >= 0; r--)
+    for (int r = c->pt.p && !c->win.back_on ? c->pt.p->size - 1 : -1; r >= 0; r--)
         if (c->pt.pre[r].n) {
             *x = c->pt.pre[r].x, *v = c->pt.pre[r].v, *len = c->pt.pre[r].len;
             return;
@@ -976,7 +976,9 @@ void cor_measure_span(const WfCorridor *c, const CorLane *ln, size_t i_lo, size_
         x_lo = xd < x_lo ? xd : x_lo;
         x_hi = xd + len > x_hi ? xd + len : x_hi;
     }
-    size_t kb = c->pt.p ? c->pt.kb : 0, ke = c->pt.p ? c->pt.ke : ln->veh.n; /* split: this rank's vehicles */
+    /* split, the lane itself (not a window's view of its rows): this rank's vehicles */
+    int part = c->pt.p && ln == &c->ln[0];
+    size_t kb = part ? c->pt.kb : 0, ke = part ? c->pt.ke : ln->veh.n;
     *k0 = first_below(ln, ln->xold, x_hi + 1.0, 0, kb, ke);
     *k1 = first_below(ln, ln->veh.x_m, x_lo - 1.0, 1, *k0, ke);
 }

@@ -91,7 +91,11 @@ typedef struct CorWindow {
     WfWindow  w;              /* the interior's */
     int       active;         /* the moved hook keeps each step's movement in the rows */
     long      step0;
-    size_t    first0, n0, n_int; /* the road's back slot and vehicles as the window began; the interior's vehicles */
+    size_t    first0, n0, n_int; /* the window's back slot and vehicles as it began; the interior's vehicles */
+    size_t    road_first, road_n; /* the road's back slot and vehicles as the window began (one process: first0, n0) */
+    size_t    n_halo;         /* split across processes, a rank behind the first: the front part's first vehicles are
+                               * the rank ahead's rearmost, stepped again here (cor_part_window) */
+    size_t   *cr;             /* per step: the vehicles of the rank behind measured here (crossed into the segment) */
     double   *x, *rate;       /* rows of cap slots: positions at the window's start and after each step (k_max + 1),
                                * each step's fuel rate (k_max) */
     uint32_t *cell;           /* each thread's Edie cells of a step (cells_of), cap slots per thread */
@@ -125,6 +129,7 @@ typedef struct PartRec {
 } PartRec;
 enum { PART_STOP_SHIFT = 8 };
 
+
 /* This rank's share of a split corridor: its segment of the road (fronts in [cut_lo, cut_hi); rank 0 the exit's,
  * the last rank the entrance's) and its Edie cells, its vehicles (road indices [k_lo, k_lo + n_own), slots from
  * first_own up) and those that crossed into its segment in the step (n_in, behind them). Vehicles keep their slots
@@ -141,7 +146,18 @@ typedef struct CorPart {
     size_t  *off;
     WfSafetyCount safety_all; /* every rank's safety counts (what the summary and a checkpoint read) */
     int      repaired;       /* the step's repair brought the whole road onto every rank */
+    /* time-blocked windows (cor_part_window): the rearmost vehicles packed for the rank behind and the rank ahead's
+     * received; the vehicles crossing into the segment ahead with their rows of the window (the positions before and
+     * after each step, the fuel rates), and those received; the entrance's back vehicle's trace, from the last rank */
+    unsigned char *halo_out, *halo_in, *cross_out, *cross_in;
+    size_t   cross_bytes;    /* a packed vehicle with its rows */
+    double  *trace;
+    PartRec *wrec;           /* every rank's record after a window (its flags, its vehicles, those crossing out) */
+    int64_t  overlaps0;      /* the repairs counted as the window began */
+    int      halo_rc;        /* the halo's exchange as the front part waited for it */
+    WfError  halo_err;
 } CorPart;
+#define PART_CROSS_MAX 512   /* vehicles crossing a cut in one window at most (else one step at a time) */
 #define PART_MIN_M 50.0      /* a segment's length beyond two of the longest vehicles, at least (part_check) */
 
 typedef double  V2 __attribute__((vector_size(16)));
@@ -294,6 +310,9 @@ int cor_numerical_fault(const WfCorridor *c, long step, WfError *err);
 int cor_window_init(WfCorridor *c, WfError *err);
 void cor_window_free(CorWindow *cw);
 int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err);
+int cor_window_back(WfCorridor *c, long step0, int k, int in_window, const double *bx, const double *bv, double x_end,
+                    WfError *err);
+void cor_window_measure(WfCorridor *c, size_t t, size_t nt);
 
 /* corridor_part.c */
 int cor_part_check(const WfCorridor *c, const WfPartition *p, WfError *err);
@@ -302,5 +321,9 @@ void cor_part_free(CorPart *pt);
 int cor_part_step_once(WfCorridor *c, long step, WfError *err);
 int cor_part_collect(WfCorridor *c, WfError *err);
 void cor_part_restored(WfCorridor *c);
+int cor_part_window_begin(WfCorridor *c, int k, int fit, int *go, WfError *err);
+int cor_part_window_wait(WfCorridor *c);
+int cor_part_window_agree(WfCorridor *c, int flags, WfError *err);
+int cor_part_window_end(WfCorridor *c, WfError *err);
 
 #endif

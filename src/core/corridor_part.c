@@ -31,9 +31,9 @@ static double part_cut(const WfCorridor *c, int r)
 int cor_part_check(const WfCorridor *c, const WfPartition *p, WfError *err)
 {
     const WfScenario *sc = c->sc;
-    const char *why = c->cs->has_offramp ? "corridor.off_ramp: an off-ramp"
-                    : sc->block_steps > 1 ? "time.block_steps: time-blocked windows" : NULL;
-    if (why) return wf_err(err, WF_EINPUT, "%s: %s cannot be split across processes (docs/mpi.md)", sc->path, why);
+    if (c->cs->has_offramp)
+        return wf_err(err, WF_EINPUT, "%s: corridor.off_ramp: an off-ramp cannot be split across processes "
+                      "(docs/mpi.md)", sc->path);
     /* every segment longer than two vehicles and PART_MIN_M: a body never spans one, a step never crosses one */
     double len = 0.0, dx = c->edie.dx_m, least = INFINITY;
     size_t nx = c->edie.nx, R = (size_t)p->size;
@@ -73,7 +73,17 @@ int cor_part_init(WfCorridor *c, WfPartition *p, WfError *err)
     pt->out = malloc(cap * pt->vbytes);
     pt->in = malloc(cap * pt->vbytes);
     pt->all = malloc(cap * pt->vbytes);
-    if (!pt->pre || !pt->post || !pt->off || !pt->out || !pt->in || !pt->all)
+    /* windows (cor_part_window): k + 1 vehicles of halo, at most PART_CROSS_MAX crossing with 2 k + 1 rows each */
+    size_t k = c->sc->block_steps > 1 ? (size_t)c->sc->block_steps : 0;
+    pt->cross_bytes = pt->vbytes + (2 * k + 1) * sizeof(double);
+    pt->halo_out = malloc((k + 1) * pt->vbytes);
+    pt->halo_in = malloc((k + 1) * pt->vbytes);
+    pt->cross_out = malloc(k ? PART_CROSS_MAX * pt->cross_bytes : 1);
+    pt->cross_in = malloc(k ? PART_CROSS_MAX * pt->cross_bytes : 1);
+    pt->trace = calloc(2 * k + 1, sizeof *pt->trace);
+    pt->wrec = calloc(R, sizeof *pt->wrec);
+    if (!pt->pre || !pt->post || !pt->off || !pt->out || !pt->in || !pt->all || !pt->halo_out || !pt->halo_in ||
+        !pt->cross_out || !pt->cross_in || !pt->trace || !pt->wrec)
         return wf_err(err, WF_ESYS, "out of memory for a corridor of %zu vehicle slots split across processes", cap);
     ln->lane.after_wanted = 0; /* vehicles crossing in are measured after the step */
     return 0;
@@ -81,7 +91,8 @@ int cor_part_init(WfCorridor *c, WfPartition *p, WfError *err)
 
 void cor_part_free(CorPart *pt)
 {
-    void *a[] = {pt->pre, pt->post, pt->off, pt->out, pt->in, pt->all};
+    void *a[] = {pt->pre,      pt->post,     pt->off,       pt->out,      pt->in,    pt->all,
+                 pt->halo_out, pt->halo_in, pt->cross_out, pt->cross_in, pt->trace, pt->wrec};
     for (size_t i = 0; i < sizeof a / sizeof a[0]; i++) free(a[i]);
 }
 
@@ -416,4 +427,161 @@ void cor_part_restored(WfCorridor *c)
     part_layout(c);
     pt->n_in = 0;
     if (pt->p->rank) c->ln[0].lane.safety = (WfSafetyCount){{0}, {0}}; /* rank 0 holds the restored counts */
+}
+
+/* Time-blocked windows of a split corridor (time.block_steps; docs/mpi.md). Within a window each rank steps its own
+ * vehicles k steps with the single-process window (corridor_window.c), behind a halo: the k + 1 rearmost vehicles of
+ * the rank ahead, sent once at the window's start and stepped again here, so that their rearmost one, the leader of
+ * this rank's front vehicle, is exact through the window (information flows one way, a vehicle a step). Vehicles
+ * that cross a cut stay with their rank until the window ends; the rank ahead then measures them, step after step,
+ * behind its own vehicles: the additions of the per-step path in its order. The entrance runs on the last rank
+ * behind the road's back vehicle; every other rank repeats it from that vehicle's trace, so that every rank holds
+ * the same queue and draws. The exits run on rank 0, and their virtual leader comes from there. A window in which
+ * any rank overlaps, faults, or sees a vehicle move beyond the segment ahead of its own is undone on every rank and
+ * stepped one step at a time: the bits of the per-step path, whatever k, ranks and threads. Messages per window:
+ * an agreement to start, the halo (non-blocking, overlapped by the threads that step the interior), every rank's
+ * record, the back vehicle's trace and the crossing vehicles with their rows. */
+
+/* Before a window: every rank fits one (its own range of vehicles, and the rank ahead holds a halo of k + 1), then
+ * the halo exchange is posted: this rank's k + 1 rearmost vehicles to the rank behind, the rank ahead's from it. */
+int cor_part_window_begin(WfCorridor *c, int k, int fit, int *go, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    WfPartition *p = pt->p;
+    int unfit = !fit, rc = p->or_all(p->ctx, &unfit, err);
+    *go = !rc && !unfit;
+    if (!*go) return rc;
+    size_t h = (size_t)k + 1, last = p->rank + 1 == p->size;
+    if (!last) part_pack(c, pt->k_lo + pt->n_own - h, h, pt->halo_out, 0);
+    pt->halo_rc = 0, pt->overlaps0 = c->st.counts.overlaps;
+    return p->post_back(p->ctx, pt->halo_out, last ? 0 : h * pt->vbytes, pt->halo_in, p->rank ? h * pt->vbytes : 0,
+                        err);
+}
+
+/* On the window's first thread before the front part: the halo received, into its vehicles' slots. */
+int cor_part_window_wait(WfCorridor *c)
+{
+    CorPart *pt = &c->pt;
+    WfPartition *p = pt->p;
+    pt->halo_rc = p->wait_next(p->ctx, &pt->halo_err);
+    if (!pt->halo_rc && p->rank) part_pack(c, pt->k_lo - c->win.n_halo, c->win.n_halo, pt->halo_in, 1);
+    return pt->halo_rc;
+}
+
+/* This rank's vehicles at the window's end: its own, less those that left at the exit, with those that entered. */
+static size_t part_own_now(const WfCorridor *c)
+{
+    return c->ln[0].veh.n + c->pt.n_own - c->win.road_n;
+}
+
+/* After the window: every rank's record (PartRec) on every rank, and the flags they agree on into c->win.flags: any
+ * rank's, or a vehicle beyond the segment ahead of its rank (at the exit, unless on rank 0), or more crossing than
+ * the buffers hold (a vehicle that entered among them: its rows begin late). The stop requested too. */
+int cor_part_window_agree(WfCorridor *c, int flags, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    WfPartition *p = pt->p;
+    CorWindow *cw = &c->win;
+    int me = p->rank, rc;
+    if (pt->halo_rc) {
+        *err = pt->halo_err;
+        return pt->halo_rc;
+    }
+    PartRec q = {0};
+    part_moved(c, me, pt->k_lo, part_own_now(c), &q);
+    if (q.skip || (me && q.past) || q.out > PART_CROSS_MAX || q.out > pt->n_own) flags |= WF_STEP_OVERLAP;
+    q.repairs = (uint64_t)(c->st.counts.overlaps - pt->overlaps0);
+    q.flags = (uint64_t)flags | (p->stop_own ? (uint64_t)*p->stop_own << PART_STOP_SHIFT : 0);
+    if ((rc = p->allgather(p->ctx, &q, pt->wrec, sizeof q, err))) return rc;
+    uint64_t all = 0, stop = 0;
+    for (int r = 0; r < p->size; r++)
+        all |= pt->wrec[r].flags & ((1u << PART_STOP_SHIFT) - 1), stop |= pt->wrec[r].flags >> PART_STOP_SHIFT;
+    p->stop_all = (sig_atomic_t)stop;
+    cw->flags = (int)all;
+    return 0;
+}
+
+/* The rows of the window (positions before each step and after the last, fuel rates) of the vehicle in slot s, into
+ * buf or from it (unpack). */
+static void part_rows(WfCorridor *c, size_t s, double *buf, int unpack)
+{
+    const CorWindow *cw = &c->win;
+    size_t cap = c->ln[0].veh.cap, k = (size_t)cw->k;
+    for (size_t j = 0; j <= k; j++) unpack ? (void)(cw->x[j * cap + s] = buf[j]) : (void)(buf[j] = cw->x[j * cap + s]);
+    for (size_t j = 0; j < k; j++)
+        unpack ? (void)(cw->rate[j * cap + s] = buf[k + 1 + j]) : (void)(buf[k + 1 + j] = cw->rate[j * cap + s]);
+}
+
+/* The window stands on every rank: the back vehicle's trace from the last rank, the vehicles that crossed into the
+ * segment ahead passed to it with their rows, the measurement of this segment, the entrance repeated behind the
+ * trace (every rank but the last), the virtual leader from rank 0, the repairs counted, and every rank's vehicles
+ * for the next step (part_next). */
+int cor_part_window_end(WfCorridor *c, WfError *err)
+{
+    CorPart *pt = &c->pt;
+    WfPartition *p = pt->p;
+    CorWindow *cw = &c->win;
+    CorLane *ln = &c->ln[0];
+    WfCorridorVehicles *vh = &ln->veh;
+    int me = p->rank, R = p->size, last = me + 1 == R, rc;
+    size_t k = (size_t)cw->k, cap = vh->cap, own = part_own_now(c);
+    double *tr = pt->trace; /* positions at the start of each step and after the last, then speeds */
+    if (last) {
+        const double *bx, *bv;
+        wf_window_back_trace(&cw->w, &bx, &bv);
+        memcpy(tr, bx, k * sizeof *tr), memcpy(tr + k + 1, bv, k * sizeof *tr);
+        tr[k] = vh->x_m[cw->road_first];
+    }
+    if ((rc = wf_partition_from(p, tr, R - 1, 0, (2 * k + 1) * sizeof *tr, -1, pt->off, err))) return rc;
+    /* the crossing vehicles, front first, each packed with its rows */
+    size_t out = pt->wrec[me].out, in = last ? 0 : pt->wrec[me + 1].out;
+    for (size_t j = 0; j < out; j++) {
+        unsigned char *b = pt->cross_out + j * pt->cross_bytes;
+        part_pack(c, pt->k_lo + j, 1, b, 0);
+        part_rows(c, wf_corridor_slot(vh, pt->k_lo + j), (double *)(void *)(b + pt->vbytes), 0);
+    }
+    rc = p->shift(p->ctx, pt->cross_out, out * pt->cross_bytes, pt->cross_in, in * pt->cross_bytes, err);
+    if (rc) return rc;
+    /* their rows behind this rank's vehicles, and the steps by whose end each had crossed the cut */
+    for (size_t j = 0; j < in; j++)
+        part_rows(c, (cw->first0 + cap - 1 - j) % cap, (double *)(void *)(pt->cross_in + j * pt->cross_bytes + pt->vbytes),
+                  1);
+    for (size_t s = 0; s < k; s++) {
+        size_t m = 0;
+        while (m < in && cw->x[(s + 1) * cap + (cw->first0 + cap - 1 - m) % cap] >= pt->cut_lo) m++;
+        cw->cr[s] = m;
+        if (!last) cw->nb[s] = 0;
+    }
+    int nth = wf_lane_threads(cw->n0 + in, wf_governor_threads(&c->gov));
+    if (nth <= 1) cor_window_measure(c, 0, 1);
+    else {
+#pragma omp parallel num_threads(nth) default(none) shared(c)
+        {
+#ifdef _OPENMP
+            cor_window_measure(c, (size_t)omp_get_thread_num(), (size_t)omp_get_num_threads());
+#else
+            cor_window_measure(c, 0, 1);
+#endif
+        }
+    }
+    /* the crossing vehicles join this rank: behind its own */
+    for (size_t j = 0; j < in; j++) part_pack(c, pt->k_lo + own + j, 1, pt->cross_in + j * pt->cross_bytes, 1);
+    if (!last) { /* the entrance as the last rank ran it; its vehicles and counts are that rank's */
+        WfSafetyCount counted = ln->lane.safety;
+        cw->active = 1;
+        int fl = cor_window_back(c, cw->step0, cw->k, cw->in_window, tr, tr + k + 1, tr[k], err);
+        cw->active = 0;
+        ln->lane.safety = counted;
+        if (fl) return err->code ? err->code : wf_err(err, WF_ESYS, "the entrance of a window differs between ranks");
+    }
+    /* A speed outflow's leader restarts behind each vehicle that leaves, on rank 0 in the window; the other ranks'
+     * copies, which no vehicle of theirs follows now, take it again at rank 0's next exit (part_next), before any
+     * of them can need it (rank 0 holds k + 1 vehicles now). */
+    for (int r = 0; r < R; r++) {
+        if (r != me) c->st.counts.overlaps += (int64_t)pt->wrec[r].repairs;
+        pt->post[r] = pt->wrec[r];
+    }
+    pt->n_in = 0;
+    part_next(c, (double)(cw->step0 + cw->k) * c->sc->dt_s);
+    return 0;
 }

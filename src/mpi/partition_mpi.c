@@ -32,6 +32,17 @@ static int post_next(void *ctx, const void *send, void *recv, size_t bytes, WfEr
     return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "posting the halo exchange", err);
 }
 
+/* The open road's halo: a non-blocking receive from the rank ahead (rank - 1) and send to the rank behind. */
+static int post_back(void *ctx, const void *send, size_t send_bytes, void *recv, size_t recv_bytes, WfError *err)
+{
+    MpiPart *m = ctx;
+    if (send_bytes > INT_MAX || recv_bytes > INT_MAX) return wf_err(err, WF_ESYS, "MPI: a halo is too large");
+    int from = m->rank > 0 ? m->rank - 1 : MPI_PROC_NULL, to = m->rank + 1 < m->size ? m->rank + 1 : MPI_PROC_NULL;
+    int rc = MPI_Irecv(recv, (int)recv_bytes, MPI_BYTE, from, 5, m->comm, &m->req[0]);
+    if (rc == MPI_SUCCESS) rc = MPI_Isend(send, (int)send_bytes, MPI_BYTE, to, 5, m->comm, &m->req[1]);
+    return rc == MPI_SUCCESS ? 0 : mpi_fail(rc, "posting the halo exchange", err);
+}
+
 static int wait_next(void *ctx, WfError *err)
 {
     MpiPart *m = ctx;
@@ -119,7 +130,7 @@ static int sum_f64(void *ctx, double *v, size_t n, WfError *err)
 int wf_mpi_partition_init(WfPartition *p, volatile sig_atomic_t *stop_own, WfError *err)
 {
     MpiPart *m = calloc(1, sizeof *m);
-    *p = (WfPartition){.ctx = m, .post_next = post_next, .wait_next = wait_next, .or_all = or_all,
+    *p = (WfPartition){.ctx = m, .post_next = post_next, .wait_next = wait_next, .post_back = post_back, .or_all = or_all,
                        .sum_u64 = sum_u64, .gather = gather, .allgather = allgather, .shift = shift,
                        .chain = chain, .sum_f64 = sum_f64, .stop_own = stop_own};
     if (!m) return wf_err(err, WF_ESYS, "out of memory");
