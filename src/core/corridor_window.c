@@ -292,7 +292,10 @@ int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
     *done = 0;
     int fit = !rank || pt->pre[rank - 1].n >= halo;
     size_t nf = fit ? front_count(c, k, k0, n0, halo) : 0;
-    fit = fit && nf <= FRONT_MAX && nf < n0 && vh->n + (size_t)k < vh->cap;
+    /* the rank behind steps this rank's k + 1 rearmost vehicles as its halo: they stay in the interior, whose exits
+     * undo the window (front_part), so the halo never holds a vehicle that left */
+    size_t tail = pt->p && rank + 1 < pt->p->size ? (size_t)k + 1 : 1;
+    fit = fit && nf <= FRONT_MAX && nf + tail <= n0 && vh->n + (size_t)k < vh->cap;
     fit = fit && wf_window_range(&cw->w, first0, n0 - nf, ln->lane.nthreads);
     if (pt->p && (rc = cor_part_window_begin(c, k, fit, &go, err))) return rc;
     if (!fit || !go) return 0;
