@@ -27,7 +27,7 @@ The binaries are copied once at the start (a rebuild during the runs cannot mix 
 Usage: /usr/bin/python3 bench/mpi_ring/run.py [--per-rank 2500000] [--steps 40] [--ranks 1,2,4] [--no-identity]
            [--bin bin/wavefuel] [--mpi-bin bin/wavefuel-mpi] [--out bench/mpi_ring/results.json] [--table [JSON]]
        /usr/bin/python3 bench/mpi_ring/run.py --road corridor [--km-per-rank 100] [--fill 1.5] [--ranks 1,2,4]
-           [--block-steps K] [--out bench/mpi_ring/results_corridor.json]
+           [--block-steps K] [--set KEY=VALUE ...] [--out bench/mpi_ring/results_corridor.json]
 --block-steps K sets time.block_steps of every run (a corridor steps one step at a time by default; split, it then
 exchanges every step; in windows of K steps, K times less often: docs/mpi.md).
 """
@@ -67,12 +67,14 @@ def sha256(path):
     return h.hexdigest()
 
 
-ROAD = dict(kind="ring", fill=1.5, block_steps=None)  # set by main: the road of the runs
+ROAD = dict(kind="ring", fill=1.5, block_steps=None, sets=[])  # set by main: the road of the runs
 
 
 def scenario_args(n, steps):
     """A ring of n vehicles; a corridor of n metres, simulated for `steps` steps."""
     block = ["--set", f"time.block_steps={ROAD['block_steps']}"] if ROAD["block_steps"] else []
+    for kv in ROAD["sets"]:
+        block += ["--set", kv]
     if ROAD["kind"] == "corridor":
         return [CORRIDOR, "--set", f"road.length_m={n:.17g}", "--set", f"time.duration_s={steps * DT_S:.10g}"] + block
     return block + [SCENARIO, "--set", f"fleet.vehicles={n}", "--set", f"road.length_m={SPACING_M * n:.17g}",
@@ -146,6 +148,7 @@ def table(res):
     steps = f"{res['steps']} steps of 0.1 s" if res.get("road", "ring") == "ring" else \
         f"a corridor of {res['per_rank'] / 1000:g} km per rank (N: its mean vehicles on the road), steps as the runs say"
     block = f"time.block_steps {res['block_steps']}; " if res.get("block_steps") else ""
+    block += "".join(f"{kv}; " for kv in res.get("sets", []))
     out.append(f"Machine: {m['cpu']}, {m['cores']} cores ({m['mpi']}); wavefuel {res['git_hash']}; {res['date']}; "
                f"one run each; {steps}; {block}1 thread per rank; ranks beyond {m['cores']} are "
                "oversubscribed (--oversubscribe --bind-to none): they share the cores.")
@@ -201,6 +204,8 @@ def main():
     ap.add_argument("--fill", type=float, default=1.5, help="a corridor's simulated time, in crossing times")
     ap.add_argument("--block-steps", type=int, default=None,
                     help="time.block_steps of every run (default: the scenario's; a corridor's is 1, one step at a time)")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a scenario key for every run (repeatable), as `wavefuel run --set`")
     ap.add_argument("--out", default=os.path.join(HERE, "results.json"))
     ap.add_argument("--table", nargs="?", const=os.path.join(HERE, "results.json"), metavar="RESULTS_JSON",
                     help="only print the table of an existing results.json")
@@ -211,7 +216,7 @@ def main():
         return 0
     os.environ.setdefault("WAVEFUEL_VEHICLES", os.path.join(ROOT, "vehicles"))  # the copies find no classes beside them
     per, ranks = int(args.per_rank), [int(r) for r in args.ranks.split(",")]
-    ROAD.update(kind=args.road, fill=args.fill, block_steps=args.block_steps)
+    ROAD.update(kind=args.road, fill=args.fill, block_steps=args.block_steps, sets=args.set)
     corridor = args.road == "corridor"
     if corridor:
         per = int(args.km_per_rank * 1000)  # metres of road per rank
@@ -222,7 +227,7 @@ def main():
         return corridor_steps(n) if corridor else args.steps
     res = dict(date=datetime.datetime.now(datetime.timezone.utc).strftime("%Y-%m-%dT%H:%MZ"), machine=machine("mpi", ["mpirun", "--version"], "unknown MPI"),
                scenario=os.path.relpath(CORRIDOR if corridor else SCENARIO, ROOT), road=args.road, per_rank=per,
-               steps=args.steps, block_steps=args.block_steps, runs=[])
+               steps=args.steps, block_steps=args.block_steps, sets=args.set, runs=[])
     print(f"# {res['date']}  {res['machine']['cpu']}, {res['machine']['cores']} cores "
           f"(R > {res['machine']['cores']}: oversubscribed, the ranks share the cores); load {os.getloadavg()[0]:.2f}",
           flush=True)

@@ -94,7 +94,7 @@ typedef struct CorWindow {
     size_t    first0, n0, n_int; /* the window's back slot and vehicles as it began; the interior's vehicles */
     size_t    road_first, road_n; /* the road's back slot and vehicles as the window began (one process: first0, n0) */
     size_t    n_halo;         /* split across processes, a rank behind the first: the front part's first vehicles are
-                               * the rank ahead's rearmost, stepped again here (cor_part_window) */
+                               * the rank ahead's rearmost, stepped again here (cor_part_window_begin) */
     size_t   *cr;             /* per step: the vehicles of the rank behind measured here (crossed into the segment) */
     double   *x, *rate;       /* rows of cap slots: positions at the window's start and after each step (k_max + 1),
                                * each step's fuel rate (k_max) */
@@ -146,7 +146,7 @@ typedef struct CorPart {
     size_t  *off;
     WfSafetyCount safety_all; /* every rank's safety counts (what the summary and a checkpoint read) */
     int      repaired;       /* the step's repair brought the whole road onto every rank */
-    /* time-blocked windows (cor_part_window): the rearmost vehicles packed for the rank behind and the rank ahead's
+    /* time-blocked windows (cor_part_window_*): the rearmost vehicles packed for the rank behind and the rank ahead's
      * received; the vehicles crossing into the segment ahead with their rows of the window (the positions before and
      * after each step, the fuel rates), and those received; the entrance's back vehicle's trace, from the last rank */
     unsigned char *halo_out, *halo_in, *cross_out, *cross_in;

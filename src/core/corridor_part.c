@@ -73,7 +73,7 @@ int cor_part_init(WfCorridor *c, WfPartition *p, WfError *err)
     pt->out = malloc(cap * pt->vbytes);
     pt->in = malloc(cap * pt->vbytes);
     pt->all = malloc(cap * pt->vbytes);
-    /* windows (cor_part_window): k + 1 vehicles of halo, at most PART_CROSS_MAX crossing with 2 k + 1 rows each */
+    /* windows (cor_part_window_*): k + 1 vehicles of halo, at most PART_CROSS_MAX crossing with 2 k + 1 rows each */
     size_t k = c->sc->block_steps > 1 ? (size_t)c->sc->block_steps : 0;
     pt->cross_bytes = pt->vbytes + (2 * k + 1) * sizeof(double);
     pt->halo_out = malloc((k + 1) * pt->vbytes);

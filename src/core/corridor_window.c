@@ -164,7 +164,7 @@ static int window_front(void *ctx)
 {
     WfCorridor *c = ctx;
     CorWindow *cw = &c->win;
-    if (c->pt.p && cor_part_window_wait(c)) return WF_STEP_FAULT; /* the halo is in place (cor_part_window) */
+    if (c->pt.p && cor_part_window_wait(c)) return WF_STEP_FAULT; /* the halo is in place (cor_part_window_wait) */
     return front_part(c, cw->step0, cw->k, cw->in_window, cw->err);
 }
 
@@ -276,7 +276,7 @@ static void window_after(void *ctx, int t, int nt, int flags)
  * the interior, then the entrance and the measurement (window_after). *done 0 when the road does not fit one (one
  * step at a time then), or when some step overlapped, faulted or a vehicle behind the front part left: the state is
  * as before, and the steps are taken one at a time (their repairs and errors are the per-step path's). Split across
- * processes, each rank steps its own vehicles behind a halo, and the ranks agree before and after (cor_part_window
+ * processes, each rank steps its own vehicles behind a halo, and the ranks agree before and after (cor_part_window_*
  * in corridor_part.c). */
 int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
 {
