@@ -8,6 +8,8 @@
  * road order. Units: m, s, m/s, m/s^2, g. */
 #include "core/corridor_impl.h"
 
+#include <limits.h>
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -1685,7 +1687,8 @@ static int corridor_step(void *eng, long step, long max_steps, long *steps, WfEr
     /* only steps that threads could share are timed: a short road steps on one thread whatever the count */
     double t0 = parallel ? wf_wall_now() : 0.0;
     /* records step one at a time here: they read the whole road at the step's start */
-    long left = wf_governor_probe_left(&c->gov);
+    /* a probe cuts windows where it ends, on one process only: split, every rank's windows are the same steps */
+    long left = c->pt.p ? LONG_MAX : wf_governor_probe_left(&c->gov);
     long k = wf_window_steps(&c->win.w, step, left < max_steps ? left : max_steps, c->n_steps, c->warm_steps,
                              c->sc->trajectories ? c->traj_every : 0, c->out_every);
     if (k > 1) rc = cor_window(c, step, (int)k, &done, err);

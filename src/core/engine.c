@@ -4,6 +4,7 @@
  * trajectories, time.fused_step off), a pass that exports them and a pass that advances; both give the same bits. */
 #include "wavefuel/engine.h"
 
+#include <limits.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -1011,7 +1012,9 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     int nt = wf_governor_threads(&s->gov);
     s->lane.nthreads = nt;
     if (s->win.k_max) wf_window_threads(&s->win, nt < s->win_threads ? nt : s->win_threads);
-    long left = wf_governor_probe_left(&s->gov);
+    /* a probe cuts windows where it ends, on one process only: split across processes every rank steps windows of
+     * the same steps (their halos and agreements pair up), whatever each one's threads */
+    long left = s->part ? LONG_MAX : wf_governor_probe_left(&s->gov);
     if (left < max_steps) max_steps = left;
     double t0 = s->gov.every ? wf_wall_now() : 0.0;
     int rc = ring_advance(s, step, max_steps, steps, err);
