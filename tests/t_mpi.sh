@@ -392,6 +392,10 @@ mpi_same corridor_windows_overlaps_R3_threads1 "$tmp/cwin_noisy_ref.h5" 3 1 16 "
 CLONG="$tmp/cor.yaml --set time.duration_s=30000"
 run $CLONG -o "$tmp/clong_ref.h5" --threads 2
 sigterm_cases corridor_ 300000 "$tmp/clong_ref.h5" $CLONG
+# ... and in time-blocked windows (the queue of (g2), which stops inside its windows): a stop agreed at a window's end.
+CWLONG="$tmp/cwin.yaml --set time.duration_s=30000 --set time.block_steps=16"
+run $CWLONG -o "$tmp/cwlong_ref.h5" --threads 2
+sigterm_cases corridor_windows_ 300000 "$tmp/cwlong_ref.h5" $CWLONG
 
 # Refusals: exit status 2, the key or option named, no file; each case runs in one process (so it is the ranks that
 # refuse it, not the scenario).
