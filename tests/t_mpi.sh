@@ -9,9 +9,10 @@
 # run stopped by SIGTERM (to mpirun, or to rank 1 alone) resumes on another rank count and in one process to the
 # uninterrupted result; what the ranks cannot split is refused with exit status 2, the key named and no file written;
 # uneven shares are refused or give the one-process result. A corridor: the same for 2, 3 and 4 ranks, 1 and 2
-# threads, with detectors at and beside the cuts between the ranks' segments, overlaps repaired across them, time-blocked
-# windows (the halo of the rank ahead stepped again on each rank; windows redone on every rank), a stop by
-# SIGTERM resumed on another rank count and in one process, and its own refusals.
+# threads, with detectors at and beside the cuts between the ranks' segments, overlaps repaired across them,
+# time-blocked windows (the halo of the rank ahead stepped again on each rank; windows redone on every rank), a stop
+# by SIGTERM (one step at a time and in windows) resumed on another rank count and in one process, and its own
+# refusals.
 set -u
 BIN=${WAVEFUEL_BIN:-bin/wavefuel}
 MPIBIN=${WAVEFUEL_MPI_BIN:-bin/wavefuel-mpi}

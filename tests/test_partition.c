@@ -359,7 +359,8 @@ static void *job_main(void *arg)
 #endif
     Rank rk = {.sh = j->sh, .rank = j->rank};
     WfPartition part = {.rank = j->rank, .size = j->sh ? j->sh->size : 1, .ctx = &rk, .post_next = post_next,
-                        .wait_next = wait_next, .post_back = post_back, .or_all = or_all, .sum_u64 = sum_u64, .gather = gather,
+                        .wait_next = wait_next, .post_back = post_back, .or_all = or_all, .sum_u64 = sum_u64,
+                        .gather = gather,
                         .allgather = allgather, .shift = shift, .chain = chain, .sum_f64 = sum_f64,
                         .stop_own = &rk.own_stop};
     WfOutput out = {.record = keep_row, .trips = keep_trips, .ctx = o};
@@ -504,7 +505,10 @@ static void corridor_split_equals_one(const char *yaml, const char *name, int ne
 }
 
 static void test_corridor(void) { corridor_split_equals_one(corridor_yaml, "corridor", 0, NULL, 0); }
-static void test_corridor_sparse(void) { corridor_split_equals_one(corridor_sparse_yaml, "sparse corridor", 0, NULL, 0); }
+static void test_corridor_sparse(void)
+{
+    corridor_split_equals_one(corridor_sparse_yaml, "sparse corridor", 0, NULL, 0);
+}
 static void test_corridor_overlaps(void)
 {
     corridor_split_equals_one(corridor_overlap_yaml, "overlapping corridor", 1, NULL, 0);

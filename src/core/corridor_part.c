@@ -502,20 +502,20 @@ int cor_part_window_agree(WfCorridor *c, int flags, WfError *err)
 }
 
 /* The rows of the window (positions before each step and after the last, fuel rates) of the vehicle in slot s, into
- * buf or from it (unpack). */
-static void part_rows(WfCorridor *c, size_t s, double *buf, int unpack)
+ * buf or from it (unpack); buf follows a packed vehicle, so it need not be aligned for doubles. */
+static void part_rows(WfCorridor *c, size_t s, unsigned char *buf, int unpack)
 {
     const CorWindow *cw = &c->win;
-    size_t cap = c->ln[0].veh.cap, k = (size_t)cw->k;
-    for (size_t j = 0; j <= k; j++) unpack ? (void)(cw->x[j * cap + s] = buf[j]) : (void)(buf[j] = cw->x[j * cap + s]);
-    for (size_t j = 0; j < k; j++)
-        unpack ? (void)(cw->rate[j * cap + s] = buf[k + 1 + j]) : (void)(buf[k + 1 + j] = cw->rate[j * cap + s]);
+    size_t cap = c->ln[0].veh.cap, k = (size_t)cw->k, d = sizeof(double);
+    for (size_t j = 0; j < 2 * k + 1; j++, buf += d) {
+        double *row = j <= k ? &cw->x[j * cap + s] : &cw->rate[(j - k - 1) * cap + s];
+        unpack ? memcpy(row, buf, d) : memcpy(buf, row, d);
+    }
 }
 
 /* The window stands on every rank: the back vehicle's trace from the last rank, the vehicles that crossed into the
  * segment ahead passed to it with their rows, the measurement of this segment, the entrance repeated behind the
- * trace (every rank but the last), the virtual leader from rank 0, the repairs counted, and every rank's vehicles
- * for the next step (part_next). */
+ * trace (every rank but the last), the repairs counted, and every rank's vehicles for the next step (part_next). */
 int cor_part_window_end(WfCorridor *c, WfError *err)
 {
     CorPart *pt = &c->pt;
@@ -538,14 +538,13 @@ int cor_part_window_end(WfCorridor *c, WfError *err)
     for (size_t j = 0; j < out; j++) {
         unsigned char *b = pt->cross_out + j * pt->cross_bytes;
         part_pack(c, pt->k_lo + j, 1, b, 0);
-        part_rows(c, wf_corridor_slot(vh, pt->k_lo + j), (double *)(void *)(b + pt->vbytes), 0);
+        part_rows(c, wf_corridor_slot(vh, pt->k_lo + j), b + pt->vbytes, 0);
     }
     rc = p->shift(p->ctx, pt->cross_out, out * pt->cross_bytes, pt->cross_in, in * pt->cross_bytes, err);
     if (rc) return rc;
     /* their rows behind this rank's vehicles, and the steps by whose end each had crossed the cut */
     for (size_t j = 0; j < in; j++)
-        part_rows(c, (cw->first0 + cap - 1 - j) % cap, (double *)(void *)(pt->cross_in + j * pt->cross_bytes + pt->vbytes),
-                  1);
+        part_rows(c, (cw->first0 + cap - 1 - j) % cap, pt->cross_in + j * pt->cross_bytes + pt->vbytes, 1);
     for (size_t s = 0; s < k; s++) {
         size_t m = 0;
         while (m < in && cw->x[(s + 1) * cap + (cw->first0 + cap - 1 - m) % cap] >= pt->cut_lo) m++;
