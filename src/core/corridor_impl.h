@@ -129,7 +129,6 @@ typedef struct PartRec {
 } PartRec;
 enum { PART_STOP_SHIFT = 8 };
 
-
 /* This rank's share of a split corridor: its segment of the road (fronts in [cut_lo, cut_hi); rank 0 the exit's,
  * the last rank the entrance's) and its Edie cells, its vehicles (road indices [k_lo, k_lo + n_own), slots from
  * first_own up) and those that crossed into its segment in the step (n_in, behind them). Vehicles keep their slots
