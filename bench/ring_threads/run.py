@@ -8,7 +8,9 @@ alternate within each repeat:
 - `one`: one thread;
 - `two-before`: two threads as before session 23, windows of 16 steps and no thread governor
   (time.block_steps=16, time.thread_check_steps=0);
-- `two`: two threads with the defaults (windows of 64 steps, the governor: time.thread_check_steps=1024).
+- `two`: two threads with the defaults (windows of 64 steps, the governor: time.thread_check_steps=1024);
+- `one-again`: one thread again, last: its ratio to `one` is what two runs of the same case differ by within a repeat
+  (the noise that a ratio of two threads to one carries too).
 
 first on the machine as it is, then (--load) beside two CPU-bound processes (bench/busy_load.py: busy loops that
 stop themselves after --load-timeout seconds, and are killed at the end). Rates are vehicle-steps per second of the
@@ -36,7 +38,8 @@ SCENARIO = os.path.join(ROOT, "bench", "scaling", "ring.yaml")
 sys.path.insert(0, os.path.dirname(HERE))
 from busy_load import beside_load  # noqa: E402
 
-CASES = {"one": (1, []), "two-before": (2, ["time.block_steps=16", "time.thread_check_steps=0"]), "two": (2, [])}
+CASES = {"one": (1, []), "two-before": (2, ["time.block_steps=16", "time.thread_check_steps=0"]), "two": (2, []),
+         "one-again": (1, [])}
 
 
 def one_run(binary, n, case, work, tmp):
@@ -67,21 +70,21 @@ def series(binary, sizes, work, repeats, tmp):
 
 def table(runs, title):
     print(f"\n{title}\n")
-    print("| N | one thread best (median) | two-before best (median) | two best (median) | two-before / one, each "
-          "repeat | two / one, each repeat | load |")
-    print("|---|---|---|---|---|---|---|")
+    print("| N | one thread best (median) | two-before best (median) | two best (median) | one-again best (median) | "
+          "two-before / one, each repeat | two / one, each repeat | one-again / one, each repeat | load |")
+    print("|---|---|---|---|---|---|---|---|---|")
     for n in sorted({r["n"] for r in runs}):
         rs = [r for r in runs if r["n"] == n]
         cells, ratio = [], {}
         for case in CASES:
             rates = [r["rate"] for r in rs if r["case"] == case]
             cells.append(f"{max(rates):.3g} ({statistics.median(rates):.3g})")
-        for case in ("two-before", "two"):
+        for case in ("two-before", "two", "one-again"):
             rate = {(r["rep"], r["case"]): r["rate"] for r in rs}
             q = [rate[k, case] / rate[k, "one"] for k in sorted({r["rep"] for r in rs})]
             ratio[case] = f"{min(q):.2f}–{max(q):.2f} (median {statistics.median(q):.2f})"
         loads = [r["load"] for r in rs]
-        print(f"| {n:.0e} | {' | '.join(cells)} | {ratio['two-before']} | {ratio['two']} | "
+        print(f"| {n:.0e} | {' | '.join(cells)} | {ratio['two-before']} | {ratio['two']} | {ratio['one-again']} | "
               f"{min(loads):.1f}–{max(loads):.1f} |")
 
 
