@@ -5,7 +5,7 @@
 # their make targets (so `make test` never requires them):
 #   fuzz      clang + compiler-rt (libFuzzer, sanitizers) + LLVM libomp (Archer)  make fuzz, fuzz-smoke, tsan
 #   valgrind  valgrind                                                           make valgrind
-#   mpi       OpenMPI (mpicc, mpirun)                                            make mpi (bin/wavefuel-mpi)
+#   mpi       OpenMPI (mpicc, mpirun), parallel HDF5 (libhdf5-openmpi-dev)       make mpi (bin/wavefuel-mpi), bench/mpi_ring
 #   rl        PyTorch, PyYAML (python3-torch, python3-yaml)                      examples/rl/ (training a policy)
 #   sumo      SUMO, netconvert, Python traci and libsumo (sumo, sumo-tools)      bench/vs_sumo, bench/rl_envs
 set -euo pipefail
@@ -17,7 +17,7 @@ for set_name in "$@"; do
                  python3-h5py python3-numpy python3-matplotlib) ;;
     fuzz) PKGS+=(clang libclang-rt-14-dev libomp-14-dev) ;;
     valgrind) PKGS+=(valgrind) ;;
-    mpi) PKGS+=(libopenmpi-dev openmpi-bin) ;;
+    mpi) PKGS+=(libopenmpi-dev openmpi-bin libhdf5-openmpi-dev) ;;
     rl) PKGS+=(python3-torch python3-yaml) ;;
     sumo) PKGS+=(sumo sumo-tools) ;;
     *) echo "install-deps.sh: unknown package set '$set_name' (base, fuzz, valgrind, mpi, rl, sumo)" >&2; exit 2 ;;

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Build and run bench/mpi_ring/h5_write.c (one HDF5 file from R processes: gathered onto rank 0 against parallel
-# HDF5), with Debian's parallel HDF5 (libhdf5-openmpi-dev, `tools/install-deps.sh mpi`) and Open MPI.
+# HDF5), with Debian's parallel HDF5 (libhdf5-openmpi-dev) and Open MPI: `tools/install-deps.sh mpi` installs both.
 # Usage: [N=10000000] [COLS=8] [REPEATS=3] [RANKS="2 4"] bash bench/mpi_ring/h5_write.sh
 set -eu
 cd "$(dirname "$0")/../.."
