@@ -156,6 +156,8 @@ typedef struct CorPart {
     int      halo_rc;        /* the halo's exchange as the front part waited for it */
     WfError  halo_err;
 } CorPart;
+/* Whether position x_m (a detector's) lies on this rank's segment, whose rank alone measures it. */
+static inline int cor_part_holds(const CorPart *pt, double x_m) { return x_m >= pt->cut_lo && x_m < pt->cut_hi; }
 #define PART_CROSS_MAX 512   /* vehicles crossing a cut in one window at most (else one step at a time) */
 #define PART_MIN_M 50.0      /* a segment's length beyond two of the longest vehicles, at least (part_check) */
 

@@ -331,7 +331,7 @@ static void part_measure(WfCorridor *c, long step, int in_window)
         }
     }
     for (size_t q = 0; q < c->det.n_det; q++)
-        if (c->det.x_m[q] >= pt->cut_lo && c->det.x_m[q] < pt->cut_hi)
+        if (cor_part_holds(pt, c->det.x_m[q]))
             cor_measure_range(c, ln, step, in_window, 0, 0, q, q + 1);
 }
 
@@ -392,7 +392,7 @@ int cor_part_collect(WfCorridor *c, WfError *err)
     WfDetectors *d = &c->det;
     for (size_t j = 0; j < d->n_int; j++)
         for (size_t q = 0; q < d->n_det; q++) {
-            if (d->x_m[q] >= pt->cut_lo && d->x_m[q] < pt->cut_hi) continue;
+            if (cor_part_holds(pt, d->x_m[q])) continue;
             size_t i = j * d->n_det + q;
             d->count[i] = 0, d->sum_v_mps[i] = d->sum_inv_v_spm[i] = d->occupied_s[i] = 0.0;
         }

@@ -244,7 +244,7 @@ void cor_window_measure(WfCorridor *c, size_t t, size_t nt)
         size_t w = pt->i_hi - pt->i_lo;
         measure_view(c, &v, step, pt->i_lo + w * t / nt, pt->i_lo + w * (t + 1) / nt, 0, 0);
         for (size_t q = q_lo; q < q_hi; q++)
-            if (c->det.x_m[q] >= pt->cut_lo && c->det.x_m[q] < pt->cut_hi) measure_view(c, &v, step, 0, 0, q, q + 1);
+            if (cor_part_holds(pt, c->det.x_m[q])) measure_view(c, &v, step, 0, 0, q, q + 1);
     }
 }
 
@@ -287,10 +287,10 @@ int cor_window(WfCorridor *c, long step0, int k, int *done, WfError *err)
     int rank = pt->p ? pt->p->rank : 0, rc = 0, go = 1;
     size_t halo = rank ? (size_t)k + 1 : 0, rows;
     /* this process's vehicles from road index k0 (the halo first), and its back slot */
-    size_t k0 = pt->p ? pt->k_lo - (rank && pt->k_lo >= halo ? halo : 0) : 0, n0 = pt->p ? pt->n_own + halo : vh->n;
-    size_t first0 = pt->p ? pt->first_own : vh->first;
+    size_t n0 = pt->p ? pt->n_own + halo : vh->n, first0 = pt->p ? pt->first_own : vh->first;
     *done = 0;
-    int fit = !rank || pt->pre[rank - 1].n >= halo;
+    int fit = !rank || pt->pre[rank - 1].n >= halo; /* then k_lo >= halo: the halo's road indices begin at k0 */
+    size_t k0 = pt->p && fit ? pt->k_lo - halo : 0;
     size_t nf = fit ? front_count(c, k, k0, n0, halo) : 0;
     /* the rank behind steps this rank's k + 1 rearmost vehicles as its halo: they stay in the interior, whose exits
      * undo the window (front_part), so the halo never holds a vehicle that left */
