@@ -554,8 +554,6 @@ static int corridor_cap(const void *ctx, size_t lo, size_t m, const double *x, c
     return 1;
 }
 
-/* The vehicle buffer as the kernel sees it. A group without heterogeneity drives with the group's parameters
- * (every vehicle's copy equals them): one shared block, so the model's block form applies across the block. */
 /* The Edie cell of each step that lies inside one cell (the common case), computed as edie_vehicle does (the same
  * division and comparisons), else UINT32_MAX; slots [lo, lo + m). The kernel calls it for each block it advanced
  * (WfRoadOps.moved), on the block's thread; an overlap repair calls it again for the vehicle it moves. A loop without
@@ -1351,16 +1349,9 @@ static void lanes_observe(WfCorridor *c, double t, int at_start)
     for (size_t l = 0; l < c->n_lanes; l++) {
         WfCorridorRow r;
         cor_record(c, l, l + 1, t, at_start, &r);
-        double *o = row + 3 + l * WF_LANE_N_COLS, n = r.v[WF_CTS_VEHICLES];
-        o[WF_LANE_VEHICLES] = n;
-        o[WF_LANE_DENSITY] = n / (c->L / 1000.0);
-        o[WF_LANE_FLOW] = n > 0 ? o[WF_LANE_DENSITY] * r.v[WF_CTS_MEAN_V] * 3.6 : 0.0;
-        o[WF_LANE_MEAN_V] = r.v[WF_CTS_MEAN_V];
-        o[WF_LANE_SD_V] = r.v[WF_CTS_SD_V];
-        o[WF_LANE_WAVES] = r.v[WF_CTS_WAVES];
-        o[WF_LANE_FUEL_RATE] = r.v[WF_CTS_FUEL_RATE];
-        o[WF_LANE_MEAN_GAP] = r.v[WF_CTS_MEAN_GAP];
-        o[WF_LANE_FRAC_STOPPED] = n > 0 ? r.v[WF_CTS_FRAC_STOPPED] : NAN;
+        static const int from[] = {WF_CTS_MEAN_V, WF_CTS_SD_V, WF_CTS_WAVES,
+                                   WF_CTS_FUEL_RATE, WF_CTS_MEAN_GAP, WF_CTS_FRAC_STOPPED};
+        wf_lane_values(r.v, from, r.v[WF_CTS_VEHICLES], c->L, row + 3 + l * WF_LANE_N_COLS);
     }
 }
 

@@ -935,7 +935,9 @@ static void lanes_observe(WfRing *s, const WfStatsBlock *rec, double t)
     for (size_t l = 0; l < f->n_lanes; l++) {
         WfTsRow lr;
         if (s->lane_nb[l]) wf_stats_combine(rec, s->lane_nb[l], f->n_classes, s->sc, t, s->overlaps, &lr);
-        wf_lane_values(&lr, (double)f->lane_n[l], s->sc->road.length_m, row + 3 + l * WF_LANE_N_COLS);
+        static const int from[] = {WF_TS_MEAN_V, WF_TS_SD_V, WF_TS_WAVES,
+                                   WF_TS_FUEL_RATE, WF_TS_MEAN_GAP, WF_TS_FRAC_STOPPED};
+        wf_lane_values(lr.v, from, (double)f->lane_n[l], s->sc->road.length_m, row + 3 + l * WF_LANE_N_COLS);
         rec += s->lane_nb[l];
     }
 }

@@ -53,8 +53,10 @@ enum { WF_LANE_REC_N_COLS = 3, WF_LANE_CNT_N_COLS = 6 };
 extern const WfObsColumn wf_lane_columns[WF_LANE_N_COLS];
 extern const WfObsColumn wf_lane_record_columns[WF_LANE_REC_N_COLS];
 extern const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS];
-/* A lane's columns from its record (wf_stats_combine over its blocks) and its n vehicles, on a ring of length_m. */
-void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out);
+/* A lane's columns from its record and its n vehicles on a road of length_m: v a record row of either boundary
+ * (/timeseries), from[c] where it holds lane column WF_LANE_MEAN_V + c (mean speed, its s.d., waves, fuel rate,
+ * mean gap, fraction stopped). */
+void wf_lane_values(const double *v, const int *from, double n, double length_m, double *out);
 
 /* ---- /trips (corridor): one row per trip, float64 (integers are exact below 2^53) */
 enum { WF_TRIP_N_COLS = 18, WF_TRIP_N_SINGLE = 16 }; /* the columns from WF_TRIP_N_SINGLE on: multi-lane roads */

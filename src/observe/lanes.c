@@ -37,16 +37,13 @@ const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS] = {
      0},
 };
 
-void wf_lane_values(const WfTsRow *row, double n, double length_m, double *out)
+void wf_lane_values(const double *v, const int *from, double n, double length_m, double *out)
 {
-    double k = n / (length_m / 1000.0), v = n > 0 ? row->v[WF_TS_MEAN_V] : NAN; /* an empty lane: NaN, as /timeseries */
+    static const double empty[] = {NAN, NAN, 0.0, 0.0, NAN, NAN}; /* an empty lane, as /timeseries */
+    double k = n / (length_m / 1000.0);
     out[WF_LANE_VEHICLES] = n;
     out[WF_LANE_DENSITY] = k;
-    out[WF_LANE_FLOW] = n > 0 ? k * v * 3.6 : 0.0;
-    out[WF_LANE_MEAN_V] = v;
-    out[WF_LANE_SD_V] = n > 0 ? row->v[WF_TS_SD_V] : NAN;
-    out[WF_LANE_WAVES] = n > 0 ? row->v[WF_TS_WAVES] : 0.0;
-    out[WF_LANE_FUEL_RATE] = n > 0 ? row->v[WF_TS_FUEL_RATE] : 0.0;
-    out[WF_LANE_MEAN_GAP] = n > 0 ? row->v[WF_TS_MEAN_GAP] : NAN;
-    out[WF_LANE_FRAC_STOPPED] = n > 0 ? row->v[WF_TS_FRAC_STOPPED] : NAN;
+    for (int c = WF_LANE_MEAN_V; c < WF_LANE_N_COLS; c++)
+        out[c] = n > 0 ? v[from[c - WF_LANE_MEAN_V]] : empty[c - WF_LANE_MEAN_V];
+    out[WF_LANE_FLOW] = n > 0 ? k * out[WF_LANE_MEAN_V] * 3.6 : 0.0;
 }
