@@ -77,13 +77,6 @@ int wf_loop_finish(const WfLoop *lp, WfLoopState *st, int rc, WfError *err)
     return 0;
 }
 
-int wf_loop_run(const WfLoop *lp, WfError *err)
-{
-    WfLoopState st;
-    wf_loop_start(&st);
-    return wf_loop_finish(lp, &st, wf_loop_advance(lp, &st, lp->n_steps + 1, err), err);
-}
-
 static inline size_t idx_of(const WfLane *ln, size_t i) { return ln->slot ? ln->slot[i] : i; }
 static inline size_t sidx_of(const WfLane *ln, size_t i) { return ln->sslot ? ln->sslot[i] : idx_of(ln, i); }
 

@@ -238,7 +238,5 @@ int wf_loop_advance(const WfLoop *lp, WfLoopState *st, long n, WfError *err);
 /* After the last wf_loop_advance (rc: what it returned): the checkpoint of an interrupted run, the close, the end.
  * 0 when the run reached its end; WF_EINTR when a signal stopped it; else the first error. */
 int wf_loop_finish(const WfLoop *lp, WfLoopState *st, int rc, WfError *err);
-/* wf_loop_start, wf_loop_advance to the end, wf_loop_finish. */
-int wf_loop_run(const WfLoop *lp, WfError *err);
 
 #endif

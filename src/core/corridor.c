@@ -248,6 +248,7 @@ static int corridor_create(WfSim *sim, WfError *err)
     if (!c) return wf_err(err, WF_ESYS, "out of memory");
     sim->eng = c;
     sim->steps_done = &c->st.steps_done;
+    sim->win = &c->win.w, sim->gov = &c->gov;
     c->sim = sim;
     c->nthreads = sim->nthreads;
     wf_governor_init(&c->gov, c->nthreads, sc->thread_check_steps, 0);
@@ -1889,17 +1890,7 @@ static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
     return k;
 }
 
-static int corridor_windows(const void *eng, long *windows, long *redone)
-{
-    const WfCorridor *c = eng;
-    *windows = c->win.w.windows, *redone = c->win.w.redone;
-    return c->win.w.k_max;
-}
-
-static const WfGovernor *corridor_governor(const void *eng) { return &((const WfCorridor *)eng)->gov; }
-
 const WfBoundary wf_boundary_open = {.kind = "corridor", .create = corridor_create, .destroy = corridor_destroy,
                                      .step = corridor_step, .flush = corridor_flush, .close = corridor_close,
                                      .state = corridor_state, .restored = corridor_restored,
-                                     .group = corridor_group, .lanes = corridor_lanes,
-                                     .windows = corridor_windows, .governor = corridor_governor};
+                                     .group = corridor_group, .lanes = corridor_lanes};

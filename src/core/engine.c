@@ -616,6 +616,7 @@ static int ring_create(WfSim *sim, WfError *err)
     if (!s) return wf_err(err, WF_ESYS, "out of memory");
     sim->eng = s;
     sim->steps_done = &s->steps_done;
+    sim->win = &s->win, sim->gov = &s->gov;
     sim->phase_s = s->phase_s;
     s->sim = sim;
     s->sc = sc;
@@ -1025,8 +1026,6 @@ static int ring_step(void *eng, long step, long max_steps, long *steps, WfError 
     return rc;
 }
 
-static const WfGovernor *ring_governor(const void *eng) { return &((const WfRing *)eng)->gov; }
-
 /* A multi-lane ring's safety counts: each lane's, summed into the ring's lane (what the summary and the checkpoint
  * read); restored, they stay with lane 0's view. */
 static void lanes_safety(WfRing *s, int restore)
@@ -1083,13 +1082,6 @@ const WfFleet *wf_sim_fleet(const WfSim *sim)
 {
     wf_sim_sync((WfSim *)sim); /* the arrays' values as a step leaves them (the run itself is not const) */
     return wf_ring_fleet(sim);
-}
-
-static int ring_windows(const void *eng, long *windows, long *redone)
-{
-    const WfRing *s = eng;
-    *windows = s->win.windows, *redone = s->win.redone;
-    return s->win.k_max;
 }
 
 /* The lane observers (wf_sim_lanes); every vehicle was on the ring the whole time run so far. */
@@ -1288,5 +1280,5 @@ static size_t ring_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 const WfBoundary wf_boundary_periodic = {.kind = "ring", .create = ring_create, .destroy = ring_destroy,
                                          .step = ring_step, .flush = ring_flush, .close = ring_close, .state = ring_state,
                                          .restored = ring_restored, .group = ring_group, .lanes = ring_lanes,
-                                         .windows = ring_windows, .governor = ring_governor, .shares = ring_shares,
+                                         .shares = ring_shares,
                                          .state_pieces = ring_state_pieces};

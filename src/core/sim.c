@@ -1,5 +1,6 @@
 /* A run of one road, whatever its boundary (src/core/sim.h): the boundary's engine stepped by the one step loop
- * (wf_loop_run), with the outputs, wall time, threads, checkpoints and summary every boundary shares. */
+ * (wf_loop_start, wf_loop_advance, wf_loop_finish), with the outputs, wall time, threads, checkpoints and summary
+ * every boundary shares. */
 #include "core/sim.h"
 
 #include "wavefuel/corridor.h"
@@ -212,12 +213,16 @@ int wf_sim_state_pieces(WfSim *s, const WfStateVar *vars, size_t n, WfStatePiece
     return rc;
 }
 
-int wf_sim_window_stats(const WfSim *s, long *windows, long *redone) { return s->b->windows(s->eng, windows, redone); }
+int wf_sim_window_stats(const WfSim *s, long *windows, long *redone)
+{
+    *windows = s->win->windows, *redone = s->win->redone;
+    return s->win->k_max;
+}
 const char *wf_sim_kind(const WfSim *s) { return s->b->kind; }
 
 int wf_sim_thread_stats(const WfSim *s, long *probes, long *switches)
 {
-    const WfGovernor *g = s->b->governor(s->eng);
+    const WfGovernor *g = s->gov;
     *probes = g->probes, *switches = g->switches;
     return g->every > 0;
 }

@@ -1,5 +1,5 @@
 /* A run of one road (wavefuel/engine.h: WfSim) and the boundaries that make the road a ring or a corridor. What
- * every boundary shares lives in WfSim: the scenario, the output, the step loop (src/core/block.c: wf_loop_run), the
+ * every boundary shares lives in WfSim: the scenario, the output, the step loop (src/core/block.c: wf_loop_advance), the
  * wall time, threads, checkpoint interval and the summary. What differs is a WfBoundary: how the vehicles are
  * stored and stepped (both on the block kernel), what a step observes, the state a checkpoint saves. Adding a
  * boundary is one file defining a WfBoundary and one line in src/core/sim.c's table. Internal (not installed). */
@@ -8,6 +8,7 @@
 
 #include "core/block.h"
 #include "core/governor.h"
+#include "core/window.h"
 #include "wavefuel/engine.h"
 #include "wavefuel/partition.h"
 
@@ -35,10 +36,6 @@ typedef struct WfBoundary {
     size_t (*group)(void *eng, size_t g, WfGroupVisit fn, void *ctx);
     /* The lane observers of a road of several lanes (wf_sim_lanes); NULL, or 0 returned: one lane. */
     int    (*lanes)(const void *eng, WfLaneObs *out);
-    /* Time-blocked windows so far (wf_sim_window_stats): returns the steps per window, 0 when none are taken. */
-    int    (*windows)(const void *eng, long *windows, long *redone);
-    /* The threads of the steps (wf_sim_thread_stats). */
-    const WfGovernor *(*governor)(const void *eng);
     /* A ring's vehicles at the end, a share at a time (wf_sim_shares); NULL: not a ring. */
     int    (*shares)(void *eng, WfShareFn fn, void *ctx, WfError *err);
     /* A checkpoint's state blocks a piece at a time (wf_sim_state_pieces); NULL: each whole. */
@@ -85,6 +82,8 @@ struct WfSim {
     void             *eng;      /* the boundary's engine: owned */
     const WfOutput   *out;      /* borrowed, during wf_sim_run */
     long             *steps_done;
+    const WfWindow   *win;      /* the engine's time-blocked windows (wf_sim_window_stats), set by create */
+    const WfGovernor *gov;      /* the engine's thread governor (wf_sim_thread_stats), set by create */
     const double     *phase_s;  /* WF_N_PHASES wall times, or NULL when the boundary does not measure them */
     double            wall_s, checkpoint_every_s;
     int               nthreads;
