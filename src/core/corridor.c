@@ -1847,9 +1847,8 @@ static int corridor_restored(void *eng, WfError *err)
     return 0;
 }
 
-/* Group g's vehicles front first; the front vehicle follows the step's front leader (front_leader). */
 /* Group g's vehicles lane after lane, each lane front first; a lane's front vehicle follows the step's front leader
- * (front_leader). */
+ * (cor_front_leader). */
 static size_t corridor_group(void *eng, size_t g, WfGroupVisit fn, void *ctx)
 {
     WfCorridor *c = eng;

@@ -272,8 +272,6 @@ struct WfCorridor {
  * l 2^40 (trips name vehicles by it: /trips/serial). */
 static inline uint64_t lane_key(size_t l, uint64_t n) { return ((uint64_t)l << 40) + n; }
 
-
-
 #define ALLOC(ptr, count)                                                                            \
     do {                                                                                             \
         /* +1: never a 0-byte request */                                                             \
