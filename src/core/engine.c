@@ -274,6 +274,7 @@ static int window_init(WfRing *s, WfError *err)
     for (size_t j = 0; j < nv; j++) bytes += vars[j].size;
     size_t tile = sc->tile_vehicles > 0 ? (size_t)sc->tile_vehicles : wf_window_tile_default(bytes / n);
     int rc = wf_window_create(&s->win, &s->lane, n, s->b_lo, s->b_hi, k, tile, s->out_every, bytes, err);
+    s->lane_nb[0] = s->win.nb; /* a window's records: lanes_record */
     if (!rc && s->part && s->part->size > 1) s->win.halo_ready = part_halo_ready, s->win.halo_ctx = s;
     return rc;
 }
@@ -867,12 +868,47 @@ static void lap(WfRing *s, int phase, double *tp)
     *tp = tq;
 }
 
+/* A multi-lane ring's lanes at a record (/lanes): each lane's record from its own blocks. */
+static void lanes_observe(WfRing *s, const WfStatsBlock *rec, double t)
+{
+    const WfFleet *f = s->f;
+    if (f->n_lanes < 2 || s->lk.n_rows >= (int64_t)s->lane_rows_max) return;
+    double *row = s->lane_rows + (size_t)s->lk.n_rows++ * s->lane_row_len;
+    row[0] = t, row[1] = (double)s->lk.rec_changes, row[2] = (double)s->lk.rec_cut_ins;
+    s->lk.rec_changes = s->lk.rec_cut_ins = 0;
+    for (size_t l = 0; l < f->n_lanes; l++) {
+        WfTsRow lr;
+        if (s->lane_nb[l]) wf_stats_combine(rec, s->lane_nb[l], f->n_classes, s->sc, t, s->overlaps, &lr);
+        static const int from[] = {WF_TS_MEAN_V, WF_TS_SD_V, WF_TS_WAVES,
+                                   WF_TS_FUEL_RATE, WF_TS_MEAN_GAP, WF_TS_FRAC_STOPPED};
+        wf_lane_values(lr.v, from, (double)f->lane_n[l], s->sc->road.length_m, row + 3 + l * WF_LANE_N_COLS);
+        rec += s->lane_nb[l];
+    }
+}
+
+/* The record of instant t from its statistics blocks (each lane's: s->lane_nb): split across processes, gathered
+ * onto rank 0, which alone records; its /lanes row, the time-averaged s.d.'s sum, the output. */
+static int ring_record(WfRing *s, const WfStatsBlock *blocks, double t, int in_window, double *tp, WfError *err)
+{
+    WfTsRow row;
+    int rc = s->part ? part_record(s, blocks, t, &row, err) : 0;
+    if (rc || (s->part && s->part->rank)) return rc;
+    if (!s->part) lanes_record(s, blocks, t, &row);
+    lanes_observe(s, blocks, t);
+    if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
+    lap(s, WF_PHASE_STATISTICS, tp);
+    WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
+    const WfOutput *out = s->sim->out;
+    if (out && out->record && (rc = out->record(out->ctx, s->sim, &rec, err))) return rc;
+    lap(s, WF_PHASE_OUTPUT, tp);
+    return 0;
+}
+
 /* k steps in one window; *done 0 when some step overlapped or faulted: the state is as before, the steps are then
  * taken one at a time (their repairs and errors are the per-step path's). Records in step order. */
 static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
 {
     const WfScenario *sc = s->sc;
-    const WfOutput *out = s->sim->out;
     size_t nb = s->win.nb, rows, j = 0;
     int in_window = step >= s->warm_steps, rc = 0;
     double tp = phase_start(s);
@@ -891,22 +927,9 @@ static int ring_window(WfRing *s, long step, long k, int *done, WfError *err)
     lap(s, WF_PHASE_FUSED, &tp);
     if ((*done = !flags) == 0) return 0;
     s->repaired = 0;
-    for (long q = step; q < step + k && j < rows; q++) {
-        if (q % s->out_every) continue;
-        WfStatsBlock *blocks = s->win.rec + nb * j++;
-        WfTsRow row;
-        if (s->part && ((rc = part_record(s, blocks, (double)q * sc->dt_s, &row, err)) || s->part->rank)) {
-            if (rc) return rc;
-            continue; /* rank 0 alone records */
-        }
-        if (!s->part) wf_stats_combine(blocks, nb, s->f->n_classes, sc, (double)q * sc->dt_s, s->overlaps, &row);
-        if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
-        lap(s, WF_PHASE_STATISTICS, &tp);
-        WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
-        if (out && out->record && (rc = out->record(out->ctx, s->sim, &rec, err))) return rc;
-        lap(s, WF_PHASE_OUTPUT, &tp);
-    }
-    return 0;
+    for (long q = step; q < step + k && j < rows && !rc; q++)
+        if (q % s->out_every == 0) rc = ring_record(s, s->win.rec + nb * j++, (double)q * sc->dt_s, in_window, &tp, err);
+    return rc;
 }
 
 /* The lane changes at the start of a step of a multi-lane ring (src/core/lanes.h), every per-vehicle array of the
@@ -923,24 +946,6 @@ static void lane_changes(WfRing *s, long step)
     wf_lanes_apply_ring(&s->lcs, &r, s->f, step, vars, nv, &s->lk.total);
     lane_views(s);
     s->lk.rec_changes += s->lk.total.changes - ch0, s->lk.rec_cut_ins += s->lk.total.cut_ins - cut0;
-}
-
-/* A multi-lane ring's lanes at a record (/lanes): each lane's record from its own blocks. */
-static void lanes_observe(WfRing *s, const WfStatsBlock *rec, double t)
-{
-    const WfFleet *f = s->f;
-    if (f->n_lanes < 2 || s->lk.n_rows >= (int64_t)s->lane_rows_max) return;
-    double *row = s->lane_rows + (size_t)s->lk.n_rows++ * s->lane_row_len;
-    row[0] = t, row[1] = (double)s->lk.rec_changes, row[2] = (double)s->lk.rec_cut_ins;
-    s->lk.rec_changes = s->lk.rec_cut_ins = 0;
-    for (size_t l = 0; l < f->n_lanes; l++) {
-        WfTsRow lr;
-        if (s->lane_nb[l]) wf_stats_combine(rec, s->lane_nb[l], f->n_classes, s->sc, t, s->overlaps, &lr);
-        static const int from[] = {WF_TS_MEAN_V, WF_TS_SD_V, WF_TS_WAVES,
-                                   WF_TS_FUEL_RATE, WF_TS_MEAN_GAP, WF_TS_FRAC_STOPPED};
-        wf_lane_values(lr.v, from, (double)f->lane_n[l], s->sc->road.length_m, row + 3 + l * WF_LANE_N_COLS);
-        rec += s->lane_nb[l];
-    }
 }
 
 /* A window of steps (ring_window) when one fits before max_steps, else one step: the pass that computes the step's
@@ -973,17 +978,7 @@ static int ring_advance(WfRing *s, long step, long max_steps, long *steps, WfErr
     if (s->part && (rc = part_step(s, step, pass, in_window, records ? s->stat_blocks : NULL, &flags, err))) return rc;
     if (!s->part) flags = lanes_step(s, step, pass, in_window, records ? s->stat_blocks : NULL);
     lap(s, fused ? WF_PHASE_FUSED : WF_PHASE_CAR_FOLLOWING, &tp);
-    WfTsRow row;
-    if (records && s->part && (rc = part_record(s, s->stat_blocks, t, &row, err))) return rc;
-    if (records && !(s->part && s->part->rank)) { /* split across processes: rank 0 alone records */
-        if (!s->part) lanes_record(s, s->stat_blocks, t, &row);
-        lanes_observe(s, s->stat_blocks, t);
-        if (in_window) s->sd_sum += row.v[WF_TS_SD_V], s->n_sd++;
-        lap(s, WF_PHASE_STATISTICS, &tp);
-        WfRecord rec = {row.v, WF_TS_N_COLS, row.class_fuel_rate_gps};
-        if (out && out->record && (rc = out->record(out->ctx, s->sim, &rec, err))) return rc;
-        lap(s, WF_PHASE_OUTPUT, &tp);
-    }
+    if (records && (rc = ring_record(s, s->stat_blocks, t, in_window, &tp, err))) return rc;
     if (traj && out && out->trajectory) {
         if ((rc = out->trajectory(out->ctx, s->sim, t, err))) return rc;
         lap(s, WF_PHASE_OUTPUT, &tp);
