@@ -10,6 +10,7 @@
 #include "cli/options.h"
 #include "util/outpath.h"
 #include "util/path.h"
+#include "util/registry.h"
 #include "wavefuel/fit.h"
 
 /* kW per g/s when neither --kw-per-gps nor --like gives one: the CIRCLES release's values (its model files'
@@ -90,11 +91,11 @@ static int parse_num(const char *opt, const char *s, double *out)
  * option takes (`takes`). */
 static int parse_choice(const char *opt, const char *s, const char *const *names, const char *takes, int *out)
 {
-    for (int i = 0; names[i]; i++)
-        if (!strcmp(s, names[i])) {
-            *out = i;
-            return 0;
-        }
+    long i = wf_registry_find((const void *const *)names, WF_REG_STRINGS, s, "", NULL);
+    if (i >= 0) {
+        *out = (int)i;
+        return 0;
+    }
     fprintf(stderr, "wavefuel fit: %s must be %s (got '%s')\n", opt, takes, s);
     return 2;
 }
