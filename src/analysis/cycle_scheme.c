@@ -10,6 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "util/registry.h"
 #include "wavefuel/spline.h"
 
 void wf_cycle_samples_free(WfCycleSamples *s)
@@ -128,15 +129,10 @@ const WfCycleScheme *wf_cycle_schemes(size_t *n)
 
 const WfCycleScheme *wf_cycle_scheme_find(const char *name, WfError *err)
 {
-    char known[256] = "";
-    size_t used = 0;
-    for (size_t i = 0; i < sizeof schemes / sizeof schemes[0]; i++) {
-        if (!strcmp(name, schemes[i].name)) return &schemes[i];
-        int w = snprintf(known + used, sizeof known - used, "%s%s", i ? ", " : "", schemes[i].name);
-        if (w > 0 && (size_t)w < sizeof known - used) used += (size_t)w;
-    }
-    wf_err(err, WF_EINPUT, "unknown cycle scheme '%s' (known: %s)", name, known);
-    return NULL;
+    const char *names[sizeof schemes / sizeof schemes[0] + 1] = {NULL};
+    for (size_t i = 0; i < sizeof schemes / sizeof schemes[0]; i++) names[i] = schemes[i].name;
+    long i = wf_registry_find((const void *const *)names, WF_REG_STRINGS, name, "cycle scheme", err);
+    return i < 0 ? NULL : &schemes[i];
 }
 
 int wf_cycle_samples(const WfCycle *c, const WfCycleScheme *scheme, WfCycleSamples *s, WfError *err)

@@ -430,25 +430,22 @@ int wf_cmd_cycle(int argc, char **argv)
                                          {"project", no_argument, 0, 'p'},      {"no-project", no_argument, 0, 'P'},
                                          {"output", required_argument, 0, 'o'}, {"force", no_argument, 0, 'f'},
                                          {"cycles", required_argument, 0, 'd'}, {"protocol", no_argument, 0, 'R'},
-                                         {"table", required_argument, 0, 't'},  {"help", no_argument, 0, 'h'},
-                                         {"scheme", required_argument, 0, 's'}, {0, 0, 0, 0}};
+                                         {"table", required_argument, 0, 't'},  {"scheme", required_argument, 0, 's'},
+                                         {0, 0, 0, 0}};
     const char *classes[64], *out_path = NULL, *cycles_dir = NULL, *grade_arg = NULL, *scheme_arg = NULL;
     size_t n_classes = 0, n_tables = 0;
     TableArg tables[MAX_TABLES];
     int project = -1, force = 0, protocol = 0, o;
     char cmdline[4096];
     wf_cli_join_args(argc, argv, cmdline, sizeof cmdline);
-    optind = 1;
     static const char *const conflicts[] = {"pP", NULL};
-    WfCliOpts cli = {.cmd = "cycle", .longopts = opts, .shortopts = "c:g:o:fh", .repeatable = "ct",
-                     .conflicts = conflicts};
+    WfCliOpts cli = {.cmd = "cycle", .longopts = opts, .shortopts = "c:g:o:f", .repeatable = "ct",
+                     .conflicts = conflicts, .help = help};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c':
-            if (n_classes == sizeof classes / sizeof classes[0]) {
-                fprintf(stderr, "wavefuel cycle: too many --class options\n");
-                return 2;
-            }
+            if (n_classes == sizeof classes / sizeof classes[0])
+                return wf_cli_usage(&cli, 0, "too many --class options");
             classes[n_classes++] = optarg;
             break;
         case 'g': grade_arg = optarg; break;
@@ -461,40 +458,28 @@ int wf_cmd_cycle(int argc, char **argv)
         case 's': scheme_arg = optarg; break;
         case 't': {
             char *eq = strchr(optarg, '=');
-            if (!eq || eq == optarg || !eq[1] || n_tables == MAX_TABLES) {
-                fprintf(stderr, "wavefuel cycle: --table expects CLASS=TABLE.h5 (got '%s')\n", optarg);
-                return 2;
-            }
+            if (!eq || eq == optarg || !eq[1] || n_tables == MAX_TABLES)
+                return wf_cli_usage(&cli, 0, "--table expects CLASS=TABLE.h5 (got '%s')", optarg);
             *eq = '\0';
             tables[n_tables++] = (TableArg){optarg, eq + 1, 0};
             break;
         }
-        case 'h': help(stdout); return 0;
         default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     double theta = 0.0;
     if (grade_arg) {
-        if (protocol) {
-            fprintf(stderr, "wavefuel cycle: --grade does not apply to --protocol (it runs the paper's grades)\n");
-            return 2;
-        }
+        if (protocol) return wf_cli_usage(&cli, 0, "--grade does not apply to --protocol (it runs the paper's grades)");
         const WfRange *g = &wf_point_range[WF_POINT_GRADE]; /* the grades `wavefuel energy` accepts too */
-        if (wf_parse_double(grade_arg, &theta) || !(theta >= g->min && theta <= g->max)) {
-            fprintf(stderr, "wavefuel cycle: --grade expects a road grade angle in [%s, %s] %s (got '%s')\n",
-                    WF_NUM(g->min), WF_NUM(g->max), g->unit, grade_arg);
-            return 2;
-        }
+        if (wf_parse_double(grade_arg, &theta) || !(theta >= g->min && theta <= g->max))
+            return wf_cli_usage(&cli, 0, "--grade expects a road grade angle in [%s, %s] %s (got '%s')",
+                                WF_NUM(g->min), WF_NUM(g->max), g->unit, grade_arg);
         if (theta == 0.0) theta = 0.0; /* -0 and 0 are the same grade: one group name in HDF5 */
     }
-    if (protocol && optind != argc) {
-        fprintf(stderr, "wavefuel cycle: --protocol takes no CYCLE argument (it runs the paper's cycles)\n");
-        return 2;
-    }
-    if (!protocol && (n_classes != 1 || argc - optind != 1)) {
-        fprintf(stderr, "wavefuel cycle: give one --class NAME and one CYCLE (or --protocol); see --help\n");
-        return 2;
-    }
+    if (protocol && optind != argc)
+        return wf_cli_usage(&cli, 0, "--protocol takes no CYCLE argument (it runs the paper's cycles)");
+    if (!protocol && (n_classes != 1 || argc - optind != 1))
+        return wf_cli_usage(&cli, 0, "give one --class NAME and one CYCLE (or --protocol); see --help");
     WfError err = {0};
     size_t n_schemes;
     const WfCycleScheme *scheme = scheme_arg ? wf_cycle_scheme_find(scheme_arg, &err) : wf_cycle_schemes(&n_schemes);

@@ -54,30 +54,21 @@ static int list_classes(void)
 int wf_cmd_energy(int argc, char **argv)
 {
     static const struct option opts[] = {{"class", required_argument, 0, 'c'}, {"project", no_argument, 0, 'p'},
-                                         {"list", no_argument, 0, 'l'},         {"help", no_argument, 0, 'h'},
-                                         {0, 0, 0, 0}};
+                                         {"list", no_argument, 0, 'l'},         {0, 0, 0, 0}};
     const char *cls = NULL;
     int project = 0, list = 0, o;
-    optind = 1;
-    WfCliOpts cli = {.cmd = "energy", .longopts = opts, .shortopts = "c:plh"};
+    WfCliOpts cli = {.cmd = "energy", .longopts = opts, .shortopts = "c:pl", .help = help};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c': cls = optarg; break;
         case 'p': project = 1; break;
         case 'l': list = 1; break;
-        case 'h': help(stdout); return 0;
         default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
     if (list) return list_classes();
-    if (!cls) {
-        fprintf(stderr, "wavefuel energy: --class NAME is required (see --list)\n");
-        return 2;
-    }
-    if (argc - optind > 1) {
-        fprintf(stderr, "wavefuel energy: one input file at most\n");
-        return 2;
-    }
+    if (!cls) return wf_cli_usage(&cli, 0, "--class NAME is required (see --list)");
+    if (argc - optind > 1) return wf_cli_usage(&cli, 0, "one input file at most");
     const char *in = optind < argc ? argv[optind] : "-";
     WfError err = {0};
     WfVehicleClass vc;

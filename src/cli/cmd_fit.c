@@ -10,6 +10,7 @@
 #include "cli/options.h"
 #include "util/outpath.h"
 #include "util/path.h"
+#include "util/registry.h"
 #include "wavefuel/fit.h"
 
 /* kW per g/s when neither --kw-per-gps nor --like gives one: the CIRCLES release's values (its model files'
@@ -90,11 +91,11 @@ static int parse_num(const char *opt, const char *s, double *out)
  * option takes (`takes`). */
 static int parse_choice(const char *opt, const char *s, const char *const *names, const char *takes, int *out)
 {
-    for (int i = 0; names[i]; i++)
-        if (!strcmp(s, names[i])) {
-            *out = i;
-            return 0;
-        }
+    long i = wf_registry_find((const void *const *)names, WF_REG_STRINGS, s, "", NULL);
+    if (i >= 0) {
+        *out = (int)i;
+        return 0;
+    }
     fprintf(stderr, "wavefuel fit: %s must be %s (got '%s')\n", opt, takes, s);
     return 2;
 }
@@ -126,13 +127,11 @@ static int parse_args(int argc, char **argv, FitArgs *a)
                                          {"mass-kg", required_argument, 0, 'm'},
                                          {"length-m", required_argument, 0, 'l'},
                                          {"kw-per-gps", required_argument, 0, 'k'},
-                                         {"help", no_argument, 0, 'h'},
                                          {0, 0, 0, 0}};
     *a = (FitArgs){.opt = {.duty = WF_FIT_DUTY_AUTO, .pq = WF_FIT_PQ_PAPER},
                    .fuel = -1, .mass = NAN, .length = NAN, .kw = NAN};
     int o, v;
-    optind = 1;
-    WfCliOpts cli = {.cmd = "fit", .longopts = opts, .shortopts = "o:fh"};
+    WfCliOpts cli = {.cmd = "fit", .longopts = opts, .shortopts = "o:f", .help = help};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'd':
@@ -159,14 +158,11 @@ static int parse_args(int argc, char **argv, FitArgs *a)
         case 'k':
             if (parse_num("--kw-per-gps", optarg, &a->kw)) return 2;
             break;
-        case 'h': help(stdout); return -1;
         default: return o == WF_CLI_DONE ? -1 : 2;
         }
     }
-    if (argc - optind != 1) {
-        fprintf(stderr, "wavefuel fit: one TABLE argument (an imported .h5 table or a release-format CSV)\n");
-        return 2;
-    }
+    if (argc - optind != 1)
+        return wf_cli_usage(&cli, 0, "one TABLE argument (an imported .h5 table or a release-format CSV)");
     a->table_path = argv[optind];
     return 0;
 }

@@ -117,44 +117,36 @@ static int parse_args(int argc, char **argv, RunArgs *a)
 {
     static const struct option opts[] = {{"output", required_argument, 0, 'o'}, {"set", required_argument, 0, 's'},
                                          {"threads", required_argument, 0, 't'}, {"force", no_argument, 0, 'f'},
-                                         {"quiet", no_argument, 0, 'q'},         {"help", no_argument, 0, 'h'},
+                                         {"quiet", no_argument, 0, 'q'},
                                          {"checkpoint-every", required_argument, 0, 'c'},
                                          {"resume", required_argument, 0, 'r'},  {0, 0, 0, 0}};
     int o;
     memset(a, 0, sizeof *a);
     if (!(a->sets = calloc((size_t)argc + 1, sizeof *a->sets))) return 1;
-    optind = 1;
-    WfCliOpts cli = {.cmd = "run", .longopts = opts, .shortopts = "o:qh", .repeatable = "s"};
+    WfCliOpts cli = {.cmd = "run", .longopts = opts, .shortopts = "o:q", .repeatable = "s", .help = help};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'o': a->outpath = optarg; break;
         case 's': a->sets[a->n_set++] = optarg; break;
         case 't':
-            if (wf_parse_long(optarg, 1, 4096, &a->threads)) {
-                fprintf(stderr, "wavefuel run: --threads expects an integer in [1, 4096] (got '%s')\n", optarg);
-                return 2;
-            }
+            if (wf_parse_long(optarg, 1, 4096, &a->threads))
+                return wf_cli_usage(&cli, 0, "--threads expects an integer in [1, 4096] (got '%s')", optarg);
             break;
         case 'f': a->force = 1; break;
         case 'c':
-            if (wf_parse_double(optarg, &a->ckpt_s) || a->ckpt_s <= 0) {
-                fprintf(stderr, "wavefuel run: --checkpoint-every expects a positive number of seconds (got '%s')\n",
-                        optarg);
-                return 2;
-            }
+            if (wf_parse_double(optarg, &a->ckpt_s) || a->ckpt_s <= 0)
+                return wf_cli_usage(&cli, 0, "--checkpoint-every expects a positive number of seconds (got '%s')",
+                                    optarg);
             break;
         case 'r': a->resume = optarg; break;
         case 'q': a->quiet = 1; break;
-        case 'h': help(stdout); return -1;
         default: return o == WF_CLI_DONE ? -1 : 2;
         }
     }
-    if (a->resume ? (argc != optind || a->n_set || a->outpath || a->force) : argc - optind != 1) {
-        fprintf(stderr, a->resume ? "wavefuel run: --resume takes no scenario, --set, -o or --force: the checkpoint "
-                                    "holds them\n"
-                                  : "wavefuel run: expected one SCENARIO.yaml (see --help)\n");
-        return 2;
-    }
+    if (a->resume ? (argc != optind || a->n_set || a->outpath || a->force) : argc - optind != 1)
+        return wf_cli_usage(&cli, 0, "%s", a->resume ? "--resume takes no scenario, --set, -o or --force: the "
+                                                       "checkpoint holds them"
+                                                     : "expected one SCENARIO.yaml (see --help)");
     a->scenario = a->resume ? NULL : argv[optind];
     return 0;
 }

@@ -120,35 +120,28 @@ static int parse_args(int argc, char **argv, Options *o, int rank)
                                          {"quiet", no_argument, 0, 'q'},
                                          {"help", no_argument, 0, 'h'},
                                          {0, 0, 0, 0}};
-    FILE *msg = rank == 0 ? stderr : NULL; /* under MPI only rank 0 speaks */
     int c;
     memset(o, 0, sizeof *o);
-    optind = 1;
     WfCliOpts cli = {.cmd = "sweep", .longopts = opts, .shortopts = "o:qh"};
     while ((c = wf_cli_getopt(&cli, argc, argv, rank != 0)) != -1) {
         switch (c) {
         case 'o': o->out = optarg; break;
         case 't':
-            if (wf_parse_long(optarg, 1, 4096, &o->threads)) {
-                if (msg) fprintf(msg, "wavefuel sweep: --threads expects an integer in [1, 4096] (got '%s')\n", optarg);
-                return 2;
-            }
+            if (wf_parse_long(optarg, 1, 4096, &o->threads))
+                return wf_cli_usage(&cli, rank != 0, "--threads expects an integer in [1, 4096] (got '%s')", optarg);
             break;
         case 'p': o->per_run_dir = optarg; break;
         case 'f': o->force = 1; break;
         case 'r': o->retry_failed = 1; break;
         case 'l': o->list = 1; break;
         case 'q': o->quiet = 1; break;
-        case 'h':
-            if (msg) help(stdout, strcmp(argv[0], "sweep") ? argv[0] : "wavefuel sweep");
+        case 'h': /* under MPI only rank 0 speaks */
+            if (rank == 0) help(stdout, strcmp(argv[0], "sweep") ? argv[0] : "wavefuel sweep");
             return -1;
         default: return c == WF_CLI_DONE ? -1 : 2;
         }
     }
-    if (argc - optind != 1) {
-        if (msg) fprintf(msg, "wavefuel sweep: expected one SWEEP.yaml (see --help)\n");
-        return 2;
-    }
+    if (argc - optind != 1) return wf_cli_usage(&cli, rank != 0, "expected one SWEEP.yaml (see --help)");
     o->sweep = argv[optind];
     return 0;
 }

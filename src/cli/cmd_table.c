@@ -48,24 +48,18 @@ static int cmd_import(int argc, char **argv)
 {
     static const struct option opts[] = {{"output", required_argument, 0, 'o'},
                                          {"force", no_argument, 0, 'f'},
-                                         {"help", no_argument, 0, 'h'},
                                          {0, 0, 0, 0}};
     const char *out = NULL;
     int force = 0, o;
-    optind = 1;
-    WfCliOpts cli = {.cmd = "table import", .longopts = opts, .shortopts = "o:fh"};
+    WfCliOpts cli = {.cmd = "table import", .longopts = opts, .shortopts = "o:f", .help = help};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
-        case 'h': help(stdout); return 0;
         default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
-    if (argc - optind != 1 || !out) {
-        fprintf(stderr, "wavefuel table import: one input CSV and -o OUT.h5 are required\n");
-        return 2;
-    }
+    if (argc - optind != 1 || !out) return wf_cli_usage(&cli, 0, "one input CSV and -o OUT.h5 are required");
     WfError err = {0};
     WfTable *t = NULL, *back = NULL;
     const char *input = argv[optind];
@@ -89,17 +83,11 @@ static int cmd_import(int argc, char **argv)
 
 static int cmd_info(int argc, char **argv)
 {
-    static const struct option opts[] = {{"help", no_argument, 0, 'h'}, {0, 0, 0, 0}};
-    WfCliOpts cli = {.cmd = "table info", .longopts = opts, .shortopts = "h"};
-    int o;
-    while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
-        if (o == 'h') help(stdout);
-        return o == 'h' || o == WF_CLI_DONE ? 0 : 2;
-    }
-    if (argc - optind != 1) {
-        fprintf(stderr, "wavefuel table info: one TABLE.h5 argument\n");
-        return 2;
-    }
+    static const struct option none[] = {{0, 0, 0, 0}};
+    WfCliOpts cli = {.cmd = "table info", .longopts = none, .shortopts = "", .help = help};
+    int o = wf_cli_getopt(&cli, argc, argv, 0);
+    if (o != -1) return o == WF_CLI_DONE ? 0 : 2;
+    if (argc - optind != 1) return wf_cli_usage(&cli, 0, "one TABLE.h5 argument");
     WfError err = {0};
     WfTable *t = NULL;
     if (wf_table_load_h5(argv[optind], &t, &err)) return wf_cli_fail(&err);
@@ -113,25 +101,20 @@ static int cmd_sample(int argc, char **argv)
     static const struct option opts[] = {{"class", required_argument, 0, 'c'},
                                          {"output", required_argument, 0, 'o'},
                                          {"force", no_argument, 0, 'f'},
-                                         {"help", no_argument, 0, 'h'},
                                          {0, 0, 0, 0}};
     const char *cls = NULL, *out = NULL;
     int force = 0, o;
-    optind = 1;
-    WfCliOpts cli = {.cmd = "table sample", .longopts = opts, .shortopts = "c:o:fh"};
+    WfCliOpts cli = {.cmd = "table sample", .longopts = opts, .shortopts = "c:o:f", .help = help};
     while ((o = wf_cli_getopt(&cli, argc, argv, 0)) != -1) {
         switch (o) {
         case 'c': cls = optarg; break;
         case 'o': out = optarg; break;
         case 'f': force = 1; break;
-        case 'h': help(stdout); return 0;
         default: return o == WF_CLI_DONE ? 0 : 2;
         }
     }
-    if (argc != optind || !cls || !out) {
-        fprintf(stderr, "wavefuel table sample: --class NAME and -o TABLE.csv|TABLE.h5 are required\n");
-        return 2;
-    }
+    if (argc != optind || !cls || !out)
+        return wf_cli_usage(&cli, 0, "--class NAME and -o TABLE.csv|TABLE.h5 are required");
     WfError err = {0};
     WfVehicleClass vc;
     if (wf_vehicle_find(cls, &vc, &err)) return wf_cli_fail(&err);

@@ -1,23 +1,25 @@
 /* The option parser shared by every command (options.h). */
 #include "cli/options.h"
 
+#include <stdarg.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "wavefuel/version.h"
 
-/* The command's table with -V/--version added; built on the first call. */
+/* The command's table with -V/--version (and -h/--help if o->help) added; built on the first call. */
 static void build(WfCliOpts *o)
 {
     size_t n = 0;
-    while (o->longopts[n].name && n < WF_CLI_OPT_MAX) {
+    while (o->longopts[n].name && n + 2 < WF_CLI_OPT_MAX) {
         o->all[n] = o->longopts[n];
         n++;
     }
     o->all[n++] = (struct option){"version", no_argument, 0, 'V'};
+    if (o->help) o->all[n++] = (struct option){"help", no_argument, 0, 'h'};
     o->all[n] = (struct option){0, 0, 0, 0};
     /* A leading ':' makes getopt report a missing value as ':' and print nothing itself. */
-    snprintf(o->all_short, sizeof o->all_short, ":%sV", o->shortopts);
+    snprintf(o->all_short, sizeof o->all_short, ":%sV%s", o->shortopts, o->help ? "h" : "");
     o->started = 1;
 }
 
@@ -62,6 +64,10 @@ int wf_cli_getopt(WfCliOpts *o, int argc, char **argv, int quiet)
         if (!quiet) printf("wavefuel %s (%s)\n", WF_VERSION, wf_git_hash());
         return WF_CLI_DONE;
     }
+    if (c == 'h' && o->help) {
+        if (!quiet) o->help(stdout);
+        return WF_CLI_DONE;
+    }
     unsigned char u = (unsigned char)c;
     if (o->seen[u] && !(o->repeatable && strchr(o->repeatable, c))) {
         snprintf(b, sizeof b, "%s", name_of(o, c, a, sizeof a));
@@ -78,6 +84,18 @@ int wf_cli_getopt(WfCliOpts *o, int argc, char **argv, int quiet)
         }
     }
     return c;
+}
+
+int wf_cli_usage(const WfCliOpts *o, int quiet, const char *fmt, ...)
+{
+    if (quiet) return 2;
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "wavefuel %s: ", o->cmd);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+    return 2;
 }
 
 void wf_cli_join_args(int argc, char **argv, char *out, size_t len)

@@ -7,10 +7,11 @@
 
 #include <getopt.h>
 #include <stddef.h>
+#include <stdio.h>
 
 enum {
-    WF_CLI_OPT_MAX = 32,   /* options of one command, -V included */
-    WF_CLI_DONE = -2,      /* -V printed: the command ends with status 0 */
+    WF_CLI_OPT_MAX = 32,   /* options of one command, -V and -h included */
+    WF_CLI_DONE = -2,      /* -V or the help printed: the command ends with status 0 */
     WF_CLI_USAGE = -3      /* a usage error was printed: the command ends with status 2 */
 };
 
@@ -21,6 +22,7 @@ typedef struct WfCliOpts {
     const char          *repeatable; /* option values that may be given more than once ("s": --set), may be NULL */
     const char *const   *conflicts;  /* NULL-terminated pairs of option values that exclude each other ("pP"), may be
                                         NULL */
+    void               (*help)(FILE *out); /* prints the command's help; if set, -h/--help print it on stdout */
     /* internal state, zeroed by the initialiser */
     struct option        all[WF_CLI_OPT_MAX + 1];
     char                 all_short[2 * WF_CLI_OPT_MAX + 4];
@@ -29,10 +31,19 @@ typedef struct WfCliOpts {
 } WfCliOpts;
 
 /* Like getopt_long (optind, optarg as usual; optind restarts at 1 on the first call): returns the next option's value,
- * -1 after the last option, WF_CLI_DONE after printing the version (-V, --version), or WF_CLI_USAGE after printing
- * "wavefuel CMD: ..." on stderr for an unknown option, a missing value, a repeated option or a conflict. Quiet (no
- * message at all) when `quiet` is set in the command, as for MPI ranks other than 0. */
+ * -1 after the last option, WF_CLI_DONE after printing the version (-V, --version) or, if o->help is set, the help
+ * (-h, --help, on stdout), or WF_CLI_USAGE after printing "wavefuel CMD: ..." on stderr for an unknown option, a
+ * missing value, a repeated option or a conflict. Quiet (no message at all) when `quiet` is set in the command, as
+ * for MPI ranks other than 0. */
 int wf_cli_getopt(WfCliOpts *o, int argc, char **argv, int quiet);
+
+/* Prints "wavefuel CMD: " and the message (printf-style, no newline needed) on stderr unless quiet; returns 2, the
+ * exit status of a usage error. */
+int wf_cli_usage(const WfCliOpts *o, int quiet, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
 
 /* A command's line as one string for provenance: "wavefuel" then argv[0..argc) (the command's words), separated by
  * spaces, into out (len bytes); words that do not fit are left out. */

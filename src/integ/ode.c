@@ -20,6 +20,8 @@
 #include <sunlinsol/sunlinsol_spgmr.h>
 #include <sunnonlinsol/sunnonlinsol_fixedpoint.h>
 
+#include "util/registry.h"
+
 struct WfOde {
     WfOdeConfig        cfg;
     size_t             n, ny;
@@ -73,22 +75,7 @@ static const char *const erk_tables[] = {
     "ARKODE_ZONNEVELD_5_3_4",      "ARKODE_ARK436L2SA_ERK_6_3_4",   "ARKODE_SAYFY_ABURUB_6_3_4",
     "ARKODE_CASH_KARP_6_4_5",      "ARKODE_FEHLBERG_6_4_5",         "ARKODE_DORMAND_PRINCE_7_4_5",
     "ARKODE_ARK548L2SA_ERK_8_4_5", "ARKODE_VERNER_8_5_6",           "ARKODE_FEHLBERG_13_7_8",
-    "ARKODE_KNOTH_WOLKE_3_3",      "ARKODE_ARK437L2SA_ERK_7_3_4",   "ARKODE_ARK548L2SAb_ERK_8_4_5"};
-enum { N_ERK_TABLES = sizeof erk_tables / sizeof erk_tables[0] };
-
-static int unknown_erk_table(const char *name, WfError *err)
-{
-    char known[1024];
-    size_t used = 0;
-    known[0] = '\0';
-    for (size_t i = 0; i < N_ERK_TABLES; i++) {
-        int w = snprintf(known + used, sizeof known - used, "%s%s", i ? ", " : "", erk_tables[i]);
-        if (w < 0 || (size_t)w >= sizeof known - used) break;
-        used += (size_t)w;
-    }
-    return wf_err(err, WF_EINPUT, "solver.method: unknown ARKODE explicit table '%s' (known: %s)", name, known);
-}
-
+    "ARKODE_KNOTH_WOLKE_3_3",      "ARKODE_ARK437L2SA_ERK_7_3_4",   "ARKODE_ARK548L2SAb_ERK_8_4_5", NULL};
 static N_Vector new_vector(const WfOde *o, size_t len)
 {
     if (o->cfg.nvector_openmp) {
@@ -185,9 +172,8 @@ static int setup_solver(WfOde *o, double t0, WfError *err)
     if (c->kind == WF_ODE_RK4) {
         o->table = classic_rk4();
     } else {
-        size_t k = 0;
-        while (k < N_ERK_TABLES && strcmp(erk_tables[k], c->erk_table)) k++;
-        if (k == N_ERK_TABLES) return unknown_erk_table(c->erk_table, err);
+        if (wf_registry_find((const void *const *)erk_tables, WF_REG_STRINGS, c->erk_table, "ARKODE explicit table", err) < 0)
+            return wf_err_prefix(err, "solver.method: ");
         o->table = ARKodeButcherTable_LoadERKByName(c->erk_table);
     }
     if (!o->table) return wf_err(err, WF_ESYS, "SUNDIALS: ARKodeButcherTable_Create failed");

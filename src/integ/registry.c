@@ -30,9 +30,4 @@ const WfIntegrator *const wf_integrators[] = {&wf_integ_ballistic, &wf_integ_eul
 
 const char *wf_integ_kind_name(WfIntegKind kind) { return kind == WF_INTEG_ADAPTIVE ? "adaptive (SUNDIALS)" : "fixed-step"; }
 
-int wf_integrator_find(const char *name, const WfIntegrator **out, WfError *err)
-{
-    long i = wf_registry_find((const void *const *)wf_integrators, offsetof(WfIntegrator, name), name, "integrator", err);
-    if (i >= 0) *out = wf_integrators[i];
-    return i < 0 ? WF_EINPUT : 0;
-}
+WF_REGISTRY_FINDER(wf_integrator_find, WfIntegrator, wf_integrators, "integrator")

@@ -12,6 +12,7 @@
 #include <yaml.h>
 
 #include "util/numfmt.h"
+#include "util/registry.h"
 
 static WfCfgNode *node_new(WfCfgKind kind, const char *file, int line)
 {
@@ -558,16 +559,14 @@ int wf_cfg_enum_opt(WfCfgNode *map, const char *key, const char *const *choices,
 {
     WfCfgNode *c = lookup(map, key);
     if (!c) return 0;
-    char what[512] = "one of";
-    size_t used = strlen(what);
-    for (int i = 0; choices[i]; i++) {
-        if (c->kind == WF_CFG_SCALAR && strcmp(c->value, choices[i]) == 0) {
-            *out = i;
-            return 0;
-        }
-        int w = snprintf(what + used, sizeof what - used, "%s %s", i ? "," : "", choices[i]);
-        if (w > 0 && (size_t)w < sizeof what - used) used += (size_t)w;
+    const void *const *items = (const void *const *)choices;
+    long i = c->kind == WF_CFG_SCALAR ? wf_registry_find(items, WF_REG_STRINGS, c->value, "", NULL) : -1;
+    if (i >= 0) {
+        *out = (int)i;
+        return 0;
     }
+    char names[1024], what[1040];
+    snprintf(what, sizeof what, "one of %s", wf_registry_names(items, WF_REG_STRINGS, names, sizeof names));
     return bad_value(c, what, err);
 }
 

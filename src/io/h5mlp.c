@@ -11,6 +11,7 @@
 #include "io/h5util.h"
 #include "models/cf/mlp.h"
 #include "util/numfmt.h"
+#include "util/registry.h"
 
 #define MLP_FORMAT "wavefuel-mlp 1"
 
@@ -89,9 +90,8 @@ static int read_choice(hid_t f, const char *file, const char *name, const char *
     while (names[k] && strcmp(names[k], s) != 0) k++;
     int rc = 0;
     if (!names[k]) {
-        char known[128] = "";
-        for (int j = 0, used = 0; names[j] && used < 100; j++)
-            used += snprintf(known + used, sizeof known - (size_t)used, "%s%s", j ? ", " : "", names[j]);
+        char known[1024];
+        wf_registry_names((const void *const *)names, WF_REG_STRINGS, known, sizeof known);
         rc = wf_err(err, WF_EINPUT, "%s: dataset '%s' is '%.64s': expected one of %s", file, name, s, known);
     }
     *out = k;

@@ -9,6 +9,7 @@
 
 #include "scenario/scenario_keys.h"
 #include "util/path.h"
+#include "util/registry.h"
 #include "wavefuel/cf_plugin.h"
 #include "wavefuel/corridor.h"
 #include "wavefuel/mlp.h"
@@ -318,11 +319,8 @@ static int load_group_safety(WfCfgNode *e, const WfKeySpec *row, void *t, WfKeyE
     if (wf_cfg_map_opt(e, "safety", &map, err)) return WF_EINPUT;
     if (!map) return 0;
     if (!wf_cfg_child(map, "kind")) {
-        char known[256] = "";
-        for (size_t k = 0, used = 0; wf_safety_kinds[k]; k++) {
-            int n = snprintf(known + used, sizeof known - used, "%s%s", k ? ", " : "", wf_safety_kinds[k]->name);
-            if (n > 0 && (size_t)n < sizeof known - used) used += (size_t)n;
-        }
+        char known[1024];
+        wf_registry_names((const void *const *)wf_safety_kinds, offsetof(WfSafetyKind, name), known, sizeof known);
         return wf_err(err, WF_EINPUT, "%s: missing 'kind': the safety filter (%s)", where_of(map, w, sizeof w), known);
     }
     if (wf_cfg_string(map, "kind", &kind, err)) return WF_EINPUT;

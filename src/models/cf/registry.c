@@ -16,12 +16,7 @@ const WfCfModel *const wf_cf_models[] = {&wf_cf_idm,           &wf_cf_ovm,      
                                          &wf_cf_follower_stopper, &wf_cf_pi_saturation, &wf_cf_acc,
                                          &wf_cf_external,      &wf_cf_external_speed, NULL};
 
-int wf_cf_model_find(const char *name, const WfCfModel **out, WfError *err)
-{
-    long i = wf_registry_find((const void *const *)wf_cf_models, offsetof(WfCfModel, name), name, "car-following model", err);
-    if (i >= 0) *out = wf_cf_models[i];
-    return i < 0 ? WF_EINPUT : 0;
-}
+WF_REGISTRY_FINDER(wf_cf_model_find, WfCfModel, wf_cf_models, "car-following model")
 
 double wf_cf_equilibrium_speed(const WfCfModel *m, const void *params, double gap_m, double v_hi)
 {

@@ -7,9 +7,4 @@
 
 const WfEnergyModel *const wf_energy_models[] = {&wf_energy_circles, &wf_energy_tabulated, NULL};
 
-int wf_energy_model_find(const char *name, const WfEnergyModel **out, WfError *err)
-{
-    long i = wf_registry_find((const void *const *)wf_energy_models, offsetof(WfEnergyModel, name), name, "energy model", err);
-    if (i >= 0) *out = wf_energy_models[i];
-    return i < 0 ? WF_EINPUT : 0;
-}
+WF_REGISTRY_FINDER(wf_energy_model_find, WfEnergyModel, wf_energy_models, "energy model")
