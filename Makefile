@@ -31,7 +31,8 @@ override LDFLAGS += -fopenmp
 else
 override CFLAGS += -Wno-unknown-pragmas
 endif
-LDLIBS   += $(HDF5_LIBS) -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -lsundials_nvecopenmp \
+# -lhdf5_hl: HDF5's high-level library (H5LT), which the readers use; in the same directory as -lhdf5, before it.
+LDLIBS   += -lhdf5_hl $(HDF5_LIBS) -lsundials_cvodes -lsundials_arkode -lsundials_nvecserial -lsundials_nvecopenmp \
             -lsundials_sunlinsolspgmr -lsundials_sunnonlinsolfixedpoint -lsundials_sunnonlinsolnewton \
             -lsundials_generic -lyaml -llapacke -llapack -lgsl -lgslcblas -lsleef -lm
 

@@ -8,6 +8,7 @@
 #   mpi       OpenMPI (mpicc, mpirun), parallel HDF5 (libhdf5-openmpi-dev)       make mpi (bin/wavefuel-mpi), bench/mpi_ring
 #   rl        PyTorch, PyYAML (python3-torch, python3-yaml)                      examples/rl/ (training a policy)
 #   sumo      SUMO, netconvert, Python traci and libsumo (sumo, sumo-tools)      bench/vs_sumo, bench/rl_envs
+# libhdf5-dev brings both HDF5 libraries the build links: libhdf5 and the high-level libhdf5_hl (H5LT).
 set -euo pipefail
 PKGS=()
 [ $# -eq 0 ] && set -- base

@@ -19,10 +19,7 @@ static int has_link(hid_t f, const char *group, const char *name)
 static int read_completed(hid_t f)
 {
     int64_t v = -1;
-    hid_t d = H5Dopen2(f, "meta/completed", H5P_DEFAULT);
-    if (d < 0) return -1;
-    if (H5Dread(d, H5T_NATIVE_INT64, H5S_ALL, H5S_ALL, H5P_DEFAULT, &v) < 0) v = -1;
-    H5Dclose(d);
+    if (H5LTread_dataset(f, "meta/completed", H5T_NATIVE_INT64, &v) < 0) v = -1;
     return v == 0 || v == 1 ? (int)v : -1;
 }
 

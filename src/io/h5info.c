@@ -95,10 +95,9 @@ int wf_h5out_info(const char *path, FILE *out, WfError *err)
     }
     /* As `wavefuel run` warns: results that include repaired collisions say so. */
     long long repaired = 0;
-    hid_t d = H5Lexists(f, "summary/overlaps", H5P_DEFAULT) > 0 ? H5Dopen2(f, "summary/overlaps", H5P_DEFAULT) : -1;
-    if (d >= 0 && H5Dread(d, H5T_NATIVE_LLONG, H5S_ALL, H5S_ALL, H5P_DEFAULT, &repaired) >= 0)
+    if (H5Lexists(f, "summary/overlaps", H5P_DEFAULT) > 0 &&
+        H5LTread_dataset(f, "summary/overlaps", H5T_NATIVE_LLONG, &repaired) >= 0)
         wf_summary_warn_repairs(out, repaired);
-    if (d >= 0) H5Dclose(d);
     H5Fclose(f);
     return 0;
 }

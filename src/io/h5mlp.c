@@ -23,13 +23,14 @@ static int read_f64(hid_t f, const char *file, const char *name, int want_rank, 
 {
     *out = NULL;
     if (H5Lexists(f, name, H5P_DEFAULT) <= 0) return wf_err(err, WF_EINPUT, "%s: no dataset '%s'", file, name);
-    hid_t d = H5Dopen2(f, name, H5P_DEFAULT), t = d >= 0 ? H5Dget_type(d) : H5I_INVALID_HID;
-    hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
-    int rank = sp >= 0 ? H5Sget_simple_extent_ndims(sp) : -1, rc = 0;
+    int rank = -1, rc = 0;
     hsize_t dm[H5S_MAX_RANK] = {0};
-    if (rank >= 0 && rank <= H5S_MAX_RANK) H5Sget_simple_extent_dims(sp, dm, NULL);
+    H5T_class_t cls = H5T_NO_CLASS;
+    if (H5LTget_dataset_ndims(f, name, &rank) < 0 || rank < 0 || rank > H5S_MAX_RANK ||
+        H5LTget_dataset_info(f, name, dm, &cls, NULL) < 0)
+        rank = -1, cls = H5T_NO_CLASS;
     int scalar = rank == 0 || (rank == 1 && dm[0] == 1);
-    if (t < 0 || H5Tget_class(t) != H5T_FLOAT)
+    if (cls != H5T_FLOAT)
         rc = wf_err(err, WF_EINPUT, "%s: dataset '%s' is not floating-point", file, name);
     else if (want_rank == 0 ? !scalar : rank != want_rank) {
         char shape[96] = "";
@@ -45,7 +46,7 @@ static int read_f64(hid_t f, const char *file, const char *name, int want_rank, 
                     n, WF_MLP_MAX_WIDTH, WF_MLP_MAX_WIDTH);
     double *v = rc ? NULL : malloc((n ? n : 1) * sizeof *v);
     if (!rc && !v) rc = wf_err(err, WF_ESYS, "out of memory for %s: %s", file, name);
-    if (!rc && n && H5Dread(d, H5T_NATIVE_DOUBLE, H5S_ALL, H5S_ALL, H5P_DEFAULT, v) < 0)
+    if (!rc && n && H5LTread_dataset_double(f, name, v) < 0)
         rc = wf_err(err, WF_ESYS, "%s: HDF5: read dataset '%s' failed", file, name);
     for (size_t k = 0; !rc && k < n; k++)
         if (!isfinite(v[k])) {
@@ -62,9 +63,6 @@ static int read_f64(hid_t f, const char *file, const char *name, int want_rank, 
     } else {
         free(v);
     }
-    if (sp >= 0) H5Sclose(sp);
-    if (t >= 0) H5Tclose(t);
-    if (d >= 0) H5Dclose(d);
     return rc;
 }
 

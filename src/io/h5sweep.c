@@ -237,39 +237,35 @@ static int bad(WfError *err, const char *path, const char *what)
     return wf_err(err, WF_EINPUT, "%s: not a wavefuel sweep table, or damaged (%s)", path, what);
 }
 
-/* Number of rows of a 1-D or 2-D dataset; cols gets the second dimension (1 for 1-D). */
-static int shape(hid_t d, hsize_t *rows, hsize_t *cols)
+/* Number of rows of the 1-D or 2-D dataset `name`; cols gets the second dimension (1 for 1-D). */
+static int shape(hid_t loc, const char *name, hsize_t *rows, hsize_t *cols)
 {
-    hid_t sp = H5Dget_space(d);
     hsize_t dims[2] = {0, 1};
-    int rank = sp >= 0 ? H5Sget_simple_extent_ndims(sp) : -1;
-    if (rank >= 1 && rank <= 2 && H5Sget_simple_extent_dims(sp, dims, NULL) < 0) rank = -1;
-    if (sp >= 0) H5Sclose(sp);
+    int rank = -1;
+    /* H5LTget_dataset_info writes one entry per dimension: asked only once the rank fits dims[]. */
+    if (H5LTget_dataset_ndims(loc, name, &rank) < 0 || rank < 1 || rank > 2 ||
+        H5LTget_dataset_info(loc, name, dims, NULL, NULL) < 0)
+        return -1;
     *rows = dims[0];
     *cols = rank == 2 ? dims[1] : 1;
-    return rank >= 1 && rank <= 2 ? 0 : -1;
+    return 0;
 }
 
 /* A 1-D string column of exactly n rows; fn(i, text) is called for each. */
 static int read_strings(hid_t loc, const char *name, size_t n, void (*fn)(WfSweepSaved *, size_t, const char *),
                         WfSweepSaved *sv)
 {
-    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT), t = wf_h5_text_type(H5T_VARIABLE);
+    hid_t t = wf_h5_text_type(H5T_VARIABLE);
     hsize_t rows = 0, cols = 0;
     char **s = calloc(n ? n : 1, sizeof *s);
-    int rc = !s || d < 0 || t < 0 || shape(d, &rows, &cols) || rows != n || cols != 1;
-    if (!rc && n && H5Dread(d, t, H5S_ALL, H5S_ALL, H5P_DEFAULT, s) < 0) rc = 1;
-    for (size_t i = 0; !rc && i < n; i++) fn(sv, i, s[i] ? s[i] : "");
-    if (s && !rc && n) {
-        hid_t sp = H5Dget_space(d);
-        if (sp >= 0) {
-            H5Dvlen_reclaim(t, sp, H5P_DEFAULT, s);
-            H5Sclose(sp);
-        }
+    int rc = !s || t < 0 || shape(loc, name, &rows, &cols) || rows != n || cols != 1;
+    if (!rc && n && H5LTread_dataset(loc, name, t, s) < 0) rc = 1;
+    for (size_t i = 0; !rc && i < n; i++) {
+        fn(sv, i, s[i] ? s[i] : "");
+        H5free_memory(s[i]); /* HDF5 allocated each string */
     }
     free(s);
     if (t >= 0) H5Tclose(t);
-    if (d >= 0) H5Dclose(d);
     return rc;
 }
 
@@ -277,18 +273,16 @@ static int read_strings(hid_t loc, const char *name, size_t n, void (*fn)(WfSwee
  * in *got_cols. Returns a malloc'ed array or NULL. */
 static void *read_numeric(hid_t loc, const char *name, hid_t type, size_t size, size_t n, size_t *cols)
 {
-    hid_t d = H5Dopen2(loc, name, H5P_DEFAULT);
     hsize_t rows = 0, c = 0;
     void *buf = NULL;
-    if (d >= 0 && !shape(d, &rows, &c) && rows == n && (*cols == 0 || c == *cols)) {
+    if (!shape(loc, name, &rows, &c) && rows == n && (*cols == 0 || c == *cols)) {
         buf = malloc((size_t)(rows * c > 0 ? rows * c : 1) * size);
-        if (buf && H5Dread(d, type, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf) < 0) {
+        if (buf && H5LTread_dataset(loc, name, type, buf) < 0) {
             free(buf);
             buf = NULL;
         }
         *cols = (size_t)c;
     }
-    if (d >= 0) H5Dclose(d);
     return buf;
 }
 
@@ -400,11 +394,7 @@ int wf_sweep_table_read(const char *path, WfSweepSaved *sv, WfError *err)
     if (!rc && ((runs = H5Gopen2(f, "runs", H5P_DEFAULT)) < 0 || (met = H5Gopen2(f, "metrics", H5P_DEFAULT)) < 0 ||
                 (cm = H5Gopen2(f, "class_metrics", H5P_DEFAULT)) < 0 || (tim = H5Gopen2(f, "timing", H5P_DEFAULT)) < 0))
         rc = bad(err, path, "groups /runs, /metrics, /class_metrics, /timing");
-    if (!rc) {
-        hid_t d = H5Dopen2(runs, "overrides", H5P_DEFAULT);
-        if (d < 0 || shape(d, &n, &one) || one != 1) rc = bad(err, path, "/runs/overrides");
-        if (d >= 0) H5Dclose(d);
-    }
+    if (!rc && (shape(runs, "overrides", &n, &one) || one != 1)) rc = bad(err, path, "/runs/overrides");
     if (!rc) {
         sv->n = (size_t)n;
         sv->overrides = calloc(sv->n ? sv->n : 1, sizeof *sv->overrides);

@@ -8,6 +8,7 @@
 #define WAVEFUEL_H5UTIL_H
 
 #include <hdf5.h>
+#include <hdf5_hl.h>
 #include <stddef.h>
 #include <stdint.h>
 

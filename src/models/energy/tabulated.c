@@ -382,25 +382,13 @@ static int read_str_attr(hid_t obj, const char *path, const char *name, char *ou
 {
     if (H5Aexists(obj, name) <= 0)
         return wf_err(err, WF_EINPUT, "%s: missing attribute '%s': not a wavefuel table", path, name);
-    hid_t a = H5Aopen(obj, name, H5P_DEFAULT);
-    hid_t ty = a >= 0 ? H5Aget_type(a) : H5I_INVALID_HID;
-    int rc = 0;
-    if (ty < 0 || H5Tget_class(ty) != H5T_STRING || H5Tis_variable_str(ty) != 0) {
-        rc = wf_err(err, WF_EINPUT, "%s: attribute '%s' is not a fixed-length string", path, name);
-    } else {
-        size_t sz = H5Tget_size(ty);
-        char *buf = malloc(sz + 1);
-        if (!buf) rc = wf_err(err, WF_ESYS, "out of memory");
-        else if (H5Aread(a, ty, buf) < 0) rc = wf_err(err, WF_ESYS, "%s: HDF5: read attribute '%s' failed", path, name);
-        else {
-            buf[sz] = '\0';
-            snprintf(out, len, "%s", buf);
-        }
-        free(buf);
-    }
+    /* This check before the shared reader keeps the table's own message for a variable-length or other type. */
+    hid_t a = H5Aopen(obj, name, H5P_DEFAULT), ty = a >= 0 ? H5Aget_type(a) : H5I_INVALID_HID;
+    int fixed = ty >= 0 && H5Tget_class(ty) == H5T_STRING && H5Tis_variable_str(ty) == 0;
     if (ty >= 0) H5Tclose(ty);
     if (a >= 0) H5Aclose(a);
-    return rc;
+    if (!fixed) return wf_err(err, WF_EINPUT, "%s: attribute '%s' is not a fixed-length string", path, name);
+    return wf_h5_read_attr_str(obj, path, name, out, len, err);
 }
 
 /* Reads dataset `name` of rank `rank`; dims[] receives its shape; *out (malloc'd) its values as mem_type. */
@@ -410,30 +398,22 @@ static int read_dataset(hid_t fid, const char *path, const char *name, int rank,
     *out = NULL;
     if (H5Lexists(fid, name, H5P_DEFAULT) <= 0)
         return wf_err(err, WF_EINPUT, "%s: missing dataset '%s': not a wavefuel table", path, name);
-    hid_t d = H5Dopen2(fid, name, H5P_DEFAULT);
-    hid_t sp = d >= 0 ? H5Dget_space(d) : H5I_INVALID_HID;
-    int rc = 0;
-    if (sp < 0) {
-        rc = wf_err(err, WF_ESYS, "%s: HDF5: open dataset '%s' failed", path, name);
-    } else if (H5Sget_simple_extent_ndims(sp) != rank) {
-        rc = wf_err(err, WF_EINPUT, "%s: dataset '%s' should have rank %d", path, name, rank);
-    } else {
-        H5Sget_simple_extent_dims(sp, dims, NULL);
-        size_t total = 1;
-        for (int i = 0; i < rank; i++) total *= (size_t)dims[i];
-        /* One spare element: callers of the axes use it as padding. */
-        void *buf = malloc((total + 1) * elem);
-        if (!buf) rc = wf_err(err, WF_ESYS, "out of memory reading %s", path);
-        else if (total && H5Dread(d, mem_type, H5S_ALL, H5S_ALL, H5P_DEFAULT, buf) < 0) {
-            rc = wf_err(err, WF_ESYS, "%s: HDF5: read dataset '%s' failed (damaged file?)", path, name);
-            free(buf);
-        } else {
-            *out = buf;
-        }
+    int got = -1;
+    if (H5LTget_dataset_ndims(fid, name, &got) < 0)
+        return wf_err(err, WF_ESYS, "%s: HDF5: open dataset '%s' failed", path, name);
+    if (got != rank || H5LTget_dataset_info(fid, name, dims, NULL, NULL) < 0)
+        return wf_err(err, WF_EINPUT, "%s: dataset '%s' should have rank %d", path, name, rank);
+    size_t total = 1;
+    for (int i = 0; i < rank; i++) total *= (size_t)dims[i];
+    /* One spare element: callers of the axes use it as padding. */
+    void *buf = malloc((total + 1) * elem);
+    if (!buf) return wf_err(err, WF_ESYS, "out of memory reading %s", path);
+    if (total && H5LTread_dataset(fid, name, mem_type, buf) < 0) {
+        free(buf);
+        return wf_err(err, WF_ESYS, "%s: HDF5: read dataset '%s' failed (damaged file?)", path, name);
     }
-    if (sp >= 0) H5Sclose(sp);
-    if (d >= 0) H5Dclose(d);
-    return rc;
+    *out = buf;
+    return 0;
 }
 
 /* The contents of a table file into t (allocated and zeroed); each error returned where it is found. */
@@ -444,13 +424,12 @@ static int h5_table(hid_t fid, const char *path, WfTable *t, WfError *err)
     if (rc) return rc;
     if (strcmp(fmt, TABLE_FORMAT) != 0)
         return wf_err(err, WF_EINPUT, "%s: format is '%s', expected '%s'", path, fmt, TABLE_FORMAT);
-    int64_t version = 0;
-    hid_t va = H5Aexists(fid, "format_version") > 0 ? H5Aopen(fid, "format_version", H5P_DEFAULT) : H5I_INVALID_HID;
-    if (va < 0 || H5Aread(va, H5T_NATIVE_INT64, &version) < 0) version = -1;
-    if (va >= 0) H5Aclose(va);
+    long long version = -1;
+    if (H5Aexists(fid, "format_version") <= 0 || H5LTget_attribute_long_long(fid, ".", "format_version", &version) < 0)
+        version = -1;
     if (version != TABLE_FORMAT_VERSION)
-        return wf_err(err, WF_EINPUT, "%s: format_version %lld, this wavefuel reads version %d", path,
-                      (long long)version, TABLE_FORMAT_VERSION);
+        return wf_err(err, WF_EINPUT, "%s: format_version %lld, this wavefuel reads version %d", path, version,
+                      TABLE_FORMAT_VERSION);
     if ((rc = read_str_attr(fid, path, "source", t->source, sizeof t->source, err)) ||
         (rc = read_str_attr(fid, path, "source_fnv1a64", hex_src, sizeof hex_src, err)) ||
         (rc = read_str_attr(fid, path, "data_fnv1a64", hex_data, sizeof hex_data, err)))
