@@ -19,10 +19,7 @@ void wf_fleet_destroy(WfFleet **pf)
             f->class_id, f->group_id, f->slot, f->x_start_m, f->fuel_g, f->stopped_steps, f->sum_v, f->sum_v2, f->sum_a,
             f->sum_a2, f->stops, f->hard_brakes, f->infeasible_steps, f->mode, f->lane, f->id, f->pos, f->lc_ready_step,
             f->lane_changes, f->cut_ins, f->lap_m);
-    for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
-        free(f->group_params[g]);
-        free(f->group_state[g]);
-    }
+    for (size_t g = 0; g < WF_MAX_GROUPS; g++) WF_FREE(f->group_params[g], f->group_state[g]);
     free(f);
     *pf = NULL;
 }
