@@ -16,14 +16,12 @@
 #include "wavefuel/csv.h"
 #include "wavefuel/domain.h"
 #include "util/numfmt.h"
+#include "util/mem.h"
 
 void wf_cycle_free(WfCycle *c)
 {
     if (!c) return;
-    free(c->t_s);
-    free(c->v_mps);
-    free(c->dt_s);
-    free(c->a_mps2);
+    WF_FREE(c->t_s, c->v_mps, c->dt_s, c->a_mps2);
     c->t_s = c->v_mps = c->dt_s = c->a_mps2 = NULL;
     c->n = 0;
 }

@@ -19,6 +19,7 @@
 
 #include "wavefuel/nnls.h"
 #include "wavefuel/version.h"
+#include "util/mem.h"
 
 /* Grids of each step (the paper's, as the issue lists them). */
 enum {
@@ -125,9 +126,7 @@ static int design_init(Design *d, size_t cap, size_t n, WfError *err)
     d->b = malloc(cap * sizeof *d->b);
     d->v = malloc(cap * 4 * sizeof *d->v);
     if (!d->A || !d->b || !d->v) {
-        free(d->A);
-        free(d->b);
-        free(d->v);
+        WF_FREE(d->A, d->b, d->v);
         memset(d, 0, sizeof *d);
         return wf_err(err, WF_ESYS, "fit: out of memory");
     }
@@ -139,9 +138,7 @@ static int design_init(Design *d, size_t cap, size_t n, WfError *err)
 
 static void design_free(Design *d)
 {
-    free(d->A);
-    free(d->b);
-    free(d->v);
+    WF_FREE(d->A, d->b, d->v);
     memset(d, 0, sizeof *d);
 }
 

@@ -11,6 +11,7 @@
 #include "cli/options.h"
 #include "util/numfmt.h"
 #include "util/outpath.h"
+#include "util/mem.h"
 #include "wavefuel/cycle.h"
 #include "wavefuel/domain.h"
 #include "wavefuel/tabulated.h"
@@ -381,11 +382,7 @@ static int run_protocol(Entry *entries, size_t n_entries, const char *data_dir, 
     /* Everything ran: only now is the report printed, so a failure prints nothing half-done. */
     if (!rc) print_protocol(entries, n_entries, res, duty, data_dir, project_choice, scheme, out_path);
     wf_cycle_out_abandon(&out);
-    for (size_t i = 0; i < n_entries; i++) {
-        free(res[i].fuel);
-        free(res[i].rel);
-        free(res[i].rel_total);
-    }
+    for (size_t i = 0; i < n_entries; i++) WF_FREE(res[i].fuel, res[i].rel, res[i].rel_total);
     free(res);
     free_duties(duty);
     if (rc) return wf_cli_fail(&err);

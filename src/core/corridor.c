@@ -42,21 +42,17 @@ const WfColumn wf_corridor_columns[WF_CTS_N_COLS] = {
 static void corridor_destroy(void *eng)
 {
     WfCorridor *c = eng;
-#define FREE(nm, field, stepped) free(c->ln[0].field);
-    SAVED_SLOT_ARRAYS(FREE) STEP_SLOT_ARRAYS(FREE)
-#undef FREE
-    void *arrays[] = {c->ln[0].veh.params, c->ln[0].veh.state, c->queue_t, c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm,
-                      c->det.occupied_s, c->edie.dist_m, c->edie.time_s, c->edie.fuel_g, c->edie.grade_mean_rad,
-                      c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v, c->chunks, c->cut_arrays};
-    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
     wf_lanes_destroy(&c->lcs);
-    void *snap[] = {c->snap.x_m, c->snap.v_mps, c->snap.class_id, c->snap.group_id, c->snap.ready, c->snap.slot,
-                    c->snap.buf, c->lane_rows, c->coop_cap_mps2, c->coop_slot, c->snap.exiting, c->off_src,
-                    c->off_dst};
-    for (size_t i = 0; i < sizeof snap / sizeof snap[0]; i++) free(snap[i]);
     cor_window_free(&c->win);
     cor_part_free(&c->pt);
-    free(c);
+#define SLOT(nm, field, stepped) c->ln[0].field,
+    WF_FREE(SAVED_SLOT_ARRAYS(SLOT) STEP_SLOT_ARRAYS(SLOT) c->ln[0].veh.params, c->ln[0].veh.state, c->queue_t,
+            c->det.count, c->det.sum_v_mps, c->det.sum_inv_v_spm, c->det.occupied_s, c->edie.dist_m, c->edie.time_s,
+            c->edie.fuel_g, c->edie.grade_mean_rad, c->edie.class_dist_m, c->edie.class_fuel_g, c->bound_x, c->bound_v,
+            c->chunks, c->cut_arrays, c->snap.x_m, c->snap.v_mps, c->snap.class_id, c->snap.group_id, c->snap.ready,
+            c->snap.slot, c->snap.buf, c->lane_rows, c->coop_cap_mps2, c->coop_slot, c->snap.exiting, c->off_src,
+            c->off_dst, c);
+#undef SLOT
 }
 
 /* ------------------------------------------------------------------------------------------ road */

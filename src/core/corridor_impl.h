@@ -19,6 +19,7 @@
 #include "core/lanes.h"
 #include "core/sim.h"
 #include "core/window.h"
+#include "util/mem.h"
 
 #define TRIP_BUF 1024 /* trips handed to the output per call */
 

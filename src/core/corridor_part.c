@@ -91,9 +91,8 @@ int cor_part_init(WfCorridor *c, WfPartition *p, WfError *err)
 
 void cor_part_free(CorPart *pt)
 {
-    void *a[] = {pt->pre,      pt->post,     pt->off,       pt->out,      pt->in,    pt->all,
-                 pt->halo_out, pt->halo_in, pt->cross_out, pt->cross_in, pt->trace, pt->wrec};
-    for (size_t i = 0; i < sizeof a / sizeof a[0]; i++) free(a[i]);
+    WF_FREE(pt->pre, pt->post, pt->off, pt->out, pt->in, pt->all, pt->halo_out, pt->halo_in, pt->cross_out,
+            pt->cross_in, pt->trace, pt->wrec);
 }
 
 /* Vehicles [k0, k0 + m) of the road, front first, packed into buf (unpack 0) or from it into their slots. */

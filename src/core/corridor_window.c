@@ -57,8 +57,7 @@ int cor_window_init(WfCorridor *c, WfError *err)
 void cor_window_free(CorWindow *cw)
 {
     wf_window_destroy(&cw->w);
-    free(cw->x), free(cw->rate), free(cw->cell), free(cw->nf), free(cw->nb), free(cw->cr);
-    free(cw->fx), free(cw->fv), free(cw->exit_slot), free(cw->exit_t), free(cw->keep);
+    WF_FREE(cw->x, cw->rate, cw->cell, cw->nf, cw->nb, cw->cr, cw->fx, cw->fv, cw->exit_slot, cw->exit_t, cw->keep);
 }
 
 /* The front part of a window of k steps over the n0 vehicles from road index k0: the vehicles from the front that

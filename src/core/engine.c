@@ -92,22 +92,9 @@ static void ring_destroy(void *eng)
     wf_fleet_destroy(&s->f);
     wf_window_destroy(&s->win);
     wf_lanes_destroy(&s->lcs);
-    free(s->lane_rows);
-    free(s->stat_blocks);
-    free(s->chunks);
     wf_ode_destroy(&s->ode);
-    free(s->xold);
-    free(s->vold);
-    free(s->bound_x);
-    free(s->bound_v);
-    free(s->fuel_step);
-    free(s->vplus);
-    free(s->off);
-    free(s->group_before);
-    free(s->halo_out);
-    free(s->halo_in);
-    free(s->members);
-    free(s);
+    WF_FREE(s->lane_rows, s->stat_blocks, s->chunks, s->xold, s->vold, s->bound_x, s->bound_v, s->fuel_step, s->vplus,
+            s->off, s->group_before, s->halo_out, s->halo_in, s->members, s);
 }
 
 /* ------------------------------------------------------------------------------------- the ring's road */
@@ -242,11 +229,9 @@ static int ode_init(WfRing *s, WfError *err)
     size_t n = s->f->n;
     WfOdeConfig cfg = sc->solver;
     cfg.fixed_step_s = sc->dt_s / cfg.rk4_substeps;
-    s->xold = malloc(n * sizeof(double));
-    s->vold = malloc(n * sizeof(double));
-    s->fuel_step = malloc(n * sizeof(double));
-    s->vplus = malloc(n * sizeof(double));
-    if (!s->xold || !s->vold || !s->fuel_step || !s->vplus) return wf_err(err, WF_ESYS, "out of memory");
+    if (!((s->xold = malloc(n * sizeof(double))) && (s->vold = malloc(n * sizeof(double))) &&
+          (s->fuel_step = malloc(n * sizeof(double))) && (s->vplus = malloc(n * sizeof(double)))))
+        return wf_err(err, WF_ESYS, "out of memory");
     return wf_ode_create(&cfg, n, sc->road.length_m, ode_rhs, s, 0.0, s->f->x_m, s->f->v_mps, &s->ode, err);
 }
 

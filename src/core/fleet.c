@@ -9,21 +9,17 @@
 #include "wavefuel/equilibrium.h"
 #include "wavefuel/rng.h"
 #include "core/block.h"
+#include "util/mem.h"
 
 void wf_fleet_destroy(WfFleet **pf)
 {
     if (!pf || !*pf) return;
     WfFleet *f = *pf;
-    void *arrays[] = {f->x_m, f->v_mps, f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps,
-                      f->flag, f->grade_seg, f->class_id, f->group_id, f->slot, f->x_start_m, f->fuel_g,
-                      f->stopped_steps, f->sum_v, f->sum_v2, f->sum_a, f->sum_a2, f->stops, f->hard_brakes,
-                      f->infeasible_steps, f->mode, f->lane, f->id, f->pos, f->lc_ready_step, f->lane_changes,
-                      f->cut_ins, f->lap_m};
-    for (size_t i = 0; i < sizeof arrays / sizeof arrays[0]; i++) free(arrays[i]);
-    for (size_t g = 0; g < WF_MAX_GROUPS; g++) {
-        free(f->group_params[g]);
-        free(f->group_state[g]);
-    }
+    WF_FREE(f->x_m, f->v_mps, f->a_mps2, f->gap_m, f->v_lead_mps, f->theta_rad, f->fuel_rate_gps, f->flag, f->grade_seg,
+            f->class_id, f->group_id, f->slot, f->x_start_m, f->fuel_g, f->stopped_steps, f->sum_v, f->sum_v2, f->sum_a,
+            f->sum_a2, f->stops, f->hard_brakes, f->infeasible_steps, f->mode, f->lane, f->id, f->pos, f->lc_ready_step,
+            f->lane_changes, f->cut_ins, f->lap_m);
+    for (size_t g = 0; g < WF_MAX_GROUPS; g++) WF_FREE(f->group_params[g], f->group_state[g]);
     free(f);
     *pf = NULL;
 }

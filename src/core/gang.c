@@ -15,6 +15,7 @@
 #include "core/batch.h"
 #include "core/block.h"
 #include "core/sim.h"
+#include "util/mem.h"
 #include "wavefuel/fleet.h"
 
 struct WfGang {
@@ -151,15 +152,12 @@ void wf_gang_destroy(WfGang **pg)
     for (size_t r = 0; g->holds && r < g->n_runs; r++) /* a run whose arrays the gang holds is alive (give_back) */
         if (g->holds[r]) give_back(g, r, 0);
     WfLane *l = &g->ln;
-    free(l->x_m), free(l->v_mps), free(l->mode), free((void *)l->class_id), free((void *)l->group_id);
-    free((void *)l->slot);
+    WF_FREE(l->x_m, l->v_mps, l->mode, (void *)l->class_id, (void *)l->group_id, (void *)l->slot);
 #define FREE(fld) free(l->always.fld), free(l->window.fld);
     WF_ACCUM_FIELDS(FREE)
 #undef FREE
     for (size_t q = 0; q < WF_MAX_GROUPS; q++) free(l->state[q]);
-    free(g->holds), free(g->rl), free(g->fl), free(g->off), free(g->first), free(g->sbase), free(g->seg);
-    free(g->berr), free(g->seen), free(g->nv), free(g->left), free(g->win);
-    free(g);
+    WF_FREE(g->holds, g->rl, g->fl, g->off, g->first, g->sbase, g->seg, g->berr, g->seen, g->nv, g->left, g->win, g);
     *pg = NULL;
 }
 

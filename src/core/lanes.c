@@ -7,6 +7,7 @@
 
 #include "core/block.h"
 #include "core/par.h"
+#include "util/mem.h"
 #include "wavefuel/lanechange.h"
 
 int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_lanes, WfError *err)
@@ -22,41 +23,23 @@ int wf_lanes_create(WfLaneChanges *lc, const WfScenario *sc, size_t n, size_t n_
         lc->coop |= yield_mps2 > 0.0;
     }
     if (!lc->active || n_lanes < 2) return lc->active = 0;
-    lc->p_m = malloc(n * sizeof *lc->p_m);
-    lc->tgt[0] = malloc(n * sizeof *lc->tgt[0]);
-    lc->tgt[1] = malloc(n * sizeof *lc->tgt[1]);
-    lc->dir = malloc(n * sizeof *lc->dir);
-    lc->adv_mps2 = malloc(n * sizeof *lc->adv_mps2);
-    lc->claim = malloc((n + n_lanes) * sizeof *lc->claim);
-    lc->perm = malloc(n * sizeof *lc->perm);
-    lc->shift_m = malloc(n * sizeof *lc->shift_m);
-    lc->scratch = malloc(n * sizeof(double));
-    lc->blk = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blk);
-    lc->blkl = malloc((n / WF_BLOCK + n_lanes + 1) * sizeof *lc->blkl);
-    lc->coop_who = malloc(2 * n * sizeof *lc->coop_who);
-    lc->coop_cap_mps2 = malloc(2 * n * sizeof *lc->coop_cap_mps2);
-    if (!lc->coop_who || !lc->coop_cap_mps2 ||
-        !lc->p_m || !lc->tgt[0] || !lc->tgt[1] || !lc->dir || !lc->adv_mps2 || !lc->claim || !lc->perm ||
-        !lc->shift_m || !lc->scratch || !lc->blk || !lc->blkl)
-        return wf_err(err, WF_ESYS, "out of memory for the lane changes of %zu vehicles", n);
+    size_t nb = n / WF_BLOCK + n_lanes + 1;
+    int ok = (lc->p_m = malloc(n * sizeof *lc->p_m)) && (lc->tgt[0] = malloc(n * sizeof *lc->tgt[0])) &&
+             (lc->tgt[1] = malloc(n * sizeof *lc->tgt[1])) && (lc->dir = malloc(n * sizeof *lc->dir)) &&
+             (lc->adv_mps2 = malloc(n * sizeof *lc->adv_mps2)) &&
+             (lc->claim = malloc((n + n_lanes) * sizeof *lc->claim)) && (lc->perm = malloc(n * sizeof *lc->perm)) &&
+             (lc->shift_m = malloc(n * sizeof *lc->shift_m)) && (lc->scratch = malloc(n * sizeof(double))) &&
+             (lc->blk = malloc(nb * sizeof *lc->blk)) && (lc->blkl = malloc(nb * sizeof *lc->blkl)) &&
+             (lc->coop_who = malloc(2 * n * sizeof *lc->coop_who)) &&
+             (lc->coop_cap_mps2 = malloc(2 * n * sizeof *lc->coop_cap_mps2));
+    if (!ok) return wf_err(err, WF_ESYS, "out of memory for the lane changes of %zu vehicles", n);
     return 0;
 }
 
 void wf_lanes_destroy(WfLaneChanges *lc)
 {
-    free(lc->p_m);
-    free(lc->tgt[0]);
-    free(lc->tgt[1]);
-    free(lc->dir);
-    free(lc->adv_mps2);
-    free(lc->claim);
-    free(lc->perm);
-    free(lc->shift_m);
-    free(lc->scratch);
-    free(lc->blk);
-    free(lc->blkl);
-    free(lc->coop_who);
-    free(lc->coop_cap_mps2);
+    WF_FREE(lc->p_m, lc->tgt[0], lc->tgt[1], lc->dir, lc->adv_mps2, lc->claim, lc->perm, lc->shift_m, lc->scratch,
+            lc->blk, lc->blkl, lc->coop_who, lc->coop_cap_mps2);
     *lc = (WfLaneChanges){0};
 }
 

@@ -14,6 +14,7 @@
 #include "core/governor.h"
 #include "core/sim.h"
 #include "util/clock.h"
+#include "util/mem.h"
 #include "wavefuel/corridor.h"
 
 /* One run's share of the batch's arrays. */
@@ -72,10 +73,8 @@ void wf_rl_batch_destroy(WfRlBatch **pb)
     if (!pb || !*pb) return;
     WfRlBatch *b = *pb;
     wf_gang_destroy(&b->gang);
-    void *arrays[] = {b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order,
-                      b->scope, b->flag, b->obs0, b->obs1, b->a_prev, b->cmd, b->low, b->high, b->u};
-    for (size_t k = 0; k < sizeof arrays / sizeof *arrays; k++) free(arrays[k]);
-    free(b);
+    WF_FREE(b->group, b->run, b->v0, b->v1, b->a, b->fuel, b->cv, b->ca, b->cf, b->zero, b->order, b->scope, b->flag,
+            b->obs0, b->obs1, b->a_prev, b->cmd, b->low, b->high, b->u, b);
     *pb = NULL;
 }
 

@@ -6,6 +6,7 @@
 #include "wavefuel/corridor.h"
 #include "wavefuel/mlp.h"
 #include "util/numfmt.h"
+#include "util/mem.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -85,9 +86,7 @@ void wf_sim_destroy(WfSim **ps)
     if (!ps || !*ps) return;
     if ((*ps)->held.fn) (*ps)->held.fn((*ps)->held.gang, (*ps)->held.r, 1); /* the gang forgets it */
     if ((*ps)->eng) (*ps)->b->destroy((*ps)->eng);
-    free((*ps)->mlp_rows);
-    free((*ps)->mlp_cmd);
-    free(*ps);
+    WF_FREE((*ps)->mlp_rows, (*ps)->mlp_cmd, *ps);
     *ps = NULL;
 }
 

@@ -48,8 +48,7 @@ int wf_window_fits(size_t n, size_t b_lo, size_t b_hi, int nthreads, int k)
 
 static void halo_free(WfHalo *h)
 {
-    free(h->x_m), free(h->v_mps), free(h->hx), free(h->hv), free(h->tx), free(h->tv);
-    free(h->mode), free(h->grade_seg), free(h->slot), free(h->sslot), free(h->lead);
+    WF_FREE(h->x_m, h->v_mps, h->hx, h->hv, h->tx, h->tv, h->mode, h->grade_seg, h->slot, h->sslot, h->lead);
     for (size_t g = 0; g < WF_MAX_GROUPS; g++) free(h->state[g]);
 }
 
@@ -72,9 +71,7 @@ void wf_window_destroy(WfWindow *w)
 {
     if (w->halo)
         for (size_t c = 0; c < w->n_halos; c++) halo_free(&w->halo[c]);
-    free(w->halo);
-    free(w->rec);
-    free(w->backup);
+    WF_FREE(w->halo, w->rec, w->backup);
     memset(w, 0, sizeof *w);
 }
 

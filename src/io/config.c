@@ -12,6 +12,7 @@
 #include <yaml.h>
 
 #include "util/numfmt.h"
+#include "util/mem.h"
 #include "util/registry.h"
 
 static WfCfgNode *node_new(WfCfgKind kind, const char *file, int line)
@@ -28,11 +29,7 @@ static void node_free(WfCfgNode *n)
 {
     if (!n) return;
     for (size_t i = 0; i < n->n_child; i++) node_free(n->child[i]);
-    free(n->child);
-    free(n->asked);
-    free(n->key);
-    free(n->value);
-    free(n);
+    WF_FREE(n->child, n->asked, n->key, n->value, n);
 }
 
 static int node_add(WfCfgNode *parent, WfCfgNode *c)
@@ -67,9 +64,7 @@ void wf_cfg_destroy(WfCfg **cfg)
 {
     if (!cfg || !*cfg) return;
     node_free((*cfg)->root);
-    free((*cfg)->path);
-    free((*cfg)->text);
-    free(*cfg);
+    WF_FREE((*cfg)->path, (*cfg)->text, *cfg);
     *cfg = NULL;
 }
 

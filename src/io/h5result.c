@@ -11,6 +11,7 @@
 #include <time.h>
 
 #include "io/h5summary.h"
+#include "util/mem.h"
 #include "wavefuel/h5out.h"
 #include "wavefuel/vehicle.h"
 #include "wavefuel/version.h"
@@ -503,10 +504,7 @@ void wf_h5out_destroy(WfH5Out **pw)
     /* A run that never started writing removes its file (nothing was simulated); a resumed one never deletes
      * what it reopened. */
     if (w->file) wf_h5_abandon(&w->file, !w->ended && !w->resume);
-    free(w->buf);
-    free(w->cls);
-    free(w->frame);
-    free(w);
+    WF_FREE(w->buf, w->cls, w->frame, w);
     *pw = NULL;
 }
 

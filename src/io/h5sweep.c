@@ -10,6 +10,7 @@
 #include <time.h>
 
 #include "io/h5util.h"
+#include "util/mem.h"
 #include "wavefuel/version.h"
 
 
@@ -127,9 +128,7 @@ static int write_runs(hid_t fid, const WfSweep *sw, const WfSweepResult *res, Wf
     if (!rc) rc = wf_h5_write_strings(g, "command", n, (const char *const *)owned,
                                       "the `wavefuel run` command that reproduces the run alone", err);
     for (size_t i = 0; owned && i < n; i++) free(owned[i]);
-    free(owned);
-    free(s);
-    free(k);
+    WF_FREE(owned, s, k);
     H5Gclose(g);
     return rc ? WF_ESYS : 0;
 }
@@ -335,10 +334,7 @@ static void put_status(WfSweepSaved *sv, size_t i, const char *s)
 void wf_sweep_saved_free(WfSweepSaved *sv)
 {
     for (size_t i = 0; sv->overrides && i < sv->n; i++) free(sv->overrides[i]);
-    free(sv->overrides);
-    free(sv->res);
-    free(sv->scenario_text);
-    free(sv->scenario_path);
+    WF_FREE(sv->overrides, sv->res, sv->scenario_text, sv->scenario_path);
     memset(sv, 0, sizeof *sv);
 }
 

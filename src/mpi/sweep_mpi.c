@@ -10,6 +10,7 @@
 #include <string.h>
 
 #include "util/clock.h"
+#include "util/mem.h"
 
 enum { TAG_RUN = 1, TAG_RESULT = 2 };
 
@@ -157,8 +158,6 @@ void wf_mpi_pool_destroy(WfMpiPool **pp)
     while (wf_mpi_pool_poll(p, take_none, finish_drop, NULL) > 0) wf_sleep_ms(1);
     int64_t stop = -1;
     for (int r = 1; r < p->size; r++) MPI_Send(&stop, 1, MPI_INT64_T, r, TAG_RUN, MPI_COMM_WORLD);
-    free(p->busy);
-    free(p->msg);
-    free(p);
+    WF_FREE(p->busy, p->msg, p);
     *pp = NULL;
 }

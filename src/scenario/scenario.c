@@ -19,6 +19,7 @@
 #include "wavefuel/corridor.h"
 #include "wavefuel/integrator.h"
 #include "util/numfmt.h"
+#include "util/mem.h"
 
 #define where_of wf_scenario_where
 
@@ -45,10 +46,7 @@ void wf_scenario_destroy(WfScenario **psc)
     wf_road_free(&sc->road);
     wf_corridor_spec_destroy(&sc->corridor);
     for (size_t i = 0; i < sc->n_inputs; i++) free(sc->inputs[i]);
-    free(sc->inputs);
-    free(sc->text);
-    free(sc->overrides);
-    free(sc);
+    WF_FREE(sc->inputs, sc->text, sc->overrides, sc);
     *psc = NULL;
 }
 

@@ -15,14 +15,13 @@
 #include "wavefuel/config.h"
 #include "wavefuel/csv.h"
 #include "util/numfmt.h"
+#include "util/mem.h"
 
 #define where_of wf_scenario_where
 
 static void profile_free(WfProfile *p)
 {
-    free(p->t);
-    free(p->y);
-    free(p->cum);
+    WF_FREE(p->t, p->y, p->cum);
     memset(p, 0, sizeof *p);
 }
 
@@ -30,13 +29,10 @@ void wf_corridor_spec_destroy(WfCorridorSpec **ps)
 {
     if (!ps || !*ps) return;
     WfCorridorSpec *s = *ps;
-    free(s->grade_x_m);
-    free(s->grade_rad);
-    free(s->elev_z_m);
     profile_free(&s->inflow_vph);
     profile_free(&s->leader_speed_mps);
     profile_free(&s->ramp_vph);
-    free(s);
+    WF_FREE(s->grade_x_m, s->grade_rad, s->elev_z_m, s);
     *ps = NULL;
 }
 

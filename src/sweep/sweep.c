@@ -17,6 +17,7 @@
 #include "wavefuel/engine.h"
 #include "wavefuel/h5out.h"
 #include "wavefuel/scenario.h"
+#include "util/mem.h"
 
 const char *const wf_run_status_names[3] = {"pending", "ok", "failed"};
 
@@ -60,10 +61,7 @@ void wf_sweep_destroy(WfSweep **psw)
     if (!psw || !*psw) return;
     WfSweep *sw = *psw;
     pool_free(&sw->pool);
-    free(sw->text);
-    free(sw->scenario_text);
-    free(sw->runs);
-    free(sw);
+    WF_FREE(sw->text, sw->scenario_text, sw->runs, sw);
     *psw = NULL;
 }
 

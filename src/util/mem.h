@@ -12,6 +12,7 @@
 #define WAVEFUEL_MEM_H
 
 #include <stddef.h>
+#include <stdlib.h>
 
 /* Take now, writable, the pages of [p, p + bytes) not yet in memory (madvise MADV_POPULATE_WRITE), without
  * changing their contents: part `part` of `parts` of them, cut at 2 MiB-aligned addresses, so that threads taking
@@ -21,5 +22,13 @@ void wf_mem_prefault(void *p, size_t bytes, int part, int parts);
 /* Give back the pages wholly inside [p, p + bytes) (madvise MADV_DONTNEED): they read as zeros afterwards. The
  * pages at either end, which may hold bytes outside the range, are kept. */
 void wf_mem_release(void *p, size_t bytes);
+
+/* Free each pointer in turn, in the order given (NULL is skipped by free): a destroy function's arrays in one
+ * statement. A const pointer needs a (void *) cast. */
+#define WF_FREE(...)                                                                                           \
+    do {                                                                                                       \
+        void *wf_free_[] = {__VA_ARGS__};                                                                      \
+        for (size_t wf_i_ = 0; wf_i_ < sizeof wf_free_ / sizeof wf_free_[0]; wf_i_++) free(wf_free_[wf_i_]);   \
+    } while (0)
 
 #endif

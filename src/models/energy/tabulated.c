@@ -19,6 +19,7 @@
 #include "wavefuel/csv.h"
 #include "wavefuel/version.h"
 #include "util/numfmt.h"
+#include "util/mem.h"
 
 #define TABLE_FORMAT "wavefuel tabulated energy model"
 #define TABLE_FORMAT_VERSION 1
@@ -35,15 +36,8 @@ void wf_table_destroy(WfTable **pt)
     if (!pt || !*pt) return;
     WfTable *t = *pt;
     WfTableAxis *axes[3] = {&t->v, &t->a, &t->theta};
-    for (int c = 0; c < 3; c++) {
-        free(axes[c]->x);
-        free(axes[c]->inv_w);
-        free(axes[c]->bucket);
-    }
-    free(t->fuel_gps);
-    free(t->infeasible);
-    free(t->a_max_mps2);
-    free(t);
+    for (int c = 0; c < 3; c++) WF_FREE(axes[c]->x, axes[c]->inv_w, axes[c]->bucket);
+    WF_FREE(t->fuel_gps, t->infeasible, t->a_max_mps2, t);
     *pt = NULL;
 }
 
