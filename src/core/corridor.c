@@ -1339,16 +1339,16 @@ void cor_advance_leader(WfCorridor *c, double t)
  * that lane alone), as its columns. */
 static void lanes_observe(WfCorridor *c, double t, int at_start)
 {
-    if (c->n_lanes < 2 || c->lk.n_rows >= (int64_t)c->lane_rows_max) return;
-    double *row = c->lane_rows + (size_t)c->lk.n_rows++ * c->lane_row_len;
-    row[0] = t, row[1] = (double)c->lk.rec_changes, row[2] = (double)c->lk.rec_cut_ins;
-    c->lk.rec_changes = c->lk.rec_cut_ins = 0;
+    double *row;
+    if (c->n_lanes < 2 || !(row = wf_lane_row(c->lane_rows, c->lane_row_len, c->lane_rows_max, &c->lk.n_rows,
+                                              &c->lk.rec_changes, &c->lk.rec_cut_ins, t)))
+        return;
     for (size_t l = 0; l < c->n_lanes; l++) {
         WfCorridorRow r;
         cor_record(c, l, l + 1, t, at_start, &r);
         static const int from[] = {WF_CTS_MEAN_V, WF_CTS_SD_V, WF_CTS_WAVES,
                                    WF_CTS_FUEL_RATE, WF_CTS_MEAN_GAP, WF_CTS_FRAC_STOPPED};
-        wf_lane_values(r.v, from, r.v[WF_CTS_VEHICLES], c->L, row + 3 + l * WF_LANE_N_COLS);
+        wf_lane_values(r.v, from, r.v[WF_CTS_VEHICLES], c->L, row + l * WF_LANE_N_COLS);
     }
 }
 

@@ -857,16 +857,16 @@ static void lap(WfRing *s, int phase, double *tp)
 static void lanes_observe(WfRing *s, const WfStatsBlock *rec, double t)
 {
     const WfFleet *f = s->f;
-    if (f->n_lanes < 2 || s->lk.n_rows >= (int64_t)s->lane_rows_max) return;
-    double *row = s->lane_rows + (size_t)s->lk.n_rows++ * s->lane_row_len;
-    row[0] = t, row[1] = (double)s->lk.rec_changes, row[2] = (double)s->lk.rec_cut_ins;
-    s->lk.rec_changes = s->lk.rec_cut_ins = 0;
+    double *row;
+    if (f->n_lanes < 2 || !(row = wf_lane_row(s->lane_rows, s->lane_row_len, s->lane_rows_max, &s->lk.n_rows,
+                                              &s->lk.rec_changes, &s->lk.rec_cut_ins, t)))
+        return;
     for (size_t l = 0; l < f->n_lanes; l++) {
         WfTsRow lr;
         if (s->lane_nb[l]) wf_stats_combine(rec, s->lane_nb[l], f->n_classes, s->sc, t, s->overlaps, &lr);
         static const int from[] = {WF_TS_MEAN_V, WF_TS_SD_V, WF_TS_WAVES,
                                    WF_TS_FUEL_RATE, WF_TS_MEAN_GAP, WF_TS_FRAC_STOPPED};
-        wf_lane_values(lr.v, from, (double)f->lane_n[l], s->sc->road.length_m, row + 3 + l * WF_LANE_N_COLS);
+        wf_lane_values(lr.v, from, (double)f->lane_n[l], s->sc->road.length_m, row + l * WF_LANE_N_COLS);
         rec += s->lane_nb[l];
     }
 }

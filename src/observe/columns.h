@@ -57,6 +57,9 @@ extern const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS];
  * (/timeseries), from[c] where it holds lane column WF_LANE_MEAN_V + c (mean speed, its s.d., waves, fuel rate,
  * mean gap, fraction stopped). */
 void wf_lane_values(const double *v, const int *from, double n, double length_m, double *out);
+/* The next /lanes row of a record at t in rows (max rows of len values, *n_rows taken): t, then the lane changes and
+ * cut-ins since the last record, which restart at 0. Returns where the lanes' columns go, or NULL when rows are full. */
+double *wf_lane_row(double *rows, size_t len, size_t max, int64_t *n_rows, int64_t *changes, int64_t *cut_ins, double t);
 
 /* ---- /trips (corridor): one row per trip, float64 (integers are exact below 2^53) */
 enum { WF_TRIP_N_COLS = 18, WF_TRIP_N_SINGLE = 16 }; /* the columns from WF_TRIP_N_SINGLE on: multi-lane roads */

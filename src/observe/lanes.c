@@ -37,6 +37,15 @@ const WfObsColumn wf_lane_count_columns[WF_LANE_CNT_N_COLS] = {
      0},
 };
 
+double *wf_lane_row(double *rows, size_t len, size_t max, int64_t *n_rows, int64_t *changes, int64_t *cut_ins, double t)
+{
+    if (*n_rows >= (int64_t)max) return NULL;
+    double *row = rows + (size_t)(*n_rows)++ * len;
+    row[0] = t, row[1] = (double)*changes, row[2] = (double)*cut_ins;
+    *changes = *cut_ins = 0;
+    return row + 3;
+}
+
 void wf_lane_values(const double *v, const int *from, double n, double length_m, double *out)
 {
     static const double empty[] = {NAN, NAN, 0.0, 0.0, NAN, NAN}; /* an empty lane, as /timeseries */
