@@ -11,7 +11,9 @@ differences of whole runs of run.py for the corridor / ring criterion of issue 1
 differences of two process times moved by tens of percent from one run to the next.
 
 usage: steady.py [--lib NAME=PATH]... [--threads 1,2] [--length-m 150000] [--fill-s 5000] [--slice-steps 1000]
-                 [--slices 12] [--rounds 1] [--corridor-set KEY=VALUE]...
+                 [--slices 12] [--rounds 1] [--set KEY=VALUE]... [--corridor-set KEY=VALUE]...
+--set applies to both scenarios: `--set time.thread_check_steps=0` keeps each run on its thread count (the thread
+governor may otherwise move a run to one thread for a while, after a probe that a busy moment favoured).
 Each --lib (a libwavefuel.so; default: this tree's lib/libwavefuel.so) runs in a process of its own, one after the
 other, --rounds times (A B A B ...). Needs `make python`; run with /usr/bin/python3."""
 import argparse
@@ -38,14 +40,15 @@ def child(args):
         for th in threads:
             sc = wf.Scenario.load(os.path.join(HERE, "corridor.yaml"),
                                   overrides={"road.length_m": args.length_m, "time.duration_s": 1e6,
-                                             **dict(kv.split("=", 1) for kv in args.corridor_set)})
+                                             **dict(kv.split("=", 1) for kv in args.set + args.corridor_set)})
             s = wf.Simulation(sc, threads=th, output=os.path.join(tmp, f"corridor{th}.h5"))
             s.step(int(round(args.fill_s / dt)))
             sims[("corridor", th)] = s
         n = sims[("corridor", threads[0])].n_vehicles
         for th in threads:
             sc = wf.Scenario.load(os.path.join(HERE, "ring.yaml"),
-                                  overrides={"fleet.vehicles": n, "road.length_m": 25.0 * n, "time.duration_s": 1e6})
+                                  overrides={"fleet.vehicles": n, "road.length_m": 25.0 * n, "time.duration_s": 1e6,
+                                             **dict(kv.split("=", 1) for kv in args.set)})
             s = wf.Simulation(sc, threads=th, output=os.path.join(tmp, f"ring{th}.h5"))
             s.step(args.slice_steps)  # caches and pages warm, as the corridor's after its fill
             sims[("ring", th)] = s
@@ -79,6 +82,8 @@ def main():
     ap.add_argument("--rounds", type=int, default=1)
     ap.add_argument("--corridor-set", action="append", default=[], metavar="KEY=VALUE",
                     help="a key of the corridor's scenario (repeatable), e.g. time.block_steps=16")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a key of both scenarios (repeatable), e.g. time.thread_check_steps=0")
     ap.add_argument("--child", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
