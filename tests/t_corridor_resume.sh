@@ -87,6 +87,17 @@ if [ -f "$tmp/k.h5.ckpt" ] && [ -f "$tmp/k.h5.partial" ] && $BIN run --resume "$
    compare "$tmp/ref_euler.h5" "$tmp/k.h5"
 then ok corridor_resume_after_sigkill_bit_identical; else ko corridor_resume_after_sigkill_bit_identical "see above"; fi
 
+# Warm-up 0: every vehicle enters with the statistics window open, so from the first step the kernel keeps only
+# the trip totals and the window totals are read from them (src/core/corridor.c, window_is_trip). A checkpoint must
+# still hold each vehicle's window totals, and the resumed run go on from them.
+W="--set time.warmup_s=0"
+$BIN run $S -q -o "$tmp/ref_open.h5" $L $W || ko reference_run_open "rc=$?"
+start_until_checkpoint "$tmp/w0.h5" $W --checkpoint-every 0.2
+signal_running TERM $pid; wait $pid; rc1=$?
+if [ $rc1 -eq 3 ] && $BIN run --resume "$tmp/w0.h5" -q && compare "$tmp/ref_open.h5" "$tmp/w0.h5"
+then ok corridor_resume_window_from_start_bit_identical
+else ko corridor_resume_window_from_start_bit_identical "rc=$rc1"; fi
+
 msg=$($BIN run --resume "$tmp/k.h5" -q 2>&1); rc=$?
 if [ $rc -eq 2 ] && echo "$msg" | grep -q "is complete"; then ok corridor_resume_refuses_complete
 else ko corridor_resume_refuses_complete "rc=$rc $msg"; fi

@@ -883,6 +883,84 @@ static void test_scenario_errors(void)
     expect_error("e8.yaml", y, "starts empty");
 }
 
+/* A state block of the snapshot by name (NULL: none). */
+static const void *snap_block(const Snap *sn, const char *name)
+{
+    for (size_t i = 0; i < sn->n_vars; i++)
+        if (!strcmp(sn->vars[i].name, name)) return sn->bytes[i];
+    return NULL;
+}
+
+/* The window totals a state lists (what a checkpoint saves), vehicle by vehicle, against the trip totals: with the
+ * statistics window open from the first step they are equal; with a warm-up, a vehicle that entered before its end
+ * has burned less fuel in the window than on its trip, and one that entered after has the same totals. (Once every
+ * vehicle on the road entered with the window open, the engine keeps the trip totals alone.) */
+static void test_window_totals(void)
+{
+    static const char *const pairs[][2] = {{"trip_fuel", "w_fuel"},   {"trip_dist", "w_dist"},
+                                           {"trip_stopped", "w_stopped"}};
+    static const char *const counts[][2] = {{"trip_stops", "w_stops"}, {"trip_hard", "w_hard"},
+                                            {"trip_infeasible", "w_infeasible"}};
+    for (int warm = 0; warm < 2; warm++) {
+        char y[1024];
+        snprintf(y, sizeof y,
+                 "seed: 9\n"
+                 "road: {type: corridor, length_m: 3000}\n"
+                 "time: {duration_s: 300, dt_s: 0.1, output_interval_s: 1, warmup_s: %d}\n"
+                 "fleet:\n"
+                 "  classes: [{class: midsize_sedan, fraction: 0.7}, {class: class8_tractor, fraction: 0.3}]\n"
+                 "  drivers: [{model: idm, fraction: 1.0, noise_mps2: 0.3,\n"
+                 "             params: {v0_mps: 28, T_s: 1.2, s0_m: 2, a_mps2: 1.0, b_mps2: 1.5}}]\n"
+                 "corridor: {inflow: {flow_vph: 1500}}\n",
+                 warm ? 100 : 0);
+        WfScenario *sc = load_text(warm ? "wt_warm.yaml" : "wt_open.yaml", y);
+        if (!sc) return;
+        WfSim *c = NULL;
+        WfError err = {0};
+        Snap sn = {.stop_at_s = 150.0};
+        int rc = wf_sim_create(sc, &c, &err);
+        CHECK(rc == 0, "create: %s", err.msg);
+        if (!rc) {
+            WfOutput out = {.record = snap_row, .trips = snap_trips, .checkpoint = snap_checkpoint, .ctx = &sn};
+            wf_sim_set_checkpoint_interval(c, 1e-9); /* every step: the last one is the interruption's */
+            rc = wf_sim_run(c, &out, NULL, NULL, &sn.stop, &err);
+            CHECK(rc == WF_EINTR && sn.taken > 0, "the stopped run: rc %d (%s), %d checkpoints", rc, err.msg,
+                  sn.taken);
+        }
+        const size_t *n = snap_block(&sn, "n"), *first = snap_block(&sn, "first");
+        const double *t_ent = snap_block(&sn, "t_entry");
+        size_t cap = 0;
+        for (size_t i = 0; i < sn.n_vars; i++)
+            if (!strcmp(sn.vars[i].name, "t_entry")) cap = sn.vars[i].size / sizeof(double);
+        CHECK(rc == WF_EINTR && n && first && t_ent && cap, "state blocks n, first and t_entry");
+        size_t same = 0, before = 0, less = 0, n_veh = rc == WF_EINTR && n && first && t_ent && cap ? *n : 0;
+        for (size_t k = 0; k < n_veh; k++) {
+            size_t slot = (*first + *n - 1 - k) % cap;
+            int all_same = 1;
+            for (size_t q = 0; q < 3; q++) {
+                const double *a = snap_block(&sn, pairs[q][0]), *b = snap_block(&sn, pairs[q][1]);
+                all_same &= a && b && a[slot] == b[slot];
+            }
+            for (size_t q = 0; q < 3; q++) {
+                const uint32_t *a = snap_block(&sn, counts[q][0]), *b = snap_block(&sn, counts[q][1]);
+                all_same &= a && b && a[slot] == b[slot];
+            }
+            const double *tf = snap_block(&sn, "trip_fuel"), *wf = snap_block(&sn, "w_fuel");
+            if (warm && t_ent[slot] < 100.0) before++, less += tf && wf && wf[slot] < tf[slot];
+            else same += all_same;
+        }
+        CHECK(n_veh > 40 && same == n_veh - before, "%s: %zu of %zu vehicles with window totals equal to the trip's",
+              warm ? "warm-up 100 s" : "no warm-up", same, n_veh - before);
+        CHECK(!warm || (before > 10 && less == before),
+              "warm-up 100 s: %zu of %zu vehicles that entered before it with less window fuel than trip fuel", less,
+              before);
+        for (size_t i = 0; i < WF_MAX_STATE_VARS; i++) free(sn.bytes[i]);
+        rec_free(&sn.rec);
+        wf_sim_destroy(&c);
+        wf_scenario_destroy(&sc);
+    }
+}
+
 /* ---------------------------------------------------------------------------------------------- main */
 
 static void remove_tmp_dir(void)
@@ -890,7 +968,7 @@ static void remove_tmp_dir(void)
     static const char *const names[] = {"inflow_a.csv", "inflow_b.csv", "cons_a.yaml", "cons_b.yaml", "free.yaml", "free_out.yaml",
                                         "fd_free.yaml", "fd_cong.yaml", "hill.yaml", "hill_z.yaml", "hill_z.csv",
                                         "e1.yaml", "e2.yaml", "e3.yaml", "e4.yaml", "e5.yaml", "e6.yaml", "e7.yaml",
-                                        "e8.yaml", "restore.yaml"};
+                                        "e8.yaml", "restore.yaml", "wt_open.yaml", "wt_warm.yaml"};
     char path[256];
     for (size_t i = 0; i < sizeof names / sizeof names[0]; i++) {
         snprintf(path, sizeof path, "%s/%s", tmp_dir, names[i]);
@@ -912,6 +990,7 @@ int main(void)
     RUN(test_fundamental_diagram_congested);
     RUN(test_grade);
     RUN(test_state_restore);
+    RUN(test_window_totals);
     RUN(test_scenario_errors);
     remove_tmp_dir();
     TEST_EXIT();
