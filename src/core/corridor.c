@@ -731,12 +731,51 @@ static void lanes_road(WfCorridor *c, WfLcRoad *r)
     }
 }
 
+/* The lanes' window accumulators in the kernel: all of them, or the step count alone while the trip's stand for the
+ * rest (win_is_trip). */
+static void window_gates(WfCorridor *c, int win_is_trip)
+{
+    c->win_is_trip = win_is_trip;
+    for (size_t l = 0; l < c->n_lanes; l++)
+        c->ln[l].lane.window = win_is_trip ? (WfAccum){.steps = c->ln[l].win.steps} : c->ln[l].win;
+}
+
+/* A vehicle that entered with the statistics window open has window totals equal to its trip totals, bit for bit:
+ * both start at zero at its entry and get the same additions at every step. Once every vehicle on the road did,
+ * the kernel adds to the trip's alone: in perf, the second copy took about a quarter of the fused step's own loops
+ * (run_block). It stays so: later vehicles enter with the window open too. A road split across processes keeps both:
+ * its vehicles cross to ranks that may not have switched. The front vehicle of each lane is usually the earliest
+ * to have entered, so while one from before the window remains the test ends at once. */
+static void window_is_trip(WfCorridor *c, long step)
+{
+    if (c->win_is_trip || c->pt.p || step < c->warm_steps) return;
+    double t_open = (double)c->warm_steps * c->sc->dt_s; /* the entrance's t of the window's first step */
+    for (size_t l = 0; l < c->n_lanes; l++) {
+        const CorLane *ln = &c->ln[l];
+        for (size_t k = 0; k < ln->veh.n; k++)
+            if (ln->t_ent[wf_corridor_slot(&ln->veh, k)] < t_open) return;
+    }
+    window_gates(c, 1);
+}
+
+/* Slot s's window totals written out from its trip's while win_is_trip (slot s of lane ln's arrays; lane 0's
+ * address every lane's slots): before they are read (cor_finish_vehicle, wf_sim_state) or moved (lanes_move), so
+ * that every slot holds what it held when the kernel kept both. */
+static void window_total_out(const WfCorridor *c, const CorLane *ln, size_t s)
+{
+    if (!c->win_is_trip) return;
+    ln->win.fuel_g[s] = ln->trip.fuel_g[s], ln->win.dist_m[s] = ln->trip.dist_m[s];
+    ln->win.stopped_s[s] = ln->trip.stopped_s[s], ln->win.stops[s] = ln->trip.stops[s];
+    ln->win.hard_brakes[s] = ln->trip.hard_brakes[s], ln->win.infeasible[s] = ln->trip.infeasible[s];
+}
+
 /* Every per-slot array of the lanes, moved: the k-th vehicle of the new order comes from global slot src[k] and goes
  * to global slot dst[k] (one gather into the scratch, then one scatter). */
 static void lanes_move(WfCorridor *c, const uint32_t *src, const uint32_t *dst, size_t n)
 {
     unsigned char *buf = c->snap.buf;
     CorLane *l0 = &c->ln[0];
+    for (size_t k = 0; c->win_is_trip && k < n; k++) window_total_out(c, l0, src[k]);
 #define MOVE_ARRAY(base, unit)                                                                               do {                                                                                                         unsigned char *a_ = (unsigned char *)(base);                                                             size_t u_ = (unit);                                                                                      for (size_t k = 0; k < n; k++) memcpy(buf + k * u_, a_ + (size_t)src[k] * u_, u_);                      for (size_t k = 0; k < n; k++) memcpy(a_ + (size_t)dst[k] * u_, buf + k * u_, u_);                  } while (0)
 #define MOVE(nm, field, stepped) MOVE_ARRAY(l0->field, sizeof *l0->field);
     SAVED_SLOT_ARRAYS(MOVE)
@@ -1218,55 +1257,6 @@ static int flush_trips(void *eng, WfError *err)
     return rc;
 }
 
-/* A vehicle's window totals: its own, or its trip's while they are the same (win_is_trip; the step count is the
- * window's own). */
-static const WfAccum *window_totals(const WfCorridor *c, const CorLane *ln)
-{
-    return c->win_is_trip ? &ln->trip : &ln->win;
-}
-
-/* The lanes' window accumulators in the kernel: all of them, or the step count alone while the trip's stand for the
- * rest (win_is_trip). */
-static void window_gates(WfCorridor *c, int win_is_trip)
-{
-    c->win_is_trip = win_is_trip;
-    for (size_t l = 0; l < c->n_lanes; l++)
-        c->ln[l].lane.window = win_is_trip ? (WfAccum){.steps = c->ln[l].win.steps} : c->ln[l].win;
-}
-
-/* A vehicle that entered with the statistics window open has window totals equal to its trip totals, bit for bit:
- * both start at zero at its entry and get the same additions at every step. Once every vehicle on the road did,
- * the kernel adds to the trip's alone (a corridor's step spent about a fifth of its kernel's time on the second
- * copy). It stays so: later vehicles enter with the window open too. A road split across processes keeps both:
- * its vehicles cross to ranks that may not have switched. The front vehicle of each lane is usually the earliest
- * to have entered, so while one from before the window remains the test ends at once. */
-static void window_is_trip(WfCorridor *c, long step)
-{
-    if (c->win_is_trip || c->pt.p || step < c->warm_steps) return;
-    double t_open = (double)c->warm_steps * c->sc->dt_s; /* the entrance's t of the window's first step */
-    for (size_t l = 0; l < c->n_lanes; l++) {
-        const CorLane *ln = &c->ln[l];
-        for (size_t k = 0; k < ln->veh.n; k++)
-            if (ln->t_ent[wf_corridor_slot(&ln->veh, k)] < t_open) return;
-    }
-    window_gates(c, 1);
-}
-
-/* The window totals of every vehicle on the road written out (what wf_sim_state lists: a checkpoint's, or a
- * caller's, read of them). */
-static void window_totals_out(WfCorridor *c)
-{
-    for (size_t l = 0; c->win_is_trip && l < c->n_lanes; l++) {
-        CorLane *ln = &c->ln[l];
-        for (size_t k = 0; k < ln->veh.n; k++) {
-            size_t s = wf_corridor_slot(&ln->veh, k);
-            ln->win.fuel_g[s] = ln->trip.fuel_g[s], ln->win.dist_m[s] = ln->trip.dist_m[s];
-            ln->win.stopped_s[s] = ln->trip.stopped_s[s], ln->win.stops[s] = ln->trip.stops[s];
-            ln->win.hard_brakes[s] = ln->trip.hard_brakes[s], ln->win.infeasible[s] = ln->trip.infeasible[s];
-        }
-    }
-}
-
 /* A vehicle's window totals join its class's; its trip joins the buffer. completed: 1 at x = L, 2 by the off-ramp
  * (not a trip of the road's length: not in the trips' means), 0 still on the road. */
 int cor_finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit, int completed, WfError *err)
@@ -1275,15 +1265,15 @@ int cor_finish_vehicle(WfCorridor *c, const CorLane *ln, size_t s, double t_exit
         c->lk.group_vehicle_s[ln->veh.group_id[s]] +=
             (completed ? t_exit : (double)c->st.steps_done * c->sc->dt_s) - ln->t_ent[s];
     const WfCorridorVehicles *vh = &ln->veh;
-    const WfAccum *w = window_totals(c, ln);
+    window_total_out(c, ln, s);
     size_t cl = vh->class_id[s];
-    c->st.cls_fuel[cl] += w->fuel_g[s];
-    c->st.cls_dist[cl] += w->dist_m[s];
-    c->st.cls_stops[cl] += w->stops[s];
-    c->st.cls_infeas[cl] += w->infeasible[s];
+    c->st.cls_fuel[cl] += ln->win.fuel_g[s];
+    c->st.cls_dist[cl] += ln->win.dist_m[s];
+    c->st.cls_stops[cl] += ln->win.stops[s];
+    c->st.cls_infeas[cl] += ln->win.infeasible[s];
     c->st.cls_steps[cl] += ln->win.steps[s];
-    c->st.tot_hard += w->hard_brakes[s];
-    c->st.tot_stopped_s += w->stopped_s[s];
+    c->st.tot_hard += ln->win.hard_brakes[s];
+    c->st.tot_stopped_s += ln->win.stopped_s[s];
     if (completed == 1) {
         c->st.trips_done++;
         c->st.sum_trip_time += t_exit - ln->t_ent[s];
@@ -1816,7 +1806,10 @@ WfEdie wf_corridor_edie_lane(const WfEdie *e, int lane, double *scratch)
 static size_t corridor_state(void *eng, WfStateVar *vars, size_t max)
 {
     WfCorridor *c = eng;
-    window_totals_out(c);
+    for (size_t l = 0; c->win_is_trip && l < c->n_lanes; l++) {
+        const CorLane *ln = &c->ln[l];
+        for (size_t k = 0; k < ln->veh.n; k++) window_total_out(c, ln, wf_corridor_slot(&ln->veh, k));
+    }
     WfCorridorVehicles *vh = &c->ln[0].veh;
     size_t cap = vh->cap, nl = c->n_lanes, k = 0, nd = c->det.n_int * c->det.n_det;
     size_t ne = nl * c->edie.nx * c->edie.nt;

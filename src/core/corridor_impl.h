@@ -202,7 +202,7 @@ struct WfCorridor {
     } vfree[WF_MAX_LANES];
     int      has_vl;        /* a virtual leader (outflow leader or speed) */
     /* every vehicle on the road entered with the statistics window open: its window totals are its trip totals
-     * (cor_window_totals), and the kernel adds to the trip's alone and counts the window's steps */
+     * (window_total_out in corridor.c), and the kernel adds to the trip's alone and counts the window's steps */
     int      win_is_trip;
     long     meas_step;     /* the step being stepped, for measure_after_step */
     int      meas_in_window;
