@@ -88,8 +88,9 @@ if [ -f "$tmp/k.h5.ckpt" ] && [ -f "$tmp/k.h5.partial" ] && $BIN run --resume "$
 then ok corridor_resume_after_sigkill_bit_identical; else ko corridor_resume_after_sigkill_bit_identical "see above"; fi
 
 # Warm-up 0: every vehicle enters with the statistics window open, so from the first step the kernel keeps only
-# the trip totals and the window totals are read from them (src/core/corridor.c, window_is_trip). A checkpoint must
-# still hold each vehicle's window totals, and the resumed run go on from them.
+# the trip totals and the window totals are read from them (src/core/corridor.c, window_is_trip); interrupted and
+# resumed that way, the run must still give the uninterrupted bytes. (The window totals a checkpoint holds are
+# checked vehicle by vehicle in tests/test_corridor.c, test_window_totals.)
 W="--set time.warmup_s=0"
 $BIN run $S -q -o "$tmp/ref_open.h5" $L $W || ko reference_run_open "rc=$?"
 start_until_checkpoint "$tmp/w0.h5" $W --checkpoint-every 0.2

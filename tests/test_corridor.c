@@ -883,11 +883,14 @@ static void test_scenario_errors(void)
     expect_error("e8.yaml", y, "starts empty");
 }
 
-/* A state block of the snapshot by name (NULL: none). */
-static const void *snap_block(const Snap *sn, const char *name)
+/* A state block of the snapshot by name (NULL: none), and its bytes into *size when size is not NULL. */
+static const void *snap_block(const Snap *sn, const char *name, size_t *size)
 {
     for (size_t i = 0; i < sn->n_vars; i++)
-        if (!strcmp(sn->vars[i].name, name)) return sn->bytes[i];
+        if (!strcmp(sn->vars[i].name, name)) {
+            if (size) *size = sn->vars[i].size;
+            return sn->bytes[i];
+        }
     return NULL;
 }
 
@@ -927,25 +930,24 @@ static void test_window_totals(void)
             CHECK(rc == WF_EINTR && sn.taken > 0, "the stopped run: rc %d (%s), %d checkpoints", rc, err.msg,
                   sn.taken);
         }
-        const size_t *n = snap_block(&sn, "n"), *first = snap_block(&sn, "first");
-        const double *t_ent = snap_block(&sn, "t_entry");
         size_t cap = 0;
-        for (size_t i = 0; i < sn.n_vars; i++)
-            if (!strcmp(sn.vars[i].name, "t_entry")) cap = sn.vars[i].size / sizeof(double);
+        const size_t *n = snap_block(&sn, "n", NULL), *first = snap_block(&sn, "first", NULL);
+        const double *t_ent = snap_block(&sn, "t_entry", &cap);
+        cap /= sizeof(double);
         CHECK(rc == WF_EINTR && n && first && t_ent && cap, "state blocks n, first and t_entry");
         size_t same = 0, before = 0, less = 0, n_veh = rc == WF_EINTR && n && first && t_ent && cap ? *n : 0;
         for (size_t k = 0; k < n_veh; k++) {
             size_t slot = (*first + *n - 1 - k) % cap;
             int all_same = 1;
             for (size_t q = 0; q < 3; q++) {
-                const double *a = snap_block(&sn, pairs[q][0]), *b = snap_block(&sn, pairs[q][1]);
+                const double *a = snap_block(&sn, pairs[q][0], NULL), *b = snap_block(&sn, pairs[q][1], NULL);
                 all_same &= a && b && a[slot] == b[slot];
             }
             for (size_t q = 0; q < 3; q++) {
-                const uint32_t *a = snap_block(&sn, counts[q][0]), *b = snap_block(&sn, counts[q][1]);
+                const uint32_t *a = snap_block(&sn, counts[q][0], NULL), *b = snap_block(&sn, counts[q][1], NULL);
                 all_same &= a && b && a[slot] == b[slot];
             }
-            const double *tf = snap_block(&sn, "trip_fuel"), *wf = snap_block(&sn, "w_fuel");
+            const double *tf = snap_block(&sn, "trip_fuel", NULL), *wf = snap_block(&sn, "w_fuel", NULL);
             if (warm && t_ent[slot] < 100.0) before++, less += tf && wf && wf[slot] < tf[slot];
             else same += all_same;
         }
